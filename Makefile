@@ -1,0 +1,63 @@
+# Two commands on a fresh machine: `make demo` (the main job) and `make test` (every test).
+# Each bootstraps what it needs: a virtual environment with the pinned requirements, then
+# `colcon build` of ros2_ws. Both steps are skipped when nothing they depend on changed.
+
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+WS := ros2_ws
+VENV_STAMP := $(VENV)/.requirements.stamp
+BUILD_STAMP := $(WS)/install/.build.stamp
+SOURCES := $(shell find $(WS)/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
+                   -not -path '*/.pytest_cache/*')
+# Every command below runs inside the venv with the workspace overlay sourced, as a user
+# would after `source install/setup.bash`.
+RUN := source $(VENV)/bin/activate && source $(WS)/install/local_setup.sh &&
+PYTEST_ARGS ?=
+
+.PHONY: all venv build test demo report bench lint lock clean
+all: build
+
+$(VENV_STAMP): requirements.txt
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r requirements.txt
+	touch $@
+
+venv: $(VENV_STAMP)
+
+$(BUILD_STAMP): $(VENV_STAMP) $(SOURCES)
+	source $(VENV)/bin/activate && cd $(WS) && \
+	  colcon --log-base log build --merge-install --event-handlers console_direct- summary+
+	touch $@
+
+build: $(BUILD_STAMP)
+
+test: build
+	$(RUN) python -m pytest $(PYTEST_ARGS)
+
+demo: build
+	$(RUN) ros2-ibvs demo
+
+report: build
+	$(RUN) ros2-ibvs report
+
+bench: build
+	$(RUN) python -m ibvs_bringup.bench
+
+lint: build
+	$(RUN) python -m pytest -m linter
+
+# Re-pin requirements.txt from requirements.in: what pip would install into an empty venv.
+# (pip freeze would list the message packages that the ROS wheels embed as egg-info,
+# which are not installable by name.)
+lock:
+	$(PYTHON) -m pip install --quiet --dry-run --ignore-installed --report .lock.json \
+	  -r requirements.in
+	$(PYTHON) -c "import json; r = json.load(open('.lock.json')); \
+	  print('# Pinned by make lock from requirements.in (Python 3.11, Linux x86_64).'); \
+	  print('\n'.join(sorted(i['metadata']['name'] + '==' + i['metadata']['version'] \
+	  for i in r['install'])))" > requirements.txt
+	rm -f .lock.json
+
+clean:
+	rm -rf $(WS)/build $(WS)/install $(WS)/log

@@ -1,0 +1,1 @@
+"""Scenarios, runner, recorder, metrics, plots and report of the paper's section 5."""

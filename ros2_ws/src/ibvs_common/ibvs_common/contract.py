@@ -1,0 +1,59 @@
+"""
+The interface contract of the node graph (DESIGN section 3) and its timing rule (section 4).
+
+Every name a node publishes or subscribes comes from here, so a rename is one edit.
+"""
+
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+
+JOINT_NAMES = tuple(f'joint_{i}' for i in range(1, 7))
+
+CLOCK = '/clock'
+JOINT_STATES = '/joint_states'
+LEFT_IMAGE = '/stereo/left/image_raw'
+RIGHT_IMAGE = '/stereo/right/image_raw'
+LEFT_INFO = '/stereo/left/camera_info'
+RIGHT_INFO = '/stereo/right/camera_info'
+STEREO_POSE = '/stereo/pose'
+FEATURES = '/ibvs/features'
+Q_FEEDFORWARD = '/ibvs/q_feedforward'
+Q_FEEDBACK = '/ibvs/q_feedback'
+EFFORT_COMMANDS = '/joint_effort_commands'
+TOOL_POSE = '/ibvs/tool_pose'
+DIAGNOSTICS = '/diagnostics'
+
+#: Base frame {O} and the camera frames (ROS optical frames, x right, y down, z forward).
+BASE_FRAME = 'base_link'
+CAMERA_FRAME = 'stereo_center_optical_frame'
+LEFT_CAMERA_FRAME = 'stereo_left_optical_frame'
+RIGHT_CAMERA_FRAME = 'stereo_right_optical_frame'
+
+#: Lockstep data must never be dropped: reliable, and deep enough for a burst.
+RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+#: Images are large: reliable, a few frames deep.
+IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
+                    reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
+#: Facts that do not change (camera pose): the last value reaches late joiners.
+LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def feedback_frame_ns(t_ns, camera_period_ns, latency_ns):
+    """
+    Return the stamp (ns) of the camera frame whose q_feedback applies at sim time ``t_ns``.
+
+    Camera frames are taken at n * camera_period_ns (n = 0, 1, ...). The feedback computed
+    from frame n takes effect ``latency_ns`` after it (camera-to-command latency, a
+    parameter in sim time, DESIGN section 4) and holds until the next one does. Returns
+    None before the first frame takes effect. The joint controller waits for exactly this
+    q_feedback before it answers /joint_states at ``t_ns``, which makes runs deterministic.
+    """
+    if camera_period_ns <= 0 or latency_ns < 0:
+        raise ValueError('camera_period_ns must be > 0 and latency_ns >= 0')
+    if t_ns < latency_ns:
+        return None
+    return ((t_ns - latency_ns) // camera_period_ns) * camera_period_ns

@@ -1,0 +1,190 @@
+"""
+Messages <-> numpy arrays and :mod:`ibvs_model` objects.
+
+Readers raise :class:`InputError` with a short reason (used as the rejection reason on
+/diagnostics) and never return NaN.
+"""
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
+from ibvs_model import StereoCamera, StereoIntrinsics
+import numpy as np
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import CameraInfo, JointState
+
+from . import contract
+
+
+class InputError(ValueError):
+    """A message cannot be used; ``reason`` is a short key for the rejection counter."""
+
+    def __init__(self, reason, detail=''):
+        """Keep the short ``reason`` and a longer ``detail`` for the log."""
+        super().__init__(f'{reason}: {detail}' if detail else reason)
+        self.reason = reason
+        self.detail = detail
+
+
+def stamp_ns(stamp):
+    """Return a builtin_interfaces/Time as integer nanoseconds (exact)."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def ns_stamp(ns):
+    """Return integer nanoseconds as builtin_interfaces/Time."""
+    ns = int(ns)
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def joint_state(stamp, position=None, velocity=None, effort=None, names=contract.JOINT_NAMES):
+    """Build a JointState with the contract's joint names."""
+    msg = JointState()
+    msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
+    msg.header.frame_id = contract.BASE_FRAME
+    msg.name = list(names)
+    if position is not None:
+        msg.position = [float(v) for v in position]
+    if velocity is not None:
+        msg.velocity = [float(v) for v in velocity]
+    if effort is not None:
+        msg.effort = [float(v) for v in effort]
+    return msg
+
+
+def read_joints(msg, field='position', names=contract.JOINT_NAMES):
+    """
+    Return ``msg.<field>`` as a (6,) array in the order of ``names``.
+
+    Accepts messages without names (then the order is the contract's) or with the six
+    names in any order. Raises :class:`InputError` for a wrong length, unknown names or a
+    non-finite value.
+    """
+    values = np.asarray(getattr(msg, field), dtype=float)
+    if values.shape != (len(names),):
+        raise InputError(f'wrong {field} length',
+                         f'{values.size} values, expected {len(names)}')
+    if len(msg.name):
+        if len(msg.name) != len(names) or set(msg.name) != set(names):
+            raise InputError('wrong joint names', f'{list(msg.name)}')
+        order = [list(msg.name).index(n) for n in names]
+        values = values[order]
+    if not np.all(np.isfinite(values)):
+        raise InputError(f'non-finite {field}', f'{values.tolist()}')
+    return values
+
+
+def pose_matrix(pose):
+    """Return a geometry_msgs/Pose as a 4x4 homogeneous transform."""
+    q = pose.orientation
+    quat = np.array([q.x, q.y, q.z, q.w], dtype=float)
+    pos = np.array([pose.position.x, pose.position.y, pose.position.z], dtype=float)
+    if not (np.all(np.isfinite(quat)) and np.all(np.isfinite(pos))):
+        raise InputError('non-finite pose')
+    norm = np.linalg.norm(quat)
+    if abs(norm - 1.0) > 1e-3:
+        raise InputError('quaternion not normalised', f'|q| = {norm:.6f}')
+    tf = np.eye(4)
+    tf[:3, :3] = Rotation.from_quat(quat / norm).as_matrix()
+    tf[:3, 3] = pos
+    return tf
+
+
+def matrix_pose(tf):
+    """Return a 4x4 homogeneous transform as a geometry_msgs/Pose."""
+    tf = np.asarray(tf, dtype=float)
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in tf[:3, 3])
+    x, y, z, w = Rotation.from_matrix(tf[:3, :3]).as_quat()
+    pose.orientation.x, pose.orientation.y = float(x), float(y)
+    pose.orientation.z, pose.orientation.w = float(z), float(w)
+    return pose
+
+
+def pose_stamped(tf, stamp, frame_id=contract.BASE_FRAME):
+    """Return a 4x4 transform as PoseStamped in ``frame_id``."""
+    msg = PoseStamped()
+    msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
+    msg.header.frame_id = frame_id
+    msg.pose = matrix_pose(tf)
+    return msg
+
+
+def camera_infos(intrinsics, stamp):
+    """
+    Return (left, right) CameraInfo of a rectified stereo pair (ROS conventions).
+
+    Both have K = [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]], no distortion, and
+    P = [K | t] with t = 0 on the left and t = (-f_u b, 0, 0) on the right.
+    """
+    k = intrinsics
+    infos = []
+    for frame, tx in ((contract.LEFT_CAMERA_FRAME, 0.0),
+                      (contract.RIGHT_CAMERA_FRAME, -k.fu * k.baseline)):
+        info = CameraInfo()
+        info.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
+        info.header.frame_id = frame
+        info.width, info.height = int(k.width), int(k.height)
+        info.distortion_model = 'plumb_bob'
+        info.d = [0.0] * 5
+        info.k = [k.fu, 0.0, k.cu, 0.0, k.fv, k.cv, 0.0, 0.0, 1.0]
+        info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        info.p = [k.fu, 0.0, k.cu, tx, 0.0, k.fv, k.cv, 0.0, 0.0, 0.0, 1.0, 0.0]
+        infos.append(info)
+    return tuple(infos)
+
+
+def intrinsics_from_infos(left, right):
+    """
+    Return :class:`StereoIntrinsics` from the left and right CameraInfo.
+
+    The baseline comes from the right projection matrix, P[3] = -f_u b. Raises
+    :class:`InputError` when the two disagree on size or intrinsics, or P[3] >= 0.
+    """
+    pl = np.asarray(left.p, dtype=float)
+    pr = np.asarray(right.p, dtype=float)
+    if pl.shape != (12,) or pr.shape != (12,) or not (np.all(np.isfinite(pl))
+                                                      and np.all(np.isfinite(pr))):
+        raise InputError('bad camera_info', 'P must have 12 finite values')
+    if (left.width, left.height) != (right.width, right.height):
+        raise InputError('camera_info size mismatch',
+                         f'{left.width}x{left.height} vs {right.width}x{right.height}')
+    if not np.allclose(pl[[0, 2, 5, 6]], pr[[0, 2, 5, 6]], rtol=1e-9, atol=1e-9):
+        raise InputError('camera_info intrinsics mismatch', 'left and right P differ')
+    if pr[3] >= 0.0 or pl[0] <= 0.0:
+        raise InputError('bad camera_info', f'right P[3] = {pr[3]} must be -f_u * b < 0')
+    try:
+        return StereoIntrinsics(int(left.width), int(left.height), float(pl[0]), float(pl[5]),
+                                float(pl[2]), float(pl[6]), float(-pr[3] / pr[0]))
+    except ValueError as exc:
+        raise InputError('bad camera_info', str(exc)) from None
+
+
+def camera_from_msgs(left_info, right_info, pose_msg):
+    """Return the :class:`StereoCamera` described by both CameraInfo and /stereo/pose."""
+    pose = pose_msg.pose if hasattr(pose_msg, 'pose') else pose_msg
+    return StereoCamera(intrinsics_from_infos(left_info, right_info), pose_matrix(pose))
+
+
+def features_msg(features, stamp, frame_id=contract.CAMERA_FRAME):
+    """Return p_I (6,) as PolygonStamped: one point per marker, x = u_l, y = u_r, z = v."""
+    p = np.asarray(features, dtype=float).reshape(2, 3)
+    msg = PolygonStamped()
+    msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
+    msg.header.frame_id = frame_id
+    msg.polygon.points = [Point32(x=float(r[0]), y=float(r[1]), z=float(r[2])) for r in p]
+    return msg
+
+
+def read_features(msg):
+    """
+    Return p_I (6,) from a PolygonStamped; :class:`InputError` if not 2 finite points.
+
+    Point32 holds float32: features travel with about 1e-4 px resolution at HD720.
+    """
+    points = msg.polygon.points
+    if len(points) != 2:
+        raise InputError('wrong feature count', f'{len(points)} points, expected 2')
+    values = np.array([[p.x, p.y, p.z] for p in points], dtype=float).reshape(6)
+    if not np.all(np.isfinite(values)):
+        raise InputError('non-finite features', f'{values.tolist()}')
+    return values

@@ -1,0 +1,91 @@
+"""
+Counting and reporting of rejected inputs and node status on /diagnostics.
+
+Every rejected input (NaN, wrong length, stale stamp, ...) is counted per reason and
+logged the first time that reason occurs (then at most every ``log_period_s``), never
+raised: a node keeps running whatever it is fed.
+"""
+
+from collections import Counter
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.clock import Clock, ClockType
+
+from . import contract
+
+
+class Diagnostics:
+    """
+    Status values and rejection counters of one node, published on /diagnostics.
+
+    ``values`` are free key/value pairs the node sets (mode, rank, condition number, ...).
+    Rejections are counted per ``'<input>: <reason>'``. Publishing runs on a steady-clock
+    timer so that it goes on while sim time is paused.
+    """
+
+    def __init__(self, node, name, period_s=1.0, log_period_s=5.0):
+        """Create the /diagnostics publisher and the steady-clock timer of ``node``."""
+        self._node = node
+        self._name = f'{node.get_name()}: {name}'
+        self._hardware_id = node.get_fully_qualified_name()
+        self._log_period_s = log_period_s
+        self._pub = node.create_publisher(DiagnosticArray, contract.DIAGNOSTICS, 10)
+        self.rejections = Counter()
+        self.values = {}
+        self.level = DiagnosticStatus.OK
+        self.message = 'ok'
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._last_log = {}
+        self._timer = node.create_timer(period_s, self.publish, clock=self._steady)
+
+    def reject(self, source, reason, detail=''):
+        """Count one rejected input from ``source`` for ``reason``; log it once per period."""
+        key = f'{source}: {reason}'
+        self.rejections[key] += 1
+        now = self._steady.now().nanoseconds * 1e-9
+        last = self._last_log.get(key)
+        if last is None or now - last >= self._log_period_s:
+            self._last_log[key] = now
+            count = self.rejections[key]
+            self._node.get_logger().warn(
+                f'rejected {source} ({reason}){": " + detail if detail else ""}'
+                f' [{count} so far]')
+
+    @property
+    def rejected_total(self):
+        """Return the number of inputs rejected so far, all reasons together."""
+        return sum(self.rejections.values())
+
+    def update(self, **values):
+        """Set status values shown on /diagnostics (numbers are formatted, others str())."""
+        self.values.update(values)
+
+    def set_level(self, level, message):
+        """Set the overall level (DiagnosticStatus.OK/WARN/ERROR) and its message."""
+        self.level, self.message = level, message
+
+    def status(self):
+        """Return the current DiagnosticStatus."""
+        kvs = [KeyValue(key=k, value=_fmt(v)) for k, v in self.values.items()]
+        kvs.append(KeyValue(key='rejected_total', value=str(self.rejected_total)))
+        kvs += [KeyValue(key=f'rejected[{k}]', value=str(n))
+                for k, n in sorted(self.rejections.items())]
+        return DiagnosticStatus(level=self.level, name=self._name, message=self.message,
+                                hardware_id=self._hardware_id, values=kvs)
+
+    def publish(self):
+        """Publish the current status now."""
+        msg = DiagnosticArray()
+        msg.header.stamp = self._node.get_clock().now().to_msg()
+        msg.status = [self.status()]
+        self._pub.publish(msg)
+
+
+def _fmt(value):
+    if isinstance(value, float):
+        return f'{value:.6g}'
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_fmt(v) for v in value) + ']'
+    if hasattr(value, 'tolist'):
+        return _fmt(value.tolist())
+    return str(value)

@@ -1,0 +1,139 @@
+"""
+Parameters declared with descriptors (units, ranges) and validated when a node starts.
+
+A bad value raises :class:`ParameterError` with a message that names the parameter and
+the allowed range; :func:`ibvs_common.node_main.run` turns it into a fatal log line and a
+non-zero exit code.
+"""
+
+from dataclasses import dataclass
+import math
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+
+class ParameterError(ValueError):
+    """A parameter has a value outside its allowed range or of the wrong kind."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """
+    One parameter: name, default, meaning, units and what values are allowed.
+
+    ``low``/``high`` bound a number or every element of an array (inclusive unless
+    ``low_open``/``high_open``); ``choices`` lists the allowed strings or numbers;
+    ``length`` fixes an array's length.
+    """
+
+    name: str
+    default: object
+    description: str
+    units: str = ''
+    low: float = None
+    high: float = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple = None
+    length: int = None
+    read_only: bool = True
+
+    def allowed(self):
+        """Describe the allowed values in words, for descriptors and error messages."""
+        if self.choices is not None:
+            return 'one of ' + ', '.join(repr(c) for c in self.choices)
+        lo = '-inf' if self.low is None else f'{self.low:g}'
+        hi = 'inf' if self.high is None else f'{self.high:g}'
+        text = f"{'(' if self.low_open or self.low is None else '['}{lo}, {hi}" \
+               f"{')' if self.high_open or self.high is None else ']'}"
+        if self.length is not None:
+            text = f'{self.length} values, each in {text}'
+        return text
+
+    def descriptor(self):
+        """Return the ParameterDescriptor shown by ``ros2 param describe``."""
+        desc = ParameterDescriptor(
+            description=f'{self.description} [{self.units or "-"}]; allowed: {self.allowed()}',
+            read_only=self.read_only)
+        if self.length is None and self.choices is None and not isinstance(self.default, bool):
+            if isinstance(self.default, int) and self.low is not None and self.high is not None:
+                desc.integer_range = [IntegerRange(from_value=int(self.low),
+                                                   to_value=int(self.high), step=0)]
+            elif isinstance(self.default, float) and self.low is not None \
+                    and self.high is not None:
+                desc.floating_point_range = [FloatingPointRange(
+                    from_value=float(self.low), to_value=float(self.high), step=0.0)]
+        return desc
+
+    def check(self, value):
+        """Return ``value`` if allowed, else raise :class:`ParameterError` naming the parameter."""
+        def fail(why):
+            raise ParameterError(
+                f"parameter '{self.name}' = {value!r} is invalid: {why};"
+                f' allowed: {self.allowed()}')
+
+        if self.choices is not None:
+            if value not in self.choices:
+                fail('not an allowed choice')
+            return value
+        if isinstance(self.default, str):
+            if not isinstance(value, str):
+                fail('not a string')
+            return value
+        if isinstance(self.default, bool):
+            if not isinstance(value, bool):
+                fail('not a boolean')
+            return value
+        values = list(value) if isinstance(value, (list, tuple)) else [value]
+        if self.length is not None:
+            if not isinstance(value, (list, tuple)):
+                fail('not an array')
+            if len(values) != self.length:
+                fail(f'has {len(values)} values')
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                fail('not a number')
+            if not math.isfinite(v):
+                fail('not finite')
+            if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
+                fail('out of range')
+            if self.high is not None and (v > self.high or (self.high_open and v == self.high)):
+                fail('out of range')
+        return value
+
+
+def _plain(value, default):
+    """Convert rclpy's value to plain Python, integers to floats where the default is a float."""
+    if hasattr(value, 'tolist'):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        value = list(value)
+        if isinstance(default, (list, tuple)) and default and isinstance(default[0], float):
+            value = [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                     for v in value]
+        return value
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def declare(node, specs):
+    """
+    Declare every :class:`Param` on ``node`` and return their validated values by name.
+
+    Integer defaults accept integer values only; float defaults also accept integers
+    (a YAML ``1`` for a float parameter is a common slip), which are converted.
+    """
+    values = {}
+    for spec in specs:
+        descriptor = spec.descriptor()
+        # Types are checked by Param.check, which names the allowed range; rclpy's own
+        # static typing would reject a YAML 1 for a float with a less helpful message.
+        descriptor.dynamic_typing = True
+        try:
+            param = node.declare_parameter(spec.name, spec.default, descriptor)
+        except Exception as exc:  # rclpy raises several types for a bad override
+            raise ParameterError(f"parameter '{spec.name}': {exc}; allowed: {spec.allowed()}") \
+                from None
+        values[spec.name] = spec.check(_plain(param.value, spec.default))
+    return values

@@ -1,0 +1,1 @@
+"""Inner joint loop, feedforward and adaptive Youla feedback of the paper (section 4)."""

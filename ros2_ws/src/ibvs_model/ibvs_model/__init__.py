@@ -1,0 +1,33 @@
+"""
+Pure-Python model of the IRB 4600 and the ZED 2 stereo camera (no ROS).
+
+Kinematics (eq. 4-10, 43), stereo camera (eq. 12-22) and the camera-and-robot model F
+(eq. 30-32, 42) of Li and Assadian, "Innovative Adaptive Image Based Visual Servoing
+Control of 6 DoFs Industrial Robot Manipulators".
+"""
+
+from ._validate import nearest_rotation
+from .camera import look_at, StereoCamera, StereoIntrinsics
+from .combined import CameraRobotModel
+from .errors import (BehindCameraError, InvalidInputError, ModelError, TriangulationError,
+                     UnreachablePoseError)
+from .robot import (fiducial_points, forward_kinematics, geometric_jacobian, ik_position_axis,
+                    ik_solutions, inverse_kinematics, IRB4600, joint_frames, point_jacobian,
+                    pose_error, pose_from, RobotParams)
+
+__all__ = [
+    'BehindCameraError', 'CameraRobotModel', 'fiducial_points', 'forward_kinematics',
+    'geometric_jacobian', 'ik_position_axis', 'ik_solutions', 'InvalidInputError',
+    'inverse_kinematics', 'IRB4600', 'joint_frames', 'look_at', 'ModelError',
+    'nearest_rotation', 'point_jacobian', 'pose_error', 'pose_from', 'RobotParams',
+    'StereoCamera', 'StereoIntrinsics', 'TriangulationError', 'UnreachablePoseError',
+    'default_model',
+]
+
+
+def default_model(resolution='HD720', params=IRB4600):
+    """Return F for the paper's robot and the ZED 2 at the default pose (DESIGN section 5)."""
+    from . import paper
+    camera = StereoCamera(StereoIntrinsics.zed2(resolution),
+                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+    return CameraRobotModel(camera, params)

@@ -1,0 +1,221 @@
+"""
+ZED 2 stereo camera model: pose (eq. 12-15), projection (eq. 16-22), triangulation.
+
+Frame {C} is the paper's: midway between the two lenses, x right, y down, z along the
+parallel optical axes. Both images share the intrinsics (f_u, f_v, c_u, c_v), no skew.
+
+Sign convention (DESIGN section 5). The paper's eq. (19)-(20) put the left lens at
+X = +b/2, so that u_r > u_l. ROS puts the left lens at x = -b/2 (x to the right), and the
+right camera's CameraInfo has P[3] = -f_u * b. This module follows ROS:
+
+    u_l = f_u (X + b/2) / Z + c_u,   u_r = f_u (X - b/2) / Z + c_u,   v = f_v Y / Z + c_v
+
+so the disparity u_l - u_r = f_u b / Z is positive. With c_u = c_v = 0 and b -> -b these
+are exactly eq. (18)-(20).
+
+Pixel coordinates follow OpenCV: the centre of pixel (i, j) is at u = i, v = j, so an
+image W pixels wide spans u in [-0.5, W - 0.5] and its centre is c_u = (W - 1) / 2.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from ._validate import as_array, as_transform
+from .errors import BehindCameraError, InvalidInputError, TriangulationError
+
+ZED2_FOCAL_LENGTH_M = 2.8e-3
+ZED2_BASELINE_M = 0.12
+ZED2_HFOV_DEG = 86.09
+ZED2_VFOV_DEG = 55.35
+ZED2_RESOLUTIONS = {'HD720': (1280, 720), 'VGA': (672, 376), 'HD1080': (1920, 1080)}
+
+
+@dataclass(frozen=True)
+class StereoIntrinsics:
+    """Intrinsics shared by both images, and the baseline b (m) between the lenses."""
+
+    width: int
+    height: int
+    fu: float
+    fv: float
+    cu: float
+    cv: float
+    baseline: float
+
+    def __post_init__(self):
+        """Reject sizes, focal lengths and baselines that make the model meaningless."""
+        if int(self.width) != self.width or int(self.height) != self.height \
+                or self.width <= 0 or self.height <= 0:
+            raise InvalidInputError(
+                f'image size must be positive integers, got {self.width} x {self.height}')
+        for name in ('fu', 'fv', 'baseline'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise InvalidInputError(f'{name} must be finite and > 0, got {value}')
+        for name in ('cu', 'cv'):
+            if not math.isfinite(getattr(self, name)):
+                raise InvalidInputError(f'{name} must be finite')
+
+    @classmethod
+    def from_fov(cls, width, height, hfov_deg=ZED2_HFOV_DEG, vfov_deg=ZED2_VFOV_DEG,
+                 baseline=ZED2_BASELINE_M, cu=None, cv=None):
+        """
+        Pinhole intrinsics from the image size and the field of view (paper Appendix).
+
+        f_u = (W / 2) / tan(alpha / 2), f_v = (H / 2) / tan(beta / 2); principal point at the
+        image centre unless given. ZED 2 at HD720: f_u ~ 686 px.
+        """
+        for name, value in (('hfov_deg', hfov_deg), ('vfov_deg', vfov_deg)):
+            if not (math.isfinite(value) and 0.0 < value < 180.0):
+                raise InvalidInputError(f'{name} must be in (0, 180) degrees, got {value}')
+        fu = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+        fv = (height / 2.0) / math.tan(math.radians(vfov_deg) / 2.0)
+        return cls(int(width), int(height), fu, fv,
+                   (width - 1) / 2.0 if cu is None else float(cu),
+                   (height - 1) / 2.0 if cv is None else float(cv), float(baseline))
+
+    @classmethod
+    def zed2(cls, resolution='HD720'):
+        """ZED 2 intrinsics at one of its modes: 'HD720' (default), 'VGA' or 'HD1080'."""
+        if resolution not in ZED2_RESOLUTIONS:
+            raise InvalidInputError(
+                f'resolution must be one of {sorted(ZED2_RESOLUTIONS)}, got {resolution!r}')
+        return cls.from_fov(*ZED2_RESOLUTIONS[resolution])
+
+    @property
+    def K(self):  # noqa: N802 (the usual name of the camera matrix)
+        """Return the 3x3 camera matrix of either image (eq. 16 with s_c = 0)."""
+        return np.array([[self.fu, 0.0, self.cu], [0.0, self.fv, self.cv], [0.0, 0.0, 1.0]])
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)):
+    """
+    Return T_C^O (eq. 12) of a camera at ``eye`` whose optical axis points at ``target``.
+
+    Columns of the rotation: x right (n), y down (s), z forward (a), with ``up`` pointing
+    up in the image.
+    """
+    eye = as_array(eye, (3,), 'eye')
+    target = as_array(target, (3,), 'target')
+    up = as_array(up, (3,), 'up')
+    z = target - eye
+    if np.linalg.norm(z) < 1e-9:
+        raise InvalidInputError('look_at: eye and target coincide')
+    z = z / np.linalg.norm(z)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:
+        raise InvalidInputError('look_at: up is parallel to the viewing direction')
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    tf = np.eye(4)
+    tf[:3, 0], tf[:3, 1], tf[:3, 2], tf[:3, 3] = x, y, z, eye
+    return tf
+
+
+class StereoCamera:
+    """A calibrated stereo pair at a fixed pose T_C^O in the robot base frame {O}."""
+
+    def __init__(self, intrinsics, pose_C_O):
+        """Store the intrinsics and the pose T_C^O (eq. 12); T_O^C = (T_C^O)^-1 (eq. 13)."""
+        if not isinstance(intrinsics, StereoIntrinsics):
+            raise InvalidInputError('intrinsics must be a StereoIntrinsics')
+        self.intrinsics = intrinsics
+        self.pose_C_O = as_transform(pose_C_O, 'pose_C_O')
+        self._rot_O_C = self.pose_C_O[:3, :3].T
+        self._pos = self.pose_C_O[:3, 3]
+
+    def to_camera(self, points_O):
+        """Return points (N, 3) of {O} expressed in {C}, eq. (14)-(15)."""
+        points_O = as_array(points_O, (None, 3), 'points_O')
+        return (points_O - self._pos) @ self._rot_O_C.T
+
+    def to_base(self, points_C):
+        """Return points (N, 3) of {C} expressed in {O}."""
+        points_C = as_array(points_C, (None, 3), 'points_C')
+        return points_C @ self._rot_O_C + self._pos
+
+    def project_camera(self, points_C):
+        """
+        Return (u_l, u_r, v) rows (N, 3) of points given in {C}, eq. (16)-(22), ROS signs.
+
+        Raises :class:`BehindCameraError` for a point with Z^C <= 0.
+        """
+        points_C = as_array(points_C, (None, 3), 'points_C')
+        z = points_C[:, 2]
+        if np.any(z <= 1e-9):
+            idx = int(np.argmin(z))
+            raise BehindCameraError(
+                f'point {idx} is behind the camera (Z^C = {z[idx]:.4g} m <= 0): no projection')
+        k = self.intrinsics
+        half_b = k.baseline / 2.0
+        out = np.empty_like(points_C)
+        out[:, 0] = k.fu * (points_C[:, 0] + half_b) / z + k.cu
+        out[:, 1] = k.fu * (points_C[:, 0] - half_b) / z + k.cu
+        out[:, 2] = k.fv * points_C[:, 1] / z + k.cv
+        return out
+
+    def project(self, points_O):
+        """Return (u_l, u_r, v) rows (N, 3) of points given in {O} (eq. 14-22)."""
+        return self.project_camera(self.to_camera(points_O))
+
+    def projection_jacobian(self, point_O):
+        """Return d(u_l, u_r, v) / d p^O (3x3) at one point of {O}."""
+        point_C = self.to_camera(as_array(point_O, (3,), 'point_O')[None])[0]
+        x, y, z = point_C
+        if z <= 1e-9:
+            raise BehindCameraError(f'point is behind the camera (Z^C = {z:.4g} m <= 0)')
+        k = self.intrinsics
+        half_b = k.baseline / 2.0
+        d_dc = np.array([
+            [k.fu / z, 0.0, -k.fu * (x + half_b) / z ** 2],
+            [k.fu / z, 0.0, -k.fu * (x - half_b) / z ** 2],
+            [0.0, k.fv / z, -k.fv * y / z ** 2],
+        ])
+        return d_dc @ self._rot_O_C
+
+    def triangulate_camera(self, coords):
+        """
+        Return points (N, 3) in {C} from (u_l, u_r, v) rows: the inverse of eq. (19)-(22).
+
+        Z = f_u b / (u_l - u_r), X = (u_l - c_u) Z / f_u - b / 2, Y = (v - c_v) Z / f_v.
+        Raises :class:`TriangulationError` when the disparity is not positive.
+        """
+        coords = as_array(coords, (None, 3), 'coords')
+        k = self.intrinsics
+        disparity = coords[:, 0] - coords[:, 1]
+        if np.any(disparity <= 1e-12):
+            idx = int(np.argmin(disparity))
+            raise TriangulationError(
+                f'row {idx}: disparity u_l - u_r = {disparity[idx]:.4g} px must be > 0')
+        z = k.fu * k.baseline / disparity
+        out = np.empty_like(coords)
+        out[:, 0] = (coords[:, 0] - k.cu) * z / k.fu - k.baseline / 2.0
+        out[:, 1] = (coords[:, 2] - k.cv) * z / k.fv
+        out[:, 2] = z
+        return out
+
+    def triangulate(self, coords):
+        """Return points (N, 3) in {O} from (u_l, u_r, v) rows."""
+        return self.to_base(self.triangulate_camera(coords))
+
+    def in_view(self, points_O, margin_px=0.0):
+        """
+        Return a bool per point: in front of the camera and inside both images.
+
+        ``margin_px`` shrinks the image on every side (for example by a marker's radius in
+        pixels, so that the whole marker is visible).
+        """
+        points_C = self.to_camera(points_O)
+        k = self.intrinsics
+        front = points_C[:, 2] > 1e-9
+        out = np.zeros(len(points_C), dtype=bool)
+        if np.any(front):
+            uv = self.project_camera(points_C[front])
+            lo_u, hi_u = -0.5 + margin_px, k.width - 0.5 - margin_px
+            lo_v, hi_v = -0.5 + margin_px, k.height - 0.5 - margin_px
+            inside = ((uv[:, 0] >= lo_u) & (uv[:, 0] <= hi_u) & (uv[:, 1] >= lo_u)
+                      & (uv[:, 1] <= hi_u) & (uv[:, 2] >= lo_v) & (uv[:, 2] <= hi_v))
+            out[front] = inside
+        return out

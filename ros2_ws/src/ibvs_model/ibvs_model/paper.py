@@ -1,0 +1,61 @@
+"""
+Numbers of the paper's section 5 and of DESIGN section 5, in one place.
+
+Poses are T_E^O of the flange {E}; the paper prints rotations with four digits, so
+:func:`nearest_rotation` makes them orthonormal before they are used as IK targets.
+"""
+
+import math
+
+import numpy as np
+
+from ._validate import nearest_rotation
+from .robot import pose_from
+
+#: Target pose (section 5.1): P = [-1, 0.2, 0.3] m, tool pointing down.
+TARGET_POSITION = (-1.0, 0.2, 0.3)
+TARGET_ROTATION = ((0.0, -1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, -1.0))
+
+#: Scenario 1 start: both fiducials in view (rotation as printed, four digits).
+SCENARIO1_POSITION = (1.404, 0.228, 1.171)
+SCENARIO1_ROTATION_PRINTED = ((-0.4893, -0.0262, 0.8717),
+                              (0.2427, 0.9560, 0.1650),
+                              (-0.8377, 0.2932, -0.4614))
+
+#: Scenarios 2 and 3 start: fiducials out of view; 1.5 cm from FK(q = 0) = (1.27, 0, 1.57).
+SCENARIO23_POSITION = (1.285, 0.0, 1.57)
+SCENARIO23_ROTATION = ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (-1.0, 0.0, 0.0))
+
+#: Joint disturbance d_q of scenarios 1 and 3, degrees.
+DISTURBANCE_DEG = (0.1, 0.5, 0.2, 0.3, -0.1, 0.3)
+
+#: Inner-loop time constant (bandwidth 100 rad/s), outer-loop natural frequency and damping.
+TAU_IN = 0.01
+OMEGA_N = 10.0
+ZETA = 1.0 / math.sqrt(2.0)
+
+#: Camera pose (the paper gives none; DESIGN section 5): eye and look-at point in {O}, z up.
+CAMERA_EYE = (0.3, -1.6, 1.2)
+CAMERA_LOOK_AT = (0.3, 0.2, 0.5)
+
+
+def target_pose():
+    """Return the target T_E^O of section 5.1."""
+    return pose_from(TARGET_POSITION, TARGET_ROTATION)
+
+
+def scenario_start_pose(scenario):
+    """Return the start T_E^O of scenario 1, 2 or 3 (the printed rotation orthonormalised)."""
+    if scenario == 1:
+        return pose_from(SCENARIO1_POSITION,
+                         nearest_rotation(np.array(SCENARIO1_ROTATION_PRINTED)))
+    if scenario in (2, 3):
+        return pose_from(SCENARIO23_POSITION, SCENARIO23_ROTATION)
+    raise ValueError(f'scenario must be 1, 2 or 3, got {scenario!r}')
+
+
+def scenario_disturbance(scenario):
+    """Return d_q (rad) of a scenario: the paper's in scenarios 1 and 3, zero in scenario 2."""
+    if scenario not in (1, 2, 3):
+        raise ValueError(f'scenario must be 1, 2 or 3, got {scenario!r}')
+    return np.radians(DISTURBANCE_DEG) if scenario in (1, 3) else np.zeros(6)
