@@ -1,0 +1,48 @@
+"""
+Parameters that several nodes read, declared the same way everywhere.
+
+A scenario file (``ibvs_bringup/config/scenario*.yaml``) sets them under ``/**`` so that
+every node started with ``--ros-args --params-file`` sees the same values; each node
+declares only those it uses (undeclared overrides are ignored by rclpy).
+"""
+
+from ibvs_model import paper
+
+from .params import Param
+
+SCENARIO = Param('scenario', 1, "paper scenario (section 5.1) giving the start pose", '-',
+                 low=1, high=3)
+DISTURBANCE_DEG = Param(
+    'disturbance_deg', [0.0] * 6,
+    'joint disturbance d_q: true angle = encoder angle + d_q (paper: scenarios 1 and 3)',
+    'deg', low=-10.0, high=10.0, length=6)
+TARGET_POSITION = Param('target_position', list(paper.TARGET_POSITION),
+                        'target flange position in {O} (section 5.1)', 'm',
+                        low=-3.0, high=3.0, length=3)
+TARGET_ROTATION = Param('target_rotation',
+                        [float(v) for row in paper.TARGET_ROTATION for v in row],
+                        'target flange rotation [n s a] in {O}, row-major 3x3', '-',
+                        low=-1.0, high=1.0, length=9)
+CAMERA_RATE_HZ = Param('camera_rate_hz', 30.0, 'stereo frame rate (ZED 2 HD720: 15/30/60)',
+                       'Hz', low=0.0, high=100.0, low_open=True)
+FEEDBACK_LATENCY_S = Param(
+    'feedback_latency_s', 0.0,
+    'camera-to-command latency in sim time: q_feedback of a frame acts this long after it',
+    's', low=0.0, high=1.0)
+PHYSICS_RATE_HZ = Param('physics_rate_hz', 1000.0, 'physics and joint-loop rate', 'Hz',
+                        low=100.0, high=10000.0)
+TAU_IN = Param('tau_in', paper.TAU_IN, 'inner-loop time constant tau_in (eq. 28-29)', 's',
+               low=0.0, high=1.0, low_open=True)
+OMEGA_N = Param('omega_n', paper.OMEGA_N, 'outer-loop natural frequency (eq. 36)', 'rad/s',
+                low=0.0, high=1000.0, low_open=True)
+ZETA = Param('zeta', paper.ZETA, 'outer-loop damping ratio (eq. 36)', '-',
+             low=0.0, high=10.0, low_open=True)
+L2_SCALE = Param('l2_scale', 1.0, 'factor on link length L2 of the simulated robot only '
+                 '(model uncertainty, Figure 13)', '-', low=0.1, high=2.0)
+L4_SCALE = Param('l4_scale', 1.0, 'factor on link length L4 of the simulated robot only '
+                 '(model uncertainty, Figure 13)', '-', low=0.1, high=2.0)
+ACTUATORS = Param('actuators', 'ideal', "'ideal' (the paper: no limits) or 'limited' "
+                  '(IRB 4600 speed and torque limits)', '-', choices=('ideal', 'limited'))
+STALE_TIMEOUT_S = Param('stale_timeout_s', 0.5,
+                        'inputs older than this (sim time) are rejected as stale', 's',
+                        low=0.0, high=60.0, low_open=True)
