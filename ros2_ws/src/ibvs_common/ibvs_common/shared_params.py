@@ -10,7 +10,7 @@ from ibvs_model import paper
 
 from .params import Param
 
-SCENARIO = Param('scenario', 1, "paper scenario (section 5.1) giving the start pose", '-',
+SCENARIO = Param('scenario', 1, 'paper scenario (section 5.1) giving the start pose', '-',
                  low=1, high=3)
 DISTURBANCE_DEG = Param(
     'disturbance_deg', [0.0] * 6,
