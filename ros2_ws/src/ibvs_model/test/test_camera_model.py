@@ -1,0 +1,188 @@
+"""Stereo camera (eq. 12-22), triangulation and the camera-and-robot model F (eq. 30-32, 42)."""
+
+from ibvs_model import (BehindCameraError, CameraRobotModel, default_model, InvalidInputError,
+                        inverse_kinematics, IRB4600, look_at, StereoCamera, StereoIntrinsics,
+                        TriangulationError, UnreachablePoseError)
+from ibvs_model import paper
+import numpy as np
+import pytest
+
+N_RANDOM = 200
+
+
+@pytest.fixture(scope='module')
+def model():
+    return default_model()
+
+
+def random_in_view_configurations(model, n, seed):
+    """Return n joint vectors whose two fiducials are inside both images."""
+    rng = np.random.default_rng(seed)
+    q_target = inverse_kinematics(paper.target_pose())
+    q_start = inverse_kinematics(paper.scenario_start_pose(1))
+    out = []
+    while len(out) < n:
+        # Around the segment between two in-view poses, so that most draws are in view.
+        s = rng.uniform()
+        q = (1 - s) * q_start + s * q_target + rng.normal(0.0, 0.15, 6)
+        if IRB4600.within_limits(q) and np.all(model.in_view(q)):
+            out.append(q)
+    return np.array(out)
+
+
+def test_zed2_intrinsics_from_field_of_view():
+    k = StereoIntrinsics.zed2('HD720')
+    assert k.fu == pytest.approx(640 / np.tan(np.radians(86.09 / 2)))
+    assert 680.0 < k.fu < 690.0 and 680.0 < k.fv < 690.0
+    assert (k.cu, k.cv) == (639.5, 359.5)
+    assert k.baseline == 0.12
+    vga = StereoIntrinsics.zed2('VGA')
+    assert (vga.width, vga.height) == (672, 376)
+
+
+def test_look_at_gives_x_right_y_down_z_forward():
+    tf = look_at([0.0, -2.0, 1.0], [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(tf[:3, 2], [0, 1, 0], atol=1e-12)   # forward
+    np.testing.assert_allclose(tf[:3, 1], [0, 0, -1], atol=1e-12)  # down
+    np.testing.assert_allclose(tf[:3, 0], [1, 0, 0], atol=1e-12)   # right
+    np.testing.assert_allclose(tf[:3, :3].T @ tf[:3, :3], np.eye(3), atol=1e-12)
+
+
+def test_projection_follows_ros_stereo_sign(model):
+    cam = model.camera
+    point_c = np.array([[0.1, -0.05, 2.0]])
+    ul, ur, v = cam.project_camera(point_c)[0]
+    k = cam.intrinsics
+    assert ul - ur == pytest.approx(k.fu * k.baseline / 2.0)  # disparity f_u b / Z > 0
+    # Eq. (19)-(20) with the lens at x = -b/2 for the left image (ROS), plus c_u.
+    assert ul == pytest.approx(k.fu * (0.1 + 0.06) / 2.0 + k.cu)
+    assert ur == pytest.approx(k.fu * (0.1 - 0.06) / 2.0 + k.cu)
+    assert v == pytest.approx(k.fv * -0.05 / 2.0 + k.cv)
+
+
+def test_triangulation_inverts_projection(model):
+    rng = np.random.default_rng(6)
+    cam = model.camera
+    points_c = np.column_stack([rng.uniform(-1.5, 1.5, N_RANDOM),
+                                rng.uniform(-1.0, 1.0, N_RANDOM),
+                                rng.uniform(0.3, 5.0, N_RANDOM)])
+    points_o = cam.to_base(points_c)
+    back = cam.triangulate(cam.project(points_o))
+    assert np.max(np.abs(back - points_o)) < 1e-9
+
+
+def test_projection_jacobian_matches_finite_differences(model):
+    cam = model.camera
+    p = cam.to_base(np.array([[0.2, 0.1, 1.8]]))[0]
+    h = 1e-6
+    fd = np.column_stack([(cam.project((p + h * e)[None])[0]
+                           - cam.project((p - h * e)[None])[0]) / (2 * h) for e in np.eye(3)])
+    np.testing.assert_allclose(cam.projection_jacobian(p), fd, rtol=1e-6, atol=1e-6)
+
+
+def test_in_view_and_margin(model):
+    cam = model.camera
+    centre = cam.to_base(np.array([[0.0, 0.0, 2.0]]))
+    assert cam.in_view(centre)[0]
+    behind = cam.to_base(np.array([[0.0, 0.0, -1.0]]))
+    assert not cam.in_view(behind)[0]
+    # A point that projects 5 px inside the left border is out with a 10 px margin.
+    k = cam.intrinsics
+    z = 2.0
+    x = (5.0 - 0.5 - k.cu) * z / k.fu + k.baseline / 2.0  # u_r = 4.5 px (right image is left)
+    edge = cam.to_base(np.array([[x, 0.0, z]]))
+    assert cam.in_view(edge)[0]
+    assert not cam.in_view(edge, margin_px=10.0)[0]
+
+
+def test_paper_scenarios_visibility(model):
+    q_target = inverse_kinematics(paper.target_pose())
+    q_s1 = inverse_kinematics(paper.scenario_start_pose(1))
+    q_s23 = inverse_kinematics(paper.scenario_start_pose(2))
+    assert model.in_view(q_target, margin_px=20).all()
+    assert model.in_view(q_s1, margin_px=20).all()
+    assert not model.in_view(q_s23).any()
+
+
+def test_c1_matches_central_differences(model):
+    h = 1e-6
+    worst = 0.0
+    for q in random_in_view_configurations(model, N_RANDOM, 7):
+        jac = model.jacobian(q)
+        fd = np.empty((6, 6))
+        for i in range(6):
+            dq = np.zeros(6)
+            dq[i] = h
+            fd[:, i] = (model.features(q + dq) - model.features(q - dq)) / (2 * h)
+        scale = np.max(np.abs(fd))
+        worst = max(worst, float(np.max(np.abs(jac - fd)) / scale))
+    assert worst < 1e-6
+
+
+def test_c1_has_rank_five_with_joint_six_in_its_null_space(model):
+    for q in random_in_view_configurations(model, N_RANDOM, 8):
+        jac = model.jacobian(q)
+        s = np.linalg.svd(jac, compute_uv=False)
+        assert s[5] < 1e-9 * s[0]
+        assert s[4] > 1e-6 * s[0], 'away from the wrist singularity the rank is exactly 5'
+        np.testing.assert_allclose(jac[:, 5], 0.0, atol=1e-9 * s[0])
+        _, _, vt = np.linalg.svd(jac)
+        assert abs(vt[5, 5]) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_inverse_model_recovers_q(model):
+    worst = 0.0
+    for q in random_in_view_configurations(model, N_RANDOM, 9):
+        q_back = model.inverse(model.features(q), q[5], seed=q)
+        worst = max(worst, float(np.max(np.abs(q_back - q))))
+    assert worst < 1e-8
+
+
+def test_inverse_model_without_seed_finds_the_paper_target(model):
+    q = inverse_kinematics(paper.target_pose())
+    q_back = model.inverse(model.features(q), q[5])
+    np.testing.assert_allclose(q_back, q, atol=1e-9)
+
+
+def test_behind_camera_raises(model):
+    with pytest.raises(BehindCameraError, match='behind the camera'):
+        model.camera.project_camera(np.array([[0.0, 0.0, -1.0]]))
+    with pytest.raises(BehindCameraError):
+        model.camera.projection_jacobian(model.camera.to_base(np.array([[0, 0, -1.0]]))[0])
+
+
+def test_triangulation_rejects_non_positive_disparity(model):
+    with pytest.raises(TriangulationError, match='disparity'):
+        model.camera.triangulate(np.array([[100.0, 120.0, 50.0]]))
+
+
+def test_inverse_model_rejects_unreachable_features(model):
+    far = model.camera.project(np.array([[5.0, 0.0, 1.0], [5.0, 0.0, 1.1]])).reshape(6)
+    with pytest.raises(UnreachablePoseError):
+        model.inverse(far, 0.0)
+
+
+@pytest.mark.parametrize('bad,match', [
+    (np.zeros(5), 'shape'),
+    (np.full(6, np.nan), 'NaN or inf'),
+])
+def test_model_rejects_bad_arrays(model, bad, match):
+    with pytest.raises(InvalidInputError, match=match):
+        model.inverse(bad, 0.0)
+    with pytest.raises(InvalidInputError, match=match):
+        model.features(bad)
+
+
+def test_bad_intrinsics_and_camera_are_rejected():
+    with pytest.raises(InvalidInputError, match='fu'):
+        StereoIntrinsics(640, 480, -1.0, 500.0, 320.0, 240.0, 0.12)
+    with pytest.raises(InvalidInputError, match='resolution'):
+        StereoIntrinsics.zed2('4K')
+    with pytest.raises(InvalidInputError, match='hfov'):
+        StereoIntrinsics.from_fov(640, 480, hfov_deg=200.0)
+    with pytest.raises(InvalidInputError, match='rotation'):
+        StereoCamera(StereoIntrinsics.zed2(), np.diag([1.0, 1.0, 2.0, 1.0]))
+    with pytest.raises(InvalidInputError, match='coincide'):
+        look_at([0, 0, 0], [0, 0, 0])
+    with pytest.raises(InvalidInputError, match='StereoCamera'):
+        CameraRobotModel('camera')
