@@ -90,9 +90,14 @@ class Param:
                 fail('not an array')
             if len(values) != self.length:
                 fail(f'has {len(values)} values')
+        integer = isinstance(self.default, int) or (
+            isinstance(self.default, (list, tuple)) and self.default
+            and isinstance(self.default[0], int))
         for v in values:
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 fail('not a number')
+            if integer and not isinstance(v, int):
+                fail('not an integer')
             if not math.isfinite(v):
                 fail('not finite')
             if self.low is not None and (v < self.low or (self.low_open and v == self.low)):

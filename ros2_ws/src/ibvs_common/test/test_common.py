@@ -1,0 +1,194 @@
+"""Parameters, conversions, diagnostics and the lockstep rule shared by the nodes."""
+
+from types import SimpleNamespace
+
+from diagnostic_msgs.msg import DiagnosticArray
+from ibvs_common import contract, conversions
+from ibvs_common.conversions import InputError
+from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.params import declare, Param, ParameterError
+from ibvs_model import default_model, forward_kinematics
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+
+@pytest.fixture
+def context():
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        yield ctx
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+RATE = Param('rate_hz', 30.0, 'a rate', 'Hz', low=0.0, high=100.0, low_open=True)
+MODE = Param('mode', 'ideal', 'a mode', choices=('ideal', 'limited'))
+VEC = Param('vec', [0.0, 0.0, 0.0], 'a vector', 'm', low=-1.0, high=1.0, length=3)
+COUNT = Param('count', 3, 'a count', low=1, high=10)
+
+
+def make_node(context, overrides):
+    return Node('param_test', context=context,
+                parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+
+
+def test_declare_returns_defaults_and_overrides(context):
+    node = make_node(context, {'rate_hz': 60, 'vec': [0.5, -0.5, 0.0]})
+    try:
+        values = declare(node, [RATE, MODE, VEC, COUNT])
+        assert values == {'rate_hz': 60.0, 'mode': 'ideal', 'vec': [0.5, -0.5, 0.0],
+                          'count': 3}
+        assert isinstance(values['rate_hz'], float)
+        desc = node.describe_parameter('rate_hz')
+        assert 'Hz' in desc.description and '(0, 100]' in desc.description
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('overrides,match', [
+    ({'rate_hz': -1.0}, r"'rate_hz'.*out of range.*allowed: \(0, 100\]"),
+    ({'rate_hz': 0.0}, r"'rate_hz' = 0.0 is invalid: out of range; allowed: \(0, 100\]"),
+    ({'mode': 'turbo'}, "'mode'.*one of 'ideal', 'limited'"),
+    ({'vec': [0.0, 0.0]}, "'vec'.*has 2 values.*3 values"),
+    ({'vec': [0.0, 0.0, 5.0]}, "'vec'.*out of range"),
+    ({'count': 2.5}, "'count'"),
+    ({'rate_hz': 'fast'}, "'rate_hz'.*not a number"),
+])
+def test_bad_parameters_name_the_parameter_and_range(context, overrides, match):
+    node = make_node(context, overrides)
+    try:
+        with pytest.raises(ParameterError, match=match):
+            declare(node, [RATE, MODE, VEC, COUNT])
+    finally:
+        node.destroy_node()
+
+
+def test_feedback_frame_rule():
+    period, latency = 33_333_333, 0
+    assert contract.feedback_frame_ns(0, period, latency) == 0
+    assert contract.feedback_frame_ns(period - 1, period, latency) == 0
+    assert contract.feedback_frame_ns(period, period, latency) == period
+    assert contract.feedback_frame_ns(10_000_000, period, 20_000_000) is None
+    assert contract.feedback_frame_ns(20_000_000, period, 20_000_000) == 0
+    assert contract.feedback_frame_ns(period + 20_000_000, period, 20_000_000) == period
+    with pytest.raises(ValueError):
+        contract.feedback_frame_ns(0, 0, 0)
+
+
+def test_stamp_round_trip_is_exact():
+    for ns in (0, 1, 999_999_999, 1_000_000_000, 123_456_789_012):
+        assert conversions.stamp_ns(conversions.ns_stamp(ns)) == ns
+
+
+def test_joint_state_round_trip_and_reordering():
+    q = np.arange(6) * 0.1
+    msg = conversions.joint_state(5, position=q)
+    np.testing.assert_array_equal(conversions.read_joints(msg), q)
+    msg.name = list(reversed(msg.name))
+    msg.position = list(reversed(msg.position))
+    np.testing.assert_array_equal(conversions.read_joints(msg), q)
+
+
+@pytest.mark.parametrize('position,names,reason', [
+    ([0.0] * 5, [], 'wrong position length'),
+    ([0.0] * 5 + [float('nan')], [], 'non-finite position'),
+    ([0.0] * 5 + [float('inf')], [], 'non-finite position'),
+    ([0.0] * 6, ['a', 'b', 'c', 'd', 'e', 'f'], 'wrong joint names'),
+])
+def test_read_joints_rejects_bad_messages(position, names, reason):
+    msg = conversions.joint_state(0, position=position, names=names or contract.JOINT_NAMES)
+    if not names:
+        msg.name = []
+    with pytest.raises(InputError) as info:
+        conversions.read_joints(msg)
+    assert info.value.reason == reason
+
+
+def test_pose_round_trip():
+    tf = forward_kinematics(np.radians([10, 20, 30, 40, 50, 60]))
+    back = conversions.pose_matrix(conversions.matrix_pose(tf))
+    np.testing.assert_allclose(back, tf, atol=1e-12)
+    bad = conversions.matrix_pose(tf)
+    bad.orientation.w = 5.0
+    with pytest.raises(InputError, match='quaternion'):
+        conversions.pose_matrix(bad)
+
+
+def test_camera_round_trip_through_camera_info_and_pose():
+    camera = default_model().camera
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    assert right.p[3] == pytest.approx(-camera.intrinsics.fu * 0.12)
+    pose = conversions.pose_stamped(camera.pose_C_O, 0, contract.BASE_FRAME)
+    back = conversions.camera_from_msgs(left, right, pose)
+    k, kb = camera.intrinsics, back.intrinsics
+    assert (kb.width, kb.height) == (k.width, k.height)
+    np.testing.assert_allclose([kb.fu, kb.fv, kb.cu, kb.cv, kb.baseline],
+                               [k.fu, k.fv, k.cu, k.cv, k.baseline], rtol=1e-12)
+    np.testing.assert_allclose(back.pose_C_O, camera.pose_C_O, atol=1e-12)
+    point = np.array([[0.1, 0.3, 0.8]])
+    np.testing.assert_allclose(back.project(point), camera.project(point), atol=1e-9)
+
+
+def test_camera_info_mismatch_is_rejected():
+    camera = default_model().camera
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    right.width = 100
+    with pytest.raises(InputError, match='size mismatch'):
+        conversions.intrinsics_from_infos(left, right)
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    right.p[3] = 0.0
+    with pytest.raises(InputError, match='P\\[3\\]'):
+        conversions.intrinsics_from_infos(left, right)
+
+
+def test_features_round_trip_and_rejection():
+    p = np.array([600.25, 560.5, 300.125, 610.0, 570.75, 320.5])
+    np.testing.assert_array_equal(conversions.read_features(conversions.features_msg(p, 7)), p)
+    msg = conversions.features_msg(p, 7)
+    msg.polygon.points = msg.polygon.points[:1]
+    with pytest.raises(InputError, match='wrong feature count'):
+        conversions.read_features(msg)
+    msg = conversions.features_msg(p, 7)
+    msg.polygon.points[0].x = float('nan')
+    with pytest.raises(InputError, match='non-finite'):
+        conversions.read_features(msg)
+    camera = default_model().camera
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    left.p = [0.0] * 3
+    with pytest.raises(InputError, match='12 finite'):
+        conversions.camera_from_msgs(left, right, SimpleNamespace(pose=None))
+
+
+def test_diagnostics_counts_rejections_and_publishes(context):
+    node = Node('diag_test', context=context)
+    listener = Node('diag_listener', context=context)
+    received = []
+    listener.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, received.append, 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(listener)
+    try:
+        diag = Diagnostics(node, 'test', period_s=0.05)
+        diag.reject('/joint_states', 'non-finite position', 'nan')
+        diag.reject('/joint_states', 'non-finite position', 'nan')
+        diag.reject('/ibvs/features', 'wrong feature count')
+        diag.update(mode='measured', rank=5)
+        assert diag.rejected_total == 3
+        for _ in range(200):
+            executor.spin_once(timeout_sec=0.05)
+            if received:
+                break
+        assert received, 'no /diagnostics message within the deadline'
+        values = {kv.key: kv.value for kv in received[-1].status[0].values}
+        assert values['rejected_total'] == '3'
+        assert values['rejected[/joint_states: non-finite position]'] == '2'
+        assert values['mode'] == 'measured' and values['rank'] == '5'
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        listener.destroy_node()
