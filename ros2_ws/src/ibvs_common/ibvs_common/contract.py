@@ -20,6 +20,9 @@ Q_FEEDFORWARD = '/ibvs/q_feedforward'
 Q_FEEDBACK = '/ibvs/q_feedback'
 EFFORT_COMMANDS = '/joint_effort_commands'
 TOOL_POSE = '/ibvs/tool_pose'
+#: Per stereo frame, stamped with the image stamp: one DiagnosticStatus whose values say
+#: mode (measured / estimated / blending), the reason and the blend weight.
+FEATURE_STATUS = '/ibvs/feature_status'
 DIAGNOSTICS = '/diagnostics'
 
 #: Base frame {O} and the camera frames (ROS optical frames, x right, y down, z forward).
