@@ -36,10 +36,10 @@ test: build
 	$(RUN) python -m pytest $(PYTEST_ARGS)
 
 demo: build
-	$(RUN) ros2-ibvs demo
+	$(RUN) python -m ibvs_bringup.cli demo
 
 report: build
-	$(RUN) ros2-ibvs report
+	$(RUN) python -m ibvs_bringup.cli report
 
 bench: build
 	$(RUN) python -m ibvs_bringup.bench

@@ -24,7 +24,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'run = ibvs_bringup.runner:main',
+            'ibvs = ibvs_bringup.cli:main',
         ],
     },
 )

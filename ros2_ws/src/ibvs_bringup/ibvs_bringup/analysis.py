@@ -1,0 +1,186 @@
+"""
+Metrics of one run, computed from its rosbag2 (MCAP) recording.
+
+The pure part (:func:`compute_metrics`) takes arrays; :func:`load_run` reads them from a
+bag with ``rosbags``, so ``analyse <bag>`` reproduces every number and figure of a run.
+
+Definitions (tool = flange frame {E}, target = the scenario's target pose):
+
+- position error e(t) = |p(t) - p_target|; tool-axis error = angle between z6(t) and the
+  target's z6 (the roll about the tool axis is not controlled: DESIGN section 5);
+- ``settling_time_2pct_s``: first time after which e(t) stays within 2 % of e(0);
+- ``time_to_1mm_s``: first time after which e(t) stays within 1 mm;
+- ``max_overshoot_m``: largest excursion of a coordinate beyond its target, in the direction
+  of its motion (0 when every coordinate approaches monotonically from one side);
+- ``time_estimated_s``: sim time during which the feature node published model estimates
+  (or blended them) instead of measurements.
+"""
+
+from dataclasses import dataclass, field
+import math
+from pathlib import Path
+
+from ibvs_common import contract
+from ibvs_model import StereoCamera, StereoIntrinsics
+import numpy as np
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_typestore, Stores
+from scipy.spatial.transform import Rotation
+import yaml
+
+#: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
+PARAMS_KEY = 'ibvs.parameters'
+RUN_KEY = 'ibvs.run'
+
+
+@dataclass
+class RunData:
+    """Time series of one run, as arrays (seconds of sim time, metres, pixels)."""
+
+    params: dict
+    run_info: dict
+    t: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+    target: np.ndarray
+    feature_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    features: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    mode_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    modes: list = field(default_factory=list)
+    camera: object = None
+
+
+def _settle_time(t, inside):
+    """Return the first time from which ``inside`` holds to the end (None if it never does)."""
+    if not inside[-1]:
+        return None
+    outside = np.nonzero(~inside)[0]
+    return float(t[0]) if outside.size == 0 else float(t[outside[-1] + 1])
+
+
+def axis_angle_deg(rotation, target_rotation):
+    """Return the angle (deg) between each tool axis z6 and the target's, for (N, 3, 3)."""
+    cos = np.clip(rotation[:, :, 2] @ target_rotation[:, 2], -1.0, 1.0)
+    # acos loses precision near 1: use the chord instead.
+    chord = np.linalg.norm(rotation[:, :, 2] - target_rotation[:, 2], axis=1)
+    angle = np.where(cos > 0.0, 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0)), np.arccos(cos))
+    return np.degrees(angle)
+
+
+def estimated_time(mode_t, modes, t_end):
+    """Return the sim time spent with features not purely measured (mode held to next frame)."""
+    if len(mode_t) == 0:
+        return 0.0
+    ends = np.append(mode_t[1:], max(t_end, mode_t[-1]))
+    return float(sum(e - s for s, e, m in zip(mode_t, ends, modes) if m != 'measured'))
+
+
+def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_duration_s=None,
+                    scenario=None):
+    """Return the run's metrics dict (see the module docstring) from arrays."""
+    t = np.asarray(t, dtype=float)
+    position = np.asarray(position, dtype=float)
+    rotation = np.asarray(rotation, dtype=float)
+    target = np.asarray(target, dtype=float)
+    if t.size < 2:
+        raise ValueError('a run needs at least two tool poses to be analysed')
+    error = np.linalg.norm(position - target[:3, 3], axis=1)
+    axis_err = axis_angle_deg(rotation, target[:3, :3])
+    direction = np.sign(target[:3, 3] - position[0])
+    beyond = (position - target[:3, 3]) * direction
+    overshoot_axes = np.maximum(beyond.max(axis=0), 0.0)
+    sim_duration = float(t[-1] - t[0])
+    metrics = {
+        'scenario': scenario,
+        'final_position_error_m': float(error[-1]),
+        'final_tool_axis_error_deg': float(axis_err[-1]),
+        'initial_position_error_m': float(error[0]),
+        'settling_time_2pct_s': _relative(_settle_time(t, error <= 0.02 * error[0]), t),
+        'time_to_1mm_s': _relative(_settle_time(t, error <= 1e-3), t),
+        'max_overshoot_m': float(overshoot_axes.max()),
+        'overshoot_xyz_m': [float(v) for v in overshoot_axes],
+        'max_position_error_m': float(error.max()),
+        'time_estimated_s': estimated_time(np.asarray(mode_t, float), list(modes), t[-1]),
+        'sim_duration_s': sim_duration,
+        'wall_duration_s': wall_duration_s,
+        'real_time_factor': (sim_duration / wall_duration_s
+                             if wall_duration_s else None),
+        'samples': int(t.size),
+    }
+    return metrics
+
+
+def _relative(value, t):
+    return None if value is None else float(value - t[0])
+
+
+def _pose_matrix(pose):
+    q = pose.orientation
+    tf = np.eye(4)
+    tf[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    tf[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
+    return tf
+
+
+def _stamp(header):
+    return header.stamp.sec + header.stamp.nanosec * 1e-9
+
+
+def load_run(bag_path):
+    """Read a run's bag: tool poses, features, feature modes, camera and parameters."""
+    bag_path = Path(bag_path)
+    meta = yaml.safe_load((bag_path / 'metadata.yaml').read_text())
+    custom = meta.get('rosbag2_bagfile_information', {}).get('custom_data') or {}
+    params = yaml.safe_load(custom.get(PARAMS_KEY, '{}')) or {}
+    run_info = yaml.safe_load(custom.get(RUN_KEY, '{}')) or {}
+    t, poses, ft, feats, mt, modes = [], [], [], [], [], []
+    infos, cam_pose = {}, None
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([bag_path], default_typestore=typestore) as reader:
+        wanted = {contract.TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
+                  contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE}
+        conns = [c for c in reader.connections if c.topic in wanted]
+        for conn, _, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == contract.TOOL_POSE:
+                t.append(_stamp(msg.header))
+                poses.append(_pose_matrix(msg.pose))
+            elif conn.topic == contract.FEATURES:
+                ft.append(_stamp(msg.header))
+                feats.append([[p.x, p.y, p.z] for p in msg.polygon.points])
+            elif conn.topic == contract.FEATURE_STATUS:
+                values = {kv.key: kv.value for s in msg.status for kv in s.values}
+                mt.append(_stamp(msg.header))
+                modes.append(values.get('mode', 'unknown'))
+            elif conn.topic in (contract.LEFT_INFO, contract.RIGHT_INFO):
+                infos.setdefault(conn.topic, msg)
+            elif conn.topic == contract.STEREO_POSE and cam_pose is None:
+                cam_pose = _pose_matrix(msg.pose)
+    if len(t) < 2:
+        raise ValueError(f'{bag_path}: fewer than two {contract.TOOL_POSE} messages')
+    order = np.argsort(t, kind='stable')
+    poses = np.array(poses)[order]
+    camera = None
+    if cam_pose is not None and len(infos) == 2:
+        left, right = infos[contract.LEFT_INFO], infos[contract.RIGHT_INFO]
+        fu = float(left.p[0])
+        camera = StereoCamera(StereoIntrinsics(
+            int(left.width), int(left.height), fu, float(left.p[5]), float(left.p[2]),
+            float(left.p[6]), float(-right.p[3] / right.p[0])), cam_pose)
+    target = np.eye(4)
+    target[:3, 3] = params.get('target_position', [math.nan] * 3)
+    target[:3, :3] = np.reshape(params.get('target_rotation', [math.nan] * 9), (3, 3))
+    feats = np.array([np.ravel(f) for f in feats if len(f) == 2]) if feats else np.zeros((0, 6))
+    return RunData(params=params, run_info=run_info, t=np.asarray(t)[order],
+                   position=poses[:, :3, 3], rotation=poses[:, :3, :3], target=target,
+                   feature_t=np.asarray(ft), features=feats, mode_t=np.asarray(mt),
+                   modes=modes, camera=camera)
+
+
+def analyse_bag(bag_path):
+    """Return (RunData, metrics) of a recorded run."""
+    run = load_run(bag_path)
+    metrics = compute_metrics(run.t, run.position, run.rotation, run.target, run.mode_t,
+                              run.modes, run.run_info.get('wall_duration_s'),
+                              run.params.get('scenario_name', run.params.get('scenario')))
+    return run, metrics

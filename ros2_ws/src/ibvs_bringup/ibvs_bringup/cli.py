@@ -1,0 +1,114 @@
+"""
+Command line of the bringup: ``ros2 run ibvs_bringup ibvs <command>``.
+
+Commands:
+
+- ``run <scenario> [-o DIR] [--duration S] [--images] [-p name:=value ...]``: one run of a
+  scenario (``scenario1``..``scenario3`` or a parameter file) through the node graph;
+- ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
+- ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
+- ``report``: scenarios 1-3 and the L2/L4 robustness sweep into ``results/report.md``.
+"""
+
+import argparse
+import json
+from pathlib import Path
+import sys
+
+from . import runner, scenario
+
+SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
+                'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',
+                'wall_duration_s', 'real_time_factor')
+
+
+def _print_summary(metrics, out=sys.stdout):
+    for key in SUMMARY_KEYS:
+        value = metrics.get(key)
+        text = f'{value:.6g}' if isinstance(value, float) else str(value)
+        print(f'  {key:28s} {text}', file=out)
+
+
+def cmd_run(args):
+    """Run one scenario and print its metrics."""
+    overrides = dict(scenario.parse_override(p) for p in args.param)
+    out = Path(args.out or Path('results') / Path(args.scenario).stem)
+    print(f'running {args.scenario} -> {out}')
+    try:
+        result = runner.run_scenario(args.scenario, out, overrides, args.duration,
+                                     record_images=args.images)
+    except runner.NodeDied as exc:
+        print(f'run failed: {exc}', file=sys.stderr)
+        return 3
+    print(f'wrote {out}/metrics.json, figures and the bag {result.bag_path}')
+    _print_summary(result.metrics)
+    return 0
+
+
+def cmd_analyse(args):
+    """Recompute metrics and figures from a bag."""
+    bag = Path(args.bag)
+    out = Path(args.out) if args.out else bag.parent
+    out.mkdir(parents=True, exist_ok=True)
+    metrics = runner.write_results(bag, out)
+    print(f'wrote {out}/metrics.json and figures from {bag}')
+    _print_summary(metrics)
+    return 0
+
+
+def cmd_demo(args):
+    """Run the paper's scenario 1 (ideal actuators) into results/scenario1."""
+    args.scenario = 'scenario1'
+    args.out = args.out or 'results/scenario1'
+    args.param = ['actuators:=ideal'] + list(args.param)
+    return cmd_run(args)
+
+
+def cmd_report(args):
+    """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
+    from . import report
+    path = report.build_report(Path(args.out), quick=args.quick)
+    print(f'wrote {path}')
+    return 0
+
+
+def main(argv=None):
+    """Parse the command line and run the command."""
+    parser = argparse.ArgumentParser(prog='ibvs', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest='command', required=True)
+    for name, func in (('run', cmd_run), ('demo', cmd_demo)):
+        p = sub.add_parser(name, help=func.__doc__)
+        if name == 'run':
+            p.add_argument('scenario', help='scenario1..3 or a parameter file')
+        p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
+        p.add_argument('--duration', type=float, help='sim time limit, s')
+        p.add_argument('--images', action='store_true', help='also record raw images')
+        p.add_argument('-p', '--param', action='append', default=[],
+                       help='override a parameter: name:=value (repeatable)')
+        p.set_defaults(func=func)
+    p = sub.add_parser('analyse', help=cmd_analyse.__doc__)
+    p.add_argument('bag', help='bag directory of a run')
+    p.add_argument('-o', '--out', help='output directory (default: next to the bag)')
+    p.set_defaults(func=cmd_analyse)
+    p = sub.add_parser('report', help=cmd_report.__doc__)
+    p.add_argument('-o', '--out', default='results', help='results directory')
+    p.add_argument('--quick', action='store_true', help='sweep endpoints only')
+    p.set_defaults(func=cmd_report)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (scenario.ScenarioError, FileNotFoundError, TimeoutError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+def metrics_json(path):
+    """Return the metrics dict stored at ``path``."""
+    return json.loads(Path(path).read_text())
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,133 @@
+"""
+The reproduction report: scenarios 1-3 and the L2/L4 robustness sweep (paper Figure 13).
+
+Every number in ``results/report.md`` comes from a run's ``metrics.json``, which comes from
+its bag; the table puts each claim of the paper next to what we measured.
+"""
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use('Agg')
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from . import runner  # noqa: E402
+
+SWEEP_SCALES = (0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
+
+
+def _run(name, out_dir, overrides=None, progress=print):
+    out_dir = Path(out_dir)
+    progress(f'running {name} {overrides or ""} -> {out_dir}')
+    return runner.run_scenario(name, out_dir, overrides, progress=progress).metrics
+
+
+def _fmt(value, unit='', scale=1.0, digits=3):
+    if value is None:
+        return 'not reached'
+    return f'{value * scale:.{digits}f}{unit}'
+
+
+def sweep(out_dir, scales=SWEEP_SCALES, progress=print):
+    """Run scenario 1 with L2 and L4 of the simulated robot scaled one at a time."""
+    rows = []
+    for link in ('l2_scale', 'l4_scale'):
+        for scale in scales:
+            run_dir = Path(out_dir) / 'sweep' / f'{link}_{scale:.1f}'
+            metrics = _run('scenario1', run_dir, {link: float(scale)}, progress)
+            final_x = metrics.get('final_position_error_m')
+            rows.append({'link': link[:2].upper(), 'scale': scale, 'metrics': metrics,
+                         'final_position_error_m': final_x})
+    return rows
+
+
+def sweep_figure(rows, path):
+    """Plot final position error against the L2 and L4 factors (paper Figure 13)."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for link, marker in (('L2', 'o'), ('L4', 's')):
+        sel = [r for r in rows if r['link'] == link]
+        ax.plot([100 * r['scale'] for r in sel],
+                [1e3 * r['final_position_error_m'] for r in sel], marker=marker, label=link)
+    ax.axhline(10.0, color='tab:red', ls='--', label='1 cm (paper: 1 %)')
+    ax.set_yscale('log')
+    ax.set_xlabel('simulated link length [% of nominal]')
+    ax.set_ylabel('final position error [mm]')
+    ax.set_title('robustness to model uncertainty (scenario 1)')
+    ax.grid(alpha=0.3, which='both')
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def build_report(out_dir, quick=False, progress=print):
+    """Run everything and write ``<out_dir>/report.md``; return its path."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    scenarios = {name: _run(name, out_dir / name, progress=progress)
+                 for name in ('scenario1', 'scenario2', 'scenario3')}
+    rows = sweep(out_dir, (0.5, 1.0, 1.1) if quick else SWEEP_SCALES, progress)
+    sweep_figure(rows, out_dir / 'robustness.png')
+    worst = max(rows, key=lambda r: r['final_position_error_m'])
+    (out_dir / 'report.json').write_text(json.dumps(
+        {'scenarios': scenarios,
+         'sweep': [{k: v for k, v in r.items() if k != 'metrics'} for r in rows]},
+        indent=2) + '\n')
+    s1, s2, s3 = (scenarios[n] for n in ('scenario1', 'scenario2', 'scenario3'))
+    lines = [
+        '# Reproduction of Li & Assadian, adaptive IBVS of a 6-DoF IRB 4600',
+        '',
+        "Every number below was measured from the run's rosbag2 recording "
+        '(`ros2 run ibvs_bringup ibvs analyse <bag>` reproduces it). Ideal actuators, '
+        "the paper's tau_in = 0.01 s, omega_n = 10 rad/s, zeta = 1/sqrt(2).",
+        '',
+        "## The paper's claims next to our measurements",
+        '',
+        '| claim (paper) | paper | measured here |',
+        '|---|---|---|',
+        f'| scenario 1 reaches the target fast | within about 0.3 s | 2 % settling '
+        f'{_fmt(s1["settling_time_2pct_s"], " s")}, 1 mm at '
+        f'{_fmt(s1["time_to_1mm_s"], " s")} |',
+        f'| scenario 1 overshoot | small | {_fmt(s1["max_overshoot_m"], " mm", 1e3, 2)} |',
+        f'| scenario 1 final pose | exact (IBVS) | '
+        f'{_fmt(s1["final_position_error_m"], " mm", 1e3, 4)}, axis '
+        f'{_fmt(s1["final_tool_axis_error_deg"], " deg", 1.0, 4)} |',
+        f'| scenario 2 converges out of view | under 1 s, large overshoot | 1 mm at '
+        f'{_fmt(s2["time_to_1mm_s"], " s")}, overshoot '
+        f'{_fmt(s2["max_overshoot_m"], " mm", 1e3, 1)}, estimated for '
+        f'{_fmt(s2["time_estimated_s"], " s")} |',
+        f'| scenario 3 (with d_q) converges | under 1 s, large overshoot | 1 mm at '
+        f'{_fmt(s3["time_to_1mm_s"], " s")}, overshoot '
+        f'{_fmt(s3["max_overshoot_m"], " mm", 1e3, 1)}, estimated for '
+        f'{_fmt(s3["time_estimated_s"], " s")} |',
+        f'| L2, L4 from 50 % to 110 %: steady-state error | under 1 % | worst '
+        f'{_fmt(worst["final_position_error_m"], " mm", 1e3, 4)} '
+        f'({worst["link"]} at {100 * worst["scale"]:.0f} %) |',
+        '',
+        '## Scenarios',
+        '',
+    ]
+    for name, metrics in scenarios.items():
+        lines += [f'### {name}', '', '| metric | value |', '|---|---|']
+        lines += [f'| {k} | {v:.6g} |' if isinstance(v, float) else f'| {k} | {v} |'
+                  for k, v in metrics.items() if k not in ('bag',)]
+        lines += ['', f'![pose]({name}/pose_vs_time.png)',
+                  f'![trajectory]({name}/trajectory_3d.png)',
+                  f'![image plane]({name}/image_plane.png)',
+                  f'![features]({name}/feature_timeline.png)', '']
+    lines += ['## Robustness sweep (scenario 1, Figure 13)', '',
+              '| link | factor | final position error [mm] | final axis error [deg] |',
+              '|---|---|---|---|']
+    lines += [f"| {r['link']} | {100 * r['scale']:.0f} % | "
+              f'{1e3 * r["final_position_error_m"]:.4f} | '
+              f"{r['metrics']['final_tool_axis_error_deg']:.4f} |" for r in rows]
+    lines += ['', '![robustness](robustness.png)', '']
+    within = np.all([r['final_position_error_m'] <= 0.01 for r in rows])
+    lines += [f"Every sweep point within 1 cm: {'yes' if within else 'NO'}.", '']
+    path = out_dir / 'report.md'
+    path.write_text('\n'.join(lines))
+    return path

@@ -1,0 +1,296 @@
+"""
+Run one scenario through the node graph: start the nodes, record, watch, stop, analyse.
+
+Each node runs in its own process, started exactly as
+``ros2 run <package> <executable> --ros-args --params-file <params.yaml>`` would start it:
+with ``ros2 run`` itself when the CLI is installed, otherwise with the same installed
+executable that ``ros2 run`` would resolve (``<prefix>/lib/<package>/<executable>`` from the
+ament index). The runner records the run, prints progress, stops when the sim time limit is
+reached or the tool has converged, and stops every process cleanly (SIGINT, then SIGTERM,
+then SIGKILL). If a node dies, the run stops and :class:`NodeDied` names it and its exit
+code; no process is left behind in any case (children also get SIGKILL if the runner dies).
+"""
+
+import ctypes
+from dataclasses import dataclass
+import json
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import time
+
+from ament_index_python.packages import get_package_prefix
+from geometry_msgs.msg import PoseStamped
+from ibvs_common import contract
+from ibvs_common.conversions import pose_matrix, stamp_ns
+from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
+import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rosgraph_msgs.msg import Clock
+import yaml
+
+from . import analysis, plots, scenario
+from .recorder import Recorder
+
+#: The graph of DESIGN section 1, in start order: the simulator last, so that every
+#: subscriber is up before the first /joint_states.
+NODES = (
+    ('ibvs_vision', 'feature_node'),
+    ('ibvs_control', 'adaptive_feedback_node'),
+    ('ibvs_control', 'feedforward_node'),
+    ('ibvs_control', 'joint_controller_node'),
+    ('ibvs_sim', 'sim_node'),
+)
+
+
+class NodeDied(RuntimeError):
+    """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
+
+    def __init__(self, node, returncode, log_path):
+        """Keep which node died, its exit code and where its log is."""
+        super().__init__(f'node {node} exited with code {returncode} during the run '
+                         f'(log: {log_path})')
+        self.node = node
+        self.returncode = returncode
+        self.log_path = log_path
+
+
+def executable_command(package, executable):
+    """Return the command that ``ros2 run <package> <executable>`` stands for."""
+    if shutil.which('ros2'):
+        return ['ros2', 'run', package, executable]
+    path = Path(get_package_prefix(package)) / 'lib' / package / executable
+    if not os.access(path, os.X_OK):
+        raise FileNotFoundError(f'{package} {executable}: no executable at {path}')
+    return [str(path)]
+
+
+def _die_with_parent():
+    """Child-side: own process group, and SIGKILL when the runner dies (Linux prctl)."""
+    os.setpgid(0, 0)
+    try:
+        libc = ctypes.CDLL('libc.so.6', use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+class NodeProcess:
+    """One node running as a separate process, its output in a log file."""
+
+    def __init__(self, package, executable, params_file, log_dir, extra_args=()):
+        """Start ``package executable --ros-args --params-file params_file``."""
+        self.name = executable
+        self.log_path = Path(log_dir) / f'{executable}.log'
+        self._log = open(self.log_path, 'wb')
+        cmd = executable_command(package, executable) + [
+            '--ros-args', '--params-file', str(params_file), *extra_args]
+        self.command = cmd
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
+
+    def poll(self):
+        """Return the exit code, or None while running."""
+        return self.proc.poll()
+
+    def stop(self, timeout_s=10.0):
+        """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
+        for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
+                          (signal.SIGKILL, 3.0)):
+            if self.proc.poll() is not None:
+                break
+            try:
+                os.killpg(self.proc.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                self.proc.wait(wait)
+            except subprocess.TimeoutExpired:
+                continue
+        # Whatever the node left in its group (ros2 run's child) goes too.
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        self._log.close()
+        return self.proc.returncode
+
+
+@dataclass
+class RunResult:
+    """What a run produced: where, its metrics, and whether it converged."""
+
+    out_dir: Path
+    bag_path: Path
+    metrics: dict
+    converged: bool
+
+
+class Monitor:
+    """Sim time and tool pose of the running graph, for progress and convergence."""
+
+    def __init__(self, node, target):
+        """Subscribe to /clock and /ibvs/tool_pose on ``node``."""
+        self.target = target
+        self.sim_ns = 0
+        self.error_m = float('nan')
+        self.axis_deg = float('nan')
+        self.within_since_ns = None
+        node.create_subscription(Clock, contract.CLOCK, self._on_clock, contract.RELIABLE)
+        node.create_subscription(PoseStamped, contract.TOOL_POSE, self._on_pose,
+                                 contract.RELIABLE)
+
+    def _on_clock(self, msg):
+        self.sim_ns = max(self.sim_ns, stamp_ns(msg.clock))
+
+    def _on_pose(self, msg):
+        tf = pose_matrix(msg.pose)
+        self.error_m = float(np.linalg.norm(tf[:3, 3] - self.target[:3, 3]))
+        self.axis_deg = float(analysis.axis_angle_deg(tf[None, :3, :3], self.target[:3, :3])[0])
+
+    def update_convergence(self, pos_tol_m, axis_tol_deg):
+        """Track since when the tool has been within tolerance; return that duration (s)."""
+        inside = self.error_m <= pos_tol_m and self.axis_deg <= axis_tol_deg
+        if not inside:
+            self.within_since_ns = None
+            return 0.0
+        if self.within_since_ns is None:
+            self.within_since_ns = self.sim_ns
+        return (self.sim_ns - self.within_since_ns) * 1e-9
+
+
+def _target_pose(params):
+    target = np.eye(4)
+    target[:3, 3] = params['target_position']
+    target[:3, :3] = np.reshape(params['target_rotation'], (3, 3))
+    return target
+
+
+def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
+                 wall_timeout_s=1800.0, converge_hold_s=None, progress=print):
+    """
+    Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
+
+    ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
+    else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
+    0.1 mm and 0.01 deg of the target for that long (sim time).
+    """
+    params = scenario.load_parameters(name)
+    params.update(overrides or {})
+    params.setdefault('scenario_name', Path(str(name)).stem)
+    duration_s = float(duration_s or params.get('run_duration_s', 3.0))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log_dir = out_dir / 'logs'
+    log_dir.mkdir(exist_ok=True)
+    runner_only = ('scenario_name', 'run_duration_s')
+    node_params = {k: v for k, v in params.items() if k not in runner_only}
+    params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
+    bag_path = out_dir / 'bag'
+    if bag_path.exists():
+        shutil.rmtree(bag_path)
+    target = _target_pose(params)
+
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    recorder = Recorder(bag_path, include_images=record_images, context=context,
+                        custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
+    watcher = rclpy.create_node('ibvs_run_monitor', context=context,
+                                parameter_overrides=[])
+    monitor = Monitor(watcher, target)
+    executor.add_node(recorder)
+    executor.add_node(watcher)
+    procs = []
+    converged = False
+    died = None
+    wall_duration = None
+    wall_start = time.monotonic()
+    sim_wall_start = None
+    try:
+        for package, executable in NODES:
+            if executable == 'sim_node':
+                _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
+                sim_wall_start = time.monotonic()
+            procs.append(NodeProcess(package, executable, params_file, log_dir))
+        last_print = 0.0
+        while True:
+            executor.spin_once(timeout_sec=0.05)
+            for p in procs:
+                code = p.poll()
+                if code is not None:
+                    died = NodeDied(p.name, code, p.log_path)
+                    break
+            if died:
+                break
+            sim_s = monitor.sim_ns * 1e-9
+            now = time.monotonic()
+            if now - last_print >= 2.0:
+                last_print = now
+                rtf = sim_s / max(now - sim_wall_start, 1e-9)
+                progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
+                         f'  position error {monitor.error_m * 1e3:9.3f} mm'
+                         f'  axis error {monitor.axis_deg:7.3f} deg  RTF {rtf:5.3f}')
+            if converge_hold_s is not None and \
+                    monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
+                converged = True
+                break
+            if sim_s >= duration_s:
+                converged = monitor.error_m <= 1e-3
+                break
+            if now - wall_start > wall_timeout_s:
+                progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim {sim_s:.3f} s')
+                break
+        wall_duration = time.monotonic() - (sim_wall_start or wall_start)
+    finally:
+        codes = {p.name: p.stop() for p in reversed(procs)}
+        recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
+            'wall_duration_s': wall_duration,
+            'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
+        recorder.close()
+        executor.shutdown()
+        recorder.destroy_node()
+        watcher.destroy_node()
+        rclpy.shutdown(context=context)
+    if died:
+        raise died
+    metrics = write_results(bag_path, out_dir, wall_duration)
+    return RunResult(out_dir, bag_path, metrics, converged)
+
+
+def _wait_for_nodes(executor, node, names, procs, timeout_s=60.0):
+    """Spin until every node in ``names`` is in the graph; fail if one of them exits."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.1)
+        for p in procs:
+            if p.poll() is not None:
+                raise NodeDied(p.name, p.poll(), p.log_path)
+        if set(names) <= set(node.get_node_names()):
+            return
+    raise TimeoutError(f'nodes not up after {timeout_s:.0f} s: '
+                       f'{sorted(set(names) - set(node.get_node_names()))}')
+
+
+def target_features(run):
+    """Return F(q_target) with the recorded camera and the nominal robot (None w/o camera)."""
+    if run.camera is None:
+        return None
+    q = inverse_kinematics(run.target)
+    return CameraRobotModel(run.camera, IRB4600).features(q)
+
+
+def write_results(bag_path, out_dir, wall_duration_s=None):
+    """Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics."""
+    out_dir = Path(out_dir)
+    run, metrics = analysis.analyse_bag(bag_path)
+    if wall_duration_s is not None:
+        metrics['wall_duration_s'] = wall_duration_s
+        metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
+    metrics['bag'] = str(bag_path)
+    (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    plots.write_all(run, out_dir, target_features(run))
+    return metrics

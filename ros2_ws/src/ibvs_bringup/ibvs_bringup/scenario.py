@@ -1,0 +1,62 @@
+"""
+Scenario parameter files: find them, read them, override values, write the file nodes get.
+
+A scenario file is a ROS 2 parameter file whose parameters sit under ``/**`` so that every
+node started with ``--ros-args --params-file <file>`` sees them.
+"""
+
+from pathlib import Path
+
+from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+import yaml
+
+SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
+
+
+class ScenarioError(ValueError):
+    """A scenario cannot be found or its file is malformed."""
+
+
+def scenario_path(name_or_path):
+    """Return the parameter file of a scenario name ('scenario1') or an explicit path."""
+    path = Path(name_or_path)
+    if path.suffix in ('.yaml', '.yml'):
+        if not path.is_file():
+            raise ScenarioError(f'scenario file {path} does not exist')
+        return path
+    try:
+        share = Path(get_package_share_directory('ibvs_bringup'))
+    except (PackageNotFoundError, OSError):  # not installed: the source tree
+        share = Path(__file__).resolve().parents[1]
+    candidate = share / 'config' / f'{name_or_path}.yaml'
+    if not candidate.is_file():
+        known = sorted(p.stem for p in (share / 'config').glob('*.yaml'))
+        raise ScenarioError(f'unknown scenario {name_or_path!r}; known: {known}')
+    return candidate
+
+
+def load_parameters(name_or_path):
+    """Return the ``/**`` parameters of a scenario file as a dict."""
+    path = scenario_path(name_or_path)
+    data = yaml.safe_load(path.read_text()) or {}
+    try:
+        params = dict(data['/**']['ros__parameters'])
+    except (KeyError, TypeError):
+        raise ScenarioError(f"{path}: expected '/**: ros__parameters: {{...}}'") from None
+    return params
+
+
+def parse_override(text):
+    """Parse 'name:=value' (value in YAML syntax, as ``ros2 run ... -p`` takes it)."""
+    if ':=' not in text:
+        raise ScenarioError(f'override {text!r} is not of the form name:=value')
+    name, value = text.split(':=', 1)
+    return name.strip(), yaml.safe_load(value)
+
+
+def write_parameters(params, path):
+    """Write ``params`` as a ``/**`` parameter file at ``path`` and return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': params}}, sort_keys=True))
+    return path

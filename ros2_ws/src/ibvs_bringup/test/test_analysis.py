@@ -1,0 +1,92 @@
+"""Metrics of a run, on responses whose settling time and overshoot are known in closed form."""
+
+import math
+
+from ibvs_bringup import analysis, scenario
+import numpy as np
+import pytest
+
+
+def second_order_step(t, zeta, wn):
+    """Return the unit step response of wn^2 / (s^2 + 2 zeta wn s + wn^2), zeta < 1."""
+    wd = wn * math.sqrt(1 - zeta ** 2)
+    return 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta ** 2)
+                                         * np.sin(wd * t))
+
+
+def make_run(y, t, start, target):
+    """Tool positions moving from ``start`` to ``target`` along the unit response ``y``."""
+    position = start + np.outer(y, target - start)
+    rotation = np.repeat(np.eye(3)[None], len(t), axis=0)
+    tf = np.eye(4)
+    tf[:3, 3] = target
+    return position, rotation, tf
+
+
+def test_butterworth_step_overshoot_and_settling():
+    zeta, wn = 1 / math.sqrt(2), 10.0
+    t = np.arange(0.0, 3.0, 1e-4)
+    start, target = np.array([1.0, 0.2, 1.0]), np.array([-1.0, 0.2, 0.3])
+    position, rotation, tf = make_run(second_order_step(t, zeta, wn), t, start, target)
+    m = analysis.compute_metrics(t, position, rotation, tf)
+    step = np.abs(target - start)
+    expected_overshoot = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2)) * step.max()
+    assert m['max_overshoot_m'] == pytest.approx(expected_overshoot, rel=1e-3)
+    assert m['overshoot_xyz_m'][1] == 0.0  # y does not move
+    # The 2 % band is left for the last time at the settling time, and never again.
+    error = np.linalg.norm(position - target, axis=1)
+    ts = m['settling_time_2pct_s']
+    assert np.all(error[t >= ts] <= 0.02 * error[0])
+    assert error[np.searchsorted(t, ts) - 1] > 0.02 * error[0]
+    assert 0.3 < ts < 0.7  # about 4 / (zeta wn) = 0.57 s for this damping
+    assert m['time_to_1mm_s'] > ts
+    assert m['final_position_error_m'] < 1e-6
+    assert m['final_tool_axis_error_deg'] == 0.0
+
+
+def test_monotone_approach_has_no_overshoot_and_never_settling_is_none():
+    t = np.linspace(0.0, 1.0, 1001)
+    y = 1 - np.exp(-5 * t)
+    position, rotation, tf = make_run(y, t, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    m = analysis.compute_metrics(t, position, rotation, tf)
+    assert m['max_overshoot_m'] == 0.0
+    assert m['time_to_1mm_s'] is None  # e(1 s) = exp(-5) m = 6.7 mm
+    assert m['final_position_error_m'] == pytest.approx(math.exp(-5), rel=1e-9)
+
+
+def test_tool_axis_error_is_accurate_for_small_angles():
+    target = np.eye(3)
+    for angle in (1e-9, 1e-5, 0.1, 3.0):
+        c, s = math.cos(angle), math.sin(angle)
+        rot = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])[None]
+        assert analysis.axis_angle_deg(rot, target)[0] == pytest.approx(math.degrees(angle),
+                                                                        rel=1e-6)
+
+
+def test_estimated_time_holds_each_mode_until_the_next_frame():
+    assert analysis.estimated_time(np.array([0.0, 0.1, 0.2]),
+                                   ['estimated', 'blending', 'measured'], 0.5) \
+        == pytest.approx(0.2)
+    assert analysis.estimated_time(np.array([0.0]), ['estimated'], 1.5) == pytest.approx(1.5)
+    assert analysis.estimated_time(np.zeros(0), [], 1.0) == 0.0
+
+
+def test_too_short_run_is_rejected():
+    with pytest.raises(ValueError, match='two tool poses'):
+        analysis.compute_metrics([0.0], np.zeros((1, 3)), np.eye(3)[None], np.eye(4))
+
+
+def test_scenario_overrides_and_parameter_files(tmp_path):
+    assert scenario.parse_override('l2_scale:=0.5') == ('l2_scale', 0.5)
+    assert scenario.parse_override('actuators:=limited') == ('actuators', 'limited')
+    assert scenario.parse_override('disturbance_deg:=[0.1, 0, 0, 0, 0, 0]')[1][0] == 0.1
+    with pytest.raises(scenario.ScenarioError, match='name:=value'):
+        scenario.parse_override('l2_scale=0.5')
+    path = scenario.write_parameters({'scenario': 2}, tmp_path / 'p.yaml')
+    assert scenario.load_parameters(path) == {'scenario': 2}
+    with pytest.raises(scenario.ScenarioError, match='unknown scenario'):
+        scenario.load_parameters('scenario42')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('node: {}\n')
+    with pytest.raises(scenario.ScenarioError, match='ros__parameters'):
+        scenario.load_parameters(bad)
