@@ -1,0 +1,140 @@
+"""
+Model-only closed loop of the paper's Figure 3 (no ROS, no PyBullet).
+
+Plant: per joint the double integrator of eq. (27) (the feedback-linearised arm, sampled
+exactly with a zero-order hold) closed by the sampled G_c of :class:`.JointLoop`, which
+gives the inner loop of eq. (29); true angles = encoder angles + d_q (the paper's input
+disturbance); image features p_hat = F(true angles) (eq. 30) at the camera rate. The
+feedforward and the adaptive feedback run as in the nodes, with the same timing rule
+(:func:`feedback_frame_ns`, a ROS-free copy of ibvs_common.contract's, which imports
+rclpy; a test checks they agree): integer nanosecond stamps, physics step
+k at k * dt, camera frame n at n * camera_period, taken at the first physics step at or
+after it, and its q_feedback acting from ``latency`` after the frame.
+
+This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
+"""
+
+from dataclasses import dataclass
+
+from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
+import numpy as np
+
+from .controllers import (AdaptiveFeedback, DAMPING, Feedforward, HOLD_SPEED, JointLoop,
+                          MAX_CORRECTION, RCOND)
+
+
+def feedback_frame_ns(t_ns, camera_period_ns, latency_ns):
+    """Return the frame stamp whose q_feedback acts at ``t_ns`` (None before the first)."""
+    if t_ns < latency_ns:
+        return None
+    return ((t_ns - latency_ns) // camera_period_ns) * camera_period_ns
+
+
+def period_ns(rate_hz):
+    """Return the period of ``rate_hz`` in integer nanoseconds (rounded)."""
+    return int(round(1e9 / float(rate_hz)))
+
+
+@dataclass
+class LoopResult:
+    """Time histories of one model-only run (arrays, SI units, rad and px)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    q_true: np.ndarray
+    q_feedforward: np.ndarray
+    q_feedback: np.ndarray
+    frame_t: np.ndarray
+    features: np.ndarray
+    measured: np.ndarray
+    p_target: np.ndarray
+    q_target: np.ndarray
+    model: CameraRobotModel
+    rejected_frames: int = 0
+
+    @property
+    def image_error(self):
+        """Return |p_bar - p_hat| (px) at each frame (Euclidean norm over the 6 values)."""
+        return np.linalg.norm(self.features - self.p_target, axis=1)
+
+    def final_image_error(self):
+        """Return the image error (px) of F(true angles) at the end of the run."""
+        return float(np.linalg.norm(self.model.features(self.q_true[-1]) - self.p_target))
+
+
+def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=30.0,
+             tau_in=paper.TAU_IN, omega_n=paper.OMEGA_N, zeta=paper.ZETA, latency_s=0.0,
+             disturbance=None, actuators='ideal', model=None, plant_params=None,
+             torque_max=None, estimate_out_of_view=True, feedforward_method='sampled',
+             feedback_design='sampled', rcond=RCOND, damping=DAMPING,
+             max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None):
+    """
+    Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
+
+    ``model``: the controllers' F (default :func:`ibvs_model.default_model`);
+    ``plant_params``: the true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)``
+    for Figure 13). ``disturbance``: d_q (rad), default the scenario's. The start is the
+    scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
+    features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
+    'limited' actuators with the bare double integrator (M = I, h = 0) take ``torque_max``
+    as the acceleration limits (rad/s^2).
+    """
+    model = default_model() if model is None else model
+    plant = CameraRobotModel(model.camera, model.params if plant_params is None
+                             else plant_params)
+    d_q = paper.scenario_disturbance(scenario) if disturbance is None \
+        else np.asarray(disturbance, dtype=float)
+    pose = paper.target_pose() if target is None else np.asarray(target, dtype=float)
+    dt_ns = period_ns(physics_rate_hz)
+    cam_ns = period_ns(camera_rate_hz)
+    if cam_ns < dt_ns:
+        raise ValueError('the camera rate must not exceed the physics rate')
+    latency_ns = int(round(latency_s * 1e9))
+    dt = dt_ns * 1e-9
+
+    q_true0 = inverse_kinematics(paper.scenario_start_pose(scenario), plant.params)
+    q = q_true0 - d_q
+    qd = np.zeros(6)
+    joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_max)
+    ff = Feedforward(pose, tau_in, dt, model.params, method=feedforward_method)
+    q_target = ff.start(q)
+    fb = AdaptiveFeedback(model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, rcond, damping,
+                          feedback_design, max_correction, hold_speed)
+
+    steps = int(round(duration_s * 1e9 / dt_ns)) + 1
+    rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
+    frames_t, frames_p, frames_measured = [], [], []
+    feedback_by_stamp = {}
+    next_frame = 0
+    rejected = 0
+    for k in range(steps):
+        t_ns = k * dt_ns
+        while next_frame * cam_ns <= t_ns:
+            q_now = q + d_q
+            measured = bool(np.all(plant.in_view(q_now)))
+            p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
+                else model.features(q)
+            try:
+                feedback_by_stamp[next_frame * cam_ns] = fb.update(p_hat, q, qd).q_feedback
+            except ModelError:
+                # As the node: a frame F^-1 cannot use is rejected, q_feedback held.
+                feedback_by_stamp[next_frame * cam_ns] = fb.q_feedback
+                rejected += 1
+            frames_t.append(t_ns * 1e-9)
+            frames_p.append(p_hat)
+            frames_measured.append(measured)
+            next_frame += 1
+        stamp = feedback_frame_ns(t_ns, cam_ns, latency_ns)
+        q_fb = np.zeros(6) if stamp is None else feedback_by_stamp[stamp]
+        for old in [s for s in feedback_by_stamp if stamp is not None and s < stamp]:
+            del feedback_by_stamp[old]
+        q_ff = ff.step()
+        rec['q'][k], rec['q_ff'][k], rec['q_fb'][k] = q, q_ff, q_fb
+        acc = joint.step(q_ff + q_fb, q, qd)
+        q = q + qd * dt + 0.5 * acc * dt * dt
+        qd = qd + acc * dt
+    return LoopResult(
+        t=np.arange(steps) * dt, q=rec['q'], q_true=rec['q'] + d_q,
+        q_feedforward=rec['q_ff'], q_feedback=rec['q_fb'], frame_t=np.array(frames_t),
+        features=np.array(frames_p), measured=np.array(frames_measured),
+        p_target=fb.p_target, q_target=q_target, model=plant, rejected_frames=rejected)

@@ -1,0 +1,61 @@
+"""
+Decoupling of the linearised camera-and-robot model C1 by SVD, eq. (33)-(38) (no ROS).
+
+C1 = U_L diag(gain) U_R (eq. 34 with the constant matrix C1: U_L = U, gain = the singular
+values, U_R = V^T). The controller of eq. (38)-(41) is G_C = U_R^T diag(M_Y/S) U_L^T
+(the paper writes U_R M_Y U_L, transposes implied), i.e. C1^+ k(s).
+
+Unobservable direction (DESIGN section 5): both fiducials lie on the joint-6 axis, so
+joint 6 moves no feature, the sixth singular value of C1 is 0 (numerically ~1e-13 of the
+first) and eq. (37) would divide by it. Only the singular values above ``rcond`` times the
+largest are inverted (truncated SVD: rank 5), so the feedback never moves the
+unobservable direction (V's sixth column, e6): q6 is left to the feedforward and the
+encoder, which is harmless for an axisymmetric screwdriver. An optional Tikhonov
+``damping`` lambda replaces 1/sigma by sigma/(sigma^2 + lambda^2) on the kept values
+(damped least squares), which bounds the gain near a wrist singularity at the price of a
+slower channel there; the default 0 is the paper's exact inverse.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Decoupling:
+    """SVD of C1 = U diag(s) Vt, the rank used and the (truncated/damped) inverse."""
+
+    U: np.ndarray
+    s: np.ndarray
+    Vt: np.ndarray
+    rank: int
+    pinv: np.ndarray
+
+    @property
+    def condition(self):
+        """Return sigma_1 / sigma_rank, the condition number of the inverted part."""
+        return float(self.s[0] / self.s[self.rank - 1]) if self.rank else float('inf')
+
+    @property
+    def observable(self):
+        """Return the columns of U spanning the observable image directions (6, rank)."""
+        return self.U[:, :self.rank]
+
+
+def decouple(c1, rcond=1e-6, damping=0.0):
+    """
+    Return the :class:`Decoupling` of C1 (eq. 34) with the inverse used by eq. (37)-(41).
+
+    Singular values <= ``rcond`` * sigma_1 are treated as zero (not inverted).
+    """
+    c1 = np.asarray(c1, dtype=float)
+    if c1.ndim != 2 or not np.all(np.isfinite(c1)):
+        raise ValueError('C1 must be a finite matrix')
+    if not (0.0 < rcond < 1.0) or damping < 0.0:
+        raise ValueError(f'rcond = {rcond} must be in (0, 1) and damping = {damping} >= 0')
+    u, s, vt = np.linalg.svd(c1)
+    rank = int(np.count_nonzero(s > rcond * s[0])) if s[0] > 0.0 else 0
+    inv = np.zeros_like(s)
+    inv[:rank] = s[:rank] / (s[:rank] ** 2 + damping ** 2)
+    pinv = (vt[:s.size].T * inv) @ u[:, :s.size].T
+    return Decoupling(u, s, vt, rank, pinv)

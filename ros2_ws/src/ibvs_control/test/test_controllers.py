@@ -1,0 +1,251 @@
+"""Filters, governor and the three controllers as plain objects (no ROS, no PyBullet)."""
+
+from ibvs_control import youla
+from ibvs_control.controllers import (AdaptiveFeedback, check_reachable, Feedforward,
+                                      JointLoop, target_pose)
+from ibvs_control.filters import StateSpaceFilter
+from ibvs_control.governor import ReferenceGovernor
+from ibvs_control.tf import TransferFunction
+from ibvs_model import (default_model, forward_kinematics, ik_solutions, InvalidInputError,
+                        inverse_kinematics, IRB4600, ModelError, paper, pose_error,
+                        UnreachablePoseError)
+import numpy as np
+import pytest
+from scipy import signal
+
+TAU = 0.01
+DT = 1e-3
+
+
+# -- filters ---------------------------------------------------------------------------------
+
+def test_filter_matches_scipy_on_vector_channels():
+    tf = youla.feedforward(TAU).discretise(DT, 'bilinear')
+    filt = StateSpaceFilter(tf, 3)
+    inputs = np.random.default_rng(1).normal(size=(50, 3))
+    out = np.array([filt.step(u) for u in inputs])
+    for ch in range(3):
+        _, ref = signal.dlsim((tf.num, tf.den, DT), inputs[:, ch])
+        np.testing.assert_allclose(out[:, ch], ref.ravel(), rtol=1e-9, atol=1e-9)
+
+
+def test_filter_rest_state_holds_its_output():
+    filt = StateSpaceFilter(youla.feedforward_discrete(TAU, DT), 6)
+    u = np.arange(6.0)
+    filt.reset(rest_input=u)
+    for _ in range(5):
+        np.testing.assert_allclose(filt.step(u), u, atol=1e-9)
+    integrator = StateSpaceFilter(youla.outer_controller_discrete(TAU, 10.0, 0.7, 1 / 30), 6)
+    with pytest.raises(ValueError, match='integrator'):
+        integrator.reset(rest_input=u)
+
+
+def test_conditioning_makes_the_state_follow_the_applied_output():
+    tf = TransferFunction([1.0, -0.5], [1.0, -0.9], DT)
+    free = StateSpaceFilter(tf, 1)
+    cond = StateSpaceFilter(tf, 1)
+    for _ in range(20):
+        free.step(np.ones(1))
+        y = cond.step(np.ones(1), applied=np.full(1, 0.3))
+        assert y[0] == pytest.approx(0.3)
+    # the conditioned state is that of a filter driven by the input that gives 0.3
+    assert abs(cond.output(np.ones(1))[0]) < abs(free.output(np.ones(1))[0])
+    with pytest.raises(ValueError):
+        StateSpaceFilter(TransferFunction([1.0], [1.0, -0.9], DT), 1).step(1.0, applied=0.0)
+
+
+def test_filter_rejects_wrong_shapes():
+    filt = StateSpaceFilter(youla.feedforward_discrete(TAU, DT), 6)
+    with pytest.raises(ValueError):
+        filt.step(np.zeros(5))
+    with pytest.raises(ValueError):
+        StateSpaceFilter(youla.feedforward(TAU))
+
+
+# -- governor ---------------------------------------------------------------------------------
+
+def test_governor_respects_limits_and_stops_on_target():
+    v_max, a_max = np.full(6, 3.0), np.array([5.0, 10.0, 20.0, 40.0, 80.0, 160.0])
+    gov = ReferenceGovernor(DT, v_max, a_max)
+    gov.reset(np.zeros(6))
+    target = np.array([2.0, -1.0, 0.5, 0.01, -3.0, 1e-4])
+    rs = np.array([gov.step(target) for _ in range(3000)])
+    vel = np.diff(np.vstack([np.zeros(6), rs]), axis=0) / DT
+    acc = np.diff(np.vstack([np.zeros(6), vel]), axis=0) / DT
+    assert np.all(np.abs(vel) <= v_max + 1e-9)
+    assert np.all(np.abs(acc) <= a_max + 1e-6)
+    np.testing.assert_allclose(rs[-1], target, atol=1e-12)
+    # the braking curve is exact up to the last, partial step: overshoot below a dt^2
+    overshoot = np.max((rs - target) * np.sign(target), axis=0)
+    assert np.all(overshoot <= a_max * DT * DT)
+
+
+# -- joint loop -------------------------------------------------------------------------------
+
+def run_joint(loop, q_ref, steps, accel_limit=None):
+    q, qd = np.zeros(6), np.zeros(6)
+    qs, qds = [], []
+    for _ in range(steps):
+        acc = loop.step(q_ref, q, qd)
+        if accel_limit is not None:
+            assert np.all(np.abs(acc) <= accel_limit + 1e-9)
+        q, qd = q + qd * DT + 0.5 * acc * DT * DT, qd + acc * DT
+        qs.append(q)
+        qds.append(qd)
+    return np.array(qs), np.array(qds)
+
+
+def test_ideal_joint_loop_is_linear_and_decoupled():
+    loop = JointLoop(TAU, DT)
+    ref = np.array([1.0, 0.0, 0.0, 0.0, 0.0, -2.0])
+    qs, _ = run_joint(loop, ref, 300)
+    np.testing.assert_allclose(qs[:, 5], -2.0 * qs[:, 0], rtol=1e-12)
+    np.testing.assert_allclose(qs[:, 1:5], 0.0)
+    assert qs[-1, 0] == pytest.approx(1.0, abs=1e-6)
+    # with M and h, u = M v + h (eq. 26)
+    mass = np.diag([2.0, 3.0, 4.0, 5.0, 6.0, 7.0]) + 0.1
+    bias = np.arange(6.0)
+    a, b = JointLoop(TAU, DT), JointLoop(TAU, DT)
+    v = a.step(ref, np.zeros(6), np.zeros(6))
+    np.testing.assert_allclose(b.step(ref, np.zeros(6), np.zeros(6), mass, bias),
+                               mass @ v + bias)
+
+
+def test_limited_joint_loop_respects_speed_and_torque_and_settles():
+    accel = np.full(6, 30.0)
+    loop = JointLoop(TAU, DT, 'limited', IRB4600.qd_max, accel)
+    ref = np.array([2.5, -0.5, 1.0, 0.3, -0.2, 3.0])
+    qs, qds = run_joint(loop, ref, 4000, accel_limit=accel)
+    assert np.all(np.abs(qds) <= np.array(IRB4600.qd_max) + 1e-9)
+    np.testing.assert_allclose(qs[-1], ref, atol=1e-6)
+    # no limit cycle: the last second is quiet
+    assert np.max(np.abs(qds[-1000:])) < 1e-6
+
+
+def test_limited_mode_needs_limits():
+    with pytest.raises(ValueError, match='torque'):
+        JointLoop(TAU, DT, 'limited')
+    with pytest.raises(ValueError, match='actuators'):
+        JointLoop(TAU, DT, 'turbo')
+
+
+# -- feedforward ------------------------------------------------------------------------------
+
+def test_feedforward_ik_reproduces_the_target_pose():
+    pose = paper.target_pose()
+    for scenario in (1, 2):
+        ff = Feedforward(pose, TAU, DT)
+        q0 = inverse_kinematics(paper.scenario_start_pose(scenario))
+        q_target = ff.start(q0)
+        dpos, drot = pose_error(forward_kinematics(q_target), pose)
+        assert dpos < 1e-9 and drot < 1e-9
+        # branch nearest the current joints
+        branches = ik_solutions(pose, seed=q0)
+        assert len(branches) > 1
+        assert min(np.sum((q - q0) ** 2) for q in branches) == pytest.approx(
+            np.sum((q_target - q0) ** 2))
+
+
+def test_feedforward_starts_at_rest_and_reaches_the_target():
+    ff = Feedforward(paper.target_pose(), TAU, DT)
+    q0 = inverse_kinematics(paper.scenario_start_pose(1))
+    q_target = ff.start(q0)
+    # q_ff itself settles with the pole of T_forward at -1/(3 tau) (30 ms), which the
+    # inner loop's zero cancels: the joints settle in ~10 ms (test_youla)
+    out = np.array([ff.step() for _ in range(1000)])
+    np.testing.assert_allclose(out[0], q0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out[-1], q_target, atol=1e-9)
+    # biproper: the first answer to the step is many times the step (DESIGN section 5)
+    assert np.max(np.abs(out[1] - q0) / np.maximum(np.abs(q_target - q0), 1e-9)) > 10
+
+
+def test_unreachable_target_is_refused():
+    with pytest.raises(UnreachablePoseError):
+        Feedforward(target_pose([3.0, 0.0, 0.3], paper.TARGET_ROTATION), TAU, DT)
+    with pytest.raises(UnreachablePoseError):
+        check_reachable(target_pose([0.0, 0.0, -2.5], paper.TARGET_ROTATION))
+    with pytest.raises(ValueError, match='rotation'):
+        target_pose([-1.0, 0.2, 0.3], np.ones(9))
+
+
+def test_target_rotation_printed_with_four_digits_is_accepted():
+    pose = target_pose(paper.SCENARIO1_POSITION, paper.SCENARIO1_ROTATION_PRINTED)
+    np.testing.assert_allclose(pose[:3, :3].T @ pose[:3, :3], np.eye(3), atol=1e-12)
+
+
+# -- adaptive feedback ------------------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def feedback_setup():
+    model = default_model()
+    pose = paper.target_pose()
+    q_target = inverse_kinematics(pose)
+    return model, pose, q_target
+
+
+def make_feedback(setup, **kwargs):
+    model, pose, _ = setup
+    return AdaptiveFeedback(model, pose, TAU, 10.0, 1 / np.sqrt(2), 1 / 30, **kwargs)
+
+
+def test_target_features_are_F_of_the_target_joints(feedback_setup):
+    model, _, q_target = feedback_setup
+    fb = make_feedback(feedback_setup)
+    np.testing.assert_allclose(fb.p_target, model.features(q_target), atol=1e-9)
+
+
+def test_no_error_no_feedback_and_estimate_is_F_inverse(feedback_setup):
+    model, _, q_target = feedback_setup
+    fb = make_feedback(feedback_setup)
+    up = fb.update(fb.p_target, q_target)
+    np.testing.assert_allclose(up.q_feedback, 0.0, atol=1e-12)
+    np.testing.assert_allclose(up.q_estimate, q_target, atol=1e-8)
+    assert up.rank == 5 and up.error_norm == pytest.approx(0.0, abs=1e-9)
+
+
+def test_feedback_removes_a_joint_offset(feedback_setup):
+    """Closed around q_true = q_fb + d (T_inner = 1): q_fb -> -d on joints 1-5."""
+    model, _, q_target = feedback_setup
+    fb = make_feedback(feedback_setup)
+    d = np.radians(paper.DISTURBANCE_DEG)
+    q_fb = np.zeros(6)
+    for _ in range(60):
+        q_fb = fb.update(model.features(q_target + d + q_fb), q_target).q_feedback
+    np.testing.assert_allclose(q_fb[:5], -d[:5], atol=1e-6)
+    assert abs(q_fb[5]) < 1e-12
+
+
+def test_trust_region_and_hold(feedback_setup):
+    model, _, q_target = feedback_setup
+    q_far = inverse_kinematics(paper.scenario_start_pose(1))
+    fb = make_feedback(feedback_setup, max_correction=0.05)
+    up = fb.update(model.features(q_far), q_far)
+    assert up.clipped and np.max(np.abs(up.correction)) == pytest.approx(0.05)
+    free = make_feedback(feedback_setup, max_correction=np.inf)
+    assert not free.update(model.features(q_far), q_far).clipped
+    held = make_feedback(feedback_setup, hold_speed=0.2)
+    up = held.update(model.features(q_far), q_far, qdot_encoder=np.full(6, 2.0))
+    assert up.held and np.all(up.q_feedback == 0.0) and held.filter.steps == 0
+    up = held.update(model.features(q_far), q_far, qdot_encoder=np.zeros(6))
+    assert not up.held and held.filter.steps == 1
+
+
+def test_bad_features_raise_and_leave_the_state(feedback_setup):
+    _, _, q_target = feedback_setup
+    fb = make_feedback(feedback_setup)
+    fb.update(fb.p_target + 1.0, q_target)
+    before = fb.filter.x.copy()
+    for bad in (np.full(6, np.nan), np.zeros(5)):
+        with pytest.raises(InvalidInputError):
+            fb.update(bad, q_target)
+    bad_disparity = fb.p_target.copy()
+    bad_disparity[1] = bad_disparity[0] + 5.0  # u_r > u_l: behind the cameras
+    with pytest.raises(ModelError):
+        fb.update(bad_disparity, q_target)
+    np.testing.assert_array_equal(fb.filter.x, before)
+
+
+def test_feedback_refuses_gains_against_the_bandwidth_rule(feedback_setup):
+    model, pose, _ = feedback_setup
+    with pytest.raises(ValueError, match='tau_in'):
+        AdaptiveFeedback(model, pose, 0.01, 150.0, 0.7, 1 / 30)
