@@ -1,0 +1,236 @@
+"""
+adaptive_feedback_node: the adaptive Youla feedback of section 4.2, one q_feedback a frame.
+
+Inputs: the camera model from /stereo/{left,right}/camera_info and /stereo/pose
+(ibvs_common.conversions.camera_from_msgs), the encoder joints /joint_states, and the
+features /ibvs/features (stamp t_f = the frame's). Target features p_bar = F(q_target):
+the target markers projected (eq. 30). Per frame (:class:`.controllers.AdaptiveFeedback`):
+q~ = F^-1(p_hat) (eq. 42) with q6 and the IK branch from the encoder joints, C1 = J(q~)
+(eq. 31), SVD decoupling (eq. 34, rank 5), q_feedback = k_d(z) C1^+ (p_bar - p_hat)
+(eq. 38-41), discretised at the camera period.
+
+Determinism (DESIGN section 4). The encoder joints of frame t_f are those of the first
+/joint_states stamped at or after t_f (the simulator renders frame n from the first physics
+step at or after n * T_cam and publishes that step's joint state with it), kept in a short
+history by stamp. A frame waits until the camera model and that joint state have arrived;
+frames are processed in stamp order.
+
+Every frame is answered by one /ibvs/q_feedback stamped t_f, so that the joint controller,
+which waits for it, never stalls: a frame that cannot be used (NaN or wrong number of
+points, no triangulation or IK: rejected and counted on /diagnostics; older than
+``stale_timeout_s`` of sim time: rejected as stale) is answered with the held q_feedback,
+its integrator frozen. Sim time "now" is the newest /joint_states stamp (deterministic in
+lockstep, unlike the arrival of /clock). When no usable frame has come for
+``stale_timeout_s`` of sim time, the feedback is marked frozen (WARN on /diagnostics) and
+logged; it resumes with the next fresh frame. A frame not newer than the last one
+answered is rejected, not answered. /diagnostics: singular values of C1, condition
+number, rank used, image error norm.
+"""
+
+import bisect
+from collections import deque
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PolygonStamped, PoseStamped
+from ibvs_common import contract
+from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, read_features,
+                                     read_joints, stamp_ns)
+from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.node_main import run
+from ibvs_common.params import declare
+from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
+                                       TARGET_POSITION, TARGET_ROTATION, TAU_IN, ZETA)
+from ibvs_model import CameraRobotModel, IRB4600, ModelError
+import numpy as np
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, JointState
+
+from .closed_loop import period_ns
+from .controllers import AdaptiveFeedback
+from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, MAX_CORRECTION,
+                          SVD_DAMPING, SVD_RCOND, target_from)
+
+PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
+          STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED)
+
+#: Encoder joint states kept for matching frames (2 s at 1 kHz).
+HISTORY = 2000
+
+
+class AdaptiveFeedbackNode(Node):
+    """F^-1, C1, SVD and the Youla controller per frame (module docstring)."""
+
+    def __init__(self, **kwargs):
+        """Declare and check the parameters and create the interfaces."""
+        super().__init__('adaptive_feedback_node', **kwargs)
+        self.values = values = declare(self, PARAMS)
+        check_gains(values)
+        self.pose = target_from(values)
+        self.camera_ns = period_ns(values['camera_rate_hz'])
+        self.timeout_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.feedback = None
+        self._infos = [None, None]
+        self._camera_pose = None
+        self._stamps = deque(maxlen=HISTORY)
+        self._joints = deque(maxlen=HISTORY)
+        self._pending = deque()
+        self.last_answered_ns = None
+        self.last_fresh_ns = None
+        self.first_joint_ns = None
+        self.frozen = False
+        self.frames = 0
+        self.diagnostics = Diagnostics(self, 'adaptive feedback')
+        self.diagnostics.update(state='waiting for camera', frames=0)
+        self._pub = self.create_publisher(JointState, contract.Q_FEEDBACK, contract.RELIABLE)
+        self.create_subscription(CameraInfo, contract.LEFT_INFO,
+                                 lambda m: self._on_info(0, m), contract.IMAGES)
+        self.create_subscription(CameraInfo, contract.RIGHT_INFO,
+                                 lambda m: self._on_info(1, m), contract.IMAGES)
+        self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                 contract.LATCHED)
+        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joint_state,
+                                 contract.RELIABLE)
+        self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
+                                 contract.RELIABLE)
+
+    # -- inputs ----------------------------------------------------------------------------
+    def _on_info(self, index, msg):
+        if self.feedback is not None:
+            return
+        self._infos[index] = msg
+        self._try_camera()
+
+    def _on_pose(self, msg):
+        if self.feedback is not None:
+            return
+        self._camera_pose = msg
+        self._try_camera()
+
+    def _try_camera(self):
+        if self._camera_pose is None or None in self._infos:
+            return
+        try:
+            camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
+            self.feedback = AdaptiveFeedback(
+                CameraRobotModel(camera, IRB4600), self.pose, self.values['tau_in'],
+                self.values['omega_n'], self.values['zeta'], self.camera_ns * 1e-9,
+                rcond=self.values['svd_rcond'], damping=self.values['svd_damping'],
+                design=self.values['feedback_design'],
+                max_correction=self.values['max_correction_rad'],
+                hold_speed=self.values['hold_speed_fraction'])
+        except (InputError, ModelError) as exc:
+            # e.g. the target behind the camera: nothing to servo on; keep waiting.
+            self.diagnostics.reject('camera model', type(exc).__name__, str(exc))
+            self._infos = [None, None]
+            return
+        self.diagnostics.update(state='running', p_target=self.feedback.p_target)
+        self.get_logger().info(
+            f'camera model ready; target features p_bar = '
+            f'{np.round(self.feedback.p_target, 2).tolist()} px')
+        self._drain()
+
+    def _on_joint_state(self, msg):
+        t_ns = stamp_ns(msg.header.stamp)
+        try:
+            q = read_joints(msg)
+            qd = read_joints(msg, 'velocity')
+        except InputError as exc:
+            self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
+            return
+        if self._stamps and t_ns <= self._stamps[-1]:
+            self.diagnostics.reject(contract.JOINT_STATES, 'stale stamp',
+                                    f'{t_ns} ns after {self._stamps[-1]} ns')
+            return
+        self._stamps.append(t_ns)
+        self._joints.append((q, qd))
+        if self.first_joint_ns is None:
+            self.first_joint_ns = t_ns
+        self._watch_timeout(t_ns)
+        self._drain()
+
+    def _on_features(self, msg):
+        t_ns = stamp_ns(msg.header.stamp)
+        newest = self._pending[-1][0] if self._pending else self.last_answered_ns
+        if newest is not None and t_ns <= newest:
+            self.diagnostics.reject(contract.FEATURES, 'stale stamp',
+                                    f'{t_ns} ns, not after {newest} ns')
+            return
+        try:
+            features = read_features(msg)
+        except InputError as exc:
+            features = exc
+        self._pending.append((t_ns, features))
+        self._drain()
+
+    # -- processing ------------------------------------------------------------------------
+    def _joints_at(self, t_ns):
+        """Return (q, qdot) of the first joint state at or after ``t_ns``, else None."""
+        i = bisect.bisect_left(self._stamps, t_ns)
+        return self._joints[i] if i < len(self._stamps) else None
+
+    def _drain(self):
+        """Answer the pending frames in order, as far as their inputs have arrived."""
+        while self._pending and self.feedback is not None:
+            t_ns, features = self._pending[0]
+            joints = self._joints_at(t_ns)
+            if joints is None:
+                return
+            self._pending.popleft()
+            self._answer(t_ns, features, joints)
+
+    def _answer(self, t_ns, features, joints):
+        source = contract.FEATURES
+        now_ns = self._stamps[-1]
+        if isinstance(features, InputError):
+            self.diagnostics.reject(source, features.reason,
+                                    f'{features.detail}; q_feedback held')
+        elif now_ns - t_ns > self.timeout_ns:
+            self.diagnostics.reject(source, 'stale features',
+                                    f'frame {t_ns} ns is {(now_ns - t_ns) * 1e-9:.3f} s old '
+                                    f'(> {self.timeout_ns * 1e-9:g} s): integrator frozen, '
+                                    'q_feedback held')
+        else:
+            try:
+                update = self.feedback.update(features, joints[0], joints[1])
+            except ModelError as exc:
+                self.diagnostics.reject(source, type(exc).__name__,
+                                        f'{exc}; q_feedback held')
+            else:
+                self._fresh(t_ns, update)
+        self.last_answered_ns = t_ns
+        self.frames += 1
+        self._pub.publish(joint_state(t_ns, position=self.feedback.q_feedback))
+        self.diagnostics.update(frames=self.frames, q_feedback=self.feedback.q_feedback)
+
+    def _fresh(self, t_ns, update):
+        self.last_fresh_ns = t_ns
+        if self.frozen:
+            self.frozen = False
+            self.get_logger().info(f'fresh features at {t_ns * 1e-9:.6f} s: feedback resumes')
+            self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
+        self.diagnostics.update(
+            state='holding (arm slewing)' if update.held else 'running',
+            singular_values=update.singular_values, condition_number=update.condition,
+            rank=update.rank, image_error_norm_px=update.error_norm,
+            q_estimate=update.q_estimate, correction_clipped=update.clipped)
+
+    def _watch_timeout(self, now_ns):
+        """Mark the feedback frozen once no usable frame came for stale_timeout_s."""
+        since = self.last_fresh_ns if self.last_fresh_ns is not None else self.first_joint_ns
+        if self.frozen or self.feedback is None or now_ns - since <= self.timeout_ns:
+            return
+        self.frozen = True
+        message = (f'no usable features for {(now_ns - since) * 1e-9:.3f} s of sim time: '
+                   'integrator frozen, q_feedback held')
+        self.get_logger().warn(message)
+        self.diagnostics.set_level(DiagnosticStatus.WARN, message)
+        self.diagnostics.update(state='frozen (features timed out)')
+
+
+def main(args=None):
+    """Run the adaptive feedback node (``ros2 run ibvs_control adaptive_feedback_node``)."""
+    run(AdaptiveFeedbackNode, args=args, name='adaptive_feedback_node')
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,200 @@
+"""
+joint_controller_node: the inner joint loop of section 4.1, one effort command a step.
+
+On each /joint_states (encoder q, qdot; stamp t_k) it computes, with q_ref = q_feedforward
++ q_feedback, v = G_c(q_ref - q) (the sampled eq. 28 at the physics rate) and the
+feedback linearisation u = M(q) v + h(q, qdot) (eq. 23-27), M and h of the nominal robot
+from PyBullet (:class:`.dynamics.RobotDynamics`), and publishes /joint_effort_commands
+(JointState with effort) stamped t_k. Actuators: 'ideal' (the paper) or 'limited' (IRB
+4600 speed and torque limits, reference governor and anti-windup:
+:class:`.controllers.JointLoop`).
+
+Lockstep (DESIGN section 4). The answer to t_k needs q_feedforward stamped t_k and the
+q_feedback of frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero
+before the first frame takes effect). A joint state whose inputs have not all arrived is
+buffered and answered as soon as they have, in stamp order; nothing is answered early or
+twice, so a run is the same however the executor interleaves the callbacks. While it waits
+it logs once a second (steady clock) what for.
+
+Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
+(wrong length, NaN, unknown joint names), a /joint_states not newer than the last one, a
+q_feedforward or q_feedback older than what is still needed.
+"""
+
+from collections import deque
+
+from ibvs_common import contract
+from ibvs_common.conversions import InputError, joint_state, read_joints, stamp_ns
+from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.node_main import run
+from ibvs_common.params import declare, ParameterError
+from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S,
+                                       OMEGA_N, PHYSICS_RATE_HZ, TAU_IN)
+from ibvs_model import IRB4600
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from .closed_loop import feedback_frame_ns, period_ns
+from .controllers import JointLoop
+from .dynamics import RobotDynamics
+from .node_params import (ACCELERATION_MARGIN, check_gains, SPEED_MARGIN, TORQUE_LIMITS)
+
+PARAMS = (TAU_IN, OMEGA_N, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS,
+          TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN)
+
+#: Steady-clock period of the 'waiting for' log.
+WAIT_LOG_S = 1.0
+#: Most buffered inputs of each kind (lockstep keeps one or two; this bounds a flood).
+MAX_BUFFER = 1000
+
+
+class JointControllerNode(Node):
+    """Computed torque with the sampled Youla G_c, in lockstep (module docstring)."""
+
+    def __init__(self, **kwargs):
+        """Declare and check the parameters, load the dynamics model, create interfaces."""
+        super().__init__('joint_controller_node', **kwargs)
+        values = declare(self, PARAMS)
+        check_gains(values)
+        self.dt_ns = period_ns(values['physics_rate_hz'])
+        self.camera_ns = period_ns(values['camera_rate_hz'])
+        self.latency_ns = int(round(values['feedback_latency_s'] * 1e9))
+        if self.camera_ns < self.dt_ns:
+            raise ParameterError(
+                f"parameter 'camera_rate_hz' = {values['camera_rate_hz']!r} is invalid: "
+                f"faster than physics_rate_hz = {values['physics_rate_hz']!r}; allowed: "
+                'camera_rate_hz <= physics_rate_hz')
+        self.dynamics = RobotDynamics(IRB4600, with_tool=True)
+        limits = np.asarray(values['torque_limits'], dtype=float)
+        self.torque_limits = np.where(limits > 0.0, limits, self.dynamics.torque_limits)
+        self.loop = JointLoop(values['tau_in'], self.dt_ns * 1e-9, values['actuators'],
+                              IRB4600.qd_max, self.torque_limits,
+                              speed_margin=values['speed_margin'],
+                              acceleration_margin=values['acceleration_margin'])
+        self._states = deque()
+        self._ff = {}
+        self._fb = {}
+        self.last_answered_ns = None
+        self.commands = 0
+        self.diagnostics = Diagnostics(self, 'joint controller')
+        self.diagnostics.update(actuators=values['actuators'], commands=0,
+                                torque_limits=self.torque_limits)
+        self._pub = self.create_publisher(JointState, contract.EFFORT_COMMANDS,
+                                          contract.RELIABLE)
+        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joint_state,
+                                 contract.RELIABLE)
+        self.create_subscription(JointState, contract.Q_FEEDFORWARD, self._on_feedforward,
+                                 contract.RELIABLE)
+        self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
+                                 contract.RELIABLE)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._progress = True
+        self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self.get_logger().info(
+            f"{values['actuators']} actuators, G_c at {1e9 / self.dt_ns:g} Hz, frames every "
+            f'{self.camera_ns} ns, latency {self.latency_ns} ns')
+
+    def destroy_node(self):
+        """Release the PyBullet client with the node."""
+        self.dynamics.close()
+        return super().destroy_node()
+
+    # -- inputs ----------------------------------------------------------------------------
+    def _on_joint_state(self, msg):
+        source = contract.JOINT_STATES
+        t_ns = stamp_ns(msg.header.stamp)
+        try:
+            q = read_joints(msg)
+            qd = read_joints(msg, 'velocity')
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
+        newest = self._states[-1][0] if self._states else self.last_answered_ns
+        if newest is not None and t_ns <= newest:
+            self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns, not after {newest} ns')
+            return
+        if len(self._states) >= MAX_BUFFER:
+            self.diagnostics.reject(source, 'buffer full', f'{t_ns} ns dropped')
+            return
+        self._states.append((t_ns, q, qd))
+        self._drain()
+
+    def _on_feedforward(self, msg):
+        self._store(msg, self._ff, contract.Q_FEEDFORWARD,
+                    self.last_answered_ns if self.last_answered_ns is not None else -1)
+
+    def _on_feedback(self, msg):
+        needed = None
+        if self.last_answered_ns is not None:
+            needed = feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns)
+        self._store(msg, self._fb, contract.Q_FEEDBACK, -1 if needed is None else needed - 1)
+
+    def _store(self, msg, buffer, source, older_than_or_at):
+        t_ns = stamp_ns(msg.header.stamp)
+        try:
+            q = read_joints(msg)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
+        if t_ns <= older_than_or_at:
+            self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
+            return
+        if t_ns in buffer or len(buffer) >= MAX_BUFFER:
+            self.diagnostics.reject(source, 'duplicate stamp' if t_ns in buffer
+                                    else 'buffer full', f'{t_ns} ns')
+            return
+        buffer[t_ns] = q
+        self._drain()
+
+    # -- lockstep ---------------------------------------------------------------------------
+    def _missing(self, t_ns):
+        """Return what the answer to ``t_ns`` still waits for (empty when ready)."""
+        missing = []
+        if t_ns not in self._ff:
+            missing.append(f'{contract.Q_FEEDFORWARD} stamped {t_ns} ns')
+        frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
+        if frame is not None and frame not in self._fb:
+            missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns')
+        return missing
+
+    def _drain(self):
+        """Answer the buffered joint states in order, as far as their inputs are here."""
+        while self._states and not self._missing(self._states[0][0]):
+            t_ns, q, qd = self._states.popleft()
+            frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
+            q_fb = np.zeros(6) if frame is None else self._fb[frame]
+            self._answer(t_ns, q, qd, self._ff.pop(t_ns) + q_fb)
+            for stamp in [s for s in self._ff if s < t_ns]:
+                del self._ff[stamp]
+            if frame is not None:
+                for stamp in [s for s in self._fb if s < frame]:
+                    del self._fb[stamp]
+
+    def _answer(self, t_ns, q, qd, q_ref):
+        mass = self.dynamics.mass_matrix(q)
+        bias = self.dynamics.bias(q, qd)
+        torque = self.loop.step(q_ref, q, qd, mass, bias)
+        self._pub.publish(joint_state(t_ns, effort=torque))
+        self.last_answered_ns = t_ns
+        self.commands += 1
+        self._progress = True
+        self.diagnostics.update(commands=self.commands, last_answered_ns=t_ns,
+                                saturated_joints=int(np.count_nonzero(self.loop.saturated)))
+
+    def _log_waiting(self):
+        if self._states and not self._progress:
+            t_ns = self._states[0][0]
+            self.get_logger().info(f'waiting to answer /joint_states {t_ns} ns for '
+                                   + ', '.join(self._missing(t_ns)))
+        self._progress = False
+
+
+def main(args=None):
+    """Run the joint controller node (``ros2 run ibvs_control joint_controller_node``)."""
+    run(JointControllerNode, args=args, name='joint_controller_node')
+
+
+if __name__ == '__main__':
+    main()

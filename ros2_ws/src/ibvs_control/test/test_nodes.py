@@ -1,0 +1,452 @@
+"""
+The three control nodes in an rclpy executor, fed messages by a test node.
+
+Each test has its own rclpy Context; nodes share one SingleThreadedExecutor with the
+test node and the tests wait on conditions (with a generous deadline that only guards
+against a hang), never on wall-clock time.
+"""
+
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PolygonStamped, PoseStamped
+from ibvs_common import contract
+from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_stamped,
+                                     read_joints, stamp_ns)
+from ibvs_common.params import ParameterError
+from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
+from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
+from ibvs_control.dynamics import RobotDynamics
+from ibvs_control.feedforward_node import FeedforwardNode
+from ibvs_control.joint_controller_node import JointControllerNode
+from ibvs_model import default_model, inverse_kinematics, paper
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, JointState
+
+MS = 1_000_000
+CAMERA_NS = 33_333_333
+DEADLINE_S = 20.0
+
+
+@pytest.fixture
+def context():
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        yield ctx
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def overrides(**values):
+    return [Parameter(k, value=v) for k, v in values.items()]
+
+
+class Harness:
+    """A test node with publishers/recorders of the contract topics, and an executor."""
+
+    def __init__(self, context, *nodes):
+        self.node = Node('harness', context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.nodes = list(nodes)
+        for n in (self.node, *nodes):
+            self.executor.add_node(n)
+        self.received = {}
+        pub = self.node.create_publisher
+        self.pub = {
+            contract.JOINT_STATES: pub(JointState, contract.JOINT_STATES, contract.RELIABLE),
+            contract.Q_FEEDFORWARD: pub(JointState, contract.Q_FEEDFORWARD,
+                                        contract.RELIABLE),
+            contract.Q_FEEDBACK: pub(JointState, contract.Q_FEEDBACK, contract.RELIABLE),
+            contract.FEATURES: pub(PolygonStamped, contract.FEATURES, contract.RELIABLE),
+            contract.LEFT_INFO: pub(CameraInfo, contract.LEFT_INFO, contract.IMAGES),
+            contract.RIGHT_INFO: pub(CameraInfo, contract.RIGHT_INFO, contract.IMAGES),
+            contract.STEREO_POSE: pub(PoseStamped, contract.STEREO_POSE, contract.LATCHED),
+        }
+        for topic, kind in ((contract.Q_FEEDFORWARD, JointState),
+                            (contract.Q_FEEDBACK, JointState),
+                            (contract.EFFORT_COMMANDS, JointState),
+                            (contract.DIAGNOSTICS, DiagnosticArray)):
+            self.received[topic] = []
+            self.node.create_subscription(
+                kind, topic, lambda m, t=topic: self.received[t].append(m),
+                10 if kind is DiagnosticArray else contract.RELIABLE)
+
+    def spin_until(self, predicate, what='condition'):
+        deadline = time.monotonic() + DEADLINE_S
+        while not predicate():
+            assert time.monotonic() < deadline, f'timed out waiting for {what}'
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def wait_matched(self, topics):
+        """Wait until every publisher in ``topics`` has its subscriber (discovery)."""
+        self.spin_until(lambda: all(self.pub[t].get_subscription_count() > 0 for t in topics),
+                        'discovery')
+
+    def publish(self, topic, msg):
+        self.pub[topic].publish(msg)
+
+    def close(self):
+        self.executor.shutdown()
+        for n in (*self.nodes, self.node):
+            n.destroy_node()
+
+
+def stamps(msgs):
+    return [stamp_ns(m.header.stamp) for m in msgs]
+
+
+# -- feedforward_node -----------------------------------------------------------------------
+
+def test_feedforward_answers_each_joint_state_with_its_stamp(context):
+    node = FeedforwardNode(context=context)
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        sent = [0, MS, 2 * MS, 5 * MS]  # a missed message between 2 and 5 ms
+        for t in sent:
+            # later encoder values do not matter: the branch and rest state come from the first
+            h.publish(contract.JOINT_STATES, joint_state(t, q0 + 0.01 * (t > 0), np.zeros(6)))
+        out = h.received[contract.Q_FEEDFORWARD]
+        h.spin_until(lambda: len(out) == len(sent), 'q_feedforward')
+        assert stamps(out) == sent
+        ref = Feedforward(paper.target_pose(), 0.01, 1e-3)
+        ref.start(q0)  # the encoder joints of the FIRST message
+        expected = [ref.step() for _ in range(6)]
+        got = np.array([read_joints(m) for m in out])
+        np.testing.assert_allclose(got[0], q0, atol=1e-12)
+        np.testing.assert_allclose(got, np.array(expected)[[0, 1, 2, 5]], atol=1e-9)
+    finally:
+        h.close()
+
+
+def test_feedforward_rejects_bad_and_stale_joint_states(context):
+    node = FeedforwardNode(context=context)
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        h.publish(contract.JOINT_STATES, joint_state(5 * MS, q0, np.zeros(6)))
+        bad = [joint_state(6 * MS, [0.0] * 5, np.zeros(5)),
+               joint_state(7 * MS, [np.nan] + [0.0] * 5, np.zeros(6)),
+               joint_state(5 * MS, q0, np.zeros(6)),  # not newer
+               joint_state(8 * MS, q0, np.zeros(6))]
+        for msg in bad:
+            h.publish(contract.JOINT_STATES, msg)
+        out = h.received[contract.Q_FEEDFORWARD]
+        h.spin_until(lambda: len(out) == 2, 'q_feedforward')
+        h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
+        assert stamps(out) == [5 * MS, 8 * MS]
+        assert node.diagnostics.rejections == {
+            '/joint_states: wrong position length': 1,
+            '/joint_states: non-finite position': 1, '/joint_states: stale stamp': 1}
+        # and the count goes out on /diagnostics
+        node.diagnostics.publish()
+        diags = h.received[contract.DIAGNOSTICS]
+
+        def counted():
+            for m in diags:
+                for status in m.status:
+                    if status.name.startswith('feedforward_node'):
+                        values = {kv.key: kv.value for kv in status.values}
+                        return values.get('rejected_total') == '3'
+            return False
+        h.spin_until(counted, 'the rejection count on /diagnostics')
+    finally:
+        h.close()
+
+
+@pytest.mark.parametrize('params,name', [
+    ({'target_position': [3.0, 0.0, 0.3]}, 'target_position'),
+    ({'target_rotation': [1.0] * 9}, 'target_rotation'),
+    ({'omega_n': 150.0}, 'omega_n'),
+    ({'omega_n': 100.0}, 'omega_n'),
+    ({'physics_rate_hz': 5.0}, 'physics_rate_hz'),
+])
+def test_nodes_stop_at_start_on_bad_parameters(context, params, name):
+    for cls in (FeedforwardNode, AdaptiveFeedbackNode, JointControllerNode):
+        if name == 'physics_rate_hz' and cls is AdaptiveFeedbackNode:
+            continue
+        if name.startswith('target') and cls is JointControllerNode:
+            continue
+        with pytest.raises(ParameterError, match=f"'{name}'"):
+            cls(context=context, parameter_overrides=overrides(**params))
+
+
+# -- adaptive_feedback_node -----------------------------------------------------------------
+
+def camera_messages(model):
+    left, right = camera_infos(model.camera.intrinsics, 0)
+    return left, right, pose_stamped(model.camera.pose_C_O, 0)
+
+
+def feedback_harness(context, **params):
+    node = AdaptiveFeedbackNode(context=context, parameter_overrides=overrides(**params))
+    h = Harness(context, node)
+    h.wait_matched([contract.JOINT_STATES, contract.FEATURES, contract.LEFT_INFO,
+                    contract.RIGHT_INFO, contract.STEREO_POSE])
+    return node, h
+
+
+def test_feedback_answers_each_frame_like_the_pure_controller(context):
+    model = default_model()
+    node, h = feedback_harness(context)
+    try:
+        q_target = inverse_kinematics(paper.target_pose())
+        d_q = np.radians(paper.DISTURBANCE_DEG)
+        frames = [n * CAMERA_NS for n in range(4)]
+        # features first: the node must wait for the camera model and the joint states
+        for n, t in enumerate(frames):
+            h.publish(contract.FEATURES, features_msg(model.features(q_target + d_q), t))
+        h.spin_until(lambda: len(node._pending) == 4, 'features buffered')
+        left, right, pose = camera_messages(model)
+        h.publish(contract.LEFT_INFO, left)
+        h.publish(contract.RIGHT_INFO, right)
+        h.publish(contract.STEREO_POSE, pose)
+        h.spin_until(lambda: node.feedback is not None, 'camera model')
+        assert h.received[contract.Q_FEEDBACK] == []
+        # joint states on the 1 ms grid: frame n uses the first one at or after n * T_cam
+        for t in (0, 33 * MS, 34 * MS, 66 * MS, 67 * MS, 100 * MS):
+            h.publish(contract.JOINT_STATES, joint_state(t, q_target, np.zeros(6)))
+        out = h.received[contract.Q_FEEDBACK]
+        h.spin_until(lambda: len(out) == 4, 'q_feedback')
+        assert stamps(out) == frames
+        ref = AdaptiveFeedback(model, paper.target_pose(), 0.01, 10.0, paper.ZETA, 1 / 30)
+        # the features travel as float32 (Point32)
+        sent = model.features(q_target + d_q).astype(np.float32).astype(float)
+        for msg in out:
+            up = ref.update(sent, q_target, np.zeros(6))
+            np.testing.assert_allclose(read_joints(msg), up.q_feedback, atol=1e-9)
+        np.testing.assert_allclose(node.feedback.p_target, model.features(q_target),
+                                   atol=1e-6)
+        status = node.diagnostics.status()
+        values = {kv.key: kv.value for kv in status.values}
+        assert values['rank'] == '5'
+        assert float(values['condition_number']) > 1.0
+        assert values['singular_values'].startswith('[')
+        assert float(values['image_error_norm_px']) > 0.0
+    finally:
+        h.close()
+
+
+def test_feedback_holds_on_bad_and_stale_features_and_freezes(context):
+    model = default_model()
+    node, h = feedback_harness(context, stale_timeout_s=0.1)
+    try:
+        left, right, pose = camera_messages(model)
+        for topic, msg in ((contract.LEFT_INFO, left), (contract.RIGHT_INFO, right),
+                           (contract.STEREO_POSE, pose)):
+            h.publish(topic, msg)
+        q_target = inverse_kinematics(paper.target_pose())
+        q = q_target + np.radians(paper.DISTURBANCE_DEG)
+        good = model.features(q)
+        out = h.received[contract.Q_FEEDBACK]
+        h.publish(contract.JOINT_STATES, joint_state(0, q_target, np.zeros(6)))
+        h.publish(contract.FEATURES, features_msg(good, 0))
+        h.spin_until(lambda: len(out) == 1, 'first q_feedback')
+        held = read_joints(out[0])
+        assert np.any(held != 0.0)
+        state = node.feedback.filter.x.copy()
+        # a NaN frame and a one-point frame: rejected, answered with the held value
+        nan = features_msg(good, CAMERA_NS)
+        nan.polygon.points[0].x = float('nan')
+        one = features_msg(good, 2 * CAMERA_NS)
+        one.polygon.points = one.polygon.points[:1]
+        h.publish(contract.JOINT_STATES, joint_state(70 * MS, q_target, np.zeros(6)))
+        h.publish(contract.FEATURES, nan)
+        h.publish(contract.FEATURES, one)
+        h.spin_until(lambda: len(out) == 3, 'held answers')
+        assert stamps(out) == [0, CAMERA_NS, 2 * CAMERA_NS]
+        for msg in out[1:]:
+            np.testing.assert_array_equal(read_joints(msg), held)
+        np.testing.assert_array_equal(node.feedback.filter.x, state)
+        assert node.diagnostics.rejections['/ibvs/features: non-finite features'] == 1
+        assert node.diagnostics.rejections['/ibvs/features: wrong feature count'] == 1
+        # sim time moves on without usable features: frozen (logged, WARN on /diagnostics)
+        h.publish(contract.JOINT_STATES, joint_state(400 * MS, q_target, np.zeros(6)))
+        h.spin_until(lambda: node.frozen, 'frozen')
+        assert node.diagnostics.level == DiagnosticStatus.WARN
+        # a frame older than the timeout (sim time = newest joint state) is stale: held
+        h.publish(contract.FEATURES, features_msg(good, 3 * CAMERA_NS))
+        h.spin_until(lambda: len(out) == 4, 'stale answer')
+        np.testing.assert_array_equal(read_joints(out[3]), held)
+        assert node.diagnostics.rejections['/ibvs/features: stale features'] == 1
+        assert node.frozen
+        # a fresh frame resumes the integration
+        h.publish(contract.JOINT_STATES, joint_state(401 * MS, q_target, np.zeros(6)))
+        h.publish(contract.FEATURES, features_msg(good, 12 * CAMERA_NS))
+        h.spin_until(lambda: len(out) == 5, 'fresh answer')
+        assert not node.frozen and np.any(read_joints(out[4]) != held)
+        # an old stamp again is not answered twice
+        h.publish(contract.FEATURES, features_msg(good, 12 * CAMERA_NS))
+        h.spin_until(lambda: node.diagnostics.rejections['/ibvs/features: stale stamp'] == 1,
+                     'duplicate rejected')
+        assert len(out) == 5
+    finally:
+        h.close()
+
+
+# -- joint_controller_node ------------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def dynamics():
+    dyn = RobotDynamics()
+    yield dyn
+    dyn.close()
+
+
+def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, dynamics):
+    node = JointControllerNode(context=context)
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD, contract.Q_FEEDBACK])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        h.spin_until(lambda: len(node._states) == 1, 'joint state buffered')
+        h.publish(contract.Q_FEEDFORWARD, joint_state(0, q0))
+        h.spin_until(lambda: 0 in node._ff, 'q_feedforward buffered')
+        # frame 0 acts at t = 0 (latency 0): still waiting for its q_feedback
+        assert node.commands == 0 and node._missing(0) == [
+            f'{contract.Q_FEEDBACK} of frame 0 ns']
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1, 'effort command')
+        assert stamps(out) == [0]
+        # at rest on its reference: u = h(q, 0), gravity compensation
+        np.testing.assert_allclose(read_joints(out[0], 'effort'),
+                                   dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
+        # next steps: frame 0's q_feedback still applies until frame 1 (33.33 ms)
+        q_fb = np.full(6, 0.001)
+        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, q_fb))
+        loop = JointLoop(0.01, 1e-3)
+        loop.step(q0, q0, np.zeros(6))
+        for k in (1, 2):
+            q, qd = q0 + 1e-4 * k, np.full(6, 0.01 * k)
+            h.publish(contract.Q_FEEDFORWARD, joint_state(k * MS, q0 + 0.01))
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, q, qd))
+            h.spin_until(lambda: len(out) == k + 1, f'effort command {k}')
+            expected = loop.step(q0 + 0.01, q, qd, dynamics.mass_matrix(q),
+                                 dynamics.bias(q, qd))
+            np.testing.assert_allclose(read_joints(out[k], 'effort'), expected, rtol=1e-9)
+        # t = 34 ms: frame 1 applies
+        q = q0
+        h.publish(contract.JOINT_STATES, joint_state(34 * MS, q, np.zeros(6)))
+        h.publish(contract.Q_FEEDFORWARD, joint_state(34 * MS, q0 + 0.01))
+        h.spin_until(lambda: len(out) == 4, 'effort command at 34 ms')
+        expected = loop.step(q0 + 0.01 + q_fb, q, np.zeros(6), dynamics.mass_matrix(q),
+                             dynamics.bias(q, np.zeros(6)))
+        np.testing.assert_allclose(read_joints(out[3], 'effort'), expected, rtol=1e-9)
+        assert stamps(out) == [0, MS, 2 * MS, 34 * MS]
+    finally:
+        h.close()
+
+
+def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
+    node = JointControllerNode(context=context,
+                               parameter_overrides=overrides(feedback_latency_s=0.02))
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        for k in (0, 19):
+            h.publish(contract.Q_FEEDFORWARD, joint_state(k * MS, q0))
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
+        h.publish(contract.Q_FEEDFORWARD, joint_state(20 * MS, q0))
+        h.publish(contract.JOINT_STATES, joint_state(20 * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: 20 * MS in node._ff, 'q_feedforward at 20 ms')
+        assert node._missing(20 * MS) == [f'{contract.Q_FEEDBACK} of frame 0 ns']
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 3, 'answer at 20 ms')
+        assert stamps(out) == [0, 19 * MS, 20 * MS]
+    finally:
+        h.close()
+
+
+def test_joint_controller_rejects_bad_input(context):
+    node = JointControllerNode(context=context)
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD, contract.Q_FEEDBACK])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        h.publish(contract.JOINT_STATES, joint_state(0, [np.nan] * 6, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, [0.0] * 3))
+        h.publish(contract.Q_FEEDFORWARD, joint_state(0, [0.0] * 7))
+        h.publish(contract.Q_FEEDBACK, joint_state(0, [np.inf] * 6))
+        h.spin_until(lambda: node.diagnostics.rejected_total == 4, 'rejections')
+        out = h.received[contract.EFFORT_COMMANDS]
+        for topic, msg in ((contract.Q_FEEDFORWARD, joint_state(0, q0)),
+                           (contract.Q_FEEDBACK, joint_state(0, np.zeros(6))),
+                           (contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))):
+            h.publish(topic, msg)
+        h.spin_until(lambda: len(out) == 1, 'answer')
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))  # answered already
+        h.publish(contract.Q_FEEDFORWARD, joint_state(0, q0))  # no longer needed
+        h.spin_until(lambda: node.diagnostics.rejected_total == 6, 'stale rejections')
+        assert len(out) == 1
+        assert node.diagnostics.rejections['/joint_states: stale stamp'] == 1
+        assert node.diagnostics.rejections['/ibvs/q_feedforward: stale stamp'] == 1
+        assert node.diagnostics.rejections['/joint_states: non-finite position'] == 1
+        assert node.diagnostics.rejections['/joint_states: wrong velocity length'] == 1
+    finally:
+        h.close()
+
+
+def test_limited_joint_controller_clips_torque(context, dynamics):
+    node = JointControllerNode(context=context, parameter_overrides=overrides(
+        actuators='limited', torque_limits=[50.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    h = Harness(context, node)
+    try:
+        np.testing.assert_allclose(node.torque_limits[1:], dynamics.torque_limits[1:])
+        assert node.torque_limits[0] == 50.0
+        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD, contract.Q_FEEDBACK])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        for k in range(3):
+            h.publish(contract.Q_FEEDFORWARD, joint_state(k * MS, q0 + 1.0))
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 3, 'answers')
+        efforts = np.array([read_joints(m, 'effort') for m in out])
+        assert np.all(np.abs(efforts) <= node.torque_limits + 1e-9)
+    finally:
+        h.close()
+
+
+# -- several nodes on one executor ----------------------------------------------------------
+
+def test_feedforward_and_joint_controller_in_lockstep_with_a_stand_in_plant(context):
+    """A stand-in plant publishes /joint_states and waits for the command of each step."""
+    ff = FeedforwardNode(context=context)
+    jc = JointControllerNode(context=context)
+    h = Harness(context, ff, jc)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDBACK])
+        h.spin_until(lambda: h.pub[contract.JOINT_STATES].get_subscription_count() >= 2,
+                     'both subscribers')
+        q = inverse_kinematics(paper.scenario_start_pose(1))
+        qd = np.zeros(6)
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        dyn = jc.dynamics
+        for k in range(10):
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, q, qd))
+            h.spin_until(lambda: len(out) == k + 1, f'command {k}')
+            assert stamps(out)[-1] == k * MS
+            u = read_joints(out[-1], 'effort')
+            acc = np.linalg.solve(dyn.mass_matrix(q), u - dyn.bias(q, qd))
+            q, qd = q + qd * 1e-3 + 0.5 * acc * 1e-6, qd + acc * 1e-3
+        assert stamps(h.received[contract.Q_FEEDFORWARD]) == [k * MS for k in range(10)]
+        # the arm has started toward the target (feedforward through the inner loop)
+        q_target = ff.ff.q_target
+        q_start = inverse_kinematics(paper.scenario_start_pose(1))
+        assert np.linalg.norm(q - q_target) < 0.5 * np.linalg.norm(q_start - q_target)
+    finally:
+        h.close()
