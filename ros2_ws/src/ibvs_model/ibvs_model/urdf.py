@@ -28,9 +28,12 @@ the 425 kg: a steel shaft (7850 kg/m^3) and two solid ABS spheres (1050 kg/m^3).
 
 What the camera must see. The fiducials are spheres of radius ``scene.MARKER_RADIUS_M`` in
 the colours ``scene.MARKER_RGB``. P1 is the flange centre, so link 6 is a thin quill
-(radius 8 mm) from inside the wrist housing to P1, with no flange disc around P1; the
-screwdriver is a 4 mm shaft. The wrist housing ends 80 mm before P1's centre, so P1 is seen
-unless the camera looks along the tool axis from behind the wrist (within about 45 deg).
+(5 mm across) from inside the wrist housing to P1, with no flange disc around P1; the
+screwdriver is a 4 mm shaft. Seen from behind the wrist, these rods cross the near side of
+a marker; being thin, they move its image centroid by less than 0.2 px. The wrist is drawn
+slimmer than the real one (80 mm instead of about 200 mm across) and ends 95 mm before P1's
+centre, so P1 is seen unless the camera looks at it from behind the wrist within about
+40 deg of the tool axis.
 The robot is light grey, the shaft dark grey: neither has the markers' red or blue hue.
 
 Joints. Ranges and speeds are ABB's (``RobotParams.q_min``, ``q_max``, ``qd_max``). ABB does
@@ -65,8 +68,8 @@ EFFORT_MARGIN = 1.5
 STEEL_DENSITY = 7850.0
 ABS_DENSITY = 1050.0
 #: Radius of the screwdriver shaft and of the link-6 quill that carries P1, m.
-SHAFT_RADIUS_M = 0.004
-QUILL_RADIUS_M = 0.008
+SHAFT_RADIUS_M = 0.002
+QUILL_RADIUS_M = 0.0025
 GRAVITY = 9.81
 
 ROBOT_RGBA = (0.82, 0.82, 0.80, 1.0)
@@ -151,7 +154,7 @@ def _link_shapes(params):
     base_h = 0.2  # height of the fixed foot; footprint about 0.5 m x 0.5 m
     turntable_top = base_h + 0.14
     tube = max(l4 - 0.24, 0.02)  # forearm tube from 0.10 m to the fork, 0.14 m before L4
-    quill = max(lt - 0.04, 0.01)
+    quill = max(lt - 0.03, 0.01)
     return {
         'base_link': [Solid('box', (0.50, 0.50, base_h), (0.0, 0.0, base_h / 2))],
         # Turntable (radius 0.24 m) on the foot, and the shoulder housing that carries
@@ -172,23 +175,25 @@ def _link_shapes(params):
             Solid('cylinder', (0.12, 0.26)),
             Solid('box', (l3 + 0.22, 0.40, 0.24), (l3 / 2.0, -0.10, 0.0)),
         ],
-        # Forearm tube along z (joint-4 axis) to the wrist centre at z = L4, and the wrist
-        # fork: two plates either side of the joint-5 axis (the link's -y), ending in hubs
-        # of radius 0.06 m around the wrist centre.
+        # Forearm tube along z (joint-4 axis) towards the wrist centre at z = L4, and the
+        # wrist fork: two plates either side of the joint-5 axis (the link's -y), ending in
+        # hubs of radius 0.04 m around the wrist centre.
         'link_4': [
             Solid('cylinder', (0.08, tube), (0.0, 0.0, 0.10 + tube / 2.0)),
-            Solid('box', (0.12, 0.03, 0.16), (0.0, 0.085, l4 - 0.08)),
-            Solid('box', (0.12, 0.03, 0.16), (0.0, -0.085, l4 - 0.08)),
-            Solid('cylinder', (0.06, 0.03), (0.0, 0.085, l4), _ALONG_Y),
-            Solid('cylinder', (0.06, 0.03), (0.0, -0.085, l4), _ALONG_Y),
+            Solid('box', (0.08, 0.015, 0.16), (0.0, 0.0525, l4 - 0.08)),
+            Solid('box', (0.08, 0.015, 0.16), (0.0, -0.0525, l4 - 0.08)),
+            Solid('cylinder', (0.04, 0.015), (0.0, 0.0525, l4), _ALONG_Y),
+            Solid('cylinder', (0.04, 0.015), (0.0, -0.0525, l4), _ALONG_Y),
         ],
-        # Wrist housing around the joint-5 axis (the link's z) between the fork plates;
-        # radius 0.055 m leaves 80 mm to P1's centre (tool axis = the link's y).
-        'link_5': [Solid('cylinder', (0.055, 0.14))],
+        # Wrist housing around the joint-5 axis (the link's z) between the fork plates.
+        # Radius 0.04 m leaves 95 mm to P1's centre (the tool axis is the link's y): the
+        # wrist is drawn slimmer than the real one (about 0.2 m across) so that P1 at the
+        # flange centre stays visible from the side, e.g. at the paper's scenario 1 start.
+        'link_5': [Solid('cylinder', (0.04, 0.09))],
         # Joint-6 rotor inside the wrist housing, and the quill that carries P1 at z = Lt:
         # no flange disc around P1 (it would hide the marker).
         'link_6': [
-            Solid('cylinder', (0.045, 0.05), (0.0, 0.0, 0.025)),
+            Solid('cylinder', (0.025, 0.03), (0.0, 0.0, 0.015)),
             Solid('cylinder', (QUILL_RADIUS_M, quill), (0.0, 0.0, lt - quill / 2.0)),
         ],
     }
