@@ -1,0 +1,74 @@
+"""
+Cost of the simulator's hot paths, for ``make bench`` (``ibvs_bringup.bench``).
+
+``run(report)`` calls ``report(name, seconds_list)`` with per-iteration wall times of: one
+physics step (torque control at 1 kHz, computed torque from PyBullet's inverse dynamics
+included), and one stereo pair rendered at HD720 and at VGA with the default renderer (EGL
+where it loads) and, if that is EGL, with the TinyRenderer fallback too. No ROS involved.
+``python -m ibvs_sim.bench`` prints median and p95 of each.
+"""
+
+import time
+
+from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoIntrinsics
+import numpy as np
+
+from .world import World
+
+PHYSICS_STEPS = 2000
+RENDERS = {'HD720': 20, 'VGA': 40}
+TINY_RENDERS = {'HD720': 8, 'VGA': 16}
+
+
+def _time(func, count):
+    out = []
+    for _ in range(count):
+        start = time.perf_counter()
+        func()
+        out.append(time.perf_counter() - start)
+    return out
+
+
+def _bench_world(world, report, renders, physics):
+    world.reset(inverse_kinematics(paper.target_pose()))
+    if physics:
+        def step():
+            q, qd = world.joint_state()
+            world.step(world.inverse_dynamics(q, qd, np.zeros(6)))
+        step()  # warm-up
+        report('sim: physics step (computed torque, 1 kHz)', _time(step, PHYSICS_STEPS))
+    for resolution, count in renders.items():
+        camera = StereoCamera(StereoIntrinsics.zed2(resolution),
+                              look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+        world.render_stereo(camera)  # warm-up (shader and mesh caches)
+        report(f'sim: stereo pair {resolution} ({world.renderer})',
+               _time(lambda c=camera: world.render_stereo(c), count))
+
+
+def run(report):
+    """Time one physics step and one stereo pair at HD720 and VGA; see the module docstring."""
+    world = World(renderer='auto')
+    try:
+        _bench_world(world, report, RENDERS, physics=True)
+        default = world.renderer
+    finally:
+        world.close()
+    if default == 'egl':
+        tiny = World(renderer='tiny')
+        try:
+            _bench_world(tiny, report, TINY_RENDERS, physics=False)
+        finally:
+            tiny.close()
+
+
+def main():
+    """Print median and p95 of each timing (``python -m ibvs_sim.bench``)."""
+    def report(name, seconds):
+        s = np.asarray(seconds, dtype=float)
+        print(f'{name:48s} median {np.median(s) * 1e3:9.3f} ms   '
+              f'p95 {np.percentile(s, 95) * 1e3:9.3f} ms   (n={s.size})', flush=True)
+    run(report)
+
+
+if __name__ == '__main__':
+    main()

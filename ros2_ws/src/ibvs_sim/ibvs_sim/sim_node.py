@@ -1,0 +1,222 @@
+"""
+sim_node: the simulated plant (paper Figure 3) on the contract of DESIGN sections 3 and 4.
+
+Lockstep. At step k (sim time t_k, from 0) the node publishes /clock, the camera frame due
+at t_k if any (both images and CameraInfo, stamped n * T_cam), /ibvs/tool_pose and, last,
+/joint_states (encoder angles q - d_q, velocities, the torque of the previous step). It then
+waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
+torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
+sleeps, so any number of nodes can share one executor. While it waits, a steady-clock timer
+logs once a second what it waits for.
+
+Start. Step 0 is published once somebody will answer and listen: /joint_effort_commands
+has a publisher, /joint_states a subscriber and, with publish_images, both image topics a
+subscriber (so that no lockstep message is published before its reader is matched). Until
+then it logs once a second what is missing.
+
+Bad input. A command with another stamp is rejected as stale (older) or early (newer) and
+ignored. A command with the right stamp but a wrong length, unknown joint names, NaN or inf
+is rejected too; the step then happens with the holding torque (PyBullet inverse dynamics
+that stops the arm where it is: Simulator.hold_torque), so the run goes on and the arm holds
+its position. Each rejection is logged and counted on /diagnostics.
+"""
+
+from geometry_msgs.msg import PoseStamped
+from ibvs_common import contract
+from ibvs_common.conversions import (camera_infos, InputError, joint_state, ns_stamp,
+                                     pose_stamped, read_joints, stamp_ns)
+from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.node_main import run
+from ibvs_common.params import declare, Param, ParameterError
+from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
+                                       PHYSICS_RATE_HZ, SCENARIO)
+from ibvs_model import paper
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import CameraInfo, Image, JointState
+
+from .simulator import ConfigError, Simulator
+from .world import RENDERERS
+
+RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
+                   'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
+CAMERA_EYE = Param('camera_eye', [float(v) for v in paper.CAMERA_EYE],
+                   'camera frame {C} origin (midway between the lenses) in {O}', 'm',
+                   low=-20.0, high=20.0, length=3)
+CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT],
+                       'point of {O} on the optical axis (image up = +z of {O})', 'm',
+                       low=-20.0, high=20.0, length=3)
+RENDERER = Param('renderer', 'auto', "PyBullet renderer: 'egl' (OpenGL without display), "
+                 "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads)", '-',
+                 choices=RENDERERS)
+PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
+                       'CameraInfo (false: physics only, e.g. with a model-based feature '
+                       'source)', '-')
+
+PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
+          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, PUBLISH_IMAGES)
+
+#: Steady-clock periods: readiness poll before the start, and the waiting log.
+START_POLL_S = 0.02
+WAIT_LOG_S = 1.0
+
+
+def image_msg(image, stamp, frame_id):
+    """Return an (H, W, 3) uint8 RGB array as sensor_msgs/Image (encoding rgb8)."""
+    msg = Image()
+    msg.header.stamp = ns_stamp(stamp)
+    msg.header.frame_id = frame_id
+    msg.height, msg.width = int(image.shape[0]), int(image.shape[1])
+    msg.encoding = 'rgb8'
+    msg.is_bigendian = 0
+    msg.step = int(image.shape[1]) * 3
+    msg.data = np.ascontiguousarray(image, dtype=np.uint8).tobytes()
+    return msg
+
+
+class SimNode(Node):
+    """PyBullet IRB 4600 and ZED 2, in lockstep with the controllers (module docstring)."""
+
+    def __init__(self, **kwargs):
+        """Declare and check the parameters, build the simulator and the interfaces."""
+        super().__init__('sim_node', **kwargs)
+        values = declare(self, PARAMS)
+        self._publish_images = values['publish_images']
+        try:
+            self.sim = Simulator(
+                scenario=values['scenario'], disturbance_deg=values['disturbance_deg'],
+                physics_rate_hz=values['physics_rate_hz'],
+                camera_rate_hz=values['camera_rate_hz'], resolution=values['resolution'],
+                camera_eye=values['camera_eye'], camera_look_at=values['camera_look_at'],
+                l2_scale=values['l2_scale'], l4_scale=values['l4_scale'],
+                renderer=values['renderer'] if self._publish_images else 'tiny')
+        except ConfigError as exc:
+            raise ParameterError(str(exc)) from None
+        log = self.get_logger()
+        pos_err, rot_err = self.sim.start_residual
+        log.info(f'scenario {self.sim.scenario}: true start angles '
+                 f'{np.round(np.degrees(self.sim.q_start), 3).tolist()} deg (IK residual '
+                 f'{pos_err:.2e} m, {rot_err:.2e} rad); d_q '
+                 f'{np.round(np.degrees(self.sim.d_q), 3).tolist()} deg; renderer '
+                 f'{self.sim.world.renderer if self._publish_images else "off"}; '
+                 f'{"exact" if self.sim.frames_exact else "nearest-step"} frame times')
+
+        self.diagnostics = Diagnostics(self, 'simulator')
+        self.diagnostics.update(step=0, sim_time_s=0.0, waiting_for_ns=-1, frames=0,
+                                held_steps=0, renderer=self.sim.world.renderer,
+                                start_residual_m=pos_err)
+        self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
+        self._pub_joints = self.create_publisher(JointState, contract.JOINT_STATES,
+                                                 contract.RELIABLE)
+        self._pub_tool = self.create_publisher(PoseStamped, contract.TOOL_POSE,
+                                               contract.RELIABLE)
+        self._pub_images = self._pub_infos = ()
+        if self._publish_images:
+            self._pub_images = tuple(self.create_publisher(Image, topic, contract.IMAGES)
+                                     for topic in (contract.LEFT_IMAGE, contract.RIGHT_IMAGE))
+            self._pub_infos = tuple(self.create_publisher(CameraInfo, topic, contract.IMAGES)
+                                    for topic in (contract.LEFT_INFO, contract.RIGHT_INFO))
+        pose_pub = self.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
+        pose_pub.publish(pose_stamped(self.sim.camera.pose_C_O, 0))
+        self._pose_pub = pose_pub
+        self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
+                                             self._on_command, contract.RELIABLE)
+
+        self.started = False
+        self.frames = 0
+        self.held_steps = 0
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._progress_since_log = True
+        self._start_timer = self.create_timer(START_POLL_S, self._try_start,
+                                              clock=self._steady)
+        self._wait_timer = self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+
+    def destroy_node(self):
+        """Release PyBullet with the node."""
+        self.sim.close()
+        return super().destroy_node()
+
+    def _missing(self):
+        """Return what the start still waits for (empty when it can start)."""
+        missing = []
+        if self._sub.get_publisher_count() < 1:
+            missing.append(f'a publisher on {contract.EFFORT_COMMANDS}')
+        if self._pub_joints.get_subscription_count() < 1:
+            missing.append(f'a subscriber on {contract.JOINT_STATES}')
+        for pub in self._pub_images:
+            if pub.get_subscription_count() < 1:
+                missing.append(f'a subscriber on {pub.topic_name}')
+        return missing
+
+    def _try_start(self):
+        if self.started or self._missing():
+            return
+        self.started = True
+        self._start_timer.cancel()
+        self.get_logger().info('starting at t = 0: publishing step 0')
+        self._publish_step()
+
+    def _log_waiting(self):
+        if not self.started:
+            self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
+        elif not self._progress_since_log:
+            self.get_logger().info(
+                f'waiting for {contract.EFFORT_COMMANDS} stamped {self.sim.t_ns} ns '
+                f'(t = {self.sim.t_ns * 1e-9:.6f} s, step {self.sim.k})')
+        self._progress_since_log = False
+
+    def _publish_step(self):
+        """Publish the outputs of the current step (module docstring, in this order)."""
+        sim = self.sim
+        t_ns = sim.t_ns
+        self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+        if sim.frame_due() is not None:
+            stamp, images = sim.take_frame(render=self._publish_images)
+            self.frames += 1
+            if images is not None:
+                frames = (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)
+                infos = camera_infos(sim.camera.intrinsics, stamp)
+                for pub, info_pub, image, info, frame in zip(
+                        self._pub_images, self._pub_infos, images, infos, frames):
+                    pub.publish(image_msg(image, stamp, frame))
+                    info_pub.publish(info)
+        self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
+        q, qd = sim.encoders()
+        self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
+        self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
+                                frames=self.frames, held_steps=self.held_steps)
+
+    def _on_command(self, msg):
+        """Apply the effort command stamped t_k: one physics step, then publish step k + 1."""
+        source = contract.EFFORT_COMMANDS
+        if not self.started:
+            self.diagnostics.reject(source, 'before start',
+                                    f'stamp {stamp_ns(msg.header.stamp)} ns')
+            return
+        stamp = stamp_ns(msg.header.stamp)
+        if stamp != self.sim.t_ns:
+            reason = 'stale stamp' if stamp < self.sim.t_ns else 'early stamp'
+            self.diagnostics.reject(source, reason, f'{stamp} ns, waiting for '
+                                    f'{self.sim.t_ns} ns')
+            return
+        try:
+            torque = read_joints(msg, 'effort')
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason,
+                                    f'{exc.detail}; holding the arm at step {self.sim.k}')
+            torque = None
+            self.held_steps += 1
+        self.sim.step(torque)
+        self._progress_since_log = True
+        self._publish_step()
+
+
+def main(args=None):
+    """Run the simulator node (``ros2 run ibvs_sim sim_node``)."""
+    run(SimNode, args=args, name='sim_node')
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,155 @@
+"""
+The plant of the paper's Figure 3 without ROS: physics, encoders, camera frames, sim time.
+
+Time (DESIGN section 4). Step k is at t_k = k * dt_ns integer nanoseconds, dt_ns =
+round(1e9 / physics_rate_hz). Camera frame n is stamped n * T_cam with T_cam =
+round(1e9 / camera_rate_hz) ns (ibvs_common.contract.feedback_frame_ns) and rendered from
+the state of the first physics step at or after that time: at the same instant when the
+camera period is a whole number of physics steps, otherwise at most one physics step later
+(e.g. 30 Hz frames on a 1 kHz physics grid, the paper's values: 0 to 0.67 ms).
+
+Joint disturbance (the paper's d_q, eq. 30): true angle = encoder angle + d_q, so the
+encoders read q_T = q - d_q. The start pose of a scenario is reached by the TRUE angles:
+q(0) = IK(start pose) of the simulated robot (which may have scaled L2 and L4, Figure 13).
+"""
+
+from fractions import Fraction
+import math
+
+from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, ModelError,
+                        paper, pose_error, StereoCamera, StereoIntrinsics)
+import numpy as np
+
+from .world import RendererError, World
+
+
+class ConfigError(ValueError):
+    """A configuration value cannot be used; ``param`` names the parameter at fault."""
+
+    def __init__(self, param, message):
+        """Keep the parameter's name and the reason."""
+        super().__init__(f"parameter '{param}': {message}")
+        self.param = param
+
+
+def period_ns(rate_hz):
+    """Return the period of ``rate_hz`` in integer nanoseconds (rounded)."""
+    return int(round(1e9 / float(rate_hz)))
+
+
+class Simulator:
+    """
+    The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
+
+    Raises :class:`ConfigError` at construction for a configuration it cannot run: rates,
+    scenario, unreachable start pose, camera pose, renderer.
+    """
+
+    def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
+                 camera_rate_hz=30.0, resolution='HD720', camera_eye=paper.CAMERA_EYE,
+                 camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
+                 renderer='auto'):
+        """Check the configuration, solve the start pose and build the PyBullet world."""
+        for name, rate in (('physics_rate_hz', physics_rate_hz),
+                           ('camera_rate_hz', camera_rate_hz)):
+            if not (math.isfinite(rate) and rate > 0.0):
+                raise ConfigError(name, f'{rate} Hz: a rate must be finite and > 0')
+        self.dt_ns = period_ns(physics_rate_hz)
+        self.camera_period_ns = period_ns(camera_rate_hz)
+        if self.camera_period_ns < self.dt_ns:
+            raise ConfigError('camera_rate_hz', f'{camera_rate_hz} Hz exceeds physics_rate_hz '
+                              f'= {physics_rate_hz} Hz: frames are taken at physics steps')
+        self.frames_exact = self.camera_period_ns % self.dt_ns == 0
+        if scenario not in (1, 2, 3):
+            raise ConfigError('scenario', f'{scenario!r} is not a paper scenario (1, 2 or 3)')
+        self.scenario = scenario
+        d_q = np.radians(np.asarray(disturbance_deg, dtype=float))
+        if d_q.shape != (6,) or not np.all(np.isfinite(d_q)):
+            raise ConfigError('disturbance_deg', 'needs 6 finite values')
+        self.d_q = d_q
+        try:
+            self.params = IRB4600.scaled(l2_scale, l4_scale)
+        except ModelError as exc:
+            raise ConfigError('l2_scale', str(exc)) from None
+        target = paper.scenario_start_pose(scenario)
+        try:
+            self.q_start = inverse_kinematics(target, self.params)
+        except ModelError as exc:
+            raise ConfigError('scenario', f'start pose of scenario {scenario} is unreachable '
+                              f'by the simulated robot (l2_scale = {l2_scale}, l4_scale = '
+                              f'{l4_scale}): {exc}') from None
+        self.start_residual = pose_error(forward_kinematics(self.q_start, self.params), target)
+        try:
+            intrinsics = StereoIntrinsics.zed2(resolution)
+        except ModelError as exc:
+            raise ConfigError('resolution', str(exc)) from None
+        try:
+            self.camera = StereoCamera(intrinsics, look_at(camera_eye, camera_look_at))
+        except ModelError as exc:
+            raise ConfigError('camera_look_at', f'camera_eye = {list(camera_eye)}, '
+                              f'camera_look_at = {list(camera_look_at)}: {exc}') from None
+        try:
+            self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer)
+        except RendererError as exc:
+            raise ConfigError('renderer', str(exc)) from None
+        self.world.reset(self.q_start)
+        self.k = 0
+        self.next_frame = 0
+        self.last_torque = np.zeros(6)
+
+    @property
+    def t_ns(self):
+        """Return the sim time of the current step, integer nanoseconds."""
+        return self.k * self.dt_ns
+
+    def close(self):
+        """Release the PyBullet client."""
+        self.world.close()
+
+    def true_state(self):
+        """Return the true joint angles and velocities."""
+        return self.world.joint_state()
+
+    def encoders(self):
+        """Return what the encoders read: (q - d_q, qd), the paper's q_T and its rate."""
+        q, qd = self.world.joint_state()
+        return q - self.d_q, qd
+
+    def tool_pose(self):
+        """Return the true flange pose T_E^O (eq. 7) of the simulated robot."""
+        return forward_kinematics(self.world.joint_state()[0], self.params)
+
+    def frame_due(self):
+        """Return the stamp (ns) of the camera frame to take at this step, or None."""
+        stamp = self.next_frame * self.camera_period_ns
+        return stamp if stamp <= self.t_ns else None
+
+    def take_frame(self, render=True):
+        """
+        Return (stamp ns, (left, right) images or None) of the frame due now; advance n.
+
+        With ``render`` False the frame is only counted (images off).
+        """
+        stamp = self.frame_due()
+        if stamp is None:
+            raise RuntimeError(f'no frame due at t = {self.t_ns} ns')
+        self.next_frame += 1
+        return stamp, (self.world.render_stereo(self.camera) if render else None)
+
+    def hold_torque(self):
+        """Return the torque that stops the arm where it is in one step (World.hold_torque)."""
+        return self.world.hold_torque()
+
+    def step(self, torque=None):
+        """
+        Apply ``torque`` (6,) for one step, or the holding torque when None; then k += 1.
+
+        Returns the torque applied.
+        """
+        torque = self.hold_torque() if torque is None else np.asarray(torque, dtype=float)
+        if torque.shape != (6,) or not np.all(np.isfinite(torque)):
+            raise ValueError('torque must be 6 finite values')
+        self.world.step(torque)
+        self.k += 1
+        self.last_torque = torque
+        return torque

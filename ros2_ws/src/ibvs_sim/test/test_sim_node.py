@@ -1,0 +1,321 @@
+"""
+sim_node in an rclpy executor with a stand-in controller (DESIGN sections 3 and 4).
+
+Each test has its own rclpy Context (and ROS domain); the simulator and the stand-in share a
+SingleThreadedExecutor, and every wait is a spin_once loop on a condition with a deadline.
+"""
+
+import os
+import subprocess
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from ibvs_common import contract
+from ibvs_common.conversions import joint_state, pose_matrix, stamp_ns
+from ibvs_common.params import ParameterError
+from ibvs_model import look_at, paper, StereoIntrinsics
+from ibvs_sim.sim_node import SimNode
+from ibvs_sim.world import World
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, JointState
+
+DEADLINE_S = 60.0
+
+
+@pytest.fixture
+def context(domain_id):
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    try:
+        yield ctx
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+class StandIn(Node):
+    """
+    A stand-in joint controller: answers each /joint_states with one effort command.
+
+    The default answer is gravity compensation from its own PyBullet model of the robot
+    (encoder angles; d_q = 0 here), plus ``extra`` torque; ``answer = False`` stops it.
+    """
+
+    def __init__(self, context):
+        super().__init__('stand_in', context=context)
+        self.model = World(renderer='tiny')
+        self.extra = np.zeros(6)
+        self.answer = True
+        self.override = None
+        self.sent = 0
+        self.unanswered = 0
+        self.rec = {name: [] for name in ('clock', 'joints', 'left', 'right', 'left_info',
+                                          'right_info', 'tool', 'pose', 'diagnostics')}
+        self.pub = self.create_publisher(JointState, contract.EFFORT_COMMANDS,
+                                         contract.RELIABLE)
+        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
+                                 contract.RELIABLE)
+        self.create_subscription(Clock, contract.CLOCK,
+                                 lambda m: self.rec['clock'].append(stamp_ns(m.clock)),
+                                 contract.RELIABLE)
+        for key, msg_type, topic in (('left', Image, contract.LEFT_IMAGE),
+                                     ('right', Image, contract.RIGHT_IMAGE),
+                                     ('left_info', CameraInfo, contract.LEFT_INFO),
+                                     ('right_info', CameraInfo, contract.RIGHT_INFO)):
+            self.create_subscription(msg_type, topic, lambda m, k=key: self.rec[k].append(m),
+                                     contract.IMAGES)
+        self.create_subscription(PoseStamped, contract.TOOL_POSE,
+                                 lambda m: self.rec['tool'].append(m), contract.RELIABLE)
+        self.create_subscription(PoseStamped, contract.STEREO_POSE,
+                                 lambda m: self.rec['pose'].append(m), contract.LATCHED)
+        self.create_subscription(DiagnosticArray, contract.DIAGNOSTICS,
+                                 lambda m: self.rec['diagnostics'].append(m), 10)
+
+    def destroy_node(self):
+        self.model.close()
+        return super().destroy_node()
+
+    def _on_joints(self, msg):
+        self.rec['joints'].append(msg)
+        if not self.answer:
+            self.unanswered += 1
+            return
+        if self.override is not None:
+            cmd = self.override(msg)
+        else:
+            q = np.asarray(msg.position)
+            tau = self.model.inverse_dynamics(q, np.asarray(msg.velocity), np.zeros(6))
+            cmd = joint_state(msg.header.stamp, effort=tau + self.extra)
+        self.pub.publish(cmd)
+        self.sent += 1
+
+    def stop_and_settle(self, executor, sim):
+        """Stop answering; spin until the simulator waits on a state this node left unanswered."""
+        self.answer = False
+        self.unanswered = 0
+        spin_until(executor, lambda: self.unanswered >= 1 and self.last_stamp() == sim.sim.t_ns
+                   and self.rec['clock'] and self.rec['clock'][-1] == sim.sim.t_ns)
+
+    def last_stamp(self):
+        joints = self.rec['joints']
+        return stamp_ns(joints[-1].header.stamp) if joints else None
+
+
+def _overrides(**values):
+    return [Parameter(k, value=v) for k, v in values.items()]
+
+
+@pytest.fixture
+def graph(context):
+    """Yield a function that builds (sim, stand-in, executor) with parameter overrides."""
+    made = []
+
+    def build(**params):
+        params.setdefault('resolution', 'VGA')
+        params.setdefault('disturbance_deg', [0.0] * 6)
+        sim = SimNode(context=context, parameter_overrides=_overrides(**params))
+        stand_in = StandIn(context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(sim)
+        executor.add_node(stand_in)
+        made.append((executor, sim, stand_in))
+        return sim, stand_in, executor
+
+    yield build
+    for executor, sim, stand_in in made:
+        executor.shutdown()
+        sim.destroy_node()
+        stand_in.destroy_node()
+
+
+def spin_until(executor, condition, deadline_s=DEADLINE_S):
+    end = time.monotonic() + deadline_s
+    while not condition():
+        assert time.monotonic() < end, 'condition not met before the deadline'
+        executor.spin_once(timeout_sec=0.05)
+
+
+def test_lockstep_rates_and_stamps(graph):
+    """/clock, /joint_states, images: configured rates, consistent stamps, one step each."""
+    steps = 200
+    sim, stand_in, executor = graph()
+    period = 1_000_000
+    frame = 33_333_333
+    spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= steps * period
+               and len(stand_in.rec['right_info']) >= 7 and stand_in.rec['pose'])
+    stand_in.stop_and_settle(executor, sim)
+    rec = stand_in.rec
+    spin_until(executor, lambda: rec['tool']
+               and stamp_ns(rec['tool'][-1].header.stamp) == sim.sim.t_ns)
+    t_end = stand_in.last_stamp()
+    # Physics rate: one /clock, /joint_states and tool pose per step, every step, in order.
+    expected = list(range(0, t_end + 1, period))
+    assert rec['clock'] == expected
+    assert [stamp_ns(m.header.stamp) for m in rec['joints']] == expected
+    assert [stamp_ns(m.header.stamp) for m in rec['tool']] == expected
+    # One step per command: every /joint_states but the last was answered, once.
+    assert stand_in.sent == len(expected) - 1 and sim.sim.k == len(expected) - 1
+    # Camera rate: frame n stamped n * T_cam, in both images and both CameraInfo.
+    frames = [n * frame for n in range(t_end // frame + 1)]
+    for key in ('left', 'right', 'left_info', 'right_info'):
+        assert [stamp_ns(m.header.stamp) for m in rec[key]] == frames, key
+    k = StereoIntrinsics.zed2('VGA')
+    for image, frame_id in ((rec['left'][0], contract.LEFT_CAMERA_FRAME),
+                            (rec['right'][0], contract.RIGHT_CAMERA_FRAME)):
+        assert (image.width, image.height, image.encoding) == (k.width, k.height, 'rgb8')
+        assert image.step == 3 * k.width and len(image.data) == 3 * k.width * k.height
+        assert image.header.frame_id == frame_id
+    assert list(rec['left_info'][0].k) == pytest.approx(list(k.K.ravel()))
+    assert rec['right_info'][0].p[3] == pytest.approx(-k.fu * k.baseline)
+    # The camera pose, latched.
+    assert np.allclose(pose_matrix(rec['pose'][0].pose),
+                       look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+    # Encoders at the true start (d_q = 0) and the arm held by gravity compensation.
+    q0 = np.asarray(rec['joints'][0].position)
+    assert np.allclose(q0, sim.sim.q_start, atol=1e-12)
+    assert np.abs(np.asarray(rec['joints'][-1].position) - q0).max() < 1e-6
+    assert np.allclose(pose_matrix(rec['tool'][0].pose), paper.scenario_start_pose(1),
+                       atol=1e-7)
+
+
+def test_one_step_per_command_only_with_the_current_stamp(graph):
+    sim, stand_in, executor = graph(publish_images=False)
+    spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 5_000_000)
+    stand_in.stop_and_settle(executor, sim)
+    k = sim.sim.k
+    t = sim.sim.t_ns
+    stuck = len(stand_in.rec['clock'])
+    # No command: no step, however long we spin (here 20 spins).
+    for _ in range(20):
+        executor.spin_once(timeout_sec=0.01)
+    assert sim.sim.k == k and len(stand_in.rec['clock']) == stuck
+    # Older and newer stamps are rejected and do not step.
+    zeros = np.zeros(6)
+    for stamp, reason in ((t - 1_000_000, 'stale stamp'), (t + 1_000_000, 'early stamp')):
+        stand_in.pub.publish(joint_state(stamp, effort=zeros))
+        key = f'{contract.EFFORT_COMMANDS}: {reason}'
+        spin_until(executor, lambda key=key: sim.diagnostics.rejections[key] == 1)
+        assert sim.sim.k == k
+    # The current stamp steps exactly once, and its duplicate is then stale.
+    for _ in range(2):
+        stand_in.pub.publish(joint_state(t, effort=zeros))
+    spin_until(executor, lambda: sim.diagnostics.rejections[
+        f'{contract.EFFORT_COMMANDS}: stale stamp'] == 2 and stand_in.last_stamp() > t)
+    assert sim.sim.k == k + 1
+    assert stand_in.last_stamp() == t + 1_000_000
+
+
+def _bad(msg, kind):
+    cmd = joint_state(msg.header.stamp, effort=np.zeros(6))
+    if kind == 'nan':
+        cmd.effort[2] = float('nan')
+    elif kind == 'inf':
+        cmd.effort[4] = float('-inf')
+    elif kind == 'length':
+        cmd.effort = [0.0] * 5
+    elif kind == 'names':
+        cmd.name = ['a', 'b', 'c', 'd', 'e', 'f']
+    return cmd
+
+
+def test_bad_commands_are_rejected_counted_and_the_arm_holds(graph):
+    """Wrong length, NaN, inf, wrong names: rejected, on /diagnostics, arm held in place."""
+    sim, stand_in, executor = graph(publish_images=False)
+    # Let the arm move first (extra torque), so that holding is more than standing still.
+    stand_in.extra = np.array([200.0, -300.0, 100.0, 20.0, -10.0, 1.0])
+    spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 20_000_000)
+    stand_in.stop_and_settle(executor, sim)
+    moving = np.abs(np.asarray(stand_in.rec['joints'][-1].velocity)).max()
+    assert moving > 1e-3
+    kinds = ('nan', 'inf', 'length', 'names')
+    reasons = ('non-finite effort', 'non-finite effort', 'wrong effort length',
+               'wrong joint names')
+    for kind in kinds:
+        before = stand_in.rec['joints'][-1]
+        stand_in.pub.publish(_bad(before, kind))
+        spin_until(executor, lambda before=before: stand_in.rec['joints'][-1] is not before)
+        after = stand_in.rec['joints'][-1]
+        assert stamp_ns(after.header.stamp) == stamp_ns(before.header.stamp) + 1_000_000
+        assert np.abs(np.asarray(after.position) - np.asarray(before.position)).max() < 1e-9
+        assert np.abs(np.asarray(after.velocity)).max() < 1e-9
+    counts = sim.diagnostics.rejections
+    assert counts[f'{contract.EFFORT_COMMANDS}: non-finite effort'] == 2
+    for reason in reasons[2:]:
+        assert counts[f'{contract.EFFORT_COMMANDS}: {reason}'] == 1
+    assert sim.held_steps == 4
+
+    def published():
+        for msg in stand_in.rec['diagnostics']:
+            for status in msg.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if status.name.startswith('sim_node') and values.get('rejected_total') == '4':
+                    return True
+        return False
+    spin_until(executor, published, deadline_s=10.0)
+
+
+BAD_PARAMETERS = [
+    ({'physics_rate_hz': -1000.0}, 'physics_rate_hz'),
+    ({'camera_rate_hz': -30.0}, 'camera_rate_hz'),
+    ({'physics_rate_hz': 50.0}, 'physics_rate_hz'),
+    ({'camera_rate_hz': 2000.0}, 'camera_rate_hz'),
+    ({'scenario': 4}, 'scenario'),
+    ({'scenario': 1, 'l2_scale': 0.3, 'l4_scale': 0.3}, 'scenario'),
+    ({'resolution': 'HD1080'}, 'resolution'),
+    ({'renderer': 'vulkan'}, 'renderer'),
+    ({'camera_eye': [1.0, 2.0, 3.0], 'camera_look_at': [1.0, 2.0, 3.0]}, 'camera_look_at'),
+    ({'disturbance_deg': [0.1, 0.2]}, 'disturbance_deg'),
+    ({'publish_images': 'yes'}, 'publish_images'),
+]
+
+
+@pytest.mark.parametrize('params, name', BAD_PARAMETERS,
+                         ids=[n + str(i) for i, (_, n) in enumerate(BAD_PARAMETERS)])
+def test_bad_parameter_stops_the_node_naming_it(context, params, name):
+    with pytest.raises(ParameterError) as info:
+        SimNode(context=context, parameter_overrides=_overrides(**params))
+    assert f"'{name}'" in str(info.value)
+
+
+def _env(domain_id):
+    env = dict(os.environ)
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['PYTHONUNBUFFERED'] = '1'
+    return env
+
+
+def test_main_exits_with_code_2_and_names_the_parameter(domain_id):
+    """As ``ros2 run ibvs_sim sim_node --ros-args -p camera_rate_hz:=2000.0`` would."""
+    proc = subprocess.run(
+        [sys.executable, '-m', 'ibvs_sim.sim_node', '--ros-args', '-p',
+         'camera_rate_hz:=2000.0'],
+        env=_env(domain_id), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "'camera_rate_hz'" in proc.stderr
+
+
+def test_waiting_is_logged_once_a_second(domain_id):
+    """Alone, the node says what it waits for (here: somebody to answer it)."""
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'ibvs_sim.sim_node', '--ros-args', '-p',
+         'publish_images:=false'],
+        env=_env(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = []
+    try:
+        for line in proc.stdout:
+            lines.append(line)
+            if sum('waiting to start' in line for line in lines) >= 2:
+                break
+        waits = [line for line in lines if 'waiting to start' in line]
+        assert len(waits) == 2, ''.join(lines)
+        assert contract.EFFORT_COMMANDS in waits[0] and contract.JOINT_STATES in waits[0]
+    finally:
+        proc.send_signal(2)
+        assert proc.wait(timeout=30) == 0
