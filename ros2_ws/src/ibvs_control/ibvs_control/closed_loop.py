@@ -67,7 +67,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              disturbance=None, actuators='ideal', model=None, plant_params=None,
              torque_max=None, estimate_out_of_view=True, feedforward_method='sampled',
              feedback_design='sampled', rcond=RCOND, damping=DAMPING,
-             max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None):
+             max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None,
+             integration='exact'):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -77,7 +78,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
     features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
     'limited' actuators with the bare double integrator (M = I, h = 0) take ``torque_max``
-    as the acceleration limits (rad/s^2).
+    as the acceleration limits (rad/s^2). ``integration``: 'exact' (zero-order hold of the
+    acceleration over a step: the continuous arm) or 'semi-implicit' (qd += a dt, then
+    q += qd dt: how PyBullet steps the simulated arm; use it to compare with the graph).
     """
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera, model.params if plant_params is None
@@ -90,6 +93,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     if cam_ns < dt_ns:
         raise ValueError('the camera rate must not exceed the physics rate')
     latency_ns = int(round(latency_s * 1e9))
+    if integration not in ('exact', 'semi-implicit'):
+        raise ValueError(f"integration must be 'exact' or 'semi-implicit', got {integration!r}")
+    semi_implicit = integration == 'semi-implicit'
     dt = dt_ns * 1e-9
 
     q_true0 = inverse_kinematics(paper.scenario_start_pose(scenario), plant.params)
@@ -131,8 +137,12 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
         q_ff = ff.step()
         rec['q'][k], rec['q_ff'][k], rec['q_fb'][k] = q, q_ff, q_fb
         acc = joint.step(q_ff + q_fb, q, qd)
-        q = q + qd * dt + 0.5 * acc * dt * dt
-        qd = qd + acc * dt
+        if semi_implicit:
+            qd = qd + acc * dt
+            q = q + qd * dt
+        else:
+            q = q + qd * dt + 0.5 * acc * dt * dt
+            qd = qd + acc * dt
     return LoopResult(
         t=np.arange(steps) * dt, q=rec['q'], q_true=rec['q'] + d_q,
         q_feedforward=rec['q_ff'], q_feedback=rec['q_fb'], frame_t=np.array(frames_t),

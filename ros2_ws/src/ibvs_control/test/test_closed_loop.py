@@ -93,3 +93,10 @@ def test_timing_rule_is_the_contract_s():
         t = int(rng.integers(0, 10**10))
         assert feedback_frame_ns(t, period, latency) == \
             contract.feedback_frame_ns(t, period, latency)
+
+
+def test_semi_implicit_plant_as_pybullet_steps_it_also_converges():
+    r = simulate(scenario=1, duration_s=2.0, integration='semi-implicit')
+    assert r.final_image_error() < 0.01
+    with pytest.raises(ValueError, match='integration'):
+        simulate(duration_s=0.01, integration='rk4')
