@@ -53,7 +53,7 @@ from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, MAX_CORRECTI
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED)
 
-#: Encoder joint states kept for matching frames (2 s at 1 kHz).
+#: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
 
 
@@ -154,6 +154,10 @@ class AdaptiveFeedbackNode(Node):
         if newest is not None and t_ns <= newest:
             self.diagnostics.reject(contract.FEATURES, 'stale stamp',
                                     f'{t_ns} ns, not after {newest} ns')
+            return
+        if len(self._pending) >= HISTORY:
+            self.diagnostics.reject(contract.FEATURES, 'buffer full',
+                                    f'{t_ns} ns dropped: waiting for the camera model')
             return
         try:
             features = read_features(msg)
