@@ -1,0 +1,146 @@
+"""
+Synthetic stereo images of the two spherical fiducials, for tests and the bench.
+
+Each pixel is ray-traced through the pinhole model of :mod:`ibvs_model.camera` (pixel (i, j)
+centred at u = i, v = j; ROS stereo signs, eq. 19-22): ``supersample`` x ``supersample``
+rays per pixel give anti-aliased edges; the spheres are shaded (ambient + Lambert + a
+specular highlight) and hide each other by depth. The background is a grey gradient with
+clutter in other hues (rectangles, grey and dark discs, an orange "arm" band), optional
+occluders drawn in front, and Gaussian noise. Ground truth is the model projection of the
+sphere centres, so the detector is judged against eq. (21)-(22) itself.
+"""
+
+import math
+
+import cv2
+from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
+import numpy as np
+
+#: Clutter colours: none has much of the markers' chroma (R - max(G, B) or B - max(R, G)).
+CLUTTER_RGB = ((128, 128, 128), (40, 40, 40), (230, 230, 230), (90, 160, 90),
+               (235, 150, 70), (170, 170, 120), (200, 200, 210), (120, 140, 150))
+
+
+def render_sphere_patch(camera, centre_O, lens, radius=MARKER_RADIUS_M, rgb=(220, 30, 30),
+                        supersample=4, light_C=(-0.4, -0.6, -1.0), ambient=0.35,
+                        specular=0.25):
+    """
+    Ray-trace one sphere in one lens; return (x0, y0, colour (h, w, 3), cover, depth).
+
+    ``light_C`` points from the scene towards the light, in {C} (default: up and left of
+    the camera).
+    ``lens`` is 'left' or 'right'. ``cover`` is the covered fraction of each pixel,
+    ``depth`` the mean depth of the hits (inf where none), for compositing.
+    """
+    k = camera.intrinsics
+    centre_C = camera.to_camera(np.asarray(centre_O, dtype=float)[None])[0]
+    offset = k.baseline / 2.0 if lens == 'left' else -k.baseline / 2.0
+    c = centre_C + np.array([offset, 0.0, 0.0])
+    if c[2] <= radius * 1.01:
+        return None
+    # Bounding box of the silhouette from the cone of half angle asin(R / |c|).
+    dist = np.linalg.norm(c)
+    ang = math.asin(radius / dist)
+    box = []
+    for axis, f, cc, size in ((0, k.fu, k.cu, k.width), (1, k.fv, k.cv, k.height)):
+        mid = math.atan2(c[axis], c[2])
+        lo = f * math.tan(max(mid - ang, -1.5)) + cc
+        hi = f * math.tan(min(mid + ang, 1.5)) + cc
+        box.append((max(0, int(math.floor(lo)) - 1), min(size, int(math.ceil(hi)) + 2)))
+    (x0, x1), (y0, y1) = box
+    if x1 <= x0 or y1 <= y0:
+        return None
+    n = supersample
+    sub = (np.arange(n) + 0.5) / n - 0.5
+    us = (np.arange(x0, x1)[:, None] + sub[None, :]).ravel()
+    vs = (np.arange(y0, y1)[:, None] + sub[None, :]).ravel()
+    dx = (us - k.cu) / k.fu
+    dy = (vs - k.cv) / k.fv
+    ray = np.empty((len(vs), len(us), 3))
+    ray[..., 0] = dx[None, :]
+    ray[..., 1] = dy[:, None]
+    ray[..., 2] = 1.0
+    ray /= np.linalg.norm(ray, axis=2, keepdims=True)
+    tc = ray @ c
+    miss2 = dist * dist - tc * tc
+    hit = (miss2 < radius * radius) & (tc > 0)
+    t = tc - np.sqrt(np.maximum(radius * radius - miss2, 0.0))
+    point = ray * t[..., None]
+    normal = (point - c) / radius
+    light = np.asarray(light_C, dtype=float)
+    light = light / np.linalg.norm(light)
+    lambert = np.clip(normal @ light, 0.0, None)
+    half = light - ray
+    half /= np.linalg.norm(half, axis=2, keepdims=True)
+    spec = specular * np.clip(np.sum(normal * half, axis=2), 0.0, None) ** 40
+    shade = ambient + (1.0 - ambient) * lambert
+    colour = np.clip(shade[..., None] * np.asarray(rgb, float) + 255.0 * spec[..., None],
+                     0.0, 255.0)
+    colour = colour * hit[..., None]
+    h, w = y1 - y0, x1 - x0
+    cover = hit.reshape(h, n, w, n).mean(axis=(1, 3))
+    summed = colour.reshape(h, n, w, n, 3).sum(axis=(1, 3))
+    hits = hit.reshape(h, n, w, n).sum(axis=(1, 3))
+    mean_colour = summed / np.maximum(hits, 1)[..., None]
+    depth = np.where(hit, t * ray[..., 2], 0.0).reshape(h, n, w, n).sum(axis=(1, 3))
+    depth = np.where(hits > 0, depth / np.maximum(hits, 1), np.inf)
+    return x0, y0, mean_colour, cover, depth
+
+
+def background(camera, rng, clutter=25, noise_free=False):
+    """Return an (H, W, 3) float background: grey gradient and clutter in other hues."""
+    k = camera.intrinsics
+    h, w = k.height, k.width
+    ramp = np.linspace(90.0, 150.0, w)[None, :, None] + np.linspace(-20.0, 20.0, h)[:, None, None]
+    img = np.broadcast_to(ramp, (h, w, 3)).astype(np.float32).copy()
+    for _ in range(clutter):
+        colour = tuple(float(c) for c in CLUTTER_RGB[rng.integers(len(CLUTTER_RGB))])
+        x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
+        if rng.random() < 0.5:
+            size = int(rng.integers(4, max(5, w // 8)))
+            cv2.rectangle(img, (x, y), (x + size, y + int(rng.integers(4, h // 6))), colour, -1)
+        else:
+            cv2.circle(img, (x, y), int(rng.integers(3, 30)), colour, -1, cv2.LINE_AA)
+    return img
+
+
+def render_stereo(camera, markers_O, rng=None, clutter=25, noise_sigma=2.0, supersample=4,
+                  occluders=(), colours=MARKER_RGB, radius=MARKER_RADIUS_M, **shading):
+    """
+    Return (left, right) (H, W, 3) uint8 RGB images of spheres at ``markers_O`` (N, 3).
+
+    ``occluders`` are polygons (lists of (u, v) in left-image pixels, drawn shifted by the
+    given disparity in the right image: ((points, disparity_px, rgb), ...)) painted in front
+    of everything, e.g. the arm hiding a marker.
+    """
+    rng = np.random.default_rng() if rng is None else rng
+    markers_O = np.asarray(markers_O, dtype=float).reshape(-1, 3)
+    base = background(camera, rng, clutter)
+    images = []
+    for lens in ('left', 'right'):
+        img = base.copy()
+        zbuf = np.full(img.shape[:2], np.inf)
+        cover_acc = np.zeros(img.shape[:2])
+        for centre, rgb in zip(markers_O, colours):
+            patch = render_sphere_patch(camera, centre, lens, radius, rgb, supersample,
+                                        **shading)
+            if patch is None:
+                continue
+            x0, y0, colour, cover, depth = patch
+            h, w = cover.shape
+            region = (slice(y0, y0 + h), slice(x0, x0 + w))
+            front = depth < zbuf[region]
+            a = np.where(front, cover, np.clip(cover - cover_acc[region], 0.0, 1.0))
+            img[region] = img[region] * (1.0 - a[..., None]) + colour * a[..., None]
+            zbuf[region] = np.minimum(zbuf[region], depth)
+            cover_acc[region] = np.clip(cover_acc[region] + a, 0.0, 1.0)
+        for points, disparity, rgb in occluders:
+            pts = np.asarray(points, dtype=float)
+            if lens == 'right':
+                pts = pts - np.array([disparity, 0.0])
+            cv2.fillPoly(img, [np.round(pts * 16).astype(np.int32)],
+                         tuple(float(c) for c in rgb), cv2.LINE_AA, shift=4)
+        if noise_sigma > 0:
+            img += rng.normal(0.0, noise_sigma, img.shape).astype(np.float32)
+        images.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
+    return images[0], images[1]
