@@ -62,7 +62,7 @@ class Recorder(Node):
             self._writer.set_custom_data(key, value)
         self._writer.open()
         self._connections = {}
-        self._subscriptions = {}
+        self._topic_subs = {}
         self.clock_ns = 0
         self.counts = {}
         self._skipped = set()
@@ -86,7 +86,7 @@ class Recorder(Node):
         conn = self._writer.add_connection(topic, type_name, typestore=self._typestore)
         self._connections[topic] = conn
         qos = contract.LATCHED if topic in LATCHED_TOPICS else RECORD_QOS
-        self._subscriptions[topic] = self.create_subscription(
+        self._topic_subs[topic] = self.create_subscription(
             message_class(type_name), topic, partial(self._on_message, topic), qos, raw=True)
         self.counts[topic] = 0
 
@@ -107,8 +107,8 @@ class Recorder(Node):
 
     def close(self):
         """Stop recording and write the bag's metadata."""
-        for sub in self._subscriptions.values():
+        for sub in self._topic_subs.values():
             self.destroy_subscription(sub)
-        self._subscriptions.clear()
+        self._topic_subs.clear()
         self._discovery.cancel()
         self._writer.close()

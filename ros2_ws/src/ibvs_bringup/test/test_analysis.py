@@ -31,8 +31,11 @@ def test_butterworth_step_overshoot_and_settling():
     m = analysis.compute_metrics(t, position, rotation, tf)
     step = np.abs(target - start)
     expected_overshoot = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2)) * step.max()
-    assert m['max_overshoot_m'] == pytest.approx(expected_overshoot, rel=1e-3)
+    assert m['max_overshoot_m'] == pytest.approx(
+        expected_overshoot / step.max() * np.linalg.norm(step), rel=1e-3)
+    assert m['overshoot_xyz_m'][0] == pytest.approx(expected_overshoot, rel=1e-3)
     assert m['overshoot_xyz_m'][1] == 0.0  # y does not move
+    assert m['max_lateral_excursion_m'] < 1e-12  # a straight-line response
     # The 2 % band is left for the last time at the settling time, and never again.
     error = np.linalg.norm(position - target, axis=1)
     ts = m['settling_time_2pct_s']
@@ -50,7 +53,13 @@ def test_monotone_approach_has_no_overshoot_and_never_settling_is_none():
     position, rotation, tf = make_run(y, t, np.zeros(3), np.array([0.0, 0.0, 1.0]))
     m = analysis.compute_metrics(t, position, rotation, tf)
     assert m['max_overshoot_m'] == 0.0
-    assert m['time_to_1mm_s'] is None  # e(1 s) = exp(-5) m = 6.7 mm
+    assert m['time_to_1mm_s'] is None
+    # A sideways swing is not an overshoot: it is the lateral excursion.
+    swing = position + np.outer(np.sin(np.pi * t), [0.3, 0.0, 0.0])
+    m = analysis.compute_metrics(t, swing, rotation, tf)
+    assert m['max_overshoot_m'] == 0.0
+    assert m['max_lateral_excursion_m'] == pytest.approx(0.3, rel=1e-6)
+    assert m['overshoot_xyz_m'][0] == pytest.approx(0.3, rel=1e-6)  # e(1 s) = exp(-5) m = 6.7 mm
     assert m['final_position_error_m'] == pytest.approx(math.exp(-5), rel=1e-9)
 
 
