@@ -49,7 +49,10 @@ def trajectory_3d(run, path, arrows=12):
     ax = fig.add_subplot(projection='3d')
     p = run.position
     ax.plot(p[:, 0], p[:, 1], p[:, 2], color='tab:blue', lw=1.5, label='flange path')
-    idx = np.unique(np.linspace(0, len(p) - 1, arrows).astype(int))
+    # Arrows equally spaced along the path (by arc length), not in time: the tool spends
+    # most of the run at the target.
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    idx = np.unique(np.searchsorted(arc, np.linspace(0.0, arc[-1], arrows)).clip(0, len(p) - 1))
     span = float(np.ptp(np.vstack([p, run.target[:3, 3]]), axis=0).max()) or 1.0
     length = 0.08 * span
     a = run.rotation[idx, :, 2]
@@ -63,6 +66,7 @@ def trajectory_3d(run, path, arrows=12):
     ax.set_xlabel('x [m]')
     ax.set_ylabel('y [m]')
     ax.set_zlabel('z [m]')
+    ax.set_box_aspect(np.ptp(np.vstack([p, tgt]), axis=0).clip(0.05))
     ax.legend(loc='upper left', fontsize=8)
     ax.set_title(_title(run, '3D trajectory'))
     fig.tight_layout()
