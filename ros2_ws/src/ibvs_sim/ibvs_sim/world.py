@@ -57,6 +57,8 @@ LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
          'lightDistance': 10.0, 'shadow': 0, 'lightAmbientCoeff': 0.75,
          'lightDiffuseCoeff': 0.35, 'lightSpecularCoeff': 0.0}
 RENDERERS = ('auto', 'egl', 'tiny')
+#: The World that holds the process's EGL plugin, if any (one at a time: see World).
+_egl_owner = None
 #: Size of the EGL plugin's window (bullet3: START_WIDTH, START_HEIGHT).
 EGL_WINDOW = (1024, 768)
 
@@ -136,7 +138,8 @@ class World:
     One PyBullet physics client with the robot (``params``) and a ground plane.
 
     ``renderer``: 'egl' (fail if the plugin does not load), 'tiny', or 'auto' (EGL where it
-    loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'.
+    loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'. One
+    World per process at a time can use EGL; 'auto' gives the others TinyRenderer.
     """
 
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
@@ -189,9 +192,24 @@ class World:
                            rgbaColor=GROUND_RGBA, specularColor=[0.0, 0.0, 0.0])
         self.ground = self._call(pybullet.createMultiBody, baseMass=0.0,
                                  baseVisualShapeIndex=shape, basePosition=(0.0, 0.0, -0.005))
+        if self.renderer == 'egl':
+            # The plugin's first two images differ from all later ones of the same scene (by
+            # up to 33 grey levels on ~1 % of the pixels, shadows): draw two tiny ones here,
+            # so that every image returned is reproducible.
+            for _ in range(2):
+                self._call(pybullet.getCameraImage, 8, 8,
+                           renderer=pybullet.ER_BULLET_HARDWARE_OPENGL)
 
     def _setup_renderer(self, renderer):
+        global _egl_owner
         if renderer == 'tiny':
+            return 'tiny'
+        if _egl_owner is not None:
+            # A second EGL plugin in one process breaks the first one's renders (measured:
+            # the first world then draws nothing), so only one World may use it at a time.
+            if renderer == 'egl':
+                raise RendererError('another World of this process uses the EGL renderer; '
+                                    "close it or use renderer 'tiny'")
             return 'tiny'
         loader = pkgutil.get_loader('eglRenderer')
         try:
@@ -208,15 +226,19 @@ class World:
                                     "use renderer 'tiny' or 'auto'")
             return 'tiny'
         self._plugin = plugin
+        _egl_owner = self
         return 'egl'
 
     def close(self):
         """Disconnect the client (idempotent)."""
+        global _egl_owner
         if self._client is not None and self._call(pybullet.isConnected):
             if self._plugin is not None:
                 self._call(pybullet.unloadPlugin, self._plugin)
             pybullet.disconnect(physicsClientId=self._client)
         self._client = None
+        if _egl_owner is self:
+            _egl_owner = None
 
     def reset(self, q, qd=None):
         """Set the true joint angles (and velocities, default 0) without dynamics."""

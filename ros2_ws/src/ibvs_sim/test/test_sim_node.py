@@ -212,6 +212,18 @@ def test_one_step_per_command_only_with_the_current_stamp(graph):
     assert stand_in.last_stamp() == t + 1_000_000
 
 
+
+def test_waiting_for_a_stamp_is_logged(graph, capfd):
+    """Each steady-clock tick without a step logs the stamp the simulator waits for."""
+    sim, stand_in, executor = graph(publish_images=False)
+    spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 3_000_000)
+    stand_in.stop_and_settle(executor, sim)
+    capfd.readouterr()
+    sim._log_waiting()  # the timer's tick: first after progress, then without
+    sim._log_waiting()
+    err = capfd.readouterr().err
+    assert f'waiting for {contract.EFFORT_COMMANDS} stamped {sim.sim.t_ns} ns' in err
+
 def _bad(msg, kind):
     cmd = joint_state(msg.header.stamp, effort=np.zeros(6))
     if kind == 'nan':
