@@ -212,7 +212,6 @@ def test_one_step_per_command_only_with_the_current_stamp(graph):
     assert stand_in.last_stamp() == t + 1_000_000
 
 
-
 def test_waiting_for_a_stamp_is_logged(graph, capfd):
     """Each steady-clock tick without a step logs the stamp the simulator waits for."""
     sim, stand_in, executor = graph(publish_images=False)
@@ -223,6 +222,7 @@ def test_waiting_for_a_stamp_is_logged(graph, capfd):
     sim._log_waiting()
     err = capfd.readouterr().err
     assert f'waiting for {contract.EFFORT_COMMANDS} stamped {sim.sim.t_ns} ns' in err
+
 
 def _bad(msg, kind):
     cmd = joint_state(msg.header.stamp, effort=np.zeros(6))
