@@ -1,0 +1,77 @@
+"""
+Bumpless switch between measured and estimated features (paper section 2.3, eq. 46).
+
+The feature node publishes the measured p^_I (eq. 2-3) when the camera sees both
+fiducials and the estimate p~_I = F(q_T) (eq. 46) when it does not. Switching the source
+outright would step the published features by the model error (a disturbance d_q or a
+wrong link length makes F(q_T) differ from what the camera sees) and kick the feedback
+loop. Instead, at a switch at time t_s the output keeps the offset it had from the new
+source and lets that offset fade out linearly over ``blend_time_s``::
+
+    out(t) = source(t) + (out(t_prev) - source(t_s)) * max(0, 1 - (t - t_s) / blend_time_s)
+
+so the output never jumps: from one frame to the next it moves by the change of the
+source plus at most |offset| * dt / blend_time_s. At the switch frame itself it holds the
+previous output. A switch during a blend starts a new blend from the current output.
+Outside blends the output is the source exactly (estimated features equal F(q_T) bit
+for bit). Time is the image stamp (sim time), never the wall clock.
+"""
+
+import numpy as np
+
+MEASURED = 'measured'
+ESTIMATED = 'estimated'
+BLENDING = 'blending'
+
+
+class BumplessSwitch:
+    """Select the measured or the estimated p_I each frame and blend across switches."""
+
+    def __init__(self, blend_time_s):
+        """Blend over ``blend_time_s`` seconds (0 switches outright)."""
+        blend_time_s = float(blend_time_s)
+        if not (np.isfinite(blend_time_s) and blend_time_s >= 0.0):
+            raise ValueError(f'blend_time_s must be finite and >= 0, got {blend_time_s}')
+        self.blend_time_s = blend_time_s
+        self.source = None
+        self.mode = None
+        self.last_switch_s = None
+        self.switches = 0
+        self._offset = np.zeros(6)
+        self._output = None
+        self._t = None
+
+    def blend_weight(self, t_s):
+        """Return the share (1 to 0) of the offset still applied at time ``t_s``."""
+        if self.last_switch_s is None or self.blend_time_s == 0.0:
+            return 0.0
+        return max(0.0, 1.0 - (t_s - self.last_switch_s) / self.blend_time_s)
+
+    def update(self, t_s, measured, estimate):
+        """
+        Return the p_I (6,) to publish at time ``t_s`` (s) and set :attr:`mode`.
+
+        ``measured`` is the detector's p_I or None; ``estimate`` is F(q_T) (may be None
+        while a measurement is available). Raises ValueError when neither is given.
+        """
+        if measured is not None:
+            source, value = MEASURED, np.asarray(measured, dtype=float).reshape(6)
+        elif estimate is not None:
+            source, value = ESTIMATED, np.asarray(estimate, dtype=float).reshape(6)
+        else:
+            raise ValueError('neither a measurement nor an estimate')
+        t_s = float(t_s)
+        if self._output is not None and source != self.source:
+            self._offset = self._output - value
+            self.last_switch_s = t_s
+            self.switches += 1
+        self.source = source
+        weight = self.blend_weight(t_s)
+        if weight > 0.0 and np.any(self._offset != 0.0):
+            output = value + weight * self._offset
+            self.mode = BLENDING
+        else:
+            output = value.copy()
+            self.mode = source
+        self._output, self._t = output, t_s
+        return output.copy()

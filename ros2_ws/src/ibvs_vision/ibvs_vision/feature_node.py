@@ -1,0 +1,375 @@
+"""
+feature_node: stereo images -> /ibvs/features p_I, measured (eq. 2-3) or estimated (eq. 46).
+
+For every stereo frame (left and right image of equal stamp) the node publishes one
+PolygonStamped on /ibvs/features, stamped with the image stamp (DESIGN section 3):
+
+- measured p^_I when the detector (:mod:`.detector`, Hough + sub-pixel, section 2.2)
+  finds both fiducials in both images;
+- otherwise the estimate p~_I = F(q_T) (eq. 46, section 4.4) of the nominal camera-and-robot
+  model (eq. 30) at the encoder angles q_T of the /joint_states message with the image
+  stamp; the camera comes from both CameraInfo and /stereo/pose, never from constants;
+- across a switch between the two the output is blended (:mod:`.blend`, section 2.3).
+
+A frame is published as soon as both images, the joint state of its stamp, the camera infos
+and the camera pose are there. The joint state of a frame stamped t is the first one stamped
+in [t, t + 1 / physics_rate_hz): the simulator renders a frame from the first physics step
+at or after its stamp and publishes that step's joint state right after the images
+(lockstep), so the estimate uses the very angles the image shows. A frame that cannot be
+published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
+not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
+newest input) is dropped, logged and counted on /diagnostics; the node keeps running.
+"""
+
+import bisect
+import time
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PolygonStamped, PoseStamped
+from ibvs_common import contract, shared_params
+from ibvs_common.conversions import (camera_from_msgs, features_msg, InputError, ns_stamp,
+                                     pose_matrix, read_joints, stamp_ns)
+from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.node_main import run
+from ibvs_common.params import declare, Param, ParameterError
+from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
+import numpy as np
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image, JointState
+
+from .blend import BumplessSwitch
+from .detector import DetectorConfig, StereoDetector
+from .imageconv import image_array
+
+PARAMS = (
+    Param('blend_time_s', 0.2, 'time over which the published features move from the '
+          'estimate to the measurement (and back) after a switch (section 2.3); 0: switch '
+          'outright', 's', low=0.0, high=10.0),
+    Param('epipolar_tolerance_px', 1.5, 'largest |v_left - v_right| of one marker in a '
+          'rectified pair', 'px', low=0.0, high=50.0, low_open=True),
+    Param('hough_min_radius_px', 2, 'smallest marker image radius searched by the Hough '
+          'transform', 'px', low=1, high=200),
+    Param('hough_max_radius_px', 40, 'largest marker image radius searched by the Hough '
+          'transform', 'px', low=2, high=1000),
+    Param('hough_canny_high', 60.0, 'upper Canny threshold of the Hough transform on the '
+          'colour channel (cv2.HoughCircles param1)', '-', low=1.0, high=1000.0),
+    Param('hough_votes', 6, 'accumulator votes a circle centre needs (cv2.HoughCircles '
+          'param2)', '-', low=1, high=1000),
+    Param('min_colour_score', 25.0, 'least median colour channel (dominant channel minus '
+          'the largest other) inside a marker', '0-255', low=1.0, high=255.0),
+    Param('roi_margin_px', 40, 'search first within this margin around the last measured '
+          'or the estimated features, then the whole image; 0: always the whole image',
+          'px', low=0, high=2000),
+    Param('joint_history_s', 2.0, 'how long joint states are kept to match image stamps',
+          's', low=0.0, high=60.0, low_open=True),
+    shared_params.PHYSICS_RATE_HZ,
+    shared_params.STALE_TIMEOUT_S,
+)
+
+_SIDES = ('left', 'right')
+
+
+class _Frame:
+    """Both images of one stamp as they arrive; ``rejected`` once one image was refused."""
+
+    __slots__ = ('images', 'encodings', 'rejected')
+
+    def __init__(self):
+        self.images = {}
+        self.encodings = {}
+        self.rejected = False
+
+
+class FeatureNode(Node):
+    """Publish p_I for every stereo frame: measured, estimated from q_T, or blended."""
+
+    def __init__(self, **kwargs):
+        """Declare and check the parameters, then create the subscriptions and publishers."""
+        super().__init__('feature_node', **kwargs)
+        p = declare(self, PARAMS)
+        if p['hough_min_radius_px'] >= p['hough_max_radius_px']:
+            raise ParameterError(
+                f"parameter 'hough_max_radius_px' = {p['hough_max_radius_px']} is invalid: "
+                f"it must exceed 'hough_min_radius_px' = {p['hough_min_radius_px']}")
+        self._config = DetectorConfig(
+            min_radius_px=p['hough_min_radius_px'], max_radius_px=p['hough_max_radius_px'],
+            canny_high=p['hough_canny_high'], votes=p['hough_votes'],
+            min_score=p['min_colour_score'], epipolar_tolerance_px=p['epipolar_tolerance_px'],
+            roi_margin_px=p['roi_margin_px'])
+        self._stale_ns = int(round(p['stale_timeout_s'] * 1e9))
+        self._history_ns = int(round(p['joint_history_s'] * 1e9))
+        self._window_ns = int(round(1e9 / p['physics_rate_hz']))
+        self._switch = BumplessSwitch(p['blend_time_s'])
+
+        self._frames = {}
+        self._joint_stamps = []
+        self._joints = {}
+        self._bad_joints = {}
+        self._newest_image = {'left': -1, 'right': -1}
+        self._newest_ns = -1
+        self._last_published_ns = -1
+        self._infos = {}
+        self._pose = None
+        self._camera_key = None
+        self._camera_problem = None
+        self._model = None
+        self._detector = None
+        self._prior = None
+        self._times_ms = []
+
+        self._diag = Diagnostics(self, 'stereo fiducial features')
+        self._reasons = {}
+        self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
+                          frames_estimated=0, last_switch_time_s='none', switches=0)
+        self._pub = self.create_publisher(PolygonStamped, contract.FEATURES, contract.RELIABLE)
+        self.create_subscription(Image, contract.LEFT_IMAGE,
+                                 lambda m: self._on_image('left', m), contract.IMAGES)
+        self.create_subscription(Image, contract.RIGHT_IMAGE,
+                                 lambda m: self._on_image('right', m), contract.IMAGES)
+        self.create_subscription(CameraInfo, contract.LEFT_INFO,
+                                 lambda m: self._on_info('left', m), contract.RELIABLE)
+        self.create_subscription(CameraInfo, contract.RIGHT_INFO,
+                                 lambda m: self._on_info('right', m), contract.RELIABLE)
+        self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                 contract.LATCHED)
+        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
+                                 contract.RELIABLE)
+
+    # --- inputs ----------------------------------------------------------------------
+
+    def _seen(self, t_ns):
+        self._newest_ns = max(self._newest_ns, t_ns)
+
+    def _on_image(self, side, msg):
+        t_ns = stamp_ns(msg.header.stamp)
+        self._seen(t_ns)
+        self._newest_image[side] = max(self._newest_image[side], t_ns)
+        try:
+            array, encoding = image_array(msg)
+            if t_ns <= self._last_published_ns:
+                raise InputError('out of order', f'stamp {t_ns} ns is not after the last '
+                                 f'published frame {self._last_published_ns} ns')
+            if self._newest_ns - t_ns > self._stale_ns:
+                raise InputError('stale', f'{(self._newest_ns - t_ns) * 1e-9:.3f} s behind '
+                                 'the newest input')
+        except InputError as exc:
+            self._diag.reject(f'{side} image', exc.reason, exc.detail)
+            # The frame is skipped; its other image, if it comes, is dropped silently.
+            frame = self._frames.setdefault(t_ns, _Frame())
+            frame.rejected = True
+            frame.images.clear()
+            self._try_frames()
+            return
+        frame = self._frames.setdefault(t_ns, _Frame())
+        if not frame.rejected:
+            frame.images[side] = array
+            frame.encodings[side] = encoding
+        self._try_frames()
+
+    def _on_joints(self, msg):
+        t_ns = stamp_ns(msg.header.stamp)
+        self._seen(t_ns)
+        try:
+            q = read_joints(msg)
+        except InputError as exc:
+            self._diag.reject('joint_states', exc.reason, exc.detail)
+            self._bad_joints[t_ns] = exc.reason
+            self._prune_joints()
+            self._try_frames()
+            return
+        if t_ns not in self._joints:
+            bisect.insort(self._joint_stamps, t_ns)
+        self._joints[t_ns] = q
+        self._prune_joints()
+        self._try_frames()
+
+    def _prune_joints(self):
+        oldest = self._newest_ns - self._history_ns
+        cut = bisect.bisect_left(self._joint_stamps, oldest)
+        for t_ns in self._joint_stamps[:cut]:
+            del self._joints[t_ns]
+        del self._joint_stamps[:cut]
+        for t_ns in [t for t in self._bad_joints if t < oldest]:
+            del self._bad_joints[t_ns]
+
+    def _on_info(self, side, msg):
+        self._infos[side] = msg
+        self._try_frames()
+
+    def _on_pose(self, msg):
+        try:
+            pose_matrix(msg.pose)
+        except InputError as exc:
+            self._diag.reject('stereo pose', exc.reason, exc.detail)
+            return
+        self._pose = msg
+        self._try_frames()
+
+    # --- frames ----------------------------------------------------------------------
+
+    def _joint_at(self, t_ns):
+        """
+        Return (q, None) for the frame stamped t_ns, (None, None) to wait, (None, why) to drop.
+
+        The simulator renders frame n (stamped n * T_cam) from the state of the first physics
+        step at or after its stamp and publishes that step's /joint_states with it
+        (ibvs_sim.simulator): the encoder angles of the image are those of the first joint
+        state stamped in [t_ns, t_ns + 1 / physics_rate_hz). When T_cam is a whole number of
+        steps that is the joint state with the image stamp itself.
+        """
+        i = bisect.bisect_left(self._joint_stamps, t_ns)
+        first = self._joint_stamps[i] if i < len(self._joint_stamps) else None
+        bad = min((s for s in self._bad_joints if s >= t_ns), default=None)
+        if bad is not None and (first is None or bad < first):
+            if bad - t_ns < self._window_ns:
+                return None, f'joint state of the image rejected ({self._bad_joints[bad]})'
+            return None, 'no joint state within one physics step at or after the image stamp'
+        if first is None:
+            return None, None
+        if first - t_ns < self._window_ns:
+            return self._joints[first], None
+        return None, 'no joint state within one physics step at or after the image stamp'
+
+    def _camera_ready(self):
+        """Build the camera model from CameraInfo and /stereo/pose; return why not, or None."""
+        missing = [f'{s} camera_info' for s in _SIDES if s not in self._infos]
+        if self._pose is None:
+            missing.append('/stereo/pose')
+        if missing:
+            return 'no ' + ', '.join(missing) + ' yet'
+        left, right = self._infos['left'], self._infos['right']
+        pos, rot = self._pose.pose.position, self._pose.pose.orientation
+        key = (tuple(left.p), tuple(right.p), left.width, left.height, right.width,
+               right.height, pos.x, pos.y, pos.z, rot.x, rot.y, rot.z, rot.w)
+        if key == self._camera_key:
+            return self._camera_problem
+        self._camera_key = key
+        try:
+            camera = camera_from_msgs(left, right, self._pose)
+        except InputError as exc:
+            self._diag.reject('camera_info', exc.reason, exc.detail)
+            self._model = self._detector = None
+            self._camera_problem = f'usable camera_info ({exc.reason})'
+            return self._camera_problem
+        self._model = CameraRobotModel(camera, IRB4600)
+        self._detector = StereoDetector(camera.intrinsics, self._config)
+        self._prior = None
+        self._camera_problem = None
+        return None
+
+    def _try_frames(self):
+        """Publish every frame that is complete; drop those that can never be."""
+        camera_problem = self._camera_ready()
+        for t_ns in sorted(self._frames):
+            frame = self._frames.get(t_ns)
+            if frame is None:
+                continue
+            if frame.rejected:
+                # Already counted when its image was refused; forget it once both came.
+                if all(self._newest_image[s] >= t_ns for s in _SIDES) \
+                        or self._newest_ns - t_ns > self._stale_ns:
+                    del self._frames[t_ns]
+                continue
+            drop = None
+            missing = [s for s in _SIDES if s not in frame.images]
+            for side in missing:
+                if self._newest_image[side] > t_ns:
+                    other = 'right' if side == 'left' else 'left'
+                    drop = ('left/right stamp mismatch',
+                            f'{other} image at {t_ns * 1e-9:.9f} s has no {side} image')
+            q, why = self._joint_at(t_ns)
+            if drop is None and why is not None:
+                drop = ('no joint state', why)
+            if drop is None and self._newest_ns - t_ns > self._stale_ns:
+                waiting = [f'{s} image' for s in missing]
+                if q is None:
+                    waiting.append('joint state')
+                if camera_problem:
+                    waiting.append(camera_problem)
+                drop = ('timed out', f'frame at {t_ns * 1e-9:.9f} s waited for '
+                        + ', '.join(waiting))
+            if drop is not None:
+                del self._frames[t_ns]
+                self._diag.reject('stereo frame', *drop)
+                continue
+            if missing or q is None or camera_problem:
+                waiting = [f'{s} image' for s in missing] + (['joint state'] if q is None else [])
+                self._diag.update(waiting_for=', '.join(waiting + ([camera_problem]
+                                                                   if camera_problem else [])))
+                continue
+            del self._frames[t_ns]
+            for older in [t for t in self._frames if t < t_ns]:
+                del self._frames[older]
+                self._diag.reject('stereo frame', 'superseded',
+                                  f'frame at {older * 1e-9:.9f} s overtaken by a newer one')
+            self._process(t_ns, frame, q)
+        self._diag.update(pending_frames=len(self._frames))
+
+    def _process(self, t_ns, frame, q):
+        started = time.perf_counter()
+        k = self._detector.intrinsics
+        for side in _SIDES:
+            h, w = frame.images[side].shape[:2]
+            if (w, h) != (k.width, k.height):
+                self._diag.reject(f'{side} image', 'size disagrees with camera_info',
+                                  f'{w} x {h}, camera_info says {k.width} x {k.height}')
+                return
+        left, right = frame.images['left'], frame.images['right']
+        encoding = frame.encodings['left']
+        if frame.encodings['right'] != encoding:
+            right = right[:, :, ::-1].copy()
+        try:
+            estimate = self._model.features(q)
+        except BehindCameraError:
+            estimate = None
+        prior = self._prior if self._prior is not None else estimate
+        detection = self._detector.detect(left, right, encoding, prior)
+        if not detection.ok and estimate is None:
+            self._diag.reject('stereo frame', 'no estimate',
+                              'a marker is behind the camera at q_T and none was measured')
+            return
+        previous = self._switch.source
+        output = self._switch.update(t_ns * 1e-9, detection.features, estimate)
+        self._pub.publish(features_msg(output, ns_stamp(t_ns)))
+        self._last_published_ns = t_ns
+        self._prior = detection.features
+        elapsed_ms = (time.perf_counter() - started) * 1e3
+        self._record(detection, previous, elapsed_ms)
+
+    def _record(self, detection, previous, elapsed_ms):
+        d = self._diag
+        values = d.values
+        values['frames_published'] += 1
+        if detection.ok:
+            values['frames_measured'] += 1
+            reason = 'measured'
+        else:
+            values['frames_estimated'] += 1
+            reason = f'{detection.reason.value}: {detection.detail}'
+            key = detection.reason.value
+            self._reasons[key] = self._reasons.get(key, 0) + 1
+        self._times_ms = (self._times_ms + [elapsed_ms])[-200:]
+        switch = self._switch
+        d.update(mode=switch.mode, source=switch.source, detection=reason,
+                 search=detection.search, switches=switch.switches,
+                 processing_ms_last=elapsed_ms,
+                 processing_ms_median=float(np.median(self._times_ms)),
+                 processing_ms_max=float(np.max(self._times_ms)), waiting_for='')
+        for key, n in self._reasons.items():
+            d.values[f'estimated_because[{key}]'] = n
+        if switch.last_switch_s is not None and switch.source != previous \
+                and previous is not None:
+            d.update(last_switch_time_s=switch.last_switch_s,
+                     last_switch=f'{previous} -> {switch.source} at '
+                                 f'{switch.last_switch_s:.6f} s')
+        d.set_level(DiagnosticStatus.OK,
+                    switch.mode + ('' if detection.ok else f' ({reason})'))
+
+
+def main(args=None):
+    """Run the feature node (``ros2 run ibvs_vision feature_node``)."""
+    run(FeatureNode, args=args, name='feature_node')
+
+
+if __name__ == '__main__':
+    main()
