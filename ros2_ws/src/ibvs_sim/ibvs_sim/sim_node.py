@@ -82,6 +82,15 @@ class SimNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, build the simulator and the interfaces."""
         super().__init__('sim_node', **kwargs)
+        self.sim = None
+        try:
+            self._setup()
+        except BaseException:
+            # No half-built node for the garbage collector: main() cannot destroy it.
+            self.destroy_node()
+            raise
+
+    def _setup(self):
         values = declare(self, PARAMS)
         self._publish_images = values['publish_images']
         try:
@@ -135,7 +144,8 @@ class SimNode(Node):
 
     def destroy_node(self):
         """Release PyBullet with the node."""
-        self.sim.close()
+        if self.sim is not None:
+            self.sim.close()
         return super().destroy_node()
 
     def _missing(self):

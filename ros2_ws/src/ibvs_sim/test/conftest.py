@@ -1,5 +1,6 @@
 """Fixtures shared by the ibvs_sim tests: PyBullet worlds and the default stereo camera."""
 
+import gc
 import os
 
 from ibvs_model import look_at, paper, StereoCamera, StereoIntrinsics
@@ -28,3 +29,15 @@ def camera():
     """Return the ZED 2 at HD720 at the default pose (DESIGN section 5)."""
     return StereoCamera(StereoIntrinsics.zed2('HD720'),
                         look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+
+
+@pytest.fixture(scope='module', autouse=True)
+def collect_garbage():
+    """
+    Finalise this module's leftovers (rclpy handles, PyBullet clients) in this process.
+
+    Linters later in the same pytest run fork worker processes; an rclpy object finalised
+    by the garbage collector in such a child crashes it (seen: flake8 worker segfault).
+    """
+    yield
+    gc.collect()
