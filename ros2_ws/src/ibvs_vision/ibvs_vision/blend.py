@@ -14,7 +14,8 @@ so the output never jumps: from one frame to the next it moves by the change of 
 source plus at most |offset| * dt / blend_time_s. At the switch frame itself it holds the
 previous output. A switch during a blend starts a new blend from the current output.
 Outside blends the output is the source exactly (estimated features equal F(q_T) bit
-for bit). Time is the image stamp (sim time), never the wall clock.
+for bit). Time is the image stamp in integer nanoseconds of sim time (never the wall clock),
+so the blend ends exactly on the frame that reaches ``blend_time_s``.
 """
 
 import numpy as np
@@ -32,24 +33,24 @@ class BumplessSwitch:
         blend_time_s = float(blend_time_s)
         if not (np.isfinite(blend_time_s) and blend_time_s >= 0.0):
             raise ValueError(f'blend_time_s must be finite and >= 0, got {blend_time_s}')
-        self.blend_time_s = blend_time_s
+        self.blend_ns = int(round(blend_time_s * 1e9))
         self.source = None
         self.mode = None
-        self.last_switch_s = None
+        self.last_switch_ns = None
         self.switches = 0
         self._offset = np.zeros(6)
         self._output = None
-        self._t = None
 
-    def blend_weight(self, t_s):
-        """Return the share (1 to 0) of the offset still applied at time ``t_s``."""
-        if self.last_switch_s is None or self.blend_time_s == 0.0:
+    def blend_weight(self, t_ns):
+        """Return the share (1 to 0) of the offset still applied at time ``t_ns``."""
+        if self.last_switch_ns is None:
             return 0.0
-        return max(0.0, 1.0 - (t_s - self.last_switch_s) / self.blend_time_s)
+        left = self.blend_ns - (int(t_ns) - self.last_switch_ns)
+        return left / self.blend_ns if left > 0 else 0.0
 
-    def update(self, t_s, measured, estimate):
+    def update(self, t_ns, measured, estimate):
         """
-        Return the p_I (6,) to publish at time ``t_s`` (s) and set :attr:`mode`.
+        Return the p_I (6,) to publish at time ``t_ns`` (integer ns) and set :attr:`mode`.
 
         ``measured`` is the detector's p_I or None; ``estimate`` is F(q_T) (may be None
         while a measurement is available). Raises ValueError when neither is given.
@@ -60,18 +61,17 @@ class BumplessSwitch:
             source, value = ESTIMATED, np.asarray(estimate, dtype=float).reshape(6)
         else:
             raise ValueError('neither a measurement nor an estimate')
-        t_s = float(t_s)
         if self._output is not None and source != self.source:
             self._offset = self._output - value
-            self.last_switch_s = t_s
+            self.last_switch_ns = int(t_ns)
             self.switches += 1
         self.source = source
-        weight = self.blend_weight(t_s)
+        weight = self.blend_weight(t_ns)
         if weight > 0.0 and np.any(self._offset != 0.0):
             output = value + weight * self._offset
             self.mode = BLENDING
         else:
             output = value.copy()
             self.mode = source
-        self._output, self._t = output, t_s
+        self._output = output
         return output.copy()

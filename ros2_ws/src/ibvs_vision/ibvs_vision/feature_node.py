@@ -329,7 +329,7 @@ class FeatureNode(Node):
                               'a marker is behind the camera at q_T and none was measured')
             return
         previous = self._switch.source
-        output = self._switch.update(t_ns * 1e-9, detection.features, estimate)
+        output = self._switch.update(t_ns, detection.features, estimate)
         self._pub.publish(features_msg(output, ns_stamp(t_ns)))
         self._last_published_ns = t_ns
         self._prior = detection.features
@@ -357,11 +357,12 @@ class FeatureNode(Node):
                  processing_ms_max=float(np.max(self._times_ms)), waiting_for='')
         for key, n in self._reasons.items():
             d.values[f'estimated_because[{key}]'] = n
-        if switch.last_switch_s is not None and switch.source != previous \
+        if switch.last_switch_ns is not None and switch.source != previous \
                 and previous is not None:
-            d.update(last_switch_time_s=switch.last_switch_s,
-                     last_switch=f'{previous} -> {switch.source} at '
-                                 f'{switch.last_switch_s:.6f} s')
+            t_s = switch.last_switch_ns * 1e-9
+            d.update(last_switch_time_s=t_s,
+                     last_switch=f'{previous} -> {switch.source} at {t_s:.9f} s')
+            d.publish()
         d.set_level(DiagnosticStatus.OK,
                     switch.mode + ('' if detection.ok else f' ({reason})'))
 
