@@ -32,8 +32,11 @@ $(BUILD_STAMP): $(VENV_STAMP) $(SOURCES)
 
 build: $(BUILD_STAMP)
 
+# Linters first, in their own pytest process: flake8 forks workers, and a fork of a process
+# that holds rclpy objects from earlier node tests can crash in the child.
 test: build
-	$(RUN) python -m pytest $(PYTEST_ARGS)
+	$(RUN) python -m pytest -m linter $(PYTEST_ARGS)
+	$(RUN) python -m pytest -m 'not linter' $(PYTEST_ARGS)
 
 demo: build
 	$(RUN) python -m ibvs_bringup.cli demo
