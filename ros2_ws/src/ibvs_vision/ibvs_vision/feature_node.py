@@ -11,6 +11,12 @@ PolygonStamped on /ibvs/features, stamped with the image stamp (DESIGN section 3
   stamp; the camera comes from both CameraInfo and /stereo/pose, never from constants;
 - across a switch between the two the output is blended (:mod:`.blend`, section 2.3).
 
+With each features message goes one /ibvs/feature_status (DiagnosticArray, same stamp) whose
+values say the mode (measured / blending / estimated), the source, the reason when the
+markers were not measured, and the share of the switch offset still blended. /diagnostics
+(once a second, and at each switch) carries the counts, the last switch time, the rejected
+inputs by reason and the processing time.
+
 A frame is published as soon as both images, the joint state of its stamp, the camera infos
 and the camera pose are there. The joint state of a frame stamped t is the first one stamped
 in [t, t + 1 / physics_rate_hz): the simulator renders a frame from the first physics step
@@ -24,7 +30,7 @@ newest input) is dropped, logged and counted on /diagnostics; the node keeps run
 import bisect
 import time
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (camera_from_msgs, features_msg, InputError, ns_stamp,
@@ -122,6 +128,8 @@ class FeatureNode(Node):
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, last_switch_time_s='none', switches=0)
         self._pub = self.create_publisher(PolygonStamped, contract.FEATURES, contract.RELIABLE)
+        self._status_pub = self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
+                                                 contract.RELIABLE)
         self.create_subscription(Image, contract.LEFT_IMAGE,
                                  lambda m: self._on_image('left', m), contract.IMAGES)
         self.create_subscription(Image, contract.RIGHT_IMAGE,
@@ -331,10 +339,27 @@ class FeatureNode(Node):
         previous = self._switch.source
         output = self._switch.update(t_ns, detection.features, estimate)
         self._pub.publish(features_msg(output, ns_stamp(t_ns)))
+        self._publish_status(t_ns, detection)
         self._last_published_ns = t_ns
         self._prior = detection.features
         elapsed_ms = (time.perf_counter() - started) * 1e3
         self._record(detection, previous, elapsed_ms)
+
+    def _publish_status(self, t_ns, detection):
+        """Publish this frame's mode on /ibvs/feature_status, stamped with the image stamp."""
+        switch = self._switch
+        reason = 'measured' if detection.ok else f'{detection.reason.value}: {detection.detail}'
+        values = {'mode': switch.mode, 'source': switch.source, 'reason': reason,
+                  'blend_weight': f'{switch.blend_weight(t_ns):.6g}',
+                  'search': detection.search}
+        msg = DiagnosticArray()
+        msg.header.stamp = ns_stamp(t_ns)
+        msg.header.frame_id = contract.CAMERA_FRAME
+        msg.status = [DiagnosticStatus(
+            level=DiagnosticStatus.OK, name=f'{self.get_name()}: features',
+            message=switch.mode, hardware_id=self.get_fully_qualified_name(),
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])]
+        self._status_pub.publish(msg)
 
     def _record(self, detection, previous, elapsed_ms):
         d = self._diag

@@ -62,6 +62,7 @@ class Driver(Node):
         self.camera = camera
         self.rng = np.random.default_rng(7)
         self.features = []
+        self.status = []
         self.diagnostics = []
         self.pub = {
             'clock': self.create_publisher(Clock, contract.CLOCK, contract.RELIABLE),
@@ -77,6 +78,8 @@ class Driver(Node):
                                           contract.LATCHED),
         }
         self.create_subscription(PolygonStamped, contract.FEATURES, self.features.append,
+                                 contract.RELIABLE)
+        self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS, self.status.append,
                                  contract.RELIABLE)
         self.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diag, 10)
 
@@ -214,6 +217,17 @@ def test_markers_entering_the_view_blend_bumplessly(rig, vga_model, q_target):
                if (n - hidden) * T_CAM_NS * 1e-9 >= blend_s]
     assert len(settled) >= 4
     assert np.abs(out[settled] - truth).max() <= 0.3
+    # One /ibvs/feature_status per frame, same stamp, saying what was published.
+    spin_until(executor, lambda: len(driver.status) == hidden + shown)
+    assert [stamp_ns(m.header.stamp) for m in driver.status] == driver.stamps()
+    status = [{kv.key: kv.value for kv in m.status[0].values} for m in driver.status]
+    modes = [s['mode'] for s in status]
+    blending = settled[0] - hidden
+    assert modes == (['estimated'] * hidden + ['blending'] * blending
+                     + ['measured'] * (shown - blending))
+    assert status[0]['reason'].startswith('not in view')
+    weights = [float(s['blend_weight']) for s in status[hidden:hidden + blending + 1]]
+    assert weights[0] == 1.0 and weights[-1] == 0.0 and np.all(np.diff(weights) < 0.0)
     diag = latest_diag(driver, executor,
                        lambda d: d.get('frames_published') == str(hidden + shown))
     assert diag['mode'] == 'measured', (diag, out - truth)
