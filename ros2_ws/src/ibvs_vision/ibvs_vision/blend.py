@@ -5,17 +5,24 @@ The feature node publishes the measured p^_I (eq. 2-3) when the camera sees both
 fiducials and the estimate p~_I = F(q_T) (eq. 46) when it does not. Switching the source
 outright would step the published features by the model error (a disturbance d_q or a
 wrong link length makes F(q_T) differ from what the camera sees) and kick the feedback
-loop. Instead, at a switch at time t_s the output keeps the offset it had from the new
-source and lets that offset fade out linearly over ``blend_time_s``::
+loop. Instead, at a switch at frame k the output goes on from where it was, moved by what
+the model predicts for this frame, and the offset to the new source then fades out
+linearly over ``blend_time_s``::
 
-    out(t) = source(t) + (out(t_prev) - source(t_s)) * max(0, 1 - (t - t_s) / blend_time_s)
+    out_k = out_k-1 + (F(q_T,k) - F(q_T,k-1))              (the switch frame)
+    offset = out_k - source_k
+    out(t) = source(t) + offset * max(0, 1 - (t - t_k) / blend_time_s)
 
-so the output never jumps: from one frame to the next it moves by the change of the
-source plus at most |offset| * dt / blend_time_s. At the switch frame itself it holds the
-previous output. A switch during a blend starts a new blend from the current output.
-Outside blends the output is the source exactly (estimated features equal F(q_T) bit
-for bit). Time is the image stamp in integer nanoseconds of sim time (never the wall clock),
-so the blend ends exactly on the frame that reaches ``blend_time_s``.
+The estimate F(q_T) exists at every frame (encoders), so it carries the arm's motion across
+the switch: holding the last output instead would lag a moving arm by all the motion since
+the last frame of the old source (hundreds of pixels during the fast feedforward start).
+Where no estimate exists (a marker behind the camera) the switch frame holds the output.
+So the output never jumps: at a switch frame it moves like the model, afterwards by the
+change of the source plus at most |offset| * dt / blend_time_s per frame. A switch during
+a blend starts a new one from the current output. Outside blends the output is the source
+exactly (estimated features equal F(q_T) bit for bit). Time is the image stamp in integer
+nanoseconds of sim time (never the wall clock), so the blend ends exactly on the frame that
+reaches ``blend_time_s``.
 """
 
 import numpy as np
@@ -40,6 +47,7 @@ class BumplessSwitch:
         self.switches = 0
         self._offset = np.zeros(6)
         self._output = None
+        self._estimate = None
 
     def blend_weight(self, t_ns):
         """Return the share (1 to 0) of the offset still applied at time ``t_ns``."""
@@ -61,10 +69,15 @@ class BumplessSwitch:
             source, value = ESTIMATED, np.asarray(estimate, dtype=float).reshape(6)
         else:
             raise ValueError('neither a measurement nor an estimate')
+        estimate = None if estimate is None else np.asarray(estimate, dtype=float).reshape(6)
         if self._output is not None and source != self.source:
-            self._offset = self._output - value
+            carried = self._output.copy()
+            if estimate is not None and self._estimate is not None:
+                carried += estimate - self._estimate
+            self._offset = carried - value
             self.last_switch_ns = int(t_ns)
             self.switches += 1
+        self._estimate = estimate
         self.source = source
         weight = self.blend_weight(t_ns)
         if weight > 0.0 and np.any(self._offset != 0.0):

@@ -46,7 +46,7 @@ def test_per_frame_change_is_bounded_whatever_the_sources_do():
     estimate = rng.uniform(0.0, 500.0, 6)
     bias = rng.normal(0.0, 5.0, 6)
     seen = rng.random(200) < 0.5
-    prev_out = prev_src = None
+    prev_out = prev_src = prev_est = None
     offset = np.zeros(6)
     for n in range(200):
         estimate = estimate + rng.normal(0.0, 0.3, 6)
@@ -55,13 +55,33 @@ def test_per_frame_change_is_bounded_whatever_the_sources_do():
         out = switch.update(n * DT, measured, estimate)
         if prev_out is not None:
             if switch.last_switch_ns == n * DT:
-                offset = prev_out - source
-                assert np.array_equal(out, prev_out)
+                # The switch frame moves as the model predicts, nothing more.
+                assert np.allclose(out, prev_out + estimate - prev_est, atol=1e-9)
+                offset = out - source
             else:
                 bound = np.abs(source - prev_src) + np.abs(offset) * DT * 1e-9 / blend + 1e-9
                 assert np.all(np.abs(out - prev_out) <= bound)
-        prev_out, prev_src = out, source
+        prev_out, prev_src, prev_est = out, source, estimate
     assert switch.switches > 20
+
+
+def test_a_moving_arm_is_followed_across_switches_without_lag():
+    """
+    Follow fast motion with the markers seen every other seven frames.
+
+    The output stays between the estimate and the measurement (they differ by the model
+    error) and never lags behind both.
+    """
+    switch = BumplessSwitch(0.2)
+    bias = np.array([2.0, 2.0, -1.0, 3.0, 3.0, -1.5])
+    velocity = np.array([300.0, 300.0, -100.0, 310.0, 310.0, -90.0])  # px/s
+    for n in range(120):
+        estimate = 100.0 + velocity * n * DT * 1e-9
+        measured = estimate + bias if (n // 7) % 2 else None
+        out = switch.update(n * DT, measured, estimate)
+        low, high = np.minimum(estimate, estimate + bias), np.maximum(estimate, estimate + bias)
+        assert np.all(out >= low - 1e-9) and np.all(out <= high + 1e-9), n
+    assert switch.switches >= 15
 
 
 def test_a_switch_back_during_a_blend_starts_from_the_current_output():

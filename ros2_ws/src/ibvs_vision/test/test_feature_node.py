@@ -263,8 +263,8 @@ def test_one_hidden_marker_falls_back_to_the_estimate_and_says_why(rig, vga_mode
     driver.send(T_CAM_NS, q_apart, images=images)
     spin_until(executor, lambda: len(driver.features) == 2)
     # Frame 0 sees both markers; frame 1 only marker 1: the output starts to blend back to
-    # the estimate (held at the switch frame), and the estimate is F(q_T) itself once the
-    # blend is over.
+    # the estimate (the switch frame moves as the model does: here, the arm being still,
+    # not at all), and is F(q_T) itself once the blend is over.
     truth = vga_model.camera.project(fiducial_points(q_apart + D_Q)).reshape(6)
     assert np.abs(read_features(driver.features[0]) - truth).max() <= 0.3
     assert np.array_equal(read_features(driver.features[1]), read_features(driver.features[0]))
