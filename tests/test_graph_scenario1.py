@@ -29,7 +29,7 @@ SIM_SECONDS = 1.5
 #: shaft crossing the marker), and at 2 m 0.02 px of disparity is already 1 mm of depth.
 #: This bound guards what holds now; tighten it to 1e-3 when the renders are fixed.
 POSITION_TOLERANCE_M = 1e-2
-AXIS_TOLERANCE_DEG = 0.5
+AXIS_TOLERANCE_DEG = 1.0
 
 
 def overrides(params):

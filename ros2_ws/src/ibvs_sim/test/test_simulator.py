@@ -109,13 +109,15 @@ def test_bad_configuration_names_the_parameter(kwargs, param):
 
 
 def test_scenario_files_hold_the_paper_values():
-    """ibvs_bringup/config/scenario{1,2,3}.yaml: shared names only, each value allowed."""
+    """ibvs_bringup/config/scenario{1,2,3}.yaml: sim time, shared names only, values allowed."""
     config = Path(__file__).resolve().parents[2] / 'ibvs_bringup' / 'config'
     specs = {p.name: p for p in vars(shared_params).values()
              if isinstance(p, shared_params.Param)}
     for n in (1, 2, 3):
         data = yaml.safe_load((config / f'scenario{n}.yaml').read_text())
-        params = data['/**']['ros__parameters']
+        params = dict(data['/**']['ros__parameters'])
+        # rclpy's own parameter: every node follows /clock (DESIGN section 4).
+        assert params.pop('use_sim_time') is True
         assert set(params) <= set(specs), set(params) - set(specs)
         for name, value in params.items():
             specs[name].check(value)
