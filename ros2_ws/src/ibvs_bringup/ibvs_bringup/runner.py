@@ -212,10 +212,15 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     sim_wall_start = None
     try:
         for package, executable in NODES:
+            extra = ()
             if executable == 'sim_node':
                 _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
+                # The recorder and every node must see step 0: the simulator starts only
+                # when all of today's /joint_states subscribers are matched with it.
+                subscribers = max(1, watcher.count_subscribers(contract.JOINT_STATES))
+                extra = ('-p', f'min_joint_state_subscribers:={subscribers}')
                 sim_wall_start = time.monotonic()
-            procs.append(NodeProcess(package, executable, params_file, log_dir))
+            procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
         last_print = 0.0
         while True:
             executor.spin_once(timeout_sec=0.05)

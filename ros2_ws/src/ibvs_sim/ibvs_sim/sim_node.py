@@ -55,8 +55,13 @@ PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo im
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
 
+MIN_JOINT_STATE_SUBSCRIBERS = Param(
+    'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
+    'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
+
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
-          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, PUBLISH_IMAGES)
+          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, PUBLISH_IMAGES,
+          MIN_JOINT_STATE_SUBSCRIBERS)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -93,6 +98,7 @@ class SimNode(Node):
     def _setup(self):
         values = declare(self, PARAMS)
         self._publish_images = values['publish_images']
+        self._min_joint_subscribers = values['min_joint_state_subscribers']
         try:
             self.sim = Simulator(
                 scenario=values['scenario'], disturbance_deg=values['disturbance_deg'],
@@ -153,8 +159,10 @@ class SimNode(Node):
         missing = []
         if self._sub.get_publisher_count() < 1:
             missing.append(f'a publisher on {contract.EFFORT_COMMANDS}')
-        if self._pub_joints.get_subscription_count() < 1:
-            missing.append(f'a subscriber on {contract.JOINT_STATES}')
+        have = self._pub_joints.get_subscription_count()
+        if have < self._min_joint_subscribers:
+            missing.append(f'{self._min_joint_subscribers - have} more subscriber(s) on '
+                           f'{contract.JOINT_STATES}')
         for pub in self._pub_images:
             if pub.get_subscription_count() < 1:
                 missing.append(f'a subscriber on {pub.topic_name}')
