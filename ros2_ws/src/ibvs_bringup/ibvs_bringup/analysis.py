@@ -26,11 +26,10 @@ import math
 from pathlib import Path
 
 from ibvs_common import contract
-from ibvs_model import StereoCamera, StereoIntrinsics
+from ibvs_common.conversions import camera_from_msgs, pose_matrix
 import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
-from scipy.spatial.transform import Rotation
 import yaml
 
 #: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
@@ -126,12 +125,12 @@ def _relative(value, t):
     return None if value is None else float(value - t[0])
 
 
-def _pose_matrix(pose):
-    q = pose.orientation
-    tf = np.eye(4)
-    tf[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
-    tf[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
-    return tf
+def target_from_params(params):
+    """Return the target T_E^O of a run's parameters (NaN where they are missing)."""
+    target = np.eye(4)
+    target[:3, 3] = params.get('target_position', [math.nan] * 3)
+    target[:3, :3] = np.reshape(params.get('target_rotation', [math.nan] * 9), (3, 3))
+    return target
 
 
 def _stamp(header):
@@ -156,7 +155,7 @@ def load_run(bag_path):
             msg = reader.deserialize(raw, conn.msgtype)
             if conn.topic == contract.TOOL_POSE:
                 t.append(_stamp(msg.header))
-                poses.append(_pose_matrix(msg.pose))
+                poses.append(pose_matrix(msg.pose))
             elif conn.topic == contract.FEATURES:
                 ft.append(_stamp(msg.header))
                 feats.append([[p.x, p.y, p.z] for p in msg.polygon.points])
@@ -167,21 +166,17 @@ def load_run(bag_path):
             elif conn.topic in (contract.LEFT_INFO, contract.RIGHT_INFO):
                 infos.setdefault(conn.topic, msg)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
-                cam_pose = _pose_matrix(msg.pose)
+                cam_pose = msg
     if len(t) < 2:
         raise ValueError(f'{bag_path}: fewer than two {contract.TOOL_POSE} messages')
     order = np.argsort(t, kind='stable')
     poses = np.array(poses)[order]
     camera = None
     if cam_pose is not None and len(infos) == 2:
-        left, right = infos[contract.LEFT_INFO], infos[contract.RIGHT_INFO]
-        fu = float(left.p[0])
-        camera = StereoCamera(StereoIntrinsics(
-            int(left.width), int(left.height), fu, float(left.p[5]), float(left.p[2]),
-            float(left.p[6]), float(-right.p[3] / right.p[0])), cam_pose)
-    target = np.eye(4)
-    target[:3, 3] = params.get('target_position', [math.nan] * 3)
-    target[:3, :3] = np.reshape(params.get('target_rotation', [math.nan] * 9), (3, 3))
+        # rosbags messages have the fields of the rclpy ones: the same conversion serves.
+        camera = camera_from_msgs(infos[contract.LEFT_INFO], infos[contract.RIGHT_INFO],
+                                  cam_pose)
+    target = target_from_params(params)
     feats = np.array([np.ravel(f) for f in feats if len(f) == 2]) if feats else np.zeros((0, 6))
     return RunData(params=params, run_info=run_info, t=np.asarray(t)[order],
                    position=poses[:, :3, 3], rotation=poses[:, :3, :3], target=target,

@@ -162,13 +162,6 @@ class Monitor:
         return (self.sim_ns - self.within_since_ns) * 1e-9
 
 
-def _target_pose(params):
-    target = np.eye(4)
-    target[:3, 3] = params['target_position']
-    target[:3, :3] = np.reshape(params['target_rotation'], (3, 3))
-    return target
-
-
 def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
                  wall_timeout_s=1800.0, converge_hold_s=None, progress=print):
     """
@@ -192,7 +185,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     bag_path = out_dir / 'bag'
     if bag_path.exists():
         shutil.rmtree(bag_path)
-    target = _target_pose(params)
+    target = analysis.target_from_params(params)
 
     context = rclpy.context.Context()
     rclpy.init(context=context)
