@@ -1,26 +1,88 @@
 """The ``main()`` of every node, in the shape of ros2/demos ``demo_nodes_py`` (jazzy)."""
 
+import signal
 import sys
+import threading
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 
 from .params import ParameterError
+
+#: Longest a stop request waits for the executor to come back from ``wait`` (seconds).
+STOP_POLL_S = 0.1
+#: Signals that ask a node to stop cleanly (exit code 0).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopRequest:
+    """
+    Turn SIGINT/SIGTERM into a flag that the spin loop reads between callbacks.
+
+    Why not rclpy's own handlers: they shut the context down from another thread at any
+    moment, and Python's default SIGINT handler raises ``KeyboardInterrupt`` at whatever
+    bytecode runs next. Either can land inside a callback or inside rclpy's C++ message
+    conversion (likely while a large Image is taken), where it surfaces as an opaque
+    ``RuntimeError`` or ``RCLError`` ("context is not valid") and the node exits 1 instead
+    of 0. Here the first signal only sets a flag; the node finishes its callback, leaves the
+    spin loop, destroys itself and shuts rclpy down. A second signal raises
+    ``KeyboardInterrupt`` at once, for a node stuck in a callback.
+    """
+
+    def __init__(self):
+        self._event = threading.Event()
+        self._previous = {}
+
+    def install(self):
+        """Install the handlers (main thread only), remembering the previous ones."""
+        for signum in STOP_SIGNALS:
+            self._previous[signum] = signal.signal(signum, self._handle)
+
+    def restore(self):
+        """Put the previous handlers back."""
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum, frame):
+        if self._event.is_set():
+            raise KeyboardInterrupt
+        self._event.set()
+
+    def is_set(self):
+        """Return whether a stop was requested."""
+        return self._event.is_set()
+
+
+def spin_until_stopped(node, stop, poll_s=STOP_POLL_S):
+    """Spin ``node`` until ``stop`` is set or its context is shut down by someone else."""
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while node.context.ok() and not stop.is_set():
+            executor.spin_once(timeout_sec=poll_s)
+    finally:
+        executor.remove_node(node)
+        executor.shutdown(timeout_sec=0.0)
 
 
 def run(node_class, args=None, name=None):
     """
-    Init rclpy, build ``node_class()``, spin until shut down, then clean up.
+    Init rclpy, build ``node_class()``, spin until SIGINT/SIGTERM, then clean up.
 
     A :class:`ParameterError` at start is logged as fatal and ends the process with exit
-    code 2, so that a runner can tell a bad configuration from a crash.
+    code 2, so that a runner can tell a bad configuration from a crash. A stop signal ends
+    it with exit code 0 once the running callback has returned (see :class:`StopRequest`).
     """
-    rclpy.init(args=args)
+    stop = StopRequest()
+    stop.install()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     code = 0
     try:
         node = node_class()
-        rclpy.spin(node)
+        spin_until_stopped(node, stop)
     except ParameterError as exc:
         rclpy.logging.get_logger(name or node_class.__name__).fatal(str(exc))
         code = 2
@@ -30,5 +92,6 @@ def run(node_class, args=None, name=None):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        stop.restore()
     if code:
         sys.exit(code)
