@@ -35,6 +35,11 @@ slimmer than the real one (80 mm instead of about 200 mm across) and ends 95 mm 
 centre, so P1 is seen unless the camera looks at it from behind the wrist within about
 40 deg of the tool axis.
 The robot is light grey, the shaft dark grey: neither has the markers' red or blue hue.
+A marker is drawn as a fine icosphere mesh (:data:`MARKER_MESH`, :func:`icosphere_obj`,
+5120 faces, 0.01 % from a true sphere) that :func:`write_urdf` writes beside the URDF,
+not as a URDF ``<sphere>``: PyBullet draws that one with a coarse polygon whose outline
+moves the image centre by up to 0.15 px as joint 6 turns (measured), which the stereo
+depth turns into centimetres (1 mm at 2.4 m is 0.014 px of disparity at HD720).
 
 Joints. Ranges and speeds are ABB's (``RobotParams.q_min``, ``q_max``, ``qd_max``). ABB does
 not publish motor torques; ``effort`` is an estimate: 1.5 times an upper bound of the static
@@ -75,6 +80,10 @@ GRAVITY = 9.81
 ROBOT_RGBA = (0.82, 0.82, 0.80, 1.0)
 BASE_RGBA = (0.62, 0.62, 0.62, 1.0)
 SHAFT_RGBA = (0.35, 0.35, 0.35, 1.0)
+#: File name of the marker sphere mesh (unit radius), written beside the URDF.
+MARKER_MESH = 'marker_sphere.obj'
+#: Subdivisions of the icosahedron: 4 gives 5120 faces, edges of about 4 degrees of arc.
+MARKER_MESH_SUBDIVISIONS = 4
 
 JOINT_NAMES = tuple(f'joint_{i}' for i in range(1, 7))
 LINK_NAMES = ('base_link',) + tuple(f'link_{i}' for i in range(1, 7))
@@ -289,7 +298,51 @@ def _geometry(solid):
         return f'<box size="{_fmt(solid.size)}"/>'
     if solid.kind == 'cylinder':
         return f'<cylinder radius="{_num(solid.size[0])}" length="{_num(solid.size[1])}"/>'
-    return f'<sphere radius="{_num(solid.size[0])}"/>'
+    # A sphere is drawn with the unit icosphere of MARKER_MESH (module docstring).
+    scale = _fmt([solid.size[0]] * 3)
+    return f'<mesh filename={quoteattr(MARKER_MESH)} scale="{scale}"/>'
+
+
+def icosphere_obj(subdivisions=MARKER_MESH_SUBDIVISIONS):
+    """
+    Return a Wavefront OBJ of the unit sphere: an icosahedron subdivided ``subdivisions`` times.
+
+    Each subdivision splits every triangle into four, with the new vertices pushed out to
+    the sphere; the vertex normals are the vertex positions (smooth shading). The faces are
+    20 * 4^subdivisions, wound counter-clockwise seen from outside.
+    """
+    if not (isinstance(subdivisions, int) and 0 <= subdivisions <= 6):
+        raise ValueError(f'subdivisions must be an int in [0, 6], got {subdivisions!r}')
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    vertices = [np.array(v, float) / math.hypot(1.0, t) for v in (
+        (-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t),
+        (0, -1, -t), (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1))]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9),
+             (5, 11, 4), (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2),
+             (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10),
+             (8, 6, 7), (9, 8, 1)]
+    for _ in range(subdivisions):
+        midpoints = {}
+
+        def midpoint(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in midpoints:
+                m = vertices[a] + vertices[b]
+                vertices.append(m / np.linalg.norm(m))
+                midpoints[key] = len(vertices) - 1
+            return midpoints[key]
+
+        refined = []
+        for a, b, c in faces:
+            ab, bc, ca = midpoint(a, b), midpoint(b, c), midpoint(c, a)
+            refined += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = refined
+    lines = [f'# Unit icosphere, {len(faces)} faces: ibvs_model.urdf.icosphere_obj'
+             f'({subdivisions}).']
+    lines += ['v {:.6f} {:.6f} {:.6f}'.format(*v) for v in vertices]
+    lines += ['vn {:.6f} {:.6f} {:.6f}'.format(*v) for v in vertices]
+    lines += [f'f {a + 1}//{a + 1} {b + 1}//{b + 1} {c + 1}//{c + 1}' for a, b, c in faces]
+    return '\n'.join(lines) + '\n'
 
 
 def _principal_axes(inertia):
@@ -380,6 +433,8 @@ def robot_urdf(params=IRB4600, with_tool=True):
 
     Links base_link, link_1..link_6, tool0 ({E}); with the tool also screwdriver, marker_1
     (P1) and marker_2 (P2). Joints joint_1..joint_6 (ibvs_common.contract.JOINT_NAMES).
+    The markers' visuals refer to the mesh :data:`MARKER_MESH` beside the URDF (relative
+    file name): :func:`write_urdf` writes both.
     """
     shapes = _link_shapes(params)
     props = inertials(params, with_tool)
@@ -432,7 +487,14 @@ def robot_urdf(params=IRB4600, with_tool=True):
 
 
 def write_urdf(path, params=IRB4600, with_tool=True):
-    """Write :func:`robot_urdf` to ``path`` and return the path (a :class:`pathlib.Path`)."""
+    """
+    Write :func:`robot_urdf` to ``path`` and return the path (a :class:`pathlib.Path`).
+
+    With the tool, the marker mesh :data:`MARKER_MESH` (:func:`icosphere_obj`) is written
+    into the same folder.
+    """
     path = Path(path)
     path.write_text(robot_urdf(params, with_tool))
+    if with_tool:
+        (path.parent / MARKER_MESH).write_text(icosphere_obj())
     return path

@@ -11,8 +11,8 @@ import xml.etree.ElementTree as ET
 
 from ibvs_model import IRB4600, joint_frames
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
-from ibvs_model.urdf import (joint_efforts, JOINT_NAMES, ROBOT_MASS_KG, robot_urdf,
-                             write_urdf)
+from ibvs_model.urdf import (icosphere_obj, joint_efforts, JOINT_NAMES, MARKER_MESH,
+                             ROBOT_MASS_KG, robot_urdf, write_urdf)
 import numpy as np
 import pytest
 
@@ -155,8 +155,9 @@ def test_markers_spheres_in_their_colours(robot):
     links = {link.get('name'): link for link in root.findall('link')}
     for k, rgb in enumerate(MARKER_RGB, start=1):
         visual = links[f'marker_{k}'].find('visual')
-        sphere = visual.find('geometry/sphere')
-        assert float(sphere.get('radius')) == MARKER_RADIUS_M
+        mesh = visual.find('geometry/mesh')
+        assert mesh.get('filename') == MARKER_MESH
+        assert np.all(_floats(mesh.get('scale')) == MARKER_RADIUS_M)
         assert np.allclose(_origin(visual)[:3, 3], 0.0)
         rgba = colours[visual.find('material').get('name')]
         assert np.allclose(rgba[:3] * 255.0, rgb)
@@ -206,4 +207,38 @@ def test_efforts_follow_the_load():
 def test_write_urdf_round_trip(tmp_path):
     path = write_urdf(tmp_path / 'robot.urdf', SCALED)
     assert path.read_text() == robot_urdf(SCALED)
+    assert (tmp_path / MARKER_MESH).read_text() == icosphere_obj()
     assert robot_urdf(SCALED) != robot_urdf(IRB4600)
+
+
+def _read_obj(text):
+    vertices = np.array([[float(v) for v in line.split()[1:]]
+                         for line in text.splitlines() if line.startswith('v ')])
+    normals = np.array([[float(v) for v in line.split()[1:]]
+                        for line in text.splitlines() if line.startswith('vn ')])
+    faces = np.array([[int(c.split('//')[0]) - 1 for c in line.split()[1:]]
+                      for line in text.splitlines() if line.startswith('f ')])
+    return vertices, normals, faces
+
+
+@pytest.mark.parametrize('subdivisions', [0, 2, 4])
+def test_icosphere_is_a_closed_outward_sphere(subdivisions):
+    vertices, normals, faces = _read_obj(icosphere_obj(subdivisions))
+    n_faces = 20 * 4 ** subdivisions
+    assert faces.shape == (n_faces, 3)
+    # Euler: V - E + F = 2 for a closed genus-0 surface, every edge shared by two faces.
+    edges = {}
+    for face in faces:
+        for a, b in zip(face, np.roll(face, -1)):
+            edges[(min(a, b), max(a, b))] = edges.get((min(a, b), max(a, b)), 0) + 1
+    assert set(edges.values()) == {2}
+    assert len(vertices) - len(edges) + n_faces == 2
+    assert np.allclose(np.linalg.norm(vertices, axis=1), 1.0, atol=2e-6)
+    assert np.array_equal(normals, vertices)
+    # Counter-clockwise seen from outside: every face normal points away from the centre.
+    a, b, c = (vertices[faces[:, i]] for i in range(3))
+    assert np.all(np.einsum('ij,ij->i', np.cross(b - a, c - a), a + b + c) > 0.0)
+    # The faces' planes lie within 1 - cos(half the largest edge's arc) of the sphere.
+    if subdivisions == 4:
+        centroid_radius = np.linalg.norm((a + b + c) / 3.0, axis=1)
+        assert centroid_radius.min() > 0.9985

@@ -38,7 +38,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from .simulator import ConfigError, Simulator
-from .world import RENDERERS
+from .world import MAX_SUPERSAMPLING, RENDERERS
 
 RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
                    'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
@@ -51,6 +51,10 @@ CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT
 RENDERER = Param('renderer', 'auto', "PyBullet renderer: 'egl' (OpenGL without display), "
                  "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads)", '-',
                  choices=RENDERERS)
+RENDER_SUPERSAMPLING = Param(
+    'render_supersampling', 2, 'samples per pixel along each axis, averaged as a camera pixel '
+    'integrates light (1: one sample per pixel, cheapest; the cost grows with its square)',
+    '-', low=1, high=MAX_SUPERSAMPLING)
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
@@ -60,7 +64,7 @@ MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
 
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
-          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, PUBLISH_IMAGES,
+          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING, PUBLISH_IMAGES,
           MIN_JOINT_STATE_SUBSCRIBERS)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
@@ -106,7 +110,8 @@ class SimNode(Node):
                 camera_rate_hz=values['camera_rate_hz'], resolution=values['resolution'],
                 camera_eye=values['camera_eye'], camera_look_at=values['camera_look_at'],
                 l2_scale=values['l2_scale'], l4_scale=values['l4_scale'],
-                renderer=values['renderer'] if self._publish_images else 'tiny')
+                renderer=values['renderer'] if self._publish_images else 'tiny',
+                supersampling=values['render_supersampling'])
         except ConfigError as exc:
             raise ParameterError(str(exc)) from None
         log = self.get_logger()

@@ -20,7 +20,7 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
-from .world import RendererError, World
+from .world import MAX_SUPERSAMPLING, RendererError, World
 
 
 class ConfigError(ValueError):
@@ -48,7 +48,7 @@ class Simulator:
     def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
                  camera_rate_hz=30.0, resolution='HD720', camera_eye=paper.CAMERA_EYE,
                  camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
-                 renderer='auto'):
+                 renderer='auto', supersampling=1):
         """Check the configuration, solve the start pose and build the PyBullet world."""
         for name, rate in (('physics_rate_hz', physics_rate_hz),
                            ('camera_rate_hz', camera_rate_hz)):
@@ -88,6 +88,10 @@ class Simulator:
         except ModelError as exc:
             raise ConfigError('camera_look_at', f'camera_eye = {list(camera_eye)}, '
                               f'camera_look_at = {list(camera_look_at)}: {exc}') from None
+        if supersampling not in range(1, MAX_SUPERSAMPLING + 1):
+            raise ConfigError('render_supersampling', f'{supersampling!r}: samples per pixel '
+                              f'along each axis must be an int in [1, {MAX_SUPERSAMPLING}]')
+        self.supersampling = supersampling
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer)
         except RendererError as exc:
@@ -134,7 +138,9 @@ class Simulator:
         if stamp is None:
             raise RuntimeError(f'no frame due at t = {self.t_ns} ns')
         self.next_frame += 1
-        return stamp, (self.world.render_stereo(self.camera) if render else None)
+        images = (self.world.render_stereo(self.camera, self.supersampling) if render
+                  else None)
+        return stamp, images
 
     def hold_torque(self):
         """Return the torque that stops the arm where it is in one step (World.hold_torque)."""

@@ -30,6 +30,13 @@ them marker centres are off by up to 0.6 px):
   0.6 px at HD720. Images wider or taller than the window are rendered in tiles (each with
   its own principal point) and put together.
 
+Pixel integration. Both renderers sample each pixel at one point, so a marker's outline is
+a staircase and its measured centre jumps by a few hundredths of a pixel as it moves, which
+stereo turns into millimetres of depth. A camera pixel integrates light over its area:
+``supersampling`` s > 1 renders s x s samples per pixel (the same pinhole with f and the
+principal point scaled, c' = s (c + 1/2) - 1/2, so that the samples sit at the centres of
+an s x s grid inside each pixel) and averages them (a box filter, rounded to 8 bits).
+
 The EGL plugin (OpenGL without a display) is used where it loads, TinyRenderer otherwise.
 Lighting is mostly ambient, without specular highlights or shadows, so that a marker keeps its
 hue all over its disc.
@@ -61,6 +68,8 @@ RENDERERS = ('auto', 'egl', 'tiny')
 _egl_owner = None
 #: Size of the EGL plugin's window (bullet3: START_WIDTH, START_HEIGHT).
 EGL_WINDOW = (1024, 768)
+#: Largest number of samples per pixel along each axis (render_stereo's supersampling).
+MAX_SUPERSAMPLING = 4
 
 
 class RendererError(RuntimeError):
@@ -103,6 +112,23 @@ def tiles(intrinsics, max_width=EGL_WINDOW[0], max_height=EGL_WINDOW[1]):
             out.append((u0, v0, StereoIntrinsics(u1 - u0, v1 - v0, k.fu, k.fv, k.cu - u0,
                                                  k.cv - v0, k.baseline)))
     return out
+
+
+def supersampled(intrinsics, factor):
+    """Return the intrinsics of an image ``factor`` times finer with the same view (above)."""
+    k, s = intrinsics, int(factor)
+    return StereoIntrinsics(k.width * s, k.height * s, k.fu * s, k.fv * s,
+                            s * (k.cu + 0.5) - 0.5, s * (k.cv + 0.5) - 0.5, k.baseline)
+
+
+def box_downsample(image, factor):
+    """Return the mean of each ``factor`` x ``factor`` block of ``image`` as uint8."""
+    s = int(factor)
+    if s == 1:
+        return image
+    h, w = image.shape[0] // s, image.shape[1] // s
+    blocks = image.reshape(h, s, w, s, -1).astype(np.float32)
+    return np.rint(blocks.mean(axis=(1, 3))).astype(np.uint8)
 
 
 def lens_poses(camera):
@@ -281,15 +307,21 @@ class World:
                            computeForwardKinematics=True)
         return _pose_matrix(state[4], state[5])
 
-    def render_stereo(self, camera):
+    def render_stereo(self, camera, supersampling=1):
         """
         Return (left, right) RGB images (H, W, 3) uint8 seen by ``camera`` (eq. 16-22).
 
         ``camera`` is an :class:`ibvs_model.StereoCamera`; both lenses share its intrinsics.
+        ``supersampling``: samples per pixel along each axis, 1 to MAX_SUPERSAMPLING (module
+        docstring, pixel integration); the cost grows with its square.
         """
         if not isinstance(camera, StereoCamera):
             raise TypeError('camera must be an ibvs_model.StereoCamera')
-        k = camera.intrinsics
+        if supersampling not in range(1, MAX_SUPERSAMPLING + 1):
+            raise ValueError(f'supersampling must be an int in [1, {MAX_SUPERSAMPLING}], '
+                             f'got {supersampling!r}')
+        coarse = camera.intrinsics
+        k = supersampled(coarse, supersampling)
         if self.renderer == 'egl':
             renderer, parts = pybullet.ER_BULLET_HARDWARE_OPENGL, tiles(k)
         else:
@@ -306,5 +338,5 @@ class World:
                     flags=pybullet.ER_NO_SEGMENTATION_MASK, **LIGHT)
                 rgba = np.asarray(rgba, dtype=np.uint8).reshape(part.height, part.width, 4)
                 image[v0:v0 + part.height, u0:u0 + part.width] = rgba[:, :, :3]
-            images.append(image)
+            images.append(box_downsample(image, supersampling))
         return tuple(images)
