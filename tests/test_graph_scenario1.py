@@ -24,12 +24,13 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 SIM_SECONDS = 1.5
-#: Issue 6 asks for 1 mm and 0.1 deg. The graph ends about 8 mm from the target today: the
-#: rendered markers sit up to ~0.15 px off the true sphere outline (coarse sphere mesh, the
-#: shaft crossing the marker), and at 2 m 0.02 px of disparity is already 1 mm of depth.
-#: This bound guards what holds now; tighten it to 1e-3 when the renders are fixed.
-POSITION_TOLERANCE_M = 1e-2
-AXIS_TOLERANCE_DEG = 1.0
+#: Issue 6 asks for 1 mm and 0.1 deg; the graph is about 2.3 mm / 0.06 deg from the target
+#: after 1.5 s (2.7 mm / 0.07 deg at 3 s). What is left is the stereo measurement: the
+#: feedback drives the measured features onto F(q_target), the rendered markers' disparities
+#: are measured 0.04 px off the model (ibvs_vision test_rendered), and at 2.4 m 0.014 px of
+#: disparity is 1 mm of depth. The bounds guard that level with some room.
+POSITION_TOLERANCE_M = 4e-3
+AXIS_TOLERANCE_DEG = 0.2
 
 
 def overrides(params):

@@ -10,7 +10,8 @@ from ibvs_model import (fiducial_points, ik_position_axis, inverse_kinematics, l
                         StereoCamera, StereoIntrinsics, UnreachablePoseError)
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
-from ibvs_sim.world import lens_poses, projection_matrix, tiles, view_matrix, World
+from ibvs_sim.world import (box_downsample, lens_poses, projection_matrix, supersampled,
+                            tiles, view_matrix, World)
 import numpy as np
 import pytest
 
@@ -221,3 +222,44 @@ def test_nothing_but_the_markers_has_their_colours(paper_poses):
                 if u.size:
                     # One compact blob no wider than a marker at 1 m.
                     assert np.ptp(u) < 40 and np.ptp(v) < 40, name
+
+
+@pytest.mark.parametrize('factor', [1, 2, 3])
+def test_supersampled_samples_sit_at_the_centres_of_a_grid_in_each_pixel(factor):
+    """Fine pixel (s i + m) of the supersampled pinhole is at u = i - 1/2 + (m + 1/2) / s."""
+    k = StereoIntrinsics.zed2('HD720')
+    fine = supersampled(k, factor)
+    camera = StereoCamera(k, look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+    fine_camera = StereoCamera(fine, camera.pose_C_O)
+    rng = np.random.default_rng(11)
+    points = camera.to_base(np.c_[rng.uniform(-1.0, 1.0, (20, 2)), rng.uniform(1.0, 4.0, 20)])
+    coarse_uv, fine_uv = camera.project(points), fine_camera.project(points)
+    assert np.allclose(fine_uv, factor * (coarse_uv + 0.5) - 0.5, atol=1e-9)
+    assert (fine.width, fine.height) == (factor * k.width, factor * k.height)
+
+
+def test_box_downsample_averages_each_block():
+    image = np.arange(4 * 6 * 3, dtype=np.uint8).reshape(4, 6, 3)
+    out = box_downsample(image, 2)
+    assert out.shape == (2, 3, 3) and out.dtype == np.uint8
+    assert np.array_equal(out, np.rint(
+        image.reshape(2, 2, 3, 2, 3).astype(float).mean(axis=(1, 3))).astype(np.uint8))
+    assert box_downsample(image, 1) is image
+
+
+def test_supersampled_render_keeps_the_geometry(world, camera):
+    """2 x 2 samples per pixel move no marker centre, and give the rim partial coverage."""
+    q = _in_view_poses(camera, 1, seed=8)[0]
+    world.reset(q)
+    single = world.render_stereo(camera)
+    double = world.render_stereo(camera, supersampling=2)
+    for one, two in zip(single, double):
+        assert one.shape == two.shape and two.dtype == np.uint8
+    centres_1, _ = markers.marker_centres(*single)
+    centres_2, _ = markers.marker_centres(*double)
+    assert np.abs(centres_1 - centres_2).max() < 0.3
+    # Anti-aliasing: the number of distinct colours grows (mixed rim pixels).
+    assert len(np.unique(double[0].reshape(-1, 3), axis=0)) > \
+        len(np.unique(single[0].reshape(-1, 3), axis=0))
+    with pytest.raises(ValueError, match='supersampling'):
+        world.render_stereo(camera, supersampling=5)
