@@ -4,7 +4,8 @@ Cost of the simulator's hot paths, for ``make bench`` (``ibvs_bringup.bench``).
 ``run(report)`` calls ``report(name, seconds_list)`` with per-iteration wall times of: one
 physics step (torque control at 1 kHz, computed torque from PyBullet's inverse dynamics
 included), and one stereo pair rendered at HD720 and at VGA with the default renderer (EGL
-where it loads) and, if that is EGL, with the TinyRenderer fallback too. No ROS involved.
+where it loads) and, if that is EGL, with the TinyRenderer fallback too; each with one
+sample per pixel and with the simulator's default supersampling (2 x 2). No ROS involved.
 ``python -m ibvs_sim.bench`` prints median and p95 of each.
 """
 
@@ -13,11 +14,12 @@ import time
 from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoIntrinsics
 import numpy as np
 
-from .world import World
+from .world import DEFAULT_SUPERSAMPLING, World
 
 PHYSICS_STEPS = 2000
 RENDERS = {'HD720': 20, 'VGA': 40}
 TINY_RENDERS = {'HD720': 8, 'VGA': 16}
+SUPERSAMPLING = sorted({1, DEFAULT_SUPERSAMPLING})
 
 
 def _time(func, count):
@@ -40,9 +42,13 @@ def _bench_world(world, report, renders, physics):
     for resolution, count in renders.items():
         camera = StereoCamera(StereoIntrinsics.zed2(resolution),
                               look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
-        world.render_stereo(camera)  # warm-up (shader and mesh caches)
-        report(f'sim: stereo pair {resolution} ({world.renderer})',
-               _time(lambda c=camera: world.render_stereo(c), count))
+        for factor in SUPERSAMPLING:
+            world.render_stereo(camera, factor)  # warm-up (shader and mesh caches)
+            # Fewer repetitions of the dearer supersampled renders (cost ~ factor^2).
+            repeats = max(3, count // factor ** 2)
+            report(f'sim: stereo pair {resolution} ({world.renderer}, {factor}x{factor} '
+                   'samples/px)',
+                   _time(lambda c=camera, f=factor: world.render_stereo(c, f), repeats))
 
 
 def run(report):

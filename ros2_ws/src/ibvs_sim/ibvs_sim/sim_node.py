@@ -38,7 +38,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from .simulator import ConfigError, Simulator
-from .world import MAX_SUPERSAMPLING, RENDERERS
+from .world import DEFAULT_SUPERSAMPLING, MAX_SUPERSAMPLING, RENDERERS
 
 RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
                    'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
@@ -52,9 +52,9 @@ RENDERER = Param('renderer', 'auto', "PyBullet renderer: 'egl' (OpenGL without d
                  "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads)", '-',
                  choices=RENDERERS)
 RENDER_SUPERSAMPLING = Param(
-    'render_supersampling', 2, 'samples per pixel along each axis, averaged as a camera pixel '
-    'integrates light (1: one sample per pixel, cheapest; the cost grows with its square)',
-    '-', low=1, high=MAX_SUPERSAMPLING)
+    'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
+    'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
+    'cost grows with its square)', '-', low=1, high=MAX_SUPERSAMPLING)
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')

@@ -70,6 +70,8 @@ _egl_owner = None
 EGL_WINDOW = (1024, 768)
 #: Largest number of samples per pixel along each axis (render_stereo's supersampling).
 MAX_SUPERSAMPLING = 4
+#: The simulator's default (sim_node parameter render_supersampling): see the docstring.
+DEFAULT_SUPERSAMPLING = 2
 
 
 class RendererError(RuntimeError):
