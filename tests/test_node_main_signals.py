@@ -75,7 +75,7 @@ class Flood:
         self._node.destroy_node()
 
 
-def start_sink(tmp_path, mode='normal'):
+def start_sink(mode='normal'):
     """Start the node process and wait until it has taken its first image."""
     proc = subprocess.Popen([sys.executable, '-c', NODE_SCRIPT, mode], text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
@@ -98,11 +98,11 @@ def stop_and_collect(proc, timeout_s=10.0):
 
 
 @pytest.mark.parametrize('signum', [subprocess.signal.SIGINT, subprocess.signal.SIGTERM])
-def test_stop_signal_under_image_flood_exits_zero(context, tmp_path, signum):
+def test_stop_signal_under_image_flood_exits_zero(context, signum):
     rng = random.Random(20261121)
     with Flood(context):
         for attempt in range(8):
-            proc = start_sink(tmp_path)
+            proc = start_sink()
             time.sleep(rng.uniform(0.0, 0.5))
             proc.send_signal(signum)
             code, out = stop_and_collect(proc)
@@ -110,9 +110,9 @@ def test_stop_signal_under_image_flood_exits_zero(context, tmp_path, signum):
             assert 'clean exit' in out
 
 
-def test_second_sigint_stops_a_node_stuck_in_a_callback(context, tmp_path):
+def test_second_sigint_stops_a_node_stuck_in_a_callback(context):
     with Flood(context):
-        proc = start_sink(tmp_path, mode='stuck')
+        proc = start_sink(mode='stuck')
         proc.send_signal(subprocess.signal.SIGINT)
         time.sleep(1.0)
         # The first signal waits for the callback to return (60 s here)...

@@ -6,6 +6,8 @@ Every name a node publishes or subscribes comes from here, so a rename is one ed
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
+from .timing import feedback_frame_ns  # noqa: F401 (the timing rule is part of the contract)
+
 JOINT_NAMES = tuple(f'joint_{i}' for i in range(1, 7))
 
 CLOCK = '/clock'
@@ -43,20 +45,3 @@ IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-def feedback_frame_ns(t_ns, camera_period_ns, latency_ns):
-    """
-    Return the stamp (ns) of the camera frame whose q_feedback applies at sim time ``t_ns``.
-
-    Camera frames are taken at n * camera_period_ns (n = 0, 1, ...). The feedback computed
-    from frame n takes effect ``latency_ns`` after it (camera-to-command latency, a
-    parameter in sim time, DESIGN section 4) and holds until the next one does. Returns
-    None before the first frame takes effect. The joint controller waits for exactly this
-    q_feedback before it answers /joint_states at ``t_ns``, which makes runs deterministic.
-    """
-    if camera_period_ns <= 0 or latency_ns < 0:
-        raise ValueError('camera_period_ns must be > 0 and latency_ns >= 0')
-    if t_ns < latency_ns:
-        return None
-    return ((t_ns - latency_ns) // camera_period_ns) * camera_period_ns

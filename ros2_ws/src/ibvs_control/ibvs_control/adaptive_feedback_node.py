@@ -40,12 +40,12 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
                                        TARGET_POSITION, TARGET_ROTATION, TAU_IN, ZETA)
+from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
-from .closed_loop import period_ns
 from .controllers import AdaptiveFeedback
 from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, MAX_CORRECTION,
                           SVD_DAMPING, SVD_RCOND, target_from)

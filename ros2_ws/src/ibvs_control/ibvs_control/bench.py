@@ -11,6 +11,7 @@ No assertion on time: numbers to read. ``python -m ibvs_control.bench`` prints m
 
 import time
 
+from ibvs_common.bench import print_timing
 from ibvs_model import default_model, IRB4600, paper
 import numpy as np
 
@@ -63,11 +64,7 @@ def run(report):
 
 def main():
     """Print median and p95 of each benchmark."""
-    def report(name, seconds):
-        s = np.asarray(seconds) * 1e3
-        print(f'{name:60s} median {np.median(s):8.4f} ms  p95 {np.percentile(s, 95):8.4f} ms'
-              f'  (n={s.size})')
-    run(report)
+    run(print_timing)
 
 
 if __name__ == '__main__':

@@ -6,8 +6,8 @@ exactly with a zero-order hold) closed by the sampled G_c of :class:`.JointLoop`
 gives the inner loop of eq. (29); true angles = encoder angles + d_q (the paper's input
 disturbance); image features p_hat = F(true angles) (eq. 30) at the camera rate. The
 feedforward and the adaptive feedback run as in the nodes, with the same timing rule
-(:func:`feedback_frame_ns`, a ROS-free copy of ibvs_common.contract's, which imports
-rclpy; a test checks they agree): integer nanosecond stamps, physics step
+(ibvs_common.timing.feedback_frame_ns, the contract's own, free of rclpy): integer
+nanosecond stamps, physics step
 k at k * dt, camera frame n at n * camera_period, taken at the first physics step at or
 after it, and its q_feedback acting from ``latency`` after the frame.
 
@@ -16,23 +16,12 @@ This is the reference the node graph (PyBullet, rendering, Hough) is compared ag
 
 from dataclasses import dataclass
 
+from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
 from .controllers import (AdaptiveFeedback, DAMPING, Feedforward, HOLD_SPEED, JointLoop,
                           MAX_CORRECTION, RCOND)
-
-
-def feedback_frame_ns(t_ns, camera_period_ns, latency_ns):
-    """Return the frame stamp whose q_feedback acts at ``t_ns`` (None before the first)."""
-    if t_ns < latency_ns:
-        return None
-    return ((t_ns - latency_ns) // camera_period_ns) * camera_period_ns
-
-
-def period_ns(rate_hz):
-    """Return the period of ``rate_hz`` in integer nanoseconds (rounded)."""
-    return int(round(1e9 / float(rate_hz)))
 
 
 @dataclass

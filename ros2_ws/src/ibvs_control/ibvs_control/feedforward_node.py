@@ -22,11 +22,11 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.shared_params import (OMEGA_N, PHYSICS_RATE_HZ, TARGET_POSITION,
                                        TARGET_ROTATION, TAU_IN)
+from ibvs_common.timing import period_ns
 import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from .closed_loop import period_ns
 from .controllers import Feedforward
 from .node_params import check_gains, FEEDFORWARD_METHOD, target_from
 

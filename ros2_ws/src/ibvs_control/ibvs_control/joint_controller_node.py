@@ -30,13 +30,13 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
 from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S,
                                        OMEGA_N, PHYSICS_RATE_HZ, TAU_IN)
+from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import IRB4600
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from .closed_loop import feedback_frame_ns, period_ns
 from .controllers import JointLoop
 from .dynamics import RobotDynamics
 from .node_params import (ACCELERATION_MARGIN, check_gains, SPEED_MARGIN, TORQUE_LIMITS)

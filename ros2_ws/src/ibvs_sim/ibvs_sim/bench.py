@@ -11,6 +11,7 @@ sample per pixel and with the simulator's default supersampling (2 x 2). No ROS 
 
 import time
 
+from ibvs_common.bench import print_timing
 from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoIntrinsics
 import numpy as np
 
@@ -69,11 +70,7 @@ def run(report):
 
 def main():
     """Print median and p95 of each timing (``python -m ibvs_sim.bench``)."""
-    def report(name, seconds):
-        s = np.asarray(seconds, dtype=float)
-        print(f'{name:48s} median {np.median(s) * 1e3:9.3f} ms   '
-              f'p95 {np.percentile(s, 95) * 1e3:9.3f} ms   (n={s.size})', flush=True)
-    run(report)
+    run(print_timing)
 
 
 if __name__ == '__main__':

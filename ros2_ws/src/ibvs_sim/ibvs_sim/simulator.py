@@ -16,6 +16,7 @@ q(0) = IK(start pose) of the simulated robot (which may have scaled L2 and L4, F
 from fractions import Fraction
 import math
 
+from ibvs_common.timing import period_ns
 from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, ModelError,
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
@@ -30,11 +31,6 @@ class ConfigError(ValueError):
         """Keep the parameter's name and the reason."""
         super().__init__(f"parameter '{param}': {message}")
         self.param = param
-
-
-def period_ns(rate_hz):
-    """Return the period of ``rate_hz`` in integer nanoseconds (rounded)."""
-    return int(round(1e9 / float(rate_hz)))
 
 
 class Simulator:

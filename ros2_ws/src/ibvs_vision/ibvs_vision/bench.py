@@ -17,6 +17,7 @@ Cost of the detector per stereo pair, for ``make bench`` (``ibvs_bringup.bench``
 import time
 
 import cv2
+from ibvs_common.bench import print_timing
 from ibvs_model import (CameraRobotModel, fiducial_points, inverse_kinematics, IRB4600,
                         look_at, paper, StereoCamera, StereoIntrinsics)
 import numpy as np
@@ -92,11 +93,7 @@ def run(report):
 
 def main():
     """Print median and p95 of each timing (``python -m ibvs_vision.bench``)."""
-    def report(name, seconds):
-        s = np.asarray(seconds, dtype=float)
-        print(f'{name:52s} median {np.median(s) * 1e3:8.3f} ms   '
-              f'p95 {np.percentile(s, 95) * 1e3:8.3f} ms   (n={s.size})', flush=True)
-    run(report)
+    run(print_timing)
 
 
 if __name__ == '__main__':
