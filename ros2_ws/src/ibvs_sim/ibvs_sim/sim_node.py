@@ -38,7 +38,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from .simulator import ConfigError, Simulator
-from .world import DEFAULT_SUPERSAMPLING, MAX_SUPERSAMPLING, RENDERERS
+from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, MAX_FOCUS_SUPERSAMPLING,
+                    MAX_SUPERSAMPLING, RENDERERS)
 
 RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
                    'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
@@ -55,6 +56,11 @@ RENDER_SUPERSAMPLING = Param(
     'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
     'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
     'cost grows with its square)', '-', low=1, high=MAX_SUPERSAMPLING)
+RENDER_MARKER_SUPERSAMPLING = Param(
+    'render_marker_supersampling', DEFAULT_FOCUS_SUPERSAMPLING, 'samples per pixel along '
+    'each axis in small windows around the two markers, rendered again and pasted over the '
+    'image (their centres then move with the sub-pixel position by 0.005 px rms instead of '
+    '0.02-0.04 px; 1: off)', '-', low=1, high=MAX_FOCUS_SUPERSAMPLING)
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
@@ -64,8 +70,8 @@ MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
 
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
-          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING, PUBLISH_IMAGES,
-          MIN_JOINT_STATE_SUBSCRIBERS)
+          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
+          RENDER_MARKER_SUPERSAMPLING, PUBLISH_IMAGES, MIN_JOINT_STATE_SUBSCRIBERS)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -111,7 +117,8 @@ class SimNode(Node):
                 camera_eye=values['camera_eye'], camera_look_at=values['camera_look_at'],
                 l2_scale=values['l2_scale'], l4_scale=values['l4_scale'],
                 renderer=values['renderer'] if self._publish_images else 'tiny',
-                supersampling=values['render_supersampling'])
+                supersampling=values['render_supersampling'],
+                marker_supersampling=values['render_marker_supersampling'])
         except ConfigError as exc:
             raise ParameterError(str(exc)) from None
         log = self.get_logger()

@@ -21,7 +21,8 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
-from .world import MAX_SUPERSAMPLING, RendererError, World
+from .world import (DEFAULT_FOCUS_SUPERSAMPLING, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING,
+                    RendererError, World)
 
 
 class ConfigError(ValueError):
@@ -44,7 +45,8 @@ class Simulator:
     def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
                  camera_rate_hz=30.0, resolution='HD720', camera_eye=paper.CAMERA_EYE,
                  camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
-                 renderer='auto', supersampling=1):
+                 renderer='auto', supersampling=1,
+                 marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
         """Check the configuration, solve the start pose and build the PyBullet world."""
         for name, rate in (('physics_rate_hz', physics_rate_hz),
                            ('camera_rate_hz', camera_rate_hz)):
@@ -88,6 +90,12 @@ class Simulator:
             raise ConfigError('render_supersampling', f'{supersampling!r}: samples per pixel '
                               f'along each axis must be an int in [1, {MAX_SUPERSAMPLING}]')
         self.supersampling = supersampling
+        if marker_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
+            raise ConfigError('render_marker_supersampling',
+                              f'{marker_supersampling!r}: samples per pixel along each axis '
+                              f'around the markers must be an int in '
+                              f'[1, {MAX_FOCUS_SUPERSAMPLING}]')
+        self.marker_supersampling = marker_supersampling
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer)
         except RendererError as exc:
@@ -134,7 +142,9 @@ class Simulator:
         if stamp is None:
             raise RuntimeError(f'no frame due at t = {self.t_ns} ns')
         self.next_frame += 1
-        images = (self.world.render_stereo(self.camera, self.supersampling) if render
+        images = (self.world.render_stereo(self.camera, self.supersampling,
+                                           self.world.marker_spheres(),
+                                           self.marker_supersampling) if render
                   else None)
         return stamp, images
 

@@ -36,6 +36,14 @@ stereo turns into millimetres of depth. A camera pixel integrates light over its
 ``supersampling`` s > 1 renders s x s samples per pixel (the same pinhole with f and the
 principal point scaled, c' = s (c + 1/2) - 1/2, so that the samples sit at the centres of
 an s x s grid inside each pixel) and averages them (a box filter, rounded to 8 bits).
+Where it matters most, around the fiducials, ``focus`` spheres are rendered again with
+``focus_supersampling`` samples per pixel along each axis (default 8 x 8) in small windows
+that hold their whole images (:func:`focus_windows`), pasted over the full image: each window
+is the same pinhole with the principal point moved to the window's corner, so it keeps the
+geometry. With 8 x 8 samples around the markers and 1 elsewhere, the detected disparity of
+a marker moves by 0.005 px rms with its sub-pixel position instead of 0.02-0.04 px with 2 x 2
+everywhere (about 0.3 mm instead of 1.3 mm of tool position at 2.4 m), for a quarter of the
+cost (measured at HD720 near the target pose).
 
 The EGL plugin (OpenGL without a display) is used where it loads, TinyRenderer otherwise.
 Lighting is mostly ambient, without specular highlights or shadows, so that a marker keeps its
@@ -49,6 +57,7 @@ import tempfile
 
 from ibvs_model import IRB4600
 from ibvs_model.camera import StereoCamera, StereoIntrinsics
+from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
 import pybullet
@@ -71,7 +80,13 @@ EGL_WINDOW = (1024, 768)
 #: Largest number of samples per pixel along each axis (render_stereo's supersampling).
 MAX_SUPERSAMPLING = 4
 #: The simulator's default (sim_node parameter render_supersampling): see the docstring.
-DEFAULT_SUPERSAMPLING = 2
+DEFAULT_SUPERSAMPLING = 1
+#: Samples per pixel along each axis in the windows around the fiducials: largest and the
+#: simulator's default (sim_node parameter render_marker_supersampling).
+MAX_FOCUS_SUPERSAMPLING = 16
+DEFAULT_FOCUS_SUPERSAMPLING = 8
+#: Pixels added around the bound of a focus sphere's image (covers the partly covered rim).
+FOCUS_MARGIN_PX = 2
 
 
 class RendererError(RuntimeError):
@@ -131,6 +146,58 @@ def box_downsample(image, factor):
     h, w = image.shape[0] // s, image.shape[1] // s
     blocks = image.reshape(h, s, w, s, -1).astype(np.float32)
     return np.rint(blocks.mean(axis=(1, 3))).astype(np.uint8)
+
+
+def focus_windows(intrinsics, lens_pose, spheres, margin_px=FOCUS_MARGIN_PX):
+    """
+    Return the windows (u0, v0, u1, v1), u1 and v1 excluded, that hold the images of ``spheres``.
+
+    ``spheres``: (centre (3,) in {O}, radius m) pairs; ``lens_pose``: T of the lens's
+    optical frame in {O}. A sphere lies in its axis-aligned cube in the lens frame, whose
+    image is the convex hull of its eight projected corners: their bounding box, grown by
+    ``margin_px``, holds the sphere's image. Windows that overlap are merged, all are clipped
+    to the image; a sphere that reaches behind the near plane or lies outside the image gives
+    none.
+    """
+    k = intrinsics
+    to_lens = np.linalg.inv(np.asarray(lens_pose, dtype=float))
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
+                       dtype=float)
+    boxes = []
+    for centre, radius in spheres:
+        c = to_lens[:3, :3] @ np.asarray(centre, dtype=float) + to_lens[:3, 3]
+        points = c + radius * corners
+        if np.any(points[:, 2] <= NEAR_M):
+            continue
+        u = k.fu * points[:, 0] / points[:, 2] + k.cu
+        v = k.fv * points[:, 1] / points[:, 2] + k.cv
+        box = [max(0, math.floor(u.min() - margin_px)), max(0, math.floor(v.min() - margin_px)),
+               min(k.width, math.ceil(u.max() + margin_px) + 1),
+               min(k.height, math.ceil(v.max() + margin_px) + 1)]
+        if box[0] < box[2] and box[1] < box[3]:
+            boxes.append(box)
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]),
+                                max(a[3], b[3])]
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [tuple(b) for b in sorted(boxes)]
+
+
+def window_intrinsics(intrinsics, window):
+    """Return the intrinsics of the window (u0, v0, u1, v1) of an image: c moved to its corner."""
+    u0, v0, u1, v1 = window
+    k = intrinsics
+    return StereoIntrinsics(u1 - u0, v1 - v0, k.fu, k.fv, k.cu - u0, k.cv - v0, k.baseline)
 
 
 def lens_poses(camera):
@@ -309,36 +376,58 @@ class World:
                            computeForwardKinematics=True)
         return _pose_matrix(state[4], state[5])
 
-    def render_stereo(self, camera, supersampling=1):
+    def marker_spheres(self):
+        """Return the fiducials as (centre (3,) in {O}, radius m) pairs (none without tool)."""
+        return [(self.link_pose(name)[:3, 3], MARKER_RADIUS_M)
+                for name in ('marker_1', 'marker_2') if name in self.links]
+
+    def render_stereo(self, camera, supersampling=1, focus=(),
+                      focus_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
         """
         Return (left, right) RGB images (H, W, 3) uint8 seen by ``camera`` (eq. 16-22).
 
         ``camera`` is an :class:`ibvs_model.StereoCamera`; both lenses share its intrinsics.
         ``supersampling``: samples per pixel along each axis, 1 to MAX_SUPERSAMPLING (module
-        docstring, pixel integration); the cost grows with its square.
+        docstring, pixel integration); the cost grows with its square. ``focus``: spheres
+        (centre in {O}, radius m), e.g. :meth:`marker_spheres`, whose images are rendered
+        again with ``focus_supersampling`` (1 to MAX_FOCUS_SUPERSAMPLING) samples per pixel
+        along each axis in the windows of :func:`focus_windows`.
         """
         if not isinstance(camera, StereoCamera):
             raise TypeError('camera must be an ibvs_model.StereoCamera')
         if supersampling not in range(1, MAX_SUPERSAMPLING + 1):
             raise ValueError(f'supersampling must be an int in [1, {MAX_SUPERSAMPLING}], '
                              f'got {supersampling!r}')
+        if focus_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
+            raise ValueError('focus_supersampling must be an int in '
+                             f'[1, {MAX_FOCUS_SUPERSAMPLING}], got {focus_supersampling!r}')
         coarse = camera.intrinsics
-        k = supersampled(coarse, supersampling)
+        images = []
+        for pose in lens_poses(camera):
+            view = _gl(view_matrix(pose))
+            image = self._render(view, coarse, supersampling)
+            if focus and focus_supersampling > supersampling:
+                for window in focus_windows(coarse, pose, focus):
+                    u0, v0, u1, v1 = window
+                    image[v0:v1, u0:u1] = self._render(
+                        view, window_intrinsics(coarse, window), focus_supersampling)
+            images.append(image)
+        return tuple(images)
+
+    def _render(self, view, intrinsics, supersampling):
+        """Return the image with ``intrinsics`` rendered with s x s samples per pixel."""
+        k = supersampled(intrinsics, supersampling)
         if self.renderer == 'egl':
             renderer, parts = pybullet.ER_BULLET_HARDWARE_OPENGL, tiles(k)
         else:
             renderer, parts = pybullet.ER_TINY_RENDERER, [(0, 0, k)]
-        images = []
-        for pose in lens_poses(camera):
-            view = _gl(view_matrix(pose))
-            image = np.empty((int(k.height), int(k.width), 3), dtype=np.uint8)
-            for u0, v0, part in parts:
-                _, _, rgba, _, _ = self._call(
-                    pybullet.getCameraImage, int(part.width), int(part.height),
-                    viewMatrix=view, renderer=renderer,
-                    projectionMatrix=_gl(projection_matrix(part, renderer=self.renderer)),
-                    flags=pybullet.ER_NO_SEGMENTATION_MASK, **LIGHT)
-                rgba = np.asarray(rgba, dtype=np.uint8).reshape(part.height, part.width, 4)
-                image[v0:v0 + part.height, u0:u0 + part.width] = rgba[:, :, :3]
-            images.append(box_downsample(image, supersampling))
-        return tuple(images)
+        image = np.empty((int(k.height), int(k.width), 3), dtype=np.uint8)
+        for u0, v0, part in parts:
+            _, _, rgba, _, _ = self._call(
+                pybullet.getCameraImage, int(part.width), int(part.height),
+                viewMatrix=view, renderer=renderer,
+                projectionMatrix=_gl(projection_matrix(part, renderer=self.renderer)),
+                flags=pybullet.ER_NO_SEGMENTATION_MASK, **LIGHT)
+            rgba = np.asarray(rgba, dtype=np.uint8).reshape(part.height, part.width, 4)
+            image[v0:v0 + part.height, u0:u0 + part.width] = rgba[:, :, :3]
+        return box_downsample(image, supersampling)

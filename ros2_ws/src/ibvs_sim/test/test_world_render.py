@@ -10,8 +10,8 @@ from ibvs_model import (fiducial_points, ik_position_axis, inverse_kinematics, l
                         StereoCamera, StereoIntrinsics, UnreachablePoseError)
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
-from ibvs_sim.world import (box_downsample, lens_poses, projection_matrix, supersampled,
-                            tiles, view_matrix, World)
+from ibvs_sim.world import (box_downsample, focus_windows, lens_poses, projection_matrix,
+                            supersampled, tiles, view_matrix, World)
 import numpy as np
 import pytest
 
@@ -263,3 +263,74 @@ def test_supersampled_render_keeps_the_geometry(world, camera):
         len(np.unique(single[0].reshape(-1, 3), axis=0))
     with pytest.raises(ValueError, match='supersampling'):
         world.render_stereo(camera, supersampling=5)
+
+
+def test_focus_windows_hold_the_sphere_images(camera):
+    """Every projected point of a sphere lies in a window; far apart spheres get their own."""
+    k = camera.intrinsics
+    rng = np.random.default_rng(21)
+    directions = rng.normal(size=(400, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    for pose in lens_poses(camera):
+        for _ in range(20):
+            centre = (pose @ np.r_[rng.uniform(-0.8, 0.8), rng.uniform(-0.4, 0.4),
+                                   rng.uniform(1.0, 4.0), 1.0])[:3]
+            radius = rng.uniform(0.01, 0.1)
+            windows = focus_windows(k, pose, [(centre, radius)])
+            points = (np.linalg.inv(pose) @ np.c_[centre + radius * directions,
+                                                  np.ones(len(directions))].T).T
+            uv = np.c_[k.fu * points[:, 0] / points[:, 2] + k.cu,
+                       k.fv * points[:, 1] / points[:, 2] + k.cv]
+            inside = (uv[:, 0] >= -0.5) & (uv[:, 0] <= k.width - 0.5) & \
+                (uv[:, 1] >= -0.5) & (uv[:, 1] <= k.height - 0.5)
+            if not inside.any():
+                continue
+            assert len(windows) == 1
+            u0, v0, u1, v1 = windows[0]
+            assert 0 <= u0 < u1 <= k.width and 0 <= v0 < v1 <= k.height
+            uv = uv[inside]
+            assert np.all((uv[:, 0] >= u0 - 0.5) & (uv[:, 0] <= u1 - 0.5)
+                          & (uv[:, 1] >= v0 - 0.5) & (uv[:, 1] <= v1 - 0.5))
+            # Small: about the bounding box of the image, grown by the margin.
+            assert u1 - u0 <= 1.5 * np.ptp(uv[:, 0]) + 2 * 2 + 3
+        ahead = (pose @ np.array([0.0, 0.0, 2.0, 1.0]))[:3]
+        behind = (pose @ np.array([0.0, 0.0, -2.0, 1.0]))[:3]
+        side = (pose @ np.array([0.5, 0.0, 2.0, 1.0]))[:3]
+        assert focus_windows(k, pose, [(behind, 0.05)]) == []
+        assert len(focus_windows(k, pose, [(ahead, 0.05), (side, 0.05)])) == 2
+        near = (pose @ np.array([0.04, 0.0, 2.0, 1.0]))[:3]
+        (window,) = focus_windows(k, pose, [(ahead, 0.05), (near, 0.05)])  # overlap: merged
+        (a,), (b,) = (focus_windows(k, pose, [(c, 0.05)]) for c in (ahead, near))
+        assert window == (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+
+
+def test_focus_supersampling_renders_the_marker_windows_finer(world, camera):
+    """
+    Around the markers the image is the finer render, elsewhere the plain one.
+
+    With the windows at 2 x 2 the pixels there equal a whole 2 x 2 render (the same pinhole,
+    principal point moved), to a grey level on a few pixels.
+    """
+    q = _in_view_poses(camera, 1, seed=8)[0]
+    world.reset(q)
+    spheres = world.marker_spheres()
+    assert np.allclose([c for c, _ in spheres], fiducial_points(q), atol=1e-9)
+    assert [r for _, r in spheres] == [MARKER_RADIUS_M] * 2
+    single = world.render_stereo(camera)
+    double = world.render_stereo(camera, supersampling=2)
+    focused = world.render_stereo(camera, 1, spheres, 2)
+    for pose, one, two, mixed in zip(lens_poses(camera), single, double, focused):
+        mask = np.zeros(one.shape[:2], dtype=bool)
+        windows = focus_windows(camera.intrinsics, pose, spheres)
+        assert windows
+        for u0, v0, u1, v1 in windows:
+            mask[v0:v1, u0:u1] = True
+        assert np.array_equal(mixed[~mask], one[~mask])
+        diff = np.abs(mixed[mask].astype(int) - two[mask].astype(int))
+        assert diff.max() <= 2 and np.mean(diff > 0) < 0.02
+        assert not np.array_equal(mixed[mask], one[mask])
+    # Not finer than the whole image: nothing is rendered again.
+    same = world.render_stereo(camera, 2, spheres, 2)
+    assert all(np.array_equal(a, b) for a, b in zip(same, double))
+    with pytest.raises(ValueError, match='focus_supersampling'):
+        world.render_stereo(camera, 1, spheres, 17)
