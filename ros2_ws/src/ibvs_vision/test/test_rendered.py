@@ -15,10 +15,10 @@ Rendering is the slow part (EGL or TinyRenderer, whichever loads): every frame i
 once per module.
 """
 
-from ibvs_model import (fiducial_points, ik_position_axis, inverse_kinematics, paper,
-                        UnreachablePoseError)
+from ibvs_model import (fiducial_points, forward_kinematics, ik_position_axis,
+                        inverse_kinematics, paper, UnreachablePoseError)
 from ibvs_sim import markers
-from ibvs_sim.world import World
+from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, World
 from ibvs_vision import synthetic
 from ibvs_vision.detector import Reason, StereoDetector
 import numpy as np
@@ -117,11 +117,13 @@ def test_target_pose_measurement_does_not_depend_on_joint_6(world, hd_model):
     At the target, turning joint 6 (which moves no marker centre) moves no measured feature.
 
     This is what the end-to-end accuracy rests on (issue 6): the feedback drives the measured
-    features onto F(q_target), so a measurement bias becomes a pose error, and at 2.4 m one
-    hundredth of a pixel of disparity is 0.7 mm of depth. With the markers drawn as a fine
-    icosphere and 2 x 2 samples per pixel (the simulator's defaults), the features spread by
-    at most 0.006 px over 8 angles of joint 6 and the disparities are within 0.045 px of the
-    model (measured); PyBullet's sphere primitive spread them by up to 0.3 px.
+    features onto F(q_target), so a measurement bias becomes a pose error; at 2.4 m one
+    hundredth of a pixel of disparity is 0.7 mm of depth, and 0.004 px of vertical
+    separation between the markers is 0.1 deg of tool axis (the weakest direction of C1).
+    Rendered as the simulator does (fine icosphere, 8 x 8 samples per pixel around the
+    markers), the features spread by at most 0.006 px over 8 angles of joint 6 and are
+    within 0.015 px of the model (measured); PyBullet's sphere primitive spread them by up
+    to 0.3 px.
     """
     camera = hd_model.camera
     detector = StereoDetector(camera.intrinsics)
@@ -130,11 +132,42 @@ def test_target_pose_measurement_does_not_depend_on_joint_6(world, hd_model):
     for q6 in np.linspace(-np.pi, np.pi, 8, endpoint=False):
         q = q_target.copy()
         q[5] = q6
-        world.reset(q)
-        result = detector.detect(*world.render_stereo(camera, supersampling=2))
-        assert result.ok, (result.reason, result.detail)
-        errors.append(result.features - camera.project(fiducial_points(q)).reshape(6))
+        errors.append(_simulator_error(world, camera, detector, q))
     errors = np.array(errors)
-    assert np.ptp(errors, axis=0).max() <= 0.02, np.ptp(errors, axis=0)
-    disparity = errors[:, [0, 3]] - errors[:, [1, 4]]
-    assert np.abs(disparity).max() <= 0.06, disparity
+    assert np.ptp(errors, axis=0).max() <= 0.015, np.ptp(errors, axis=0)
+    assert np.abs(errors).max() <= 0.025, errors
+
+
+def _simulator_error(world, camera, detector, q):
+    """Return the measured p_I minus the model's, rendered as the simulator does."""
+    world.reset(q)
+    result = detector.detect(*world.render_stereo(
+        camera, DEFAULT_SUPERSAMPLING, world.marker_spheres(), DEFAULT_FOCUS_SUPERSAMPLING))
+    assert result.ok, (result.reason, result.detail)
+    return result.features - camera.project(fiducial_points(q)).reshape(6)
+
+
+def test_near_the_target_the_rods_across_the_markers_cost_no_accuracy(world, hd_model):
+    """
+    Near the target the tool axis is within 0.1 deg and the flange within 0.5 mm, to first order.
+
+    20 poses within a few millimetres of the target: the pose that the measured features
+    imply (q - pinv(C1) e, the loop's fixed point to first order) is compared with the true
+    one. The shaft and the quill cross the top of each marker; without filling those notches
+    (area centroid alone) the vertical centres were 0.07 and 0.09 px low and the implied axis
+    0.16 deg off (rms); with it, 0.06 deg rms (measured).
+    """
+    camera = hd_model.camera
+    detector = StereoDetector(camera.intrinsics)
+    q_target = inverse_kinematics(paper.target_pose())
+    rng = np.random.default_rng(1)
+    position, axis = [], []
+    for _ in range(20):
+        q = q_target + rng.normal(0.0, 0.003, 6)
+        e = _simulator_error(world, camera, detector, q)
+        q_fixed = q - np.linalg.pinv(hd_model.jacobian(q), rcond=1e-6) @ e
+        t_true, t_fixed = forward_kinematics(q), forward_kinematics(q_fixed)
+        position.append(np.linalg.norm(t_fixed[:3, 3] - t_true[:3, 3]))
+        axis.append(np.degrees(np.arccos(np.clip(t_true[:3, 2] @ t_fixed[:3, 2], -1.0, 1.0))))
+    assert np.sqrt(np.mean(np.square(axis))) <= 0.1, axis
+    assert np.sqrt(np.mean(np.square(position))) <= 0.5e-3, position
