@@ -24,13 +24,13 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 SIM_SECONDS = 1.5
-#: Issue 6 asks for 1 mm and 0.1 deg; the graph is about 2.3 mm / 0.06 deg from the target
-#: after 1.5 s (2.7 mm / 0.07 deg at 3 s). What is left is the stereo measurement: the
-#: feedback drives the measured features onto F(q_target), the rendered markers' disparities
-#: are measured 0.04 px off the model (ibvs_vision test_rendered), and at 2.4 m 0.014 px of
-#: disparity is 1 mm of depth. The bounds guard that level with some room.
-POSITION_TOLERANCE_M = 4e-3
-AXIS_TOLERANCE_DEG = 0.2
+#: Issue 6's bounds. The graph is about 0.15 mm / 0.06 deg from the target after 1.5 s
+#: (0.18 mm / 0.064 deg at 3 s). What is left is the stereo measurement, and the tool axis
+#: is its weakest direction: 0.004 px of vertical separation between the markers is 0.1 deg
+#: (ibvs_vision test_rendered). It holds because the simulator renders the markers with
+#: 8 x 8 samples per pixel and the detector fills the notches the rods cut into them.
+POSITION_TOLERANCE_M = 1e-3
+AXIS_TOLERANCE_DEG = 0.1
 
 
 def overrides(params):
