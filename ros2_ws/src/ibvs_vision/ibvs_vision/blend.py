@@ -35,8 +35,14 @@ BLENDING = 'blending'
 class BumplessSwitch:
     """Select the measured or the estimated p_I each frame and blend across switches."""
 
-    def __init__(self, blend_time_s):
-        """Blend over ``blend_time_s`` seconds (0 switches outright)."""
+    def __init__(self, blend_time_s, hold_model_error=False):
+        """
+        Blend over ``blend_time_s`` seconds (0 switches outright).
+
+        ``hold_model_error``: at a switch from measured to estimated, keep the offset (the
+        model error the last measurement showed, carried by the model) for as long as the
+        estimate is used, instead of fading it out: the estimate is then F(q_T) + offset.
+        """
         blend_time_s = float(blend_time_s)
         if not (np.isfinite(blend_time_s) and blend_time_s >= 0.0):
             raise ValueError(f'blend_time_s must be finite and >= 0, got {blend_time_s}')
@@ -46,6 +52,8 @@ class BumplessSwitch:
         self.last_switch_ns = None
         self.switches = 0
         self._offset = np.zeros(6)
+        self.hold_model_error = bool(hold_model_error)
+        self._held = None
         self._output = None
         self._estimate = None
 
@@ -77,8 +85,14 @@ class BumplessSwitch:
             self._offset = carried - value
             self.last_switch_ns = int(t_ns)
             self.switches += 1
+            self._held = (self._offset.copy() if self.hold_model_error and source == ESTIMATED
+                          else None)
         self._estimate = estimate
         self.source = source
+        if self._held is not None:
+            self.mode = ESTIMATED
+            self._output = value + self._held
+            return self._output.copy()
         weight = self.blend_weight(t_ns)
         if weight > 0.0 and np.any(self._offset != 0.0):
             output = value + weight * self._offset

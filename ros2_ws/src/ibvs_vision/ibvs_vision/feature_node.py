@@ -51,6 +51,9 @@ PARAMS = (
     Param('blend_time_s', 0.2, 'time over which the published features move from the '
           'estimate to the measurement (and back) after a switch (section 2.3); 0: switch '
           'outright', 's', low=0.0, high=10.0),
+    Param('hold_model_error', False, 'while the markers are not seen, publish F(q_T) plus '
+          'the model error the last measurement showed instead of F(q_T) alone (the paper)',
+          '-'),
     Param('epipolar_tolerance_px', 1.5, 'largest |v_left - v_right| of one marker in a '
           'rectified pair', 'px', low=0.0, high=50.0, low_open=True),
     Param('hough_min_radius_px', 2, 'smallest marker image radius searched by the Hough '
@@ -105,7 +108,7 @@ class FeatureNode(Node):
         self._stale_ns = int(round(p['stale_timeout_s'] * 1e9))
         self._history_ns = int(round(p['joint_history_s'] * 1e9))
         self._window_ns = int(round(1e9 / p['physics_rate_hz']))
-        self._switch = BumplessSwitch(p['blend_time_s'])
+        self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
 
         self._frames = {}
         self._joint_stamps = []

@@ -113,3 +113,27 @@ def test_bad_arguments():
         BumplessSwitch(float('nan'))
     with pytest.raises(ValueError, match='neither'):
         BumplessSwitch(0.2).update(0, None, None)
+
+
+def test_hold_model_error_keeps_the_last_seen_error_while_estimated():
+    """With hold_model_error the estimate carries the model error of the last measurement."""
+    switch = BumplessSwitch(0.2, hold_model_error=True)
+    error = np.array([3.0, -2.0, 1.0, 0.5, 0.0, -4.0])
+    estimates = [np.arange(6.0) + n for n in range(40)]
+    for n in range(3):  # measured: the model is off by `error`
+        assert np.array_equal(switch.update(n * DT, estimates[n] + error, estimates[n]),
+                              estimates[n] + error)
+    for n in range(3, 20):  # lost: F(q_T) + the error, however long
+        out = switch.update(n * DT, None, estimates[n])
+        assert np.allclose(out, estimates[n] + error, atol=1e-12)
+        assert switch.mode == ESTIMATED
+    # Seen again (the model error has changed): from there on the usual fade.
+    later = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    out = switch.update(20 * DT, estimates[20] + later, estimates[20])
+    assert np.allclose(out, estimates[20] + error) and switch.mode == BLENDING
+    for n in range(21, 40):
+        out = switch.update(n * DT, estimates[n] + later, estimates[n])
+    assert np.array_equal(out, estimates[39] + later) and switch.mode == MEASURED
+    # Never seen: nothing to hold, the paper's estimate exactly.
+    fresh = BumplessSwitch(0.2, hold_model_error=True)
+    assert np.array_equal(fresh.update(0, None, estimates[0]), estimates[0])
