@@ -90,6 +90,31 @@ class StereoIntrinsics:
         return np.array([[self.fu, 0.0, self.cu], [0.0, self.fv, self.cv], [0.0, 0.0, 1.0]])
 
 
+def merge_windows(windows):
+    """
+    Return pixel windows (u0, v0, u1, v1), u1 and v1 excluded, with overlapping ones merged.
+
+    Two windows that share a pixel are replaced by their bounding box, until none overlap;
+    the result is sorted. Windows that only touch stay apart.
+    """
+    boxes = [list(w) for w in windows]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]),
+                                max(a[3], b[3])]
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [tuple(b) for b in sorted(boxes)]
+
+
 def look_at(eye, target, up=(0.0, 0.0, 1.0)):
     """
     Return T_C^O (eq. 12) of a camera at ``eye`` whose optical axis points at ``target``.

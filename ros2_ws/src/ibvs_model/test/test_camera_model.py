@@ -4,6 +4,7 @@ from ibvs_model import (BehindCameraError, CameraRobotModel, default_model, Inva
                         inverse_kinematics, IRB4600, look_at, StereoCamera, StereoIntrinsics,
                         TriangulationError, UnreachablePoseError)
 from ibvs_model import paper
+from ibvs_model.camera import merge_windows
 import numpy as np
 import pytest
 
@@ -186,3 +187,12 @@ def test_bad_intrinsics_and_camera_are_rejected():
         look_at([0, 0, 0], [0, 0, 0])
     with pytest.raises(InvalidInputError, match='StereoCamera'):
         CameraRobotModel('camera')
+
+
+def test_merge_windows_merges_overlaps_until_none_are_left():
+    # a and b overlap; their union overlaps c; d only touches c; e is apart.
+    a, b, c, d, e = (0, 0, 10, 10), (5, 5, 20, 12), (18, 0, 30, 4), (30, 0, 40, 4), \
+        (0, 50, 3, 60)
+    assert merge_windows([a, b, c, d, e]) == [(0, 0, 30, 12), (0, 50, 3, 60), (30, 0, 40, 4)]
+    assert merge_windows([]) == []
+    assert merge_windows([e]) == [e]

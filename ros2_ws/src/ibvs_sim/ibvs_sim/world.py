@@ -56,7 +56,7 @@ import pkgutil
 import tempfile
 
 from ibvs_model import IRB4600
-from ibvs_model.camera import StereoCamera, StereoIntrinsics
+from ibvs_model.camera import merge_windows, StereoCamera, StereoIntrinsics
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
@@ -176,21 +176,7 @@ def focus_windows(intrinsics, lens_pose, spheres, margin_px=FOCUS_MARGIN_PX):
                min(k.height, math.ceil(v.max() + margin_px) + 1)]
         if box[0] < box[2] and box[1] < box[3]:
             boxes.append(box)
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(boxes)):
-            for j in range(i + 1, len(boxes)):
-                a, b = boxes[i], boxes[j]
-                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
-                    boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]),
-                                max(a[3], b[3])]
-                    del boxes[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return [tuple(b) for b in sorted(boxes)]
+    return merge_windows(boxes)
 
 
 def window_intrinsics(intrinsics, window):

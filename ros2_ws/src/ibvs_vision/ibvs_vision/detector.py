@@ -47,6 +47,7 @@ import math
 
 import cv2
 from ibvs_model import StereoIntrinsics
+from ibvs_model.camera import merge_windows
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 import numpy as np
 
@@ -359,21 +360,7 @@ class StereoDetector:
             boxes.append([max(0, x * _BLOCK - grow), max(0, y * _BLOCK - grow),
                           min(width, (x + w) * _BLOCK + grow),
                           min(height, (y + h) * _BLOCK + grow)])
-        merged = True
-        while merged:
-            merged = False
-            for i in range(len(boxes)):
-                for j in range(i + 1, len(boxes)):
-                    a, b = boxes[i], boxes[j]
-                    if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
-                        boxes[i] = [min(a[0], b[0]), min(a[1], b[1]),
-                                    max(a[2], b[2]), max(a[3], b[3])]
-                        del boxes[j]
-                        merged = True
-                        break
-                if merged:
-                    break
-        return [tuple(b) for b in sorted(boxes)]
+        return merge_windows(boxes)
 
     def _hough(self, score):
         cfg = self.config
@@ -606,8 +593,8 @@ def _symmetric_centre(cover, cx, cy, area):
     height, width = cover.shape
     xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
     cover32 = cover.astype(np.float32)
-    ones_x = np.arange(width, dtype=np.float64)
-    ones_y = np.arange(height, dtype=np.float64)
+    columns = np.arange(width, dtype=np.float64)
+    rows = np.arange(height, dtype=np.float64)
     for _ in range(NOTCH_ITERATIONS):
         mirrored = cv2.remap(cover32, np.float32(2.0 * cx) - xs, np.float32(2.0 * cy) - ys,
                              cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
@@ -619,8 +606,8 @@ def _symmetric_centre(cover, cx, cy, area):
         if float((filled - cover).sum()) > NOTCH_SHARE * area:
             return None
         total = float(filled.sum())
-        cx = float(filled.sum(axis=0) @ ones_x) / total
-        cy = float(filled.sum(axis=1) @ ones_y) / total
+        cx = float(filled.sum(axis=0) @ columns) / total
+        cy = float(filled.sum(axis=1) @ rows) / total
     return cx, cy
 
 
