@@ -17,6 +17,8 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   the start-target line), and ``overshoot_xyz_m`` gives each coordinate's excursion past
   its target in the direction of its own motion (any excursion for a coordinate that does
   not move net), as the paper's Figures 10-12 show them;
+- ``lowest_tool_z_m``: the lowest the tool came, z of {O} (0 is the robot's base plane;
+  below ``-mount_height_m`` of the simulator it is under the floor, hidden from the camera);
 - ``time_estimated_s``: sim time during which the feature node published model estimates
   (or blended them) instead of measurements.
 """
@@ -111,6 +113,7 @@ def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_dur
         'max_lateral_excursion_m': float(lateral.max()),
         'overshoot_xyz_m': [float(v) for v in overshoot_axes],
         'max_position_error_m': float(error.max()),
+        'lowest_tool_z_m': float(position[:, 2].min()),
         'time_estimated_s': estimated_time(np.asarray(mode_t, float), list(modes), t[-1]),
         'sim_duration_s': sim_duration,
         'wall_duration_s': wall_duration_s,

@@ -36,6 +36,9 @@ def test_butterworth_step_overshoot_and_settling():
     assert m['overshoot_xyz_m'][0] == pytest.approx(expected_overshoot, rel=1e-3)
     assert m['overshoot_xyz_m'][1] == 0.0  # y does not move
     assert m['max_lateral_excursion_m'] < 1e-12  # a straight-line response
+    # z comes down from 1.0 to 0.3 m and overshoots below the target by the same share
+    assert m['lowest_tool_z_m'] == pytest.approx(0.3 - expected_overshoot * 0.7 / 2.0,
+                                                 rel=1e-3)
     # The 2 % band is left for the last time at the settling time, and never again.
     error = np.linalg.norm(position - target, axis=1)
     ts = m['settling_time_2pct_s']

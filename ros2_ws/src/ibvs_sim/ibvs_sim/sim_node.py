@@ -38,8 +38,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from .simulator import ConfigError, Simulator
-from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, MAX_FOCUS_SUPERSAMPLING,
-                    MAX_SUPERSAMPLING, RENDERERS)
+from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M, DEFAULT_SUPERSAMPLING,
+                    MAX_FOCUS_SUPERSAMPLING, MAX_MOUNT_HEIGHT_M, MAX_SUPERSAMPLING, RENDERERS)
 
 RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
                    'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
@@ -61,6 +61,10 @@ RENDER_MARKER_SUPERSAMPLING = Param(
     'each axis in small windows around the two markers, rendered again and pasted over the '
     'image (their centres then move with the sub-pixel position by 0.005 px rms instead of '
     '0.02-0.04 px; 1: off)', '-', low=1, high=MAX_FOCUS_SUPERSAMPLING)
+MOUNT_HEIGHT_M = Param(
+    'mount_height_m', DEFAULT_MOUNT_HEIGHT_M, 'height of the robot base above the floor (a '
+    'riser fills it; drawn only, nothing collides): a tool below the floor is hidden from the '
+    'camera; 0: robot on the floor', 'm', low=0.0, high=MAX_MOUNT_HEIGHT_M)
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
@@ -71,7 +75,7 @@ MIN_JOINT_STATE_SUBSCRIBERS = Param(
 
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
           CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
-          RENDER_MARKER_SUPERSAMPLING, PUBLISH_IMAGES, MIN_JOINT_STATE_SUBSCRIBERS)
+          RENDER_MARKER_SUPERSAMPLING, MOUNT_HEIGHT_M, PUBLISH_IMAGES, MIN_JOINT_STATE_SUBSCRIBERS)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -118,7 +122,8 @@ class SimNode(Node):
                 l2_scale=values['l2_scale'], l4_scale=values['l4_scale'],
                 renderer=values['renderer'] if self._publish_images else 'tiny',
                 supersampling=values['render_supersampling'],
-                marker_supersampling=values['render_marker_supersampling'])
+                marker_supersampling=values['render_marker_supersampling'],
+                mount_height_m=values['mount_height_m'])
         except ConfigError as exc:
             raise ParameterError(str(exc)) from None
         log = self.get_logger()

@@ -21,8 +21,8 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
-from .world import (DEFAULT_FOCUS_SUPERSAMPLING, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING,
-                    RendererError, World)
+from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M, MAX_FOCUS_SUPERSAMPLING,
+                    MAX_MOUNT_HEIGHT_M, MAX_SUPERSAMPLING, RendererError, World)
 
 
 class ConfigError(ValueError):
@@ -46,7 +46,8 @@ class Simulator:
                  camera_rate_hz=30.0, resolution='HD720', camera_eye=paper.CAMERA_EYE,
                  camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
                  renderer='auto', supersampling=1,
-                 marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
+                 marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING,
+                 mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
         """Check the configuration, solve the start pose and build the PyBullet world."""
         for name, rate in (('physics_rate_hz', physics_rate_hz),
                            ('camera_rate_hz', camera_rate_hz)):
@@ -96,8 +97,12 @@ class Simulator:
                               f'around the markers must be an int in '
                               f'[1, {MAX_FOCUS_SUPERSAMPLING}]')
         self.marker_supersampling = marker_supersampling
+        if not (math.isfinite(mount_height_m) and 0.0 <= mount_height_m <= MAX_MOUNT_HEIGHT_M):
+            raise ConfigError('mount_height_m', f'{mount_height_m} m: the height of the base '
+                              f'above the floor must be in [0, {MAX_MOUNT_HEIGHT_M}] m')
         try:
-            self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer)
+            self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer,
+                               mount_height_m=mount_height_m)
         except RendererError as exc:
             raise ConfigError('renderer', str(exc)) from None
         self.world.reset(self.q_start)

@@ -65,9 +65,17 @@ import pybullet
 #: Near and far clipping planes of the render, m.
 NEAR_M = 0.05
 FAR_M = 30.0
-#: Ground plane: a thin box under z = 0, this grey, this many metres each side of {O}.
+#: Ground plane: a thin box, this grey, this many metres each side of {O}, its top
+#: ``mount_height_m`` below the robot's base plane z = 0 of {O}.
 GROUND_RGBA = (0.55, 0.55, 0.55, 1.0)
 GROUND_HALF_SIZE_M = 6.0
+#: The robot stands on a riser (a box under its base, this half size and colour) whose top is
+#: the base plane. The paper's model has no floor; its sweep (Figure 13) needs room below the
+#: base: with L2 at 50 % the tool ends 0.17 m under z = 0 (see World).
+DEFAULT_MOUNT_HEIGHT_M = 0.5
+MAX_MOUNT_HEIGHT_M = 5.0
+RISER_HALF_SIZE_M = (0.4, 0.4)
+RISER_RGBA = (0.35, 0.35, 0.38, 1.0)
 #: Light: mostly ambient, a little diffuse from above and behind the camera, no specular.
 LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
          'lightDistance': 10.0, 'shadow': 0, 'lightAmbientCoeff': 0.75,
@@ -216,7 +224,12 @@ def _pose_matrix(position, quaternion):
 
 class World:
     """
-    One PyBullet physics client with the robot (``params``) and a ground plane.
+    One PyBullet physics client with the robot (``params``) on a riser and a ground plane.
+
+    ``mount_height_m``: height of the robot's base plane (z = 0 of {O}) above the floor,
+    which the riser fills under the base; 0 puts the robot on the floor (no riser). Riser
+    and floor are drawn only: they are not in the paper's model and nothing collides with
+    them, so a tool driven below the floor goes on moving but the camera no longer sees it.
 
     ``renderer``: 'egl' (fail if the plugin does not load), 'tiny', or 'auto' (EGL where it
     loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'. One
@@ -224,8 +237,12 @@ class World:
     """
 
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
-                 with_tool=True):
+                 with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
+        if not (math.isfinite(mount_height_m) and 0.0 <= mount_height_m <= MAX_MOUNT_HEIGHT_M):
+            raise ValueError(f'mount_height_m must be in [0, {MAX_MOUNT_HEIGHT_M}] m, got '
+                             f'{mount_height_m}')
+        self.mount_height_m = float(mount_height_m)
         if renderer not in RENDERERS:
             raise ValueError(f'renderer must be one of {RENDERERS}, got {renderer!r}')
         if not (math.isfinite(physics_rate_hz) and physics_rate_hz > 0.0):
@@ -268,11 +285,11 @@ class World:
             # The hardware renderer's default specular highlight would whiten the markers.
             self._call(pybullet.changeVisualShape, self.body, link,
                        specularColor=[0.0, 0.0, 0.0])
-        half = (GROUND_HALF_SIZE_M, GROUND_HALF_SIZE_M, 0.005)
-        shape = self._call(pybullet.createVisualShape, pybullet.GEOM_BOX, halfExtents=half,
-                           rgbaColor=GROUND_RGBA, specularColor=[0.0, 0.0, 0.0])
-        self.ground = self._call(pybullet.createMultiBody, baseMass=0.0,
-                                 baseVisualShapeIndex=shape, basePosition=(0.0, 0.0, -0.005))
+        floor = -self.mount_height_m
+        self.ground = self._box((GROUND_HALF_SIZE_M, GROUND_HALF_SIZE_M, 0.005), floor - 0.005,
+                                GROUND_RGBA)
+        self.riser = (self._box((*RISER_HALF_SIZE_M, self.mount_height_m / 2.0), floor / 2.0,
+                                RISER_RGBA) if self.mount_height_m > 0.0 else None)
         if self.renderer == 'egl':
             # The plugin's first two images differ from all later ones of the same scene (by
             # up to 33 grey levels on ~1 % of the pixels, shadows): draw two tiny ones here,
@@ -280,6 +297,14 @@ class World:
             for _ in range(2):
                 self._call(pybullet.getCameraImage, 8, 8,
                            renderer=pybullet.ER_BULLET_HARDWARE_OPENGL)
+
+    def _box(self, half_extents, z_centre, rgba):
+        """Add a static box (visual only) centred on the z axis of {O}; return its body."""
+        shape = self._call(pybullet.createVisualShape, pybullet.GEOM_BOX,
+                           halfExtents=half_extents, rgbaColor=rgba,
+                           specularColor=[0.0, 0.0, 0.0])
+        return self._call(pybullet.createMultiBody, baseMass=0.0, baseVisualShapeIndex=shape,
+                          basePosition=(0.0, 0.0, z_centre))
 
     def _setup_renderer(self, renderer):
         global _egl_owner

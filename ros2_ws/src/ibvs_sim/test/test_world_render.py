@@ -334,3 +334,33 @@ def test_focus_supersampling_renders_the_marker_windows_finer(world, camera):
     assert all(np.array_equal(a, b) for a, b in zip(same, double))
     with pytest.raises(ValueError, match='focus_supersampling'):
         world.render_stereo(camera, 1, spheres, 17)
+
+
+def test_a_tool_below_the_base_plane_shows_on_the_riser_not_on_the_floor(camera):
+    """
+    The Figure 13 sweep (L2 at 50 %) ends with the tool 0.11-0.17 m below z = 0 of {O}.
+
+    On the default riser (0.5 m) the camera sees its markers there; with the robot on the
+    floor (mount_height_m 0) the floor hides them, as it would hide a real tool.
+    """
+    pose = paper.target_pose()
+    pose[:3, 3] = (-0.8, 0.16, -0.11)
+    q = inverse_kinematics(pose)
+    points = fiducial_points(q)
+    assert np.all(points[:, 2] < 0.0) and np.all(camera.in_view(points))
+    shares = {}
+    for height in (0.5, 0.0):
+        w = World(renderer='tiny', mount_height_m=height)
+        try:
+            w.reset(q)
+            left, right = w.render_stereo(camera)
+        finally:
+            w.close()
+        _, counts = markers.marker_centres(left, right)
+        areas = np.array([markers.sphere_image_centre(camera, p, MARKER_RADIUS_M)[1]
+                          for p in points])
+        shares[height] = counts / areas[:, None]
+    assert shares[0.5].min() >= VISIBLE_SHARE, shares
+    assert shares[0.0].max() == 0.0, shares
+    with pytest.raises(ValueError, match='mount_height_m'):
+        World(renderer='tiny', mount_height_m=-0.1)
