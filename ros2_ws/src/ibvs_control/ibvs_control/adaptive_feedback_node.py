@@ -5,8 +5,9 @@ Inputs: the camera model from /stereo/{left,right}/camera_info and /stereo/pose
 (ibvs_common.conversions.camera_from_msgs), the encoder joints /joint_states, and the
 features /ibvs/features (stamp t_f = the frame's). Target features p_bar = F(q_target):
 the target markers projected (eq. 30). Per frame (:class:`.controllers.AdaptiveFeedback`):
-q~ = F^-1(p_hat) (eq. 42) with q6 and the IK branch from the encoder joints, C1 = J(q~)
-(eq. 31), SVD decoupling (eq. 34, rank 5), q_feedback = k_d(z) C1^+ (p_bar - p_hat)
+q~ = F^-1(p_hat) (eq. 42) with q6 and the IK branch from the encoder joints, C1 = J (eq.
+31) at the encoder angles (default) or at q~ (``linearise_at``: 'features', the paper's
+choice), SVD decoupling (eq. 34, rank 5), q_feedback = k_d(z) C1^+ (p_bar - p_hat)
 (eq. 38-41), discretised at the camera period.
 
 Determinism (DESIGN section 4). The encoder joints of frame t_f are those of the first
@@ -47,11 +48,12 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
 from .controllers import AdaptiveFeedback
-from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, MAX_CORRECTION,
-                          SVD_DAMPING, SVD_RCOND, target_from)
+from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, LINEARISE_AT,
+                          MAX_CORRECTION, SVD_DAMPING, SVD_RCOND, target_from)
 
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
-          STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED)
+          STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED,
+          LINEARISE_AT)
 
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
@@ -117,7 +119,8 @@ class AdaptiveFeedbackNode(Node):
                 rcond=self.values['svd_rcond'], damping=self.values['svd_damping'],
                 design=self.values['feedback_design'],
                 max_correction=self.values['max_correction_rad'],
-                hold_speed=self.values['hold_speed_fraction'])
+                hold_speed=self.values['hold_speed_fraction'],
+                linearise_at=self.values['linearise_at'])
         except (InputError, ModelError) as exc:
             # e.g. the target behind the camera: nothing to servo on; keep waiting.
             self.diagnostics.reject('camera model', type(exc).__name__, str(exc))

@@ -21,7 +21,7 @@ from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, Mode
 import numpy as np
 
 from .controllers import (AdaptiveFeedback, DAMPING, Feedforward, HOLD_SPEED, JointLoop,
-                          MAX_CORRECTION, RCOND)
+                          LINEARISE_AT, MAX_CORRECTION, RCOND)
 
 
 @dataclass
@@ -57,7 +57,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              torque_max=None, estimate_out_of_view=True, feedforward_method='sampled',
              feedback_design='sampled', rcond=RCOND, damping=DAMPING,
              max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None,
-             integration='exact'):
+             integration='exact', linearise_at=LINEARISE_AT):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -70,6 +70,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     as the acceleration limits (rad/s^2). ``integration``: 'exact' (zero-order hold of the
     acceleration over a step: the continuous arm) or 'semi-implicit' (qd += a dt, then
     q += qd dt: how PyBullet steps the simulated arm; use it to compare with the graph).
+    ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
     """
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera, model.params if plant_params is None
@@ -94,7 +95,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     ff = Feedforward(pose, tau_in, dt, model.params, method=feedforward_method)
     q_target = ff.start(q)
     fb = AdaptiveFeedback(model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, rcond, damping,
-                          feedback_design, max_correction, hold_speed)
+                          feedback_design, max_correction, hold_speed, linearise_at)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}

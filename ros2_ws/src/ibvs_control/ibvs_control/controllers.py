@@ -6,8 +6,8 @@ The three controllers of the paper's section 4 as plain objects (no ROS, no PyBu
   actuators (IRB 4600 speed and torque limits, with anti-windup).
 - :class:`Feedforward`: section 4.3: q from the inverse kinematics of the target pose
   (eq. 43), filtered by T_forward (eq. 44-45).
-- :class:`AdaptiveFeedback`: section 4.2: q~ = F^-1(p_hat) (eq. 42), C1 = J(q~) (eq. 31),
-  G_C = C1^+ k (eq. 38-41) updated at every frame.
+- :class:`AdaptiveFeedback`: section 4.2: C1 = J (eq. 31) at the encoder angles or at
+  q~ = F^-1(p_hat) (eq. 42), G_C = C1^+ k (eq. 38-41) updated at every frame.
 
 The ROS nodes and the model-only closed loop (:mod:`.closed_loop`) both use these.
 """
@@ -29,6 +29,9 @@ RCOND = 1e-6
 DAMPING = 0.1
 MAX_CORRECTION = 0.05
 HOLD_SPEED = 0.2
+#: Where C1 is evaluated (:class:`AdaptiveFeedback`): the encoder angles or F^-1(p_hat).
+LINEARISATION_POINTS = ('encoders', 'features')
+LINEARISE_AT = 'encoders'
 
 
 def target_pose(position, rotation, tol=1e-3):
@@ -206,22 +209,35 @@ class AdaptiveFeedback:
     """
     Adaptive Youla feedback of section 4.2, one :meth:`update` per camera frame.
 
-    Per frame: q~ = F^-1(p_hat) (eq. 42, q6 and the IK branch from the encoder joints),
-    C1 = J(q~) (eq. 31), its SVD (eq. 34, :func:`.decoupling.decouple`), the joint-space
-    correction dq = C1^+ (p_bar - p_hat) and q_feedback = k_d(z) dq (eq. 38-41 in the
-    form G_C = C1^+ k). The dynamic part k acts on dq, after the time-varying C1^+, so the
+    Per frame: the linearisation point (``linearise_at``, below), C1 = J there (eq. 31), its
+    SVD (eq. 34, :func:`.decoupling.decouple`), the joint-space correction
+    dq = C1^+ (p_bar - p_hat) and q_feedback = k_d(z) dq (eq. 38-41 in the form
+    G_C = C1^+ k). The dynamic part k acts on dq, after the time-varying C1^+, so the
     integrator holds a joint correction that does not jump when C1 is updated.
     ``design``: 'sampled' (default, :func:`.youla.outer_controller_discrete`) or 'tustin'.
+
+    Linearisation point. The paper evaluates C1 at q~ = F^-1(p_hat) (eq. 42), the angles at
+    which the MODEL robot would show the measured features: ``linearise_at='features'``.
+    The default 'encoders' evaluates it at the encoder angles q_T, where the robot is. The
+    two agree when the model is right (they differ by d_q, 0.5 deg at most in the paper's
+    scenarios); with a wrong model (Figure 13) F^-1(p_hat) is the pose of another robot,
+    whose joint axes point elsewhere, and the loop gain J_true C1^+ drifts away from the
+    identity. Model-only loop, scenario 1, L4 at 50 %: 35 mm left after 3 s at q~, 0.25 mm
+    at q_T (both with the channel trust region below). q~ is still computed: it checks the
+    features (F^-1 raises on features no pose explains) and is reported.
 
     Two guards keep the sampled loop out of trouble the paper's continuous loop never
     meets (both inactive near the target, where the design of eq. 36 holds unchanged):
 
-    - trust region: C1 describes F only near q~. A correction larger than
-      ``max_correction`` (rad, largest joint) is scaled down to it, direction kept. This
-      matters on the first frame: it sees the whole start-to-target error, which the
-      feedforward removes within ~10 ms but which a 30 Hz sample would otherwise hold,
-      and integrate, for 33 ms (0.44 m excursion in scenario 1 without it, 1.2 cm with
-      0.05 rad, the d_q effect).
+    - trust region: C1 describes F only near the linearisation point. Each decoupled
+      channel i (eq. 34) asks for c_i = (u_i . e) / sigma_i rad along v_i; a channel that
+      asks for more than ``max_correction`` is clipped to it, on its own, as each SISO loop
+      of a decoupled design saturates on its own. This matters on the first frame: it sees
+      the whole start-to-target error, which the feedforward removes within ~10 ms but which
+      a 30 Hz sample would otherwise hold, and integrate, for 33 ms (0.44 m excursion in
+      scenario 1 without it). Scaling the whole correction down instead (one weak channel,
+      sigma_5 ~ 2 px/rad, then throttles all the others) left the Figure 13 sweep creeping:
+      L2 at 50 %, 47 mm after 2 s against 0.1 mm per channel (model-only loop).
     - conditional integration (anti-windup): while any encoder joint moves faster than
       ``hold_speed`` times its speed limit, the arm is still slewing under the
       feedforward and the image error says nothing the feedback should integrate; the
@@ -230,9 +246,14 @@ class AdaptiveFeedback:
     """
 
     def __init__(self, model, pose, tau_in, omega_n, zeta, dt, rcond=RCOND, damping=DAMPING,
-                 design='sampled', max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED):
+                 design='sampled', max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED,
+                 linearise_at=LINEARISE_AT):
         """Compute p_bar = F(q_target) (projection of the target markers) and design k."""
         youla.check_bandwidth_rule(tau_in, omega_n)
+        if linearise_at not in LINEARISATION_POINTS:
+            raise ValueError(f'linearise_at must be one of {LINEARISATION_POINTS}, got '
+                             f'{linearise_at!r}')
+        self.linearise_at = linearise_at
         self.model = model
         self.pose = np.asarray(pose, dtype=float)
         markers = model.params.fiducials_E @ self.pose[:3, :3].T + self.pose[:3, 3]
@@ -266,14 +287,17 @@ class AdaptiveFeedback:
         q_encoder = np.asarray(q_encoder, dtype=float)
         if p_hat.shape != (6,) or not np.all(np.isfinite(p_hat)):
             raise InvalidInputError('features must be 6 finite numbers')
+        if q_encoder.shape != (6,) or not np.all(np.isfinite(q_encoder)):
+            raise InvalidInputError('encoder angles must be 6 finite numbers')
         q_est = self.model.inverse(p_hat, q_encoder[5], seed=q_encoder)
-        dec = decouple(self.model.jacobian(q_est), self.rcond, self.damping)
+        q_lin = q_est if self.linearise_at == 'features' else q_encoder
+        dec = decouple(self.model.jacobian(q_lin), self.rcond, self.damping)
         error = self.p_target - p_hat
-        correction = dec.pinv @ error
-        largest = float(np.max(np.abs(correction)))
-        clipped = largest > self.max_correction
+        channels = dec.channels(error)
+        clipped = bool(np.any(np.abs(channels) > self.max_correction))
         if clipped:
-            correction = correction * (self.max_correction / largest)
+            channels = np.clip(channels, -self.max_correction, self.max_correction)
+        correction = dec.joints(channels)
         held = qdot_encoder is not None and bool(np.any(
             np.abs(qdot_encoder) > self.hold_speed * np.asarray(self.model.params.qd_max)))
         q_fb = self.filter.last_output.copy() if held else self.filter.step(correction)

@@ -23,18 +23,33 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Decoupling:
-    """SVD of C1 = U diag(s) Vt, the rank used and the (truncated/damped) inverse."""
+    """
+    SVD of C1 = U diag(s) Vt, the rank used and the (truncated/damped) inverse.
+
+    ``gain_inv``: the inverted gain of each decoupled channel (0 beyond the rank), so that
+    ``pinv = Vt^T diag(gain_inv) U^T``.
+    """
 
     U: np.ndarray
     s: np.ndarray
     Vt: np.ndarray
     rank: int
     pinv: np.ndarray
+    gain_inv: np.ndarray
 
     @property
     def condition(self):
         """Return sigma_1 / sigma_rank, the condition number of the inverted part."""
         return float(self.s[0] / self.s[self.rank - 1]) if self.rank else float('inf')
+
+    def channels(self, error):
+        """Return the joint corrections of the decoupled channels, diag(gain_inv) U^T e."""
+        n = self.s.size
+        return self.gain_inv * (self.U[:, :n].T @ np.asarray(error, dtype=float))
+
+    def joints(self, channels):
+        """Return the joint-space vector V c of channel values ``channels`` (rad)."""
+        return self.Vt[:self.s.size].T @ np.asarray(channels, dtype=float)
 
     @property
     def observable(self):
@@ -58,4 +73,4 @@ def decouple(c1, rcond=1e-6, damping=0.0):
     inv = np.zeros_like(s)
     inv[:rank] = s[:rank] / (s[:rank] ** 2 + damping ** 2)
     pinv = (vt[:s.size].T * inv) @ u[:, :s.size].T
-    return Decoupling(u, s, vt, rank, pinv)
+    return Decoupling(u, s, vt, rank, pinv, inv)

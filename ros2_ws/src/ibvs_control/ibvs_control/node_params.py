@@ -28,9 +28,13 @@ SVD_DAMPING = Param('svd_damping', controllers.DAMPING,
                     'Tikhonov damping of the inverted singular values of C1 (0: exact)',
                     'px/rad', low=0.0, high=100.0)
 MAX_CORRECTION = Param('max_correction_rad', controllers.MAX_CORRECTION,
-                       'trust region of the linearisation: largest joint correction '
-                       'C1^+ (p_bar - p_hat) integrated per frame', 'rad',
+                       'trust region of the linearisation: largest correction one '
+                       'decoupled channel of C1^+ (p_bar - p_hat) integrates per frame', 'rad',
                        low=0.0, high=10.0, low_open=True)
+LINEARISE_AT = Param('linearise_at', controllers.LINEARISE_AT,
+                     "where C1 (eq. 31) is evaluated: 'encoders' (the encoder angles q_T) or "
+                     "'features' (q~ = F^-1(p_hat), the paper's eq. 42; less robust to a wrong "
+                     'robot model)', '-', choices=controllers.LINEARISATION_POINTS)
 HOLD_SPEED = Param('hold_speed_fraction', controllers.HOLD_SPEED,
                    'the feedback holds (does not integrate) while an encoder joint moves '
                    'faster than this fraction of its speed limit', '-',

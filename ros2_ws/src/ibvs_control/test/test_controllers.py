@@ -3,6 +3,7 @@
 from ibvs_control import youla
 from ibvs_control.controllers import (AdaptiveFeedback, check_reachable, Feedforward,
                                       JointLoop, target_pose)
+from ibvs_control.decoupling import decouple
 from ibvs_control.filters import StateSpaceFilter
 from ibvs_control.governor import ReferenceGovernor
 from ibvs_control.tf import TransferFunction
@@ -215,19 +216,52 @@ def test_feedback_removes_a_joint_offset(feedback_setup):
     assert abs(q_fb[5]) < 1e-12
 
 
-def test_trust_region_and_hold(feedback_setup):
+def test_trust_region_clips_each_channel_alone_and_hold(feedback_setup):
     model, _, q_target = feedback_setup
     q_far = inverse_kinematics(paper.scenario_start_pose(1))
+    free = make_feedback(feedback_setup, max_correction=np.inf)
+    up_free = free.update(model.features(q_far), q_far)
+    assert not up_free.clipped
+    dec = decouple(model.jacobian(q_far), free.rcond, free.damping)
+    wanted = dec.channels(free.p_target - model.features(q_far))
+    assert np.sum(np.abs(wanted) > 0.05) >= 1 and np.sum(np.abs(wanted) <= 0.05) >= 1
     fb = make_feedback(feedback_setup, max_correction=0.05)
     up = fb.update(model.features(q_far), q_far)
-    assert up.clipped and np.max(np.abs(up.correction)) == pytest.approx(0.05)
-    free = make_feedback(feedback_setup, max_correction=np.inf)
-    assert not free.update(model.features(q_far), q_far).clipped
+    assert up.clipped
+    got = dec.Vt @ up.correction
+    # the channels that asked for less than the bound keep what they asked for
+    small = np.abs(wanted) <= 0.05
+    np.testing.assert_allclose(got[small], wanted[small], atol=1e-12)
+    np.testing.assert_allclose(np.abs(got[~small]), 0.05, rtol=1e-12)
+    np.testing.assert_array_equal(np.sign(got[~small]), np.sign(wanted[~small]))
     held = make_feedback(feedback_setup, hold_speed=0.2)
     up = held.update(model.features(q_far), q_far, qdot_encoder=np.full(6, 2.0))
     assert up.held and np.all(up.q_feedback == 0.0) and held.filter.steps == 0
     up = held.update(model.features(q_far), q_far, qdot_encoder=np.zeros(6))
     assert not up.held and held.filter.steps == 1
+
+
+def test_linearisation_point_encoders_or_features(feedback_setup):
+    """C1 at the encoder angles (default) or at F^-1(p_hat) (eq. 42): same with a true model."""
+    model, _, q_target = feedback_setup
+    d = np.radians([1.0, -2.0, 1.5, 3.0, -2.0, 0.0])
+    p_hat = model.features(q_target + d)
+    at_features = make_feedback(feedback_setup, linearise_at='features')
+    at_encoders = make_feedback(feedback_setup)
+    assert at_encoders.linearise_at == 'encoders'
+    # encoders that read the true angles: both points coincide
+    a = at_features.update(p_hat, q_target + d).correction
+    b = at_encoders.update(p_hat, q_target + d).correction
+    np.testing.assert_allclose(a, b, atol=1e-9)
+    # encoders that read other angles than F^-1(p_hat): the two linearisations differ
+    q_enc = q_target + np.radians([5.0, 5.0, -5.0, 10.0, 10.0, 0.0])
+    pinv_enc = decouple(model.jacobian(q_enc), at_encoders.rcond, at_encoders.damping).pinv
+    c = make_feedback(feedback_setup, max_correction=np.inf).update(p_hat, q_enc)
+    np.testing.assert_allclose(c.correction, pinv_enc @ (at_encoders.p_target - p_hat),
+                               atol=1e-12)
+    np.testing.assert_allclose(c.q_estimate, q_target + d, atol=1e-8)
+    with pytest.raises(ValueError, match='linearise_at'):
+        make_feedback(feedback_setup, linearise_at='model')
 
 
 def test_bad_features_raise_and_leave_the_state(feedback_setup):

@@ -88,6 +88,11 @@ def test_truncated_inverse_is_a_pseudo_inverse(configurations):
     np.testing.assert_allclose(c1 @ dec.pinv @ c1, c1, atol=1e-9 * np.abs(c1).max())
     np.testing.assert_allclose(dec.pinv @ c1 @ dec.pinv, dec.pinv,
                                atol=1e-9 * np.abs(dec.pinv).max())
+    # channel by channel (what the trust region clips) the inverse is the same matrix
+    error = np.linspace(-3.0, 5.0, 6)
+    np.testing.assert_allclose(dec.joints(dec.channels(error)), dec.pinv @ error,
+                               atol=1e-12 * np.abs(dec.pinv @ error).max())
+    assert dec.gain_inv[5] == 0.0
     damped = decouple(c1, damping=0.5)
     # damping shrinks every inverted gain: sigma / (sigma^2 + lambda^2) < 1 / sigma
     assert np.linalg.norm(damped.pinv, 2) < np.linalg.norm(dec.pinv, 2)
