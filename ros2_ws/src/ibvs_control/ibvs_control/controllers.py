@@ -222,9 +222,21 @@ class AdaptiveFeedback:
     two agree when the model is right (they differ by d_q, 0.5 deg at most in the paper's
     scenarios); with a wrong model (Figure 13) F^-1(p_hat) is the pose of another robot,
     whose joint axes point elsewhere, and the loop gain J_true C1^+ drifts away from the
-    identity. Model-only loop, scenario 1, L4 at 50 %: 35 mm left after 3 s at q~, 0.25 mm
-    at q_T (both with the channel trust region below). q~ is still computed: it checks the
-    features (F^-1 raises on features no pose explains) and is reported.
+    identity. q~ is still computed: it checks the features (F^-1 raises on features no pose
+    explains) and is reported.
+
+    Model-only loop (:mod:`.closed_loop`), scenario 1, position error after 2 s / 3 s with
+    L2 at 50 % and with L4 at 50 %: the two linearisation points against the two trust
+    regions (below):
+
+    ==========================  ===================  ====================
+    C1 at, trust region          L2 50 % [mm]         L4 50 % [mm]
+    ==========================  ===================  ====================
+    q~, whole vector scaled      47 / 0.26            24 / 12
+    q~, per channel              5.6 / 0.03           64 / 74
+    q_T, whole vector scaled     14 / 0.24            136 / 35
+    q_T, per channel (default)   0.12 / 0.00          7.4 / 0.25
+    ==========================  ===================  ====================
 
     Two guards keep the sampled loop out of trouble the paper's continuous loop never
     meets (both inactive near the target, where the design of eq. 36 holds unchanged):
@@ -235,9 +247,9 @@ class AdaptiveFeedback:
       of a decoupled design saturates on its own. This matters on the first frame: it sees
       the whole start-to-target error, which the feedforward removes within ~10 ms but which
       a 30 Hz sample would otherwise hold, and integrate, for 33 ms (0.44 m excursion in
-      scenario 1 without it). Scaling the whole correction down instead (one weak channel,
-      sigma_5 ~ 2 px/rad, then throttles all the others) left the Figure 13 sweep creeping:
-      L2 at 50 %, 47 mm after 2 s against 0.1 mm per channel (model-only loop).
+      scenario 1 without it). Scaling the whole correction down instead lets one weak
+      channel (sigma_5 ~ 2 px/rad, the tool's tilt) throttle all the others, and the
+      Figure 13 sweep creeps (table above).
     - conditional integration (anti-windup): while any encoder joint moves faster than
       ``hold_speed`` times its speed limit, the arm is still slewing under the
       feedforward and the image error says nothing the feedback should integrate; the
