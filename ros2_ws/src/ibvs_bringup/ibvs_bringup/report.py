@@ -130,7 +130,7 @@ def build_report(out_dir, quick=False, progress=print):
     lines += [f"| {r['link']} | {100 * r['scale']:.0f} % | "
               f'{1e3 * r["final_position_error_m"]:.4f} | '
               f"{r['metrics']['final_tool_axis_error_deg']:.4f} | "
-              f"{r['metrics'].get('lowest_tool_z_m', float('nan')):.3f} |" for r in rows]
+              f"{r['metrics']['lowest_tool_z_m']:.3f} |" for r in rows]
     lines += ['', '![robustness](robustness.png)', '']
     within = np.all([r['final_position_error_m'] <= 0.01 for r in rows])
     lines += [f"Every sweep point within 1 cm: {'yes' if within else 'NO'}.", '']

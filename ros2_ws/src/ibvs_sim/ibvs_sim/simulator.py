@@ -21,8 +21,8 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
-from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M, MAX_FOCUS_SUPERSAMPLING,
-                    MAX_MOUNT_HEIGHT_M, MAX_SUPERSAMPLING, RendererError, World)
+from .world import (check_mount_height, DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M,
+                    MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, RendererError, World)
 
 
 class ConfigError(ValueError):
@@ -97,9 +97,10 @@ class Simulator:
                               f'around the markers must be an int in '
                               f'[1, {MAX_FOCUS_SUPERSAMPLING}]')
         self.marker_supersampling = marker_supersampling
-        if not (math.isfinite(mount_height_m) and 0.0 <= mount_height_m <= MAX_MOUNT_HEIGHT_M):
-            raise ConfigError('mount_height_m', f'{mount_height_m} m: the height of the base '
-                              f'above the floor must be in [0, {MAX_MOUNT_HEIGHT_M}] m')
+        try:
+            mount_height_m = check_mount_height(mount_height_m)
+        except ValueError as exc:
+            raise ConfigError('mount_height_m', str(exc)) from None
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer,
                                mount_height_m=mount_height_m)

@@ -71,7 +71,7 @@ GROUND_RGBA = (0.55, 0.55, 0.55, 1.0)
 GROUND_HALF_SIZE_M = 6.0
 #: The robot stands on a riser (a box under its base, this half size and colour) whose top is
 #: the base plane. The paper's model has no floor; its sweep (Figure 13) needs room below the
-#: base: with L2 at 50 % the tool ends 0.17 m under z = 0 (see World).
+#: base: with L2 at 50 % the tool ends 0.11 m (its lower marker 0.17 m) under z = 0.
 DEFAULT_MOUNT_HEIGHT_M = 0.5
 MAX_MOUNT_HEIGHT_M = 5.0
 RISER_HALF_SIZE_M = (0.4, 0.4)
@@ -95,6 +95,14 @@ MAX_FOCUS_SUPERSAMPLING = 16
 DEFAULT_FOCUS_SUPERSAMPLING = 8
 #: Pixels added around the bound of a focus sphere's image (covers the partly covered rim).
 FOCUS_MARGIN_PX = 2
+
+
+def check_mount_height(mount_height_m):
+    """Return ``mount_height_m`` as a float, or raise ValueError outside [0, max] m."""
+    if not (math.isfinite(mount_height_m) and 0.0 <= mount_height_m <= MAX_MOUNT_HEIGHT_M):
+        raise ValueError(f'mount_height_m = {mount_height_m} m: the height of the base above '
+                         f'the floor must be in [0, {MAX_MOUNT_HEIGHT_M}] m')
+    return float(mount_height_m)
 
 
 class RendererError(RuntimeError):
@@ -239,10 +247,7 @@ class World:
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
                  with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
-        if not (math.isfinite(mount_height_m) and 0.0 <= mount_height_m <= MAX_MOUNT_HEIGHT_M):
-            raise ValueError(f'mount_height_m must be in [0, {MAX_MOUNT_HEIGHT_M}] m, got '
-                             f'{mount_height_m}')
-        self.mount_height_m = float(mount_height_m)
+        self.mount_height_m = check_mount_height(mount_height_m)
         if renderer not in RENDERERS:
             raise ValueError(f'renderer must be one of {RENDERERS}, got {renderer!r}')
         if not (math.isfinite(physics_rate_hz) and physics_rate_hz > 0.0):
