@@ -27,7 +27,7 @@ EXPECTED = {
     '/stereo/pose': ('geometry_msgs/msg/PoseStamped', 1, None),
     '/ibvs/features': ('geometry_msgs/msg/PolygonStamped', 1, 1),
     '/ibvs/feature_status': ('diagnostic_msgs/msg/DiagnosticArray', 1, 0),
-    '/ibvs/q_feedforward': ('sensor_msgs/msg/JointState', 1, 1),
+    '/ibvs/feedforward_trajectory': ('trajectory_msgs/msg/JointTrajectory', 1, 1),
     '/ibvs/q_feedback': ('sensor_msgs/msg/JointState', 1, 1),
     '/joint_effort_commands': ('sensor_msgs/msg/JointState', 1, 1),
     '/ibvs/tool_pose': ('geometry_msgs/msg/PoseStamped', 1, 0),

@@ -30,7 +30,7 @@ KNOWN_TOPICS = {
     contract.STEREO_POSE: 'geometry_msgs/msg/PoseStamped',
     contract.FEATURES: 'geometry_msgs/msg/PolygonStamped',
     contract.FEATURE_STATUS: 'diagnostic_msgs/msg/DiagnosticArray',
-    contract.Q_FEEDFORWARD: 'sensor_msgs/msg/JointState',
+    contract.FEEDFORWARD_TRAJECTORY: 'trajectory_msgs/msg/JointTrajectory',
     contract.Q_FEEDBACK: 'sensor_msgs/msg/JointState',
     contract.EFFORT_COMMANDS: 'sensor_msgs/msg/JointState',
     contract.TOOL_POSE: 'geometry_msgs/msg/PoseStamped',
@@ -40,7 +40,7 @@ IMAGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
 #: Deep queues: a recorder that falls behind must not lose lockstep messages.
 RECORD_QOS = QoSProfile(depth=2000, reliability=contract.RELIABLE.reliability,
                         durability=contract.RELIABLE.durability)
-LATCHED_TOPICS = {contract.STEREO_POSE}
+LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY}
 
 
 def message_class(type_name):

@@ -23,12 +23,12 @@ import time
 
 from ament_index_python.packages import get_package_prefix
 from geometry_msgs.msg import PoseStamped
-from ibvs_common import contract
+from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix, stamp_ns
+from ibvs_common.node_main import make_executor
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 import yaml
 
@@ -139,11 +139,15 @@ class Monitor:
         self.error_m = float('nan')
         self.axis_deg = float('nan')
         self.within_since_ns = None
+        #: Wall time (time.monotonic) at which the first /clock arrived: the run's start.
+        self.started_wall = None
         node.create_subscription(Clock, contract.CLOCK, self._on_clock, contract.RELIABLE)
         node.create_subscription(PoseStamped, contract.TOOL_POSE, self._on_pose,
                                  contract.RELIABLE)
 
     def _on_clock(self, msg):
+        if self.started_wall is None:
+            self.started_wall = time.monotonic()
         self.sim_ns = max(self.sim_ns, stamp_ns(msg.clock))
 
     def _on_pose(self, msg):
@@ -187,9 +191,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         shutil.rmtree(bag_path)
     target = analysis.target_from_params(params)
 
+    dds.configure()  # before rclpy.init here, and inherited by the node processes
     context = rclpy.context.Context()
     rclpy.init(context=context)
-    executor = SingleThreadedExecutor(context=context)
+    executor = make_executor(context)
     recorder = Recorder(bag_path, include_images=record_images, context=context,
                         custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
     watcher = rclpy.create_node('ibvs_run_monitor', context=context,
@@ -202,7 +207,6 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     died = None
     wall_duration = None
     wall_start = time.monotonic()
-    sim_wall_start = None
     try:
         for package, executable in NODES:
             extra = ()
@@ -212,7 +216,6 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                 # when all of today's /joint_states subscribers are matched with it.
                 subscribers = max(1, watcher.count_subscribers(contract.JOINT_STATES))
                 extra = ('-p', f'min_joint_state_subscribers:={subscribers}')
-                sim_wall_start = time.monotonic()
             procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
         last_print = 0.0
         while True:
@@ -228,7 +231,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             now = time.monotonic()
             if now - last_print >= 2.0:
                 last_print = now
-                rtf = sim_s / max(now - sim_wall_start, 1e-9)
+                rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
                 progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
                          f'  position error {monitor.error_m * 1e3:9.3f} mm'
                          f'  axis error {monitor.axis_deg:7.3f} deg  RTF {rtf:5.3f}')
@@ -242,7 +245,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             if now - wall_start > wall_timeout_s:
                 progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim {sim_s:.3f} s')
                 break
-        wall_duration = time.monotonic() - (sim_wall_start or wall_start)
+        # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
+        wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
     finally:
         codes = {p.name: p.stop() for p in reversed(procs)}
         recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({

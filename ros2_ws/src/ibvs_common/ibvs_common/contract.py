@@ -18,7 +18,9 @@ LEFT_INFO = '/stereo/left/camera_info'
 RIGHT_INFO = '/stereo/right/camera_info'
 STEREO_POSE = '/stereo/pose'
 FEATURES = '/ibvs/features'
-Q_FEEDFORWARD = '/ibvs/q_feedforward'
+#: The feedforward's joint reference, one trajectory_msgs/JointTrajectory for the whole run,
+#: sampled at the physics rate; latched, so a node that joins late still gets it.
+FEEDFORWARD_TRAJECTORY = '/ibvs/feedforward_trajectory'
 Q_FEEDBACK = '/ibvs/q_feedback'
 EFFORT_COMMANDS = '/joint_effort_commands'
 TOOL_POSE = '/ibvs/tool_pose'

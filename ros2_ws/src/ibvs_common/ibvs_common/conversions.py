@@ -11,6 +11,7 @@ from ibvs_model import StereoCamera, StereoIntrinsics
 import numpy as np
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
 
@@ -71,6 +72,59 @@ def read_joints(msg, field='position', names=contract.JOINT_NAMES):
     if not np.all(np.isfinite(values)):
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
     return values
+
+
+def duration_ns(duration):
+    """Return a builtin_interfaces/Duration as integer nanoseconds (exact)."""
+    return int(duration.sec) * 1_000_000_000 + int(duration.nanosec)
+
+
+def joint_trajectory(start_ns, period_ns, positions, names=contract.JOINT_NAMES):
+    """
+    Return positions sampled every ``period_ns`` from ``start_ns`` as a JointTrajectory.
+
+    ``positions``: (N, 6). Point k has time_from_start = k * period_ns; the header stamp is
+    the time of point 0 (the trajectory_msgs convention). Only positions are filled.
+    """
+    msg = JointTrajectory()
+    msg.header.stamp = ns_stamp(start_ns)
+    msg.header.frame_id = contract.BASE_FRAME
+    msg.joint_names = list(names)
+    points = []
+    for k, row in enumerate(np.asarray(positions, dtype=float)):
+        point = JointTrajectoryPoint(positions=row.tolist())
+        t = k * int(period_ns)
+        point.time_from_start.sec, point.time_from_start.nanosec = divmod(t, 1_000_000_000)
+        points.append(point)
+    msg.points = points
+    return msg
+
+
+def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
+    """
+    Return (start ns, (N, 6) positions) of a JointTrajectory sampled every ``period_ns``.
+
+    The points must be at 0, period_ns, 2 period_ns, ... from the header stamp, with finite
+    positions for the six joints (in any order, mapped by name). Raises :class:`InputError`.
+    """
+    if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
+        raise InputError('wrong joint names', f'{list(msg.joint_names)}')
+    if not msg.points:
+        raise InputError('empty trajectory')
+    times = np.array([duration_ns(p.time_from_start) for p in msg.points])
+    if not np.array_equal(times, np.arange(len(times)) * int(period_ns)):
+        raise InputError('wrong sample times', f'points must be {period_ns} ns apart from 0')
+    try:
+        positions = np.array([p.positions for p in msg.points], dtype=float)
+    except ValueError:
+        raise InputError('wrong positions length', 'ragged points') from None
+    if positions.shape != (len(times), len(names)):
+        raise InputError('wrong positions length',
+                         f'{positions.shape[1:]} values per point, expected {len(names)}')
+    if not np.all(np.isfinite(positions)):
+        raise InputError('non-finite positions')
+    order = [list(msg.joint_names).index(n) for n in names]
+    return stamp_ns(msg.header.stamp), positions[:, order]
 
 
 def pose_matrix(pose):

@@ -5,9 +5,11 @@ import sys
 import threading
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
 
+from . import dds
 from .params import ParameterError
 
 #: Longest a stop request waits for the executor to come back from ``wait`` (seconds).
@@ -55,9 +57,22 @@ class StopRequest:
         return self._event.is_set()
 
 
+def make_executor(context):
+    """
+    Return the executor every node of the graph spins in: rclpy's ``EventsExecutor``.
+
+    The lockstep passes one message per physics step through several processes, so the
+    executor's cost per callback bounds the simulation speed. ``SingleThreadedExecutor``
+    rebuilds its wait set in Python before every callback (measured: 0.53 ms per round trip
+    between two processes); the ``EventsExecutor`` (C++, shipped with Jazzy's rclpy) queues
+    middleware events instead (0.18 ms). Callbacks still run one at a time in arrival order.
+    """
+    return EventsExecutor(context=context)
+
+
 def spin_until_stopped(node, stop, poll_s=STOP_POLL_S):
     """Spin ``node`` until ``stop`` is set or its context is shut down by someone else."""
-    executor = SingleThreadedExecutor(context=node.context)
+    executor = make_executor(node.context)
     executor.add_node(node)
     try:
         while node.context.ok() and not stop.is_set():
@@ -77,6 +92,7 @@ def run(node_class, args=None, name=None):
     """
     stop = StopRequest()
     stop.install()
+    dds.configure()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     code = 0

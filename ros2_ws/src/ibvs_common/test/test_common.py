@@ -109,6 +109,30 @@ def test_read_joints_rejects_bad_messages(position, names, reason):
     assert info.value.reason == reason
 
 
+def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
+    rng = np.random.default_rng(3)
+    rows = rng.normal(size=(7, 6))
+    msg = conversions.joint_trajectory(5_000_000_123, 1_000_000, rows)
+    assert conversions.stamp_ns(msg.header.stamp) == 5_000_000_123
+    assert conversions.duration_ns(msg.points[-1].time_from_start) == 6_000_000
+    start, back = conversions.read_trajectory(msg, 1_000_000)
+    assert start == 5_000_000_123
+    np.testing.assert_array_equal(back, rows)  # exact: doubles travel as doubles
+    msg.joint_names = list(reversed(msg.joint_names))
+    np.testing.assert_array_equal(conversions.read_trajectory(msg, 1_000_000)[1],
+                                  rows[:, ::-1])
+    with pytest.raises(InputError, match='wrong sample times'):
+        conversions.read_trajectory(msg, 2_000_000)
+    msg.points[2].positions = [np.nan] * 6
+    with pytest.raises(InputError, match='non-finite positions'):
+        conversions.read_trajectory(msg, 1_000_000)
+    msg.joint_names = ['a'] * 6
+    with pytest.raises(InputError, match='wrong joint names'):
+        conversions.read_trajectory(msg, 1_000_000)
+    with pytest.raises(InputError, match='empty trajectory'):
+        conversions.read_trajectory(conversions.joint_trajectory(0, 1, np.empty((0, 6))), 1)
+
+
 def test_pose_round_trip():
     tf = forward_kinematics(np.radians([10, 20, 30, 40, 50, 60]))
     back = conversions.pose_matrix(conversions.matrix_pose(tf))

@@ -2,29 +2,33 @@
 joint_controller_node: the inner joint loop of section 4.1, one effort command a step.
 
 On each /joint_states (encoder q, qdot; stamp t_k) it computes, with q_ref = q_feedforward
-+ q_feedback, v = G_c(q_ref - q) (the sampled eq. 28 at the physics rate) and the
+(t_k) + q_feedback, v = G_c(q_ref - q) (the sampled eq. 28 at the physics rate) and the
 feedback linearisation u = M(q) v + h(q, qdot) (eq. 23-27), M and h of the nominal robot
 from PyBullet (:class:`.dynamics.RobotDynamics`), and publishes /joint_effort_commands
 (JointState with effort) stamped t_k. Actuators: 'ideal' (the paper) or 'limited' (IRB
 4600 speed and torque limits, reference governor and anti-windup:
 :class:`.controllers.JointLoop`).
 
-Lockstep (DESIGN section 4). The answer to t_k needs q_feedforward stamped t_k and the
-q_feedback of frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero
-before the first frame takes effect). A joint state whose inputs have not all arrived is
+Lockstep (DESIGN section 4). The answer to t_k needs the feedforward trajectory
+(/ibvs/feedforward_trajectory, published once at the start: q_feedforward(t_k) is its point
+at t_k, its first point before it starts and its last after it ends) and the q_feedback of
+frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero before the first
+frame takes effect). A joint state whose inputs have not all arrived is
 buffered and answered as soon as they have, in stamp order; nothing is answered early or
 twice, so a run is the same however the executor interleaves the callbacks. While it waits
 it logs once a second (steady clock) what for.
 
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
-(wrong length, NaN, unknown joint names), a /joint_states not newer than the last one, a
-q_feedforward or q_feedback older than what is still needed.
+(wrong length, NaN, unknown joint names; a trajectory not sampled at the physics period), a
+/joint_states not newer than the last one, a q_feedback older than what is still needed. A
+new trajectory replaces the old one.
 """
 
 from collections import deque
 
 from ibvs_common import contract
-from ibvs_common.conversions import InputError, joint_state, read_joints, stamp_ns
+from ibvs_common.conversions import (InputError, joint_state, read_joints, read_trajectory,
+                                     stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
@@ -36,6 +40,7 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import JointLoop
 from .dynamics import RobotDynamics
@@ -74,7 +79,7 @@ class JointControllerNode(Node):
                               speed_margin=values['speed_margin'],
                               acceleration_margin=values['acceleration_margin'])
         self._states = deque()
-        self._ff = {}
+        self._trajectory = None
         self._fb = {}
         self.last_answered_ns = None
         self.commands = 0
@@ -85,8 +90,8 @@ class JointControllerNode(Node):
                                           contract.RELIABLE)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_joint_state,
                                  contract.RELIABLE)
-        self.create_subscription(JointState, contract.Q_FEEDFORWARD, self._on_feedforward,
-                                 contract.RELIABLE)
+        self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
+                                 self._on_trajectory, contract.LATCHED)
         self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
                                  contract.RELIABLE)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -121,39 +126,51 @@ class JointControllerNode(Node):
         self._states.append((t_ns, q, qd))
         self._drain()
 
-    def _on_feedforward(self, msg):
-        self._store(msg, self._ff, contract.Q_FEEDFORWARD,
-                    self.last_answered_ns if self.last_answered_ns is not None else -1)
+    def _on_trajectory(self, msg):
+        try:
+            self._trajectory = read_trajectory(msg, self.dt_ns)
+        except InputError as exc:
+            self.diagnostics.reject(contract.FEEDFORWARD_TRAJECTORY, exc.reason, exc.detail)
+            return
+        start_ns, positions = self._trajectory
+        self.diagnostics.update(feedforward_start_ns=start_ns,
+                                feedforward_points=len(positions))
+        self._drain()
 
     def _on_feedback(self, msg):
-        needed = None
-        if self.last_answered_ns is not None:
-            needed = feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns)
-        self._store(msg, self._fb, contract.Q_FEEDBACK, -1 if needed is None else needed - 1)
-
-    def _store(self, msg, buffer, source, older_than_or_at):
+        source = contract.Q_FEEDBACK
         t_ns = stamp_ns(msg.header.stamp)
+        needed = -1
+        if self.last_answered_ns is not None:
+            frame = feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns)
+            needed = -1 if frame is None else frame
         try:
             q = read_joints(msg)
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        if t_ns <= older_than_or_at:
+        if t_ns < needed:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
             return
-        if t_ns in buffer or len(buffer) >= MAX_BUFFER:
-            self.diagnostics.reject(source, 'duplicate stamp' if t_ns in buffer
+        if t_ns in self._fb or len(self._fb) >= MAX_BUFFER:
+            self.diagnostics.reject(source, 'duplicate stamp' if t_ns in self._fb
                                     else 'buffer full', f'{t_ns} ns')
             return
-        buffer[t_ns] = q
+        self._fb[t_ns] = q
         self._drain()
+
+    def q_feedforward(self, t_ns):
+        """Return the feedforward at ``t_ns``: the trajectory's point, held past its ends."""
+        start_ns, positions = self._trajectory
+        k = (t_ns - start_ns) // self.dt_ns
+        return positions[min(max(k, 0), len(positions) - 1)]
 
     # -- lockstep ---------------------------------------------------------------------------
     def _missing(self, t_ns):
         """Return what the answer to ``t_ns`` still waits for (empty when ready)."""
         missing = []
-        if t_ns not in self._ff:
-            missing.append(f'{contract.Q_FEEDFORWARD} stamped {t_ns} ns')
+        if self._trajectory is None:
+            missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
         frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
         if frame is not None and frame not in self._fb:
             missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns')
@@ -165,9 +182,7 @@ class JointControllerNode(Node):
             t_ns, q, qd = self._states.popleft()
             frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
             q_fb = np.zeros(6) if frame is None else self._fb[frame]
-            self._answer(t_ns, q, qd, self._ff.pop(t_ns) + q_fb)
-            for stamp in [s for s in self._ff if s < t_ns]:
-                del self._ff[stamp]
+            self._answer(t_ns, q, qd, self.q_feedforward(t_ns) + q_fb)
             if frame is not None:
                 for stamp in [s for s in self._fb if s < frame]:
                     del self._fb[stamp]

@@ -283,3 +283,23 @@ def test_feedback_refuses_gains_against_the_bandwidth_rule(feedback_setup):
     model, pose, _ = feedback_setup
     with pytest.raises(ValueError, match='tau_in'):
         AdaptiveFeedback(model, pose, 0.01, 150.0, 0.7, 1 / 30)
+
+
+@pytest.mark.parametrize('tau_in, dt', [(0.01, 1e-3), (0.02, 2e-3)])
+def test_feedforward_trajectory_is_the_filter_output_then_held_exactly(tau_in, dt):
+    q0 = inverse_kinematics(paper.scenario_start_pose(2))
+    ref = Feedforward(paper.target_pose(), tau_in, dt)
+    ref.start(q0)
+    ff = Feedforward(paper.target_pose(), tau_in, dt)
+    ff.start(q0)
+    rows = ff.trajectory()
+    stepped = np.array([ref.step() for _ in range(len(rows) + 1000)])
+    np.testing.assert_array_equal(rows, stepped[:len(rows)])
+    # settled: every later sample is the last row to within rounding, and that is the target
+    np.testing.assert_allclose(stepped[len(rows):], np.tile(rows[-1], (1000, 1)), rtol=0,
+                               atol=1e-14)
+    np.testing.assert_allclose(rows[-1], ff.q_target, atol=1e-9)
+    # a cap ends it early, the transient still running
+    capped = Feedforward(paper.target_pose(), tau_in, dt)
+    capped.start(q0)
+    np.testing.assert_array_equal(capped.trajectory(max_samples=50), rows[:50])

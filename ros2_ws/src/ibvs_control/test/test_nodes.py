@@ -11,8 +11,8 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_stamped,
-                                     read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_infos, features_msg, joint_state, joint_trajectory,
+                                     pose_stamped, read_joints, read_trajectory, stamp_ns)
 from ibvs_common.params import ParameterError
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
@@ -27,6 +27,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, JointState
+from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
 CAMERA_NS = 33_333_333
@@ -60,22 +61,23 @@ class Harness:
         pub = self.node.create_publisher
         self.pub = {
             contract.JOINT_STATES: pub(JointState, contract.JOINT_STATES, contract.RELIABLE),
-            contract.Q_FEEDFORWARD: pub(JointState, contract.Q_FEEDFORWARD,
-                                        contract.RELIABLE),
+            contract.FEEDFORWARD_TRAJECTORY: pub(JointTrajectory,
+                                                 contract.FEEDFORWARD_TRAJECTORY,
+                                                 contract.LATCHED),
             contract.Q_FEEDBACK: pub(JointState, contract.Q_FEEDBACK, contract.RELIABLE),
             contract.FEATURES: pub(PolygonStamped, contract.FEATURES, contract.RELIABLE),
             contract.LEFT_INFO: pub(CameraInfo, contract.LEFT_INFO, contract.IMAGES),
             contract.RIGHT_INFO: pub(CameraInfo, contract.RIGHT_INFO, contract.IMAGES),
             contract.STEREO_POSE: pub(PoseStamped, contract.STEREO_POSE, contract.LATCHED),
         }
-        for topic, kind in ((contract.Q_FEEDFORWARD, JointState),
-                            (contract.Q_FEEDBACK, JointState),
-                            (contract.EFFORT_COMMANDS, JointState),
-                            (contract.DIAGNOSTICS, DiagnosticArray)):
+        for topic, kind, qos in (
+                (contract.FEEDFORWARD_TRAJECTORY, JointTrajectory, contract.LATCHED),
+                (contract.Q_FEEDBACK, JointState, contract.RELIABLE),
+                (contract.EFFORT_COMMANDS, JointState, contract.RELIABLE),
+                (contract.DIAGNOSTICS, DiagnosticArray, 10)):
             self.received[topic] = []
             self.node.create_subscription(
-                kind, topic, lambda m, t=topic: self.received[t].append(m),
-                10 if kind is DiagnosticArray else contract.RELIABLE)
+                kind, topic, lambda m, t=topic: self.received[t].append(m), qos)
 
     def spin_until(self, predicate, what='condition'):
         deadline = time.monotonic() + DEADLINE_S
@@ -103,49 +105,62 @@ def stamps(msgs):
 
 # -- feedforward_node -----------------------------------------------------------------------
 
-def test_feedforward_answers_each_joint_state_with_its_stamp(context):
+def feedforward_rows(q0, count):
+    ref = Feedforward(paper.target_pose(), 0.01, 1e-3)
+    ref.start(q0)
+    return np.array([ref.step() for _ in range(count)])
+
+
+def trajectory(start_ns, rows):
+    return joint_trajectory(start_ns, MS, rows)
+
+
+def test_feedforward_publishes_its_whole_trajectory_once(context):
     node = FeedforwardNode(context=context)
     h = Harness(context, node)
     try:
         h.wait_matched([contract.JOINT_STATES])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
-        sent = [0, MS, 2 * MS, 5 * MS]  # a missed message between 2 and 5 ms
-        for t in sent:
+        for t in (0, MS, 2 * MS):
             # later encoder values do not matter: the branch and rest state come from the first
             h.publish(contract.JOINT_STATES, joint_state(t, q0 + 0.01 * (t > 0), np.zeros(6)))
-        out = h.received[contract.Q_FEEDFORWARD]
-        h.spin_until(lambda: len(out) == len(sent), 'q_feedforward')
-        assert stamps(out) == sent
-        ref = Feedforward(paper.target_pose(), 0.01, 1e-3)
-        ref.start(q0)  # the encoder joints of the FIRST message
-        expected = [ref.step() for _ in range(6)]
-        got = np.array([read_joints(m) for m in out])
-        np.testing.assert_allclose(got[0], q0, atol=1e-12)
-        np.testing.assert_allclose(got, np.array(expected)[[0, 1, 2, 5]], atol=1e-9)
+        out = h.received[contract.FEEDFORWARD_TRAJECTORY]
+        h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
+        start_ns, rows = read_trajectory(out[0], MS)
+        assert start_ns == 0
+        # exactly what the filter gives step by step, until it has settled (then held)
+        expected = feedforward_rows(q0, len(rows) + 500)
+        np.testing.assert_array_equal(rows, expected[:len(rows)])
+        np.testing.assert_allclose(expected[len(rows):], np.tile(rows[-1], (500, 1)), rtol=0,
+                                   atol=1e-14)
+        np.testing.assert_allclose(rows[0], q0, atol=1e-12)
+        np.testing.assert_allclose(rows[-1], node.ff.q_target, atol=1e-9)
+        # the node has left the lockstep: no second trajectory, no /joint_states reader
+        h.publish(contract.JOINT_STATES, joint_state(3 * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: h.pub[contract.JOINT_STATES].get_subscription_count() == 0,
+                     'the feedforward to unsubscribe')
+        assert len(out) == 1
     finally:
         h.close()
 
 
-def test_feedforward_rejects_bad_and_stale_joint_states(context):
+def test_feedforward_rejects_bad_joint_states_and_starts_on_the_first_good_one(context):
     node = FeedforwardNode(context=context)
     h = Harness(context, node)
     try:
         h.wait_matched([contract.JOINT_STATES])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
-        h.publish(contract.JOINT_STATES, joint_state(5 * MS, q0, np.zeros(6)))
-        bad = [joint_state(6 * MS, [0.0] * 5, np.zeros(5)),
-               joint_state(7 * MS, [np.nan] + [0.0] * 5, np.zeros(6)),
-               joint_state(5 * MS, q0, np.zeros(6)),  # not newer
-               joint_state(8 * MS, q0, np.zeros(6))]
-        for msg in bad:
+        for msg in (joint_state(3 * MS, [0.0] * 5, np.zeros(5)),
+                    joint_state(4 * MS, [np.nan] + [0.0] * 5, np.zeros(6)),
+                    joint_state(5 * MS, q0, np.zeros(6))):
             h.publish(contract.JOINT_STATES, msg)
-        out = h.received[contract.Q_FEEDFORWARD]
-        h.spin_until(lambda: len(out) == 2, 'q_feedforward')
-        h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
-        assert stamps(out) == [5 * MS, 8 * MS]
+        out = h.received[contract.FEEDFORWARD_TRAJECTORY]
+        h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
+        h.spin_until(lambda: node.diagnostics.rejected_total == 2, 'rejections')
+        assert read_trajectory(out[0], MS)[0] == 5 * MS
         assert node.diagnostics.rejections == {
             '/joint_states: wrong position length': 1,
-            '/joint_states: non-finite position': 1, '/joint_states: stale stamp': 1}
+            '/joint_states: non-finite position': 1}
         # and the count goes out on /diagnostics
         node.diagnostics.publish()
         diags = h.received[contract.DIAGNOSTICS]
@@ -155,7 +170,7 @@ def test_feedforward_rejects_bad_and_stale_joint_states(context):
                 for status in m.status:
                     if status.name.startswith('feedforward_node'):
                         values = {kv.key: kv.value for kv in status.values}
-                        return values.get('rejected_total') == '3'
+                        return values.get('rejected_total') == '2'
             return False
         h.spin_until(counted, 'the rejection count on /diagnostics')
     finally:
@@ -305,13 +320,16 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
     node = JointControllerNode(context=context)
     h = Harness(context, node)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD, contract.Q_FEEDBACK])
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
         h.spin_until(lambda: len(node._states) == 1, 'joint state buffered')
-        h.publish(contract.Q_FEEDFORWARD, joint_state(0, q0))
-        h.spin_until(lambda: 0 in node._ff, 'q_feedforward buffered')
+        assert node._missing(0)[0].startswith('the feedforward trajectory')
+        # q0 at t = 0, then q0 + 0.01, held after its last point (2 ms)
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0, q0 + 0.01, q0 + 0.01]))
+        h.spin_until(lambda: node._trajectory is not None, 'the trajectory')
         # frame 0 acts at t = 0 (latency 0): still waiting for its q_feedback
         assert node.commands == 0 and node._missing(0) == [
             f'{contract.Q_FEEDBACK} of frame 0 ns']
@@ -328,7 +346,6 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         loop.step(q0, q0, np.zeros(6))
         for k in (1, 2):
             q, qd = q0 + 1e-4 * k, np.full(6, 0.01 * k)
-            h.publish(contract.Q_FEEDFORWARD, joint_state(k * MS, q0 + 0.01))
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q, qd))
             h.spin_until(lambda: len(out) == k + 1, f'effort command {k}')
             expected = loop.step(q0 + 0.01, q, qd, dynamics.mass_matrix(q),
@@ -337,7 +354,6 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         # t = 34 ms: frame 1 applies
         q = q0
         h.publish(contract.JOINT_STATES, joint_state(34 * MS, q, np.zeros(6)))
-        h.publish(contract.Q_FEEDFORWARD, joint_state(34 * MS, q0 + 0.01))
         h.spin_until(lambda: len(out) == 4, 'effort command at 34 ms')
         expected = loop.step(q0 + 0.01 + q_fb, q, np.zeros(6), dynamics.mass_matrix(q),
                              dynamics.bias(q, np.zeros(6)))
@@ -352,16 +368,15 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
                                parameter_overrides=overrides(feedback_latency_s=0.02))
     h = Harness(context, node)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD])
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
         for k in (0, 19):
-            h.publish(contract.Q_FEEDFORWARD, joint_state(k * MS, q0))
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
-        h.publish(contract.Q_FEEDFORWARD, joint_state(20 * MS, q0))
         h.publish(contract.JOINT_STATES, joint_state(20 * MS, q0, np.zeros(6)))
-        h.spin_until(lambda: 20 * MS in node._ff, 'q_feedforward at 20 ms')
+        h.spin_until(lambda: len(node._states) == 1, 'joint state at 20 ms buffered')
         assert node._missing(20 * MS) == [f'{contract.Q_FEEDBACK} of frame 0 ns']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answer at 20 ms')
@@ -374,25 +389,31 @@ def test_joint_controller_rejects_bad_input(context):
     node = JointControllerNode(context=context)
     h = Harness(context, node)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD, contract.Q_FEEDBACK])
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         h.publish(contract.JOINT_STATES, joint_state(0, [np.nan] * 6, np.zeros(6)))
         h.publish(contract.JOINT_STATES, joint_state(0, q0, [0.0] * 3))
-        h.publish(contract.Q_FEEDFORWARD, joint_state(0, [0.0] * 7))
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [[0.0] * 7]))
         h.publish(contract.Q_FEEDBACK, joint_state(0, [np.inf] * 6))
         h.spin_until(lambda: node.diagnostics.rejected_total == 4, 'rejections')
+        wrong_period = joint_trajectory(0, 2 * MS, [q0, q0])
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, wrong_period)
+        h.spin_until(lambda: node.diagnostics.rejected_total == 5, 'wrong sample period')
         out = h.received[contract.EFFORT_COMMANDS]
-        for topic, msg in ((contract.Q_FEEDFORWARD, joint_state(0, q0)),
+        for topic, msg in ((contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0])),
                            (contract.Q_FEEDBACK, joint_state(0, np.zeros(6))),
                            (contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))):
             h.publish(topic, msg)
         h.spin_until(lambda: len(out) == 1, 'answer')
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))  # answered already
-        h.publish(contract.Q_FEEDFORWARD, joint_state(0, q0))  # no longer needed
-        h.spin_until(lambda: node.diagnostics.rejected_total == 6, 'stale rejections')
+        h.spin_until(lambda: node.diagnostics.rejected_total == 6, 'stale rejection')
         assert len(out) == 1
         assert node.diagnostics.rejections['/joint_states: stale stamp'] == 1
-        assert node.diagnostics.rejections['/ibvs/q_feedforward: stale stamp'] == 1
+        assert node.diagnostics.rejections[
+            '/ibvs/feedforward_trajectory: wrong positions length'] == 1
+        assert node.diagnostics.rejections[
+            '/ibvs/feedforward_trajectory: wrong sample times'] == 1
         assert node.diagnostics.rejections['/joint_states: non-finite position'] == 1
         assert node.diagnostics.rejections['/joint_states: wrong velocity length'] == 1
     finally:
@@ -406,12 +427,13 @@ def test_limited_joint_controller_clips_torque(context, dynamics):
     try:
         np.testing.assert_allclose(node.torque_limits[1:], dynamics.torque_limits[1:])
         assert node.torque_limits[0] == 50.0
-        h.wait_matched([contract.JOINT_STATES, contract.Q_FEEDFORWARD, contract.Q_FEEDBACK])
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0 + 1.0]))
         for k in range(3):
-            h.publish(contract.Q_FEEDFORWARD, joint_state(k * MS, q0 + 1.0))
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answers')
         efforts = np.array([read_joints(m, 'effort') for m in out])
@@ -443,7 +465,7 @@ def test_feedforward_and_joint_controller_in_lockstep_with_a_stand_in_plant(cont
             u = read_joints(out[-1], 'effort')
             acc = np.linalg.solve(dyn.mass_matrix(q), u - dyn.bias(q, qd))
             q, qd = q + qd * 1e-3 + 0.5 * acc * 1e-6, qd + acc * 1e-3
-        assert stamps(h.received[contract.Q_FEEDFORWARD]) == [k * MS for k in range(10)]
+        assert len(h.received[contract.FEEDFORWARD_TRAJECTORY]) == 1
         # the arm has started toward the target (feedforward through the inner loop)
         q_target = ff.ff.q_target
         q_start = inverse_kinematics(paper.scenario_start_pose(1))
