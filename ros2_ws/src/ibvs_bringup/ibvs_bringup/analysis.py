@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import math
 from pathlib import Path
 
-from ibvs_common import contract
+from ibvs_common import contract, profiling
 from ibvs_common.conversions import camera_from_msgs, pose_matrix
 import numpy as np
 from rosbags.highlevel import AnyReader
@@ -185,6 +185,33 @@ def load_run(bag_path):
                    position=poses[:, :3, 3], rotation=poses[:, :3, :3], target=target,
                    feature_t=np.asarray(ft), features=feats, mode_t=np.asarray(mt),
                    modes=modes, camera=camera)
+
+
+def node_timings(bag_path):
+    """
+    Return each node's last section timings from the bag's /diagnostics.
+
+    {node status name: {'sim_time_s': float, 'sections': {name: (total s, count)}}}, from
+    the ``wall[...]_s`` and ``count[...]`` values of :mod:`ibvs_common.profiling`.
+    """
+    out = {}
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
+        conns = [c for c in reader.connections if c.topic == contract.DIAGNOSTICS]
+        for conn, _, raw in reader.messages(connections=conns):
+            for status in reader.deserialize(raw, conn.msgtype).status:
+                values = {kv.key: kv.value for kv in status.values}
+                if profiling.SIM_TIME_KEY not in values:
+                    continue
+                sections = {}
+                for key, value in values.items():
+                    if key.startswith('wall[') and key.endswith(']_s'):
+                        name = key[len('wall['):-len(']_s')]
+                        count = int(values.get(profiling.COUNT_KEY.format(name), '0'))
+                        sections[name] = (float(value), count)
+                out[status.name.split(':')[0]] = {
+                    'sim_time_s': float(values[profiling.SIM_TIME_KEY]), 'sections': sections}
+    return out
 
 
 def analyse_bag(bag_path):

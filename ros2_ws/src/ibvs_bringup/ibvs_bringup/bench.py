@@ -4,8 +4,12 @@
 Each package's ``bench.run(report)`` times its own hot paths (physics step, stereo render,
 detection per pair, feedback and joint-loop updates) and calls ``report(name, seconds)``
 with per-iteration timings; those run pinned to one core. Then scenario 1 runs through the
-graph for a short sim time and its real-time factor is printed. Figures go to stdout and
-``bench/results.json``. Benchmarks print numbers; no test asserts on time.
+whole graph (every node its own process, as ``ibvs run`` starts them) for one simulated
+second, at HD720 and at VGA, and the bench prints the wall time per simulated second and
+where it goes: each node times its hot sections (:mod:`ibvs_common.profiling`) and
+publishes the totals on /diagnostics, which the run records; the recorder times itself.
+Figures go to stdout and ``bench/results.json``. Benchmarks print numbers; no test
+asserts on time.
 """
 
 import argparse
@@ -15,11 +19,22 @@ import os
 from pathlib import Path
 import platform
 import sys
-import time
 
 import numpy as np
 
 PACKAGES = ('ibvs_sim.bench', 'ibvs_vision.bench', 'ibvs_control.bench')
+#: Sections of the graph breakdown: (node, section, what it is). Per simulated second.
+BREAKDOWN = (
+    ('sim_node', 'render', 'rendering (both lenses)'),
+    ('sim_node', 'image_messages', 'image messages: build and publish'),
+    ('sim_node', 'physics', 'physics steps'),
+    ('sim_node', 'step_messages', 'per-step messages: build and publish'),
+    ('feature_node', 'detection', 'detection (Hough, stereo)'),
+    ('adaptive_feedback_node', 'feedback_update', 'feedback update (F^-1, C1, SVD)'),
+    ('joint_controller_node', 'joint_loop', 'joint loop (M, h, G_c)'),
+    ('sim_node', 'lockstep_round_trip', 'lockstep round trips (steps without a frame)'),
+    ('recorder', 'recording', 'recording (another process, off the lockstep)'),
+)
 
 
 class Table:
@@ -60,25 +75,50 @@ def main(argv=None):
             continue
         bench.run(table.report)
     os.sched_setaffinity(0, cores)
-    graph = None
+    graph = {}
     if args.graph_duration > 0:
-        from . import runner
-        print(f'graph: scenario 1 for {args.graph_duration:.2f} s of sim time, all cores')
-        start = time.monotonic()
-        result = runner.run_scenario('scenario1', Path(args.out) / 'graph_scenario1',
-                                     duration_s=args.graph_duration,
-                                     progress=lambda line: print(line, flush=True))
-        graph = {k: result.metrics.get(k) for k in
-                 ('sim_duration_s', 'wall_duration_s', 'real_time_factor')}
-        graph['total_wall_s_with_startup'] = time.monotonic() - start
-        print(f"  real-time factor {graph['real_time_factor']:.3f} "
-              f"({graph['sim_duration_s']:.3f} s sim in {graph['wall_duration_s']:.1f} s wall)")
+        for resolution in ('HD720', 'VGA'):
+            graph[resolution] = graph_breakdown(resolution, args.graph_duration,
+                                                Path(args.out))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / 'results.json').write_text(json.dumps({'pieces': table.rows, 'graph': graph},
                                                  indent=2) + '\n')
     print(f'wrote {out / "results.json"}')
     return 0
+
+
+def graph_breakdown(resolution, duration_s, out_dir):
+    """Run scenario 1 through the graph; print and return wall time per sim second by part."""
+    from . import analysis, runner
+    print(f'graph: scenario 1 at {resolution}, {duration_s:.2f} s of sim time, all cores')
+    result = runner.run_scenario('scenario1', out_dir / f'graph_scenario1_{resolution}',
+                                 overrides={'resolution': resolution}, duration_s=duration_s,
+                                 progress=lambda line: print(line, flush=True))
+    sim_s, wall_s = result.metrics['sim_duration_s'], result.metrics['wall_duration_s']
+    timings = analysis.node_timings(result.bag_path)
+    timings['recorder'] = {
+        'sim_time_s': float(result.recording.get('profiled_sim_time_s', 0.0)),
+        'sections': {'recording': (float(result.recording.get('wall[recording]_s', 0.0)),
+                                   int(result.recording.get('count[recording]', 0)))}}
+    rows = []
+    for node, section, label in BREAKDOWN:
+        entry = timings.get(node, {})
+        total, count = entry.get('sections', {}).get(section, (0.0, 0))
+        covered = entry.get('sim_time_s', 0.0)
+        per_sim_s = total / covered if covered > 0 else float('nan')
+        per_pass_ms = total / count * 1e3 if count else float('nan')
+        rows.append({'node': node, 'section': section, 'what': label,
+                     'wall_s_per_sim_s': per_sim_s, 'per_pass_ms': per_pass_ms,
+                     'passes': count, 'sim_time_s': covered})
+        print(f'  {label:48s} {per_sim_s:7.3f} s per sim s   {per_pass_ms:8.3f} ms x {count}')
+    per_sim = wall_s / sim_s
+    print(f'  {"wall time per simulated second (total)":48s} {per_sim:7.3f} s '
+          f'(real-time factor {sim_s / wall_s:.3f}; {sim_s:.3f} s sim in {wall_s:.1f} s)')
+    return {'resolution': resolution, 'sim_duration_s': sim_s, 'wall_duration_s': wall_s,
+            'wall_s_per_sim_s': per_sim, 'real_time_factor': sim_s / wall_s,
+            'final_position_error_m': result.metrics.get('final_position_error_m'),
+            'breakdown': rows}
 
 
 if __name__ == '__main__':

@@ -14,6 +14,7 @@ import argparse
 import json
 from pathlib import Path
 import sys
+import time
 
 from . import runner, scenario
 
@@ -67,8 +68,11 @@ def cmd_demo(args):
 def cmd_report(args):
     """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
     from . import report
+    start = time.monotonic()
     path = report.build_report(Path(args.out), quick=args.quick)
     print(f'wrote {path}')
+    minutes, seconds = divmod(time.monotonic() - start, 60.0)
+    print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
     return 0
 
 

@@ -13,6 +13,7 @@ from functools import partial
 import importlib
 
 from ibvs_common import contract
+from ibvs_common.profiling import Stopwatch
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -64,6 +65,8 @@ class Recorder(Node):
         self._connections = {}
         self._topic_subs = {}
         self.clock_ns = 0
+        #: Wall time spent writing messages (ibvs_common.profiling), for ``make bench``.
+        self.timing = Stopwatch()
         self.counts = {}
         self._skipped = set()
         for topic, type_name in KNOWN_TOPICS.items():
@@ -99,10 +102,12 @@ class Recorder(Node):
             self._record(topic, types[0])
 
     def _on_message(self, topic, data):
-        if topic == contract.CLOCK:
-            clock = self._typestore.deserialize_cdr(data, 'rosgraph_msgs/msg/Clock')
-            self.clock_ns = clock.clock.sec * 1_000_000_000 + clock.clock.nanosec
-        self._writer.write(self._connections[topic], self.clock_ns, data)
+        with self.timing.section('recording'):
+            if topic == contract.CLOCK:
+                clock = self._typestore.deserialize_cdr(data, 'rosgraph_msgs/msg/Clock')
+                self.clock_ns = clock.clock.sec * 1_000_000_000 + clock.clock.nanosec
+                self.timing.reached(self.clock_ns)
+            self._writer.write(self._connections[topic], self.clock_ns, data)
         self.counts[topic] += 1
 
     def close(self):

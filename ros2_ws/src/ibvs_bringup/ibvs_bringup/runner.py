@@ -127,6 +127,8 @@ class RunResult:
     bag_path: Path
     metrics: dict
     converged: bool
+    #: The recorder's own cost: ibvs_common.profiling.Stopwatch values (``make bench``).
+    recording: dict = None
 
 
 class Monitor:
@@ -260,7 +262,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     if died:
         raise died
     metrics = write_results(bag_path, out_dir, wall_duration)
-    return RunResult(out_dir, bag_path, metrics, converged)
+    return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
 
 
 def _wait_for_nodes(executor, node, names, procs, timeout_s=60.0):

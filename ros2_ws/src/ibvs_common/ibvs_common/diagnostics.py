@@ -12,6 +12,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 
 from . import contract
+from .profiling import Stopwatch
 
 
 class Diagnostics:
@@ -32,6 +33,8 @@ class Diagnostics:
         self._pub = node.create_publisher(DiagnosticArray, contract.DIAGNOSTICS, 10)
         self.rejections = Counter()
         self.values = {}
+        #: Wall time per section of the node's work (ibvs_common.profiling), published too.
+        self.timing = Stopwatch()
         self.level = DiagnosticStatus.OK
         self.message = 'ok'
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -70,6 +73,7 @@ class Diagnostics:
         kvs.append(KeyValue(key='rejected_total', value=str(self.rejected_total)))
         kvs += [KeyValue(key=f'rejected[{k}]', value=str(n))
                 for k, n in sorted(self.rejections.items())]
+        kvs += [KeyValue(key=k, value=v) for k, v in self.timing.values().items()]
         return DiagnosticStatus(level=self.level, name=self._name, message=self.message,
                                 hardware_id=self._hardware_id, values=kvs)
 

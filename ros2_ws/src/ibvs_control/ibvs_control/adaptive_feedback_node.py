@@ -198,13 +198,15 @@ class AdaptiveFeedbackNode(Node):
                                     'q_feedback held')
         else:
             try:
-                update = self.feedback.update(features, joints[0], joints[1])
+                with self.diagnostics.timing.section('feedback_update'):
+                    update = self.feedback.update(features, joints[0], joints[1])
             except ModelError as exc:
                 self.diagnostics.reject(source, type(exc).__name__,
                                         f'{exc}; q_feedback held')
             else:
                 self._fresh(t_ns, update)
         self.last_answered_ns = t_ns
+        self.diagnostics.timing.reached(t_ns)
         self.frames += 1
         self._pub.publish(joint_state(t_ns, position=self.feedback.q_feedback))
         self.diagnostics.update(frames=self.frames, q_feedback=self.feedback.q_feedback)

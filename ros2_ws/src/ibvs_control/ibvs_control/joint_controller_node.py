@@ -188,9 +188,11 @@ class JointControllerNode(Node):
                     del self._fb[stamp]
 
     def _answer(self, t_ns, q, qd, q_ref):
-        mass = self.dynamics.mass_matrix(q)
-        bias = self.dynamics.bias(q, qd)
-        torque = self.loop.step(q_ref, q, qd, mass, bias)
+        with self.diagnostics.timing.section('joint_loop'):
+            mass = self.dynamics.mass_matrix(q)
+            bias = self.dynamics.bias(q, qd)
+            torque = self.loop.step(q_ref, q, qd, mass, bias)
+        self.diagnostics.timing.reached(t_ns)
         self._pub.publish(joint_state(t_ns, effort=torque))
         self.last_answered_ns = t_ns
         self.commands += 1

@@ -21,6 +21,8 @@ that stops the arm where it is: Simulator.hold_torque), so the run goes on and t
 its position. Each rejection is logged and counted on /diagnostics.
 """
 
+import time
+
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, InputError, joint_state, ns_stamp,
@@ -157,6 +159,8 @@ class SimNode(Node):
                                              self._on_command, contract.RELIABLE)
 
         self.started = False
+        self._frame_step = False
+        self._published_at = None
         self.frames = 0
         self.held_steps = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -206,20 +210,27 @@ class SimNode(Node):
         """Publish the outputs of the current step (module docstring, in this order)."""
         sim = self.sim
         t_ns = sim.t_ns
+        timing = self.diagnostics.timing
         self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
-        if sim.frame_due() is not None:
-            stamp, images = sim.take_frame(render=self._publish_images)
+        self._frame_step = sim.frame_due() is not None
+        if self._frame_step:
+            with timing.section('render'):
+                stamp, images = sim.take_frame(render=self._publish_images)
             self.frames += 1
             if images is not None:
-                frames = (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)
-                infos = camera_infos(sim.camera.intrinsics, stamp)
-                for pub, info_pub, image, info, frame in zip(
-                        self._pub_images, self._pub_infos, images, infos, frames):
-                    pub.publish(image_msg(image, stamp, frame))
-                    info_pub.publish(info)
-        self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
-        q, qd = sim.encoders()
-        self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
+                with timing.section('image_messages'):
+                    frames = (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)
+                    infos = camera_infos(sim.camera.intrinsics, stamp)
+                    for pub, info_pub, image, info, frame in zip(
+                            self._pub_images, self._pub_infos, images, infos, frames):
+                        pub.publish(image_msg(image, stamp, frame))
+                        info_pub.publish(info)
+        with timing.section('step_messages'):
+            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
+            q, qd = sim.encoders()
+            self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
+        self._published_at = time.perf_counter()
+        timing.reached(t_ns)
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
                                 frames=self.frames, held_steps=self.held_steps)
 
@@ -243,7 +254,13 @@ class SimNode(Node):
                                     f'{exc.detail}; holding the arm at step {self.sim.k}')
             torque = None
             self.held_steps += 1
-        self.sim.step(torque)
+        if not self._frame_step:
+            # Joint states out, effort command back: the lockstep's round trip, with the
+            # controller's own work but without a camera frame to wait for.
+            self.diagnostics.timing.add('lockstep_round_trip',
+                                        time.perf_counter() - self._published_at)
+        with self.diagnostics.timing.section('physics'):
+            self.sim.step(torque)
         self._progress_since_log = True
         self._publish_step()
 

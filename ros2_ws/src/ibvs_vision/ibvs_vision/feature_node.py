@@ -334,7 +334,9 @@ class FeatureNode(Node):
         except BehindCameraError:
             estimate = None
         prior = self._prior if self._prior is not None else estimate
-        detection = self._detector.detect(left, right, encoding, prior)
+        with self._diag.timing.section('detection'):
+            detection = self._detector.detect(left, right, encoding, prior)
+        self._diag.timing.reached(t_ns)
         if not detection.ok and estimate is None:
             self._diag.reject('stereo frame', 'no estimate',
                               'a marker is behind the camera at q_T and none was measured')
