@@ -140,16 +140,15 @@ class JointControllerNode(Node):
     def _on_feedback(self, msg):
         source = contract.Q_FEEDBACK
         t_ns = stamp_ns(msg.header.stamp)
-        needed = -1
-        if self.last_answered_ns is not None:
-            frame = feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns)
-            needed = -1 if frame is None else frame
+        # The oldest frame still needed: the one acting at the last answered step.
+        needed = (None if self.last_answered_ns is None else
+                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns))
         try:
             q = read_joints(msg)
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        if t_ns < needed:
+        if needed is not None and t_ns < needed:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
             return
         if t_ns in self._fb or len(self._fb) >= MAX_BUFFER:
