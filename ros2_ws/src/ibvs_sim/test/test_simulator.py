@@ -138,7 +138,8 @@ def test_scenario_files_hold_the_paper_values():
 
 def test_installed_urdf_is_the_generated_one():
     """urdf/irb4600_screwdriver.urdf (installed to share/ibvs_sim/urdf) is up to date."""
-    from ibvs_model.urdf import icosphere_obj, MARKER_MESH, robot_urdf
+    from ibvs_model.mesh import icosphere_obj, MARKER_MESH
+    from ibvs_model.urdf import robot_urdf
     path = Path(__file__).resolve().parents[1] / 'urdf' / 'irb4600_screwdriver.urdf'
     assert (path.parent / MARKER_MESH).read_text() == icosphere_obj()
     assert path.read_text() == robot_urdf(), (
