@@ -250,10 +250,9 @@ class World:
         ``camera`` is an :class:`ibvs_model.StereoCamera`; both lenses share its intrinsics.
         ``supersampling``: samples per pixel along each axis, 1 to MAX_SUPERSAMPLING
         (:mod:`ibvs_sim.rendering`, pixel integration); the cost grows with its square.
-        ``focus``: spheres
-        (centre in {O}, radius m), e.g. :meth:`marker_spheres`, whose images are rendered
-        again with ``focus_supersampling`` (1 to MAX_FOCUS_SUPERSAMPLING) samples per pixel
-        along each axis in the windows of :func:`focus_windows`.
+        ``focus``: spheres (centre in {O}, radius m), e.g. :meth:`marker_spheres`, whose
+        images are rendered again with ``focus_supersampling`` (1 to MAX_FOCUS_SUPERSAMPLING)
+        samples per pixel along each axis in the windows of :func:`focus_windows`.
         """
         if not isinstance(camera, StereoCamera):
             raise TypeError('camera must be an ibvs_model.StereoCamera')
