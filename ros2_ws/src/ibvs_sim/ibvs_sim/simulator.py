@@ -21,6 +21,7 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
+from .lens_worker import LensWorkerError
 from .world import (check_mount_height, DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M,
                     MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, RendererError, World)
 
@@ -39,7 +40,8 @@ class Simulator:
     The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
 
     Raises :class:`ConfigError` at construction for a configuration it cannot run: rates,
-    scenario, unreachable start pose, camera pose, renderer.
+    scenario, unreachable start pose, camera pose, renderer. ``parallel_lenses`` renders the
+    right lens in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
     """
 
     def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
@@ -47,7 +49,7 @@ class Simulator:
                  camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
                  renderer='auto', supersampling=1,
                  marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING,
-                 mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
+                 mount_height_m=DEFAULT_MOUNT_HEIGHT_M, parallel_lenses=False):
         """Check the configuration, solve the start pose and build the PyBullet world."""
         for name, rate in (('physics_rate_hz', physics_rate_hz),
                            ('camera_rate_hz', camera_rate_hz)):
@@ -103,9 +105,11 @@ class Simulator:
             raise ConfigError('mount_height_m', str(exc)) from None
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer,
-                               mount_height_m=mount_height_m)
+                               mount_height_m=mount_height_m, lens_worker=parallel_lenses)
         except RendererError as exc:
             raise ConfigError('renderer', str(exc)) from None
+        except LensWorkerError as exc:
+            raise ConfigError('render_parallel_lenses', str(exc)) from None
         self.world.reset(self.q_start)
         self.k = 0
         self.next_frame = 0

@@ -30,6 +30,7 @@ from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
 import pybullet
 
+from .lens_worker import LensWorker
 from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
                         DEFAULT_SUPERSAMPLING, EGL_WINDOW, FAR_M, focus_windows, gl_matrix,
                         lens_poses, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M,
@@ -87,10 +88,14 @@ class World:
     ``renderer``: 'egl' (fail if the plugin does not load), 'tiny', or 'auto' (EGL where it
     loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'. One
     World per process at a time can use EGL; 'auto' gives the others TinyRenderer.
+
+    ``lens_worker``: render the right lens in a second process (:mod:`ibvs_sim.lens_worker`)
+    while this one renders the left, so that a stereo pair takes about one lens's time on
+    two cores; the images are the same.
     """
 
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
-                 with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
+                 with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M, lens_worker=False):
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
         self.mount_height_m = check_mount_height(mount_height_m)
         if renderer not in RENDERERS:
@@ -101,10 +106,16 @@ class World:
         self.dt = 1.0 / physics_rate_hz
         self._client = pybullet.connect(pybullet.DIRECT)
         self._plugin = None
+        self._lens_worker = None
         try:
             # The EGL plugin only draws bodies loaded after it: load it first.
             self.renderer = self._setup_renderer(renderer)
             self._setup(with_tool)
+            if lens_worker:
+                self._lens_worker = LensWorker({
+                    'params': params, 'physics_rate_hz': physics_rate_hz,
+                    'renderer': self.renderer, 'with_tool': with_tool,
+                    'mount_height_m': self.mount_height_m})
         except Exception:
             self.close()
             raise
@@ -186,8 +197,11 @@ class World:
         return 'egl'
 
     def close(self):
-        """Disconnect the client (idempotent)."""
+        """Stop the lens worker and disconnect the client (idempotent)."""
         global _egl_owner
+        if self._lens_worker is not None:
+            self._lens_worker.close()
+            self._lens_worker = None
         if self._client is not None and self._call(pybullet.isConnected):
             if self._plugin is not None:
                 self._call(pybullet.unloadPlugin, self._plugin)
@@ -262,21 +276,32 @@ class World:
         if focus_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
             raise ValueError('focus_supersampling must be an int in '
                              f'[1, {MAX_FOCUS_SUPERSAMPLING}], got {focus_supersampling!r}')
-        coarse = camera.intrinsics
-        images = []
-        for pose in lens_poses(camera):
-            view = gl_matrix(view_matrix(pose))
-            image = self._render(view, coarse, supersampling)
-            if focus and focus_supersampling > supersampling:
-                windows = focus_windows(coarse, pose, focus)
-                if self.renderer == 'egl':
-                    windows = render_windows(windows, focus_supersampling)
-                for window in windows:
-                    u0, v0, u1, v1 = window
-                    image[v0:v1, u0:u1] = self._render(
-                        view, window_intrinsics(coarse, window), focus_supersampling)
-            images.append(image)
-        return tuple(images)
+        left, right = lens_poses(camera)
+        args = (camera.intrinsics, supersampling, tuple(focus), focus_supersampling)
+        if self._lens_worker is None:
+            return self.render_lens(left, *args), self.render_lens(right, *args)
+        self._lens_worker.submit(self.joint_state()[0], right, *args)
+        image = self.render_lens(left, *args)
+        return image, self._lens_worker.result()
+
+    def render_lens(self, pose, intrinsics, supersampling=1, focus=(),
+                    focus_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
+        """
+        Return the RGB image (H, W, 3) uint8 of one lens at ``pose`` (T of its optical frame).
+
+        The arguments are those of :meth:`render_stereo`, checked there.
+        """
+        view = gl_matrix(view_matrix(pose))
+        image = self._render(view, intrinsics, supersampling)
+        if focus and focus_supersampling > supersampling:
+            windows = focus_windows(intrinsics, pose, focus)
+            if self.renderer == 'egl':
+                windows = render_windows(windows, focus_supersampling)
+            for window in windows:
+                u0, v0, u1, v1 = window
+                image[v0:v1, u0:u1] = self._render(
+                    view, window_intrinsics(intrinsics, window), focus_supersampling)
+        return image
 
     def _render(self, view, intrinsics, supersampling):
         """Return the image with ``intrinsics`` rendered with s x s samples per pixel."""
