@@ -1,9 +1,11 @@
 """
 sim_node: the simulated plant (paper Figure 3) on the contract of DESIGN sections 3 and 4.
 
-Lockstep. At step k (sim time t_k, from 0) the node publishes /clock, the camera frame due
-at t_k if any (both images and CameraInfo, stamped n * T_cam), /ibvs/tool_pose and, last,
-/joint_states (encoder angles q - d_q, velocities, the torque of the previous step). It then
+Lockstep. At step k (sim time t_k, from 0) the node publishes, first, /joint_states (encoder
+angles q - d_q, velocities, the torque of the previous step), so that the joint controller
+works on step k while the rest goes out: /clock, /ibvs/tool_pose and the camera frame due
+at t_k if any (both images and CameraInfo, stamped n * T_cam). Every consumer matches its
+inputs by stamp, so the order changes no result. It then
 waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
 torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
 sleeps, so any number of nodes can share one executor. While it waits, a steady-clock timer
@@ -217,7 +219,13 @@ class SimNode(Node):
         sim = self.sim
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
-        self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+        with timing.section('step_messages'):
+            q, qd = sim.encoders()
+            self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
+            self._published_at = time.perf_counter()
+            # The controller works on step k from here on, while the rest is published.
+            self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
         self._frame_step = sim.frame_due() is not None
         if self._frame_step:
             with timing.section('render'):
@@ -231,11 +239,6 @@ class SimNode(Node):
                             self._pub_images, self._pub_infos, images, infos, frames):
                         pub.publish(image_msg(image, stamp, frame))
                         info_pub.publish(info)
-        with timing.section('step_messages'):
-            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
-            q, qd = sim.encoders()
-            self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
-        self._published_at = time.perf_counter()
         timing.reached(t_ns)
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
                                 frames=self.frames, held_steps=self.held_steps)
