@@ -37,7 +37,7 @@ from ibvs_common.conversions import (camera_from_msgs, features_msg, InputError,
                                      pose_matrix, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
-from ibvs_common.params import declare, Param, ParameterError
+from ibvs_common.params import declare, Param
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
@@ -45,6 +45,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from .blend import BumplessSwitch
 from .detector import DetectorConfig, StereoDetector
+from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
 from .imageconv import image_array
 
 PARAMS = (
@@ -54,21 +55,7 @@ PARAMS = (
     Param('hold_model_error', False, 'while the markers are not seen, publish F(q_T) plus '
           'the model error the last measurement showed instead of F(q_T) alone (the paper)',
           '-'),
-    Param('epipolar_tolerance_px', 1.5, 'largest |v_left - v_right| of one marker in a '
-          'rectified pair', 'px', low=0.0, high=50.0, low_open=True),
-    Param('hough_min_radius_px', 2, 'smallest marker image radius searched by the Hough '
-          'transform', 'px', low=1, high=200),
-    Param('hough_max_radius_px', 40, 'largest marker image radius searched by the Hough '
-          'transform', 'px', low=2, high=1000),
-    Param('hough_canny_high', 60.0, 'upper Canny threshold of the Hough transform on the '
-          'colour channel (cv2.HoughCircles param1)', '-', low=1.0, high=1000.0),
-    Param('hough_votes', 6, 'accumulator votes a circle centre needs (cv2.HoughCircles '
-          'param2)', '-', low=1, high=1000),
-    Param('min_colour_score', 25.0, 'least median colour channel (dominant channel minus '
-          'the largest other) inside a marker', '0-255', low=1.0, high=255.0),
-    Param('roi_margin_px', 40, 'search first within this margin around the last measured '
-          'or the estimated features, then the whole image; 0: always the whole image',
-          'px', low=0, high=2000),
+    *DETECTOR_PARAMS,
     Param('joint_history_s', 2.0, 'how long joint states are kept to match image stamps',
           's', low=0.0, high=60.0, low_open=True),
     shared_params.PHYSICS_RATE_HZ,
@@ -96,15 +83,7 @@ class FeatureNode(Node):
         """Declare and check the parameters, then create the subscriptions and publishers."""
         super().__init__('feature_node', **kwargs)
         p = declare(self, PARAMS)
-        if p['hough_min_radius_px'] >= p['hough_max_radius_px']:
-            raise ParameterError(
-                f"parameter 'hough_max_radius_px' = {p['hough_max_radius_px']} is invalid: "
-                f"it must exceed 'hough_min_radius_px' = {p['hough_min_radius_px']}")
-        self._config = DetectorConfig(
-            min_radius_px=p['hough_min_radius_px'], max_radius_px=p['hough_max_radius_px'],
-            canny_high=p['hough_canny_high'], votes=p['hough_votes'],
-            min_score=p['min_colour_score'], epipolar_tolerance_px=p['epipolar_tolerance_px'],
-            roi_margin_px=p['roi_margin_px'])
+        self._config = DetectorConfig.from_parameters(p)
         self._stale_ns = int(round(p['stale_timeout_s'] * 1e9))
         self._history_ns = int(round(p['joint_history_s'] * 1e9))
         self._window_ns = int(round(1e9 / p['physics_rate_hz']))

@@ -13,7 +13,7 @@ marker 2 blue):
    image, restricted to the 8 x 8 blocks where the marker's hue is present (grown by the
    largest radius), which finds the same circles in a fraction of the time.
 3. **Sub-pixel refinement.** Around each circle, the outer contour of the marker-hue pixels
-   (s_sel above half of ``min_score``) is the object, holes (highlights) filled. Its
+   (s_sel above half of ``min_colour_score``) is the object, holes (highlights) filled. Its
    interior pixels count 1; each rim pixel p is unmixed as p = x * m + y * b (m the marker
    colour at any brightness, b the mean background colour just outside), so that its
    coverage 1 - y does not depend on the shading of the sphere. The centre is the area

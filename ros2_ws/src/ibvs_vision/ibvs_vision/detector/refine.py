@@ -94,7 +94,7 @@ def refine_circle(image, encoding, k, u, v, r, bounds,
         return None, 'too small', None
     linear, selective = colour_scores(image[y0:y1, x0:x1], cfg.marker_rgb[k], encoding)
     # The object: the outer contour of the marker-hue pixels around the circle's centre.
-    binary = (selective >= 0.5 * cfg.min_score).astype(np.uint8)
+    binary = (selective >= 0.5 * cfg.min_colour_score).astype(np.uint8)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     centre = (float(u - x0), float(v - y0))
     best, best_dist = None, -max(r, 1.5)
@@ -119,7 +119,7 @@ def refine_circle(image, encoding, k, u, v, r, bounds,
     cv2.drawContours(filled, [best], -1, 1, cv2.FILLED)
     inside = filled.astype(bool)
     level = float(np.median(linear[inside]))
-    if level < cfg.min_score:
+    if level < cfg.min_colour_score:
         return None, 'too faint', box
     patch = image[y0:y1, x0:x1]
     if encoding != 'rgb8':
@@ -132,7 +132,7 @@ def refine_circle(image, encoding, k, u, v, r, bounds,
     cv = float(cover.sum(axis=1) @ ys) / m00
     direction, stretch = line_of_sight_stretch(intrinsics, cu, cv)
     radius = math.sqrt(m00 / (math.pi * stretch))
-    if radius < 0.5 * cfg.min_radius_px:
+    if radius < 0.5 * cfg.hough_min_radius_px:
         return None, 'too small', box
     # Shape: second moments and the extent of the outline, the off-axis stretch undone.
     dx, dy = xs - cu, ys - cv

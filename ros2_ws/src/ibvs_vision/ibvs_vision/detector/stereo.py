@@ -146,7 +146,7 @@ class StereoDetector:
         """
         Return the windows (x0, y0, x1, y1) of ``score`` where the Hough transform can matter.
 
-        A circle is only accepted where the marker's colour is (s_sel >= min_score / 2, as
+        A circle is only accepted where the marker's colour is (s_sel >= min_colour_score / 2, as
         in :meth:`_refine`), so the transform runs on the blocks of 8 x 8 pixels that hold
         enough such pixels, grown by the largest radius and merged: the same circles as on
         the whole image, for a fraction of the time. Many scattered blocks (clutter) give
@@ -157,7 +157,7 @@ class StereoDetector:
         bw, bh = -(-width // _BLOCK), -(-height // _BLOCK)
         hot = self._buffer('hot', (bh * _BLOCK, bw * _BLOCK))
         hot[height:], hot[:, width:] = 0, 0
-        cv2.threshold(score, 0.5 * cfg.min_score - 1e-3, 255, cv2.THRESH_BINARY,
+        cv2.threshold(score, 0.5 * cfg.min_colour_score - 1e-3, 255, cv2.THRESH_BINARY,
                       dst=hot[:height, :width])
         # Mean of each block as a share of 255, by three 2 x 2 averages (OpenCV's fast path).
         means = hot
@@ -165,12 +165,12 @@ class StereoDetector:
             half = self._buffer(f'half{level}', (means.shape[0] // 2, means.shape[1] // 2))
             means = cv2.resize(means, (half.shape[1], half.shape[0]), dst=half,
                                interpolation=cv2.INTER_AREA)
-        min_pixels = min(0.25 * math.pi * cfg.min_radius_px ** 2, 0.5 * _BLOCK * _BLOCK)
+        min_pixels = min(0.25 * math.pi * cfg.hough_min_radius_px ** 2, 0.5 * _BLOCK * _BLOCK)
         blocks = (means >= 255.0 * min_pixels / (_BLOCK * _BLOCK) - 0.5).astype(np.uint8)
         n, _, stats, _ = cv2.connectedComponentsWithStats(blocks, connectivity=8)
         if n - 1 > _MAX_REGIONS:
             return [(0, 0, width, height)]
-        grow = 2 * cfg.max_radius_px + 8
+        grow = 2 * cfg.hough_max_radius_px + 8
         boxes = []
         for x, y, w, h, _ in stats[1:]:
             boxes.append([max(0, x * _BLOCK - grow), max(0, y * _BLOCK - grow),
@@ -181,14 +181,15 @@ class StereoDetector:
     def _hough(self, score):
         cfg = self.config
         h, w = score.shape
-        if min(h, w) < 2 * cfg.min_radius_px + 3:
+        if min(h, w) < 2 * cfg.hough_min_radius_px + 3:
             return []
         # A light blur keeps the gradient of a small disc whole where a highlight dents it.
         circles = cv2.HoughCircles(cv2.GaussianBlur(score, (3, 3), 0), cv2.HOUGH_GRADIENT,
                                    dp=1,
-                                   minDist=max(4.0, 2.0 * cfg.min_radius_px),
-                                   param1=cfg.canny_high, param2=cfg.votes,
-                                   minRadius=cfg.min_radius_px, maxRadius=cfg.max_radius_px)
+                                   minDist=max(4.0, 2.0 * cfg.hough_min_radius_px),
+                                   param1=cfg.hough_canny_high, param2=cfg.hough_votes,
+                                   minRadius=cfg.hough_min_radius_px,
+                                   maxRadius=cfg.hough_max_radius_px)
         if circles is None:
             return []
         return [tuple(float(x) for x in c) for c in circles[0, :cfg.max_candidates]]
@@ -219,7 +220,7 @@ class StereoDetector:
         if prior.shape != (6,) or not np.all(np.isfinite(prior)):
             return None
         height, width = shape[:2]
-        m = self.config.roi_margin_px + self.config.max_radius_px // 2 + 4
+        m = self.config.roi_margin_px + self.config.hough_max_radius_px // 2 + 4
         rois = ([], [])
         for k in range(2):
             u_l, u_r, v = prior[3 * k:3 * k + 3]
