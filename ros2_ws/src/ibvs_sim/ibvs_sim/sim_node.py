@@ -27,8 +27,8 @@ import time
 
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_infos, InputError, joint_state, ns_stamp,
-                                     pose_stamped, read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
+                                     ns_stamp, pose_stamped, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
@@ -89,19 +89,6 @@ PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
 WAIT_LOG_S = 1.0
-
-
-def image_msg(image, stamp, frame_id):
-    """Return an (H, W, 3) uint8 RGB array as sensor_msgs/Image (encoding rgb8)."""
-    msg = Image()
-    msg.header.stamp = ns_stamp(stamp)
-    msg.header.frame_id = frame_id
-    msg.height, msg.width = int(image.shape[0]), int(image.shape[1])
-    msg.encoding = 'rgb8'
-    msg.is_bigendian = 0
-    msg.step = int(image.shape[1]) * 3
-    msg.data = np.ascontiguousarray(image, dtype=np.uint8).tobytes()
-    return msg
 
 
 class SimNode(Node):
@@ -237,7 +224,7 @@ class SimNode(Node):
                     infos = camera_infos(sim.camera.intrinsics, stamp)
                     for pub, info_pub, image, info, frame in zip(
                             self._pub_images, self._pub_infos, images, infos, frames):
-                        pub.publish(image_msg(image, stamp, frame))
+                        pub.publish(image_msg(image, stamp, 'rgb8', frame))
                         info_pub.publish(info)
         timing.reached(t_ns)
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
