@@ -20,8 +20,9 @@ from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
-from .controllers import (AdaptiveFeedback, DAMPING, Feedforward, HOLD_SPEED, JointLoop,
-                          LINEARISE_AT, MAX_CORRECTION, RCOND)
+from .controllers import (DAMPING, Feedforward, HOLD_SPEED, JointLoop, LINEARISE_AT,
+                          MAX_CORRECTION, RCOND)
+from .servo_laws import feedforward_method_for, make_law, SWITCH_SETTLE
 
 
 @dataclass
@@ -57,7 +58,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              torque_max=None, estimate_out_of_view=True, feedforward_method='sampled',
              feedback_design='sampled', rcond=RCOND, damping=DAMPING,
              max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None,
-             integration='exact', linearise_at=LINEARISE_AT):
+             integration='exact', linearise_at=LINEARISE_AT, servo_law='paper', gain=None,
+             switch_settle=SWITCH_SETTLE):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -71,6 +73,10 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     acceleration over a step: the continuous arm) or 'semi-implicit' (qd += a dt, then
     q += qd dt: how PyBullet steps the simulated arm; use it to compare with the graph).
     ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
+    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; ibvs and pbvs run with the
+    feedforward held at q(0) ('hold'), ``gain`` (:class:`.servo_laws.AdaptiveGain`) is
+    theirs, ``switch_settle`` (s) the switching law's. A frame is 'measured' when both
+    markers are in view of the true robot.
     """
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera, model.params if plant_params is None
@@ -92,10 +98,13 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     q = q_true0 - d_q
     qd = np.zeros(6)
     joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_max)
-    ff = Feedforward(pose, tau_in, dt, model.params, method=feedforward_method)
+    ff = Feedforward(pose, tau_in, dt, model.params,
+                     method=feedforward_method_for(servo_law, feedforward_method))
     q_target = ff.start(q)
-    fb = AdaptiveFeedback(model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, rcond, damping,
-                          feedback_design, max_correction, hold_speed, linearise_at)
+    fb = make_law(servo_law, model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, gain,
+                  switch_settle, rcond=rcond, damping=damping, design=feedback_design,
+                  max_correction=max_correction, hold_speed=hold_speed,
+                  linearise_at=linearise_at)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
@@ -111,7 +120,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
             p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
                 else model.features(q)
             try:
-                feedback_by_stamp[next_frame * cam_ns] = fb.update(p_hat, q, qd).q_feedback
+                feedback_by_stamp[next_frame * cam_ns] = fb.update(
+                    p_hat, q, qd, measured=measured, t=next_frame * cam_ns * 1e-9).q_feedback
             except ModelError:
                 # As the node: a frame F^-1 cannot use is rejected, q_feedback held.
                 feedback_by_stamp[next_frame * cam_ns] = fb.q_feedback

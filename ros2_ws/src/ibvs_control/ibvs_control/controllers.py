@@ -157,7 +157,9 @@ class Feedforward:
     the target at t = 0 instead would make q_ff(0) = q0 + D (q_target - q0), D ~ 15 at
     1 kHz: the biproper filter's first answer to a step.)
     ``method``: 'sampled' (default, :func:`.youla.feedforward_discrete`, the inverse of the
-    sampled inner loop) or 'tustin' / 'zoh' (eq. 44 discretised by scipy).
+    sampled inner loop) or 'tustin' / 'zoh' (eq. 44 discretised by scipy), or 'hold': no
+    feedforward, q_ff = q(0) at every step (the servo laws whose feedback carries the whole
+    move, :mod:`.servo_laws`); the target is still checked reachable.
     """
 
     def __init__(self, pose, tau_in, dt, params=IRB4600, ratio=0.1, method='sampled'):
@@ -165,13 +167,15 @@ class Feedforward:
         self.pose = np.asarray(pose, dtype=float)
         self.params = params
         check_reachable(self.pose, params)
-        if method == 'sampled':
+        self.hold = method == 'hold'
+        if method in ('sampled', 'hold'):
             design = youla.feedforward_discrete(tau_in, dt, ratio)
         elif method in ('tustin', 'zoh'):
             design = youla.feedforward(tau_in, ratio).discretise(
                 dt, 'bilinear' if method == 'tustin' else 'zoh')
         else:
-            raise ValueError(f"method must be 'sampled', 'tustin' or 'zoh', got {method!r}")
+            raise ValueError(f"method must be 'sampled', 'tustin', 'zoh' or 'hold', got "
+                             f'{method!r}')
         self.filter = StateSpaceFilter(design, 6)
         self.q_target = None
         self.q_start = None
@@ -189,9 +193,12 @@ class Feedforward:
         return self.q_target
 
     def step(self):
-        """Return q_feedforward for the next sample (the first one is q0)."""
+        """Return q_feedforward for the next sample (the first one is q0; 'hold': all)."""
         if not self.started:
             raise RuntimeError('Feedforward.start(q0) first')
+        if self.hold:
+            self.filter.steps += 1
+            return self.q_start.copy()
         return self.filter.step(self.q_start if self.filter.steps == 0 else self.q_target)
 
     def trajectory(self, max_samples=MAX_FEEDFORWARD_SAMPLES, atol=SETTLED_RAD,
@@ -320,9 +327,12 @@ class AdaptiveFeedback:
         """Return the latest output of k (zeros before the first frame)."""
         return self.filter.last_output.copy()
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None):
+    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
         """
         Return the :class:`FeedbackUpdate` of one frame and advance k one sample.
+
+        ``measured`` and ``t`` (the frame time) are ignored: the paper's law integrates
+        estimated features too (the signature is that of :mod:`.servo_laws`).
 
         Raises ibvs_model.ModelError (bad features, no triangulation, no IK branch); the
         state is then unchanged and the caller holds the previous q_feedback.
