@@ -5,6 +5,8 @@ Commands:
 
 - ``run <scenario> [-o DIR] [--duration S] [--images] [-p name:=value ...]``: one run of a
   scenario (``scenario1``..``scenario3`` or a parameter file) through the node graph;
+  ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given:
+  those laws have no feedforward (:mod:`ibvs_control.servo_laws`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
 - ``report``: scenarios 1-3 and the L2/L4 robustness sweep into ``results/report.md``.
@@ -15,6 +17,8 @@ import json
 from pathlib import Path
 import sys
 import time
+
+from ibvs_control.servo_laws import WITHOUT_FEEDFORWARD
 
 from . import runner, scenario
 
@@ -30,9 +34,16 @@ def _print_summary(metrics, out=sys.stdout):
         print(f'  {key:28s} {text}', file=out)
 
 
+def with_servo_law(overrides):
+    """Return ``overrides`` with feedforward_method 'hold' added for servo_law ibvs / pbvs."""
+    if overrides.get('servo_law') in WITHOUT_FEEDFORWARD:
+        overrides.setdefault('feedforward_method', 'hold')
+    return overrides
+
+
 def cmd_run(args):
     """Run one scenario and print its metrics."""
-    overrides = dict(scenario.parse_override(p) for p in args.param)
+    overrides = with_servo_law(dict(scenario.parse_override(p) for p in args.param))
     out = Path(args.out or Path('results') / Path(args.scenario).stem)
     print(f'running {args.scenario} -> {out}')
     try:

@@ -190,3 +190,18 @@ def test_paper_law_is_unchanged_by_the_new_signature():
     np.testing.assert_array_equal(a.q, b.q)
     with pytest.raises(ValueError, match='servo_law'):
         simulate(1, 0.1, servo_law='nope')
+
+
+def test_parameters_of_the_laws_are_checked_at_start():
+    from ibvs_common.params import ParameterError
+    from ibvs_control.node_params import check_servo_law
+    values = {'servo_law': 'ibvs', 'feedforward_method': 'hold', 'lambda_0': 12.0,
+              'lambda_inf': 3.0, 'lambda_slope': 0.09}
+    assert check_servo_law(values)(0.0) == 12.0
+    with pytest.raises(ParameterError, match="'feedforward_method' = 'sampled'.*'hold'"):
+        check_servo_law(dict(values, feedforward_method='sampled'))
+    with pytest.raises(ParameterError, match="'feedforward_method' = 'hold'.*'paper'"):
+        check_servo_law(dict(values, servo_law='paper'))
+    with pytest.raises(ParameterError, match="'lambda_inf' = 20.0"):
+        check_servo_law(dict(values, lambda_inf=20.0))
+    assert check_servo_law(dict(values, lambda_inf=20.0, lambda_slope=0.0))(1e3) == 12.0
