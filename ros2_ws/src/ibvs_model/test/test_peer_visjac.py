@@ -19,7 +19,7 @@ import pytest
 mvt = pytest.importorskip(
     'machinevisiontoolbox',
     reason="Corke's machinevision-toolbox-python is not installed (it is pinned in "
-           'requirements.txt; the Docker image does not carry it)')
+           'requirements-test.txt; the Docker image does not carry it)')
 SE3 = pytest.importorskip('spatialmath').SE3
 
 
