@@ -221,32 +221,3 @@ def analyse_bag(bag_path):
                               run.modes, run.run_info.get('wall_duration_s'),
                               run.params.get('scenario_name', run.params.get('scenario')))
     return run, metrics
-
-
-#: Columns of :func:`law_rows`, in order.
-LAW_COLUMNS = ('servo_law', 'scenario', 'final_position_error_m', 'final_tool_axis_error_deg',
-               'max_overshoot_m', 'time_to_1mm_s', 'time_estimated_s', 'sim_duration_s')
-
-
-def law_rows(results_dir):
-    """
-    Return one dict per run under ``results_dir`` (any depth), for a table of servo laws.
-
-    A run is a folder with ``metrics.json`` and the ``params.yaml`` the runner wrote; its
-    law is the parameter ``servo_law`` ('paper' when absent). Rows are sorted by scenario,
-    then law; the keys are :data:`LAW_COLUMNS`.
-    """
-    import json
-    rows = []
-    for metrics_path in sorted(Path(results_dir).rglob('metrics.json')):
-        params_path = metrics_path.parent / 'params.yaml'
-        params = {}
-        if params_path.exists():
-            loaded = yaml.safe_load(params_path.read_text()) or {}
-            params = loaded.get('/**', {}).get('ros__parameters', loaded)
-        metrics = json.loads(metrics_path.read_text())
-        row = {key: metrics.get(key) for key in LAW_COLUMNS}
-        row['servo_law'] = params.get('servo_law', 'paper')
-        row['scenario'] = params.get('scenario', metrics.get('scenario'))
-        rows.append(row)
-    return sorted(rows, key=lambda r: (str(r['scenario']), r['servo_law']))

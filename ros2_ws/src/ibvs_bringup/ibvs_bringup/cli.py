@@ -9,7 +9,9 @@ Commands:
   those laws have no feedforward (:mod:`ibvs_control.servo_laws`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
-- ``report``: scenarios 1-3 and the L2/L4 robustness sweep into ``results/report.md``.
+- ``report [--laws]``: scenarios 1-3 and the L2/L4 robustness sweep into
+  ``results/report.md``; ``--laws`` adds each servo law on scenarios 1-3 with ideal and
+  with limited actuators (:mod:`ibvs_bringup.laws_report`).
 """
 
 import argparse
@@ -80,7 +82,7 @@ def cmd_report(args):
     """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
     from . import report
     start = time.monotonic()
-    path = report.build_report(Path(args.out), quick=args.quick)
+    path = report.build_report(Path(args.out), quick=args.quick, laws=args.laws)
     print(f'wrote {path}')
     minutes, seconds = divmod(time.monotonic() - start, 60.0)
     print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
@@ -109,6 +111,8 @@ def main(argv=None):
     p = sub.add_parser('report', help=cmd_report.__doc__)
     p.add_argument('-o', '--out', default='results', help='results directory')
     p.add_argument('--quick', action='store_true', help='sweep endpoints only')
+    p.add_argument('--laws', action='store_true',
+                   help='also each servo law on scenarios 1-3, two actuator cases')
     p.set_defaults(func=cmd_report)
     args = parser.parse_args(argv)
     try:

@@ -15,7 +15,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import runner  # noqa: E402
+from . import laws_report, runner  # noqa: E402
 
 SWEEP_SCALES = (0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
 
@@ -64,8 +64,12 @@ def sweep_figure(rows, path):
     plt.close(fig)
 
 
-def build_report(out_dir, quick=False, progress=print):
-    """Run everything and write ``<out_dir>/report.md``; return its path."""
+def build_report(out_dir, quick=False, progress=print, laws=False):
+    """
+    Run everything and write ``<out_dir>/report.md``; return its path.
+
+    ``laws``: also the servo laws side by side (:mod:`.laws_report`, 24 runs).
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scenarios = {name: _run(name, out_dir / name, progress=progress)
@@ -134,6 +138,9 @@ def build_report(out_dir, quick=False, progress=print):
     lines += ['', '![robustness](robustness.png)', '']
     within = np.all([r['final_position_error_m'] <= 0.01 for r in rows])
     lines += [f"Every sweep point within 1 cm: {'yes' if within else 'NO'}.", '']
+    if laws:
+        runs = laws_report.run_all(out_dir / 'laws', progress=progress)
+        lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path

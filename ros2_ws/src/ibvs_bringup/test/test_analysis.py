@@ -102,17 +102,3 @@ def test_scenario_overrides_and_parameter_files(tmp_path):
     bad.write_text('node: {}\n')
     with pytest.raises(scenario.ScenarioError, match='ros__parameters'):
         scenario.load_parameters(bad)
-
-
-def test_law_rows_reads_a_results_directory(tmp_path):
-    import json
-    for name, law, scen, err in (('a', 'ibvs', 1, 0.5), ('b', None, 2, 1e-4)):
-        run = tmp_path / name
-        run.mkdir()
-        params = {'scenario': scen, **({'servo_law': law} if law else {})}
-        scenario.write_parameters(params, run / 'params.yaml')
-        (run / 'metrics.json').write_text(json.dumps({'final_position_error_m': err}))
-    rows = analysis.law_rows(tmp_path)
-    assert [(r['scenario'], r['servo_law'], r['final_position_error_m']) for r in rows] == \
-        [(1, 'ibvs', 0.5), (2, 'paper', 1e-4)]
-    assert set(rows[0]) == set(analysis.LAW_COLUMNS)

@@ -8,7 +8,7 @@ Servo laws beside the paper's (no ROS): classic IBVS, PBVS, switching, by proper
 - ibvs and pbvs hold still while the markers are not measured.
 """
 
-from ibvs_control import servo_laws
+from ibvs_control import controllers, servo_laws
 from ibvs_control.closed_loop import simulate
 from ibvs_control.controllers import Feedforward
 from ibvs_control.servo_laws import (AdaptiveGain, axis_error, ClassicIBVS, make_law, PBVS,
@@ -60,6 +60,11 @@ def test_hold_feedforward_stays_at_the_initial_joints():
     ff.start(q0)
     for _ in range(50):
         np.testing.assert_array_equal(ff.step(), q0)
+    # the latched trajectory form (feedforward_node): a short constant one, its last row held
+    ff.start(q0)
+    rows = ff.trajectory()
+    assert 2 <= rows.shape[0] <= 2 + controllers.SETTLED_SAMPLES
+    np.testing.assert_array_equal(rows, np.tile(q0, (rows.shape[0], 1)))
     assert servo_laws.feedforward_method_for('ibvs') == 'hold'
     assert servo_laws.feedforward_method_for('switching', 'tustin') == 'tustin'
 
