@@ -5,8 +5,9 @@ Commands:
 
 - ``run <scenario> [-o DIR] [--duration S] [--images] [-p name:=value ...]``: one run of a
   scenario (``scenario1``..``scenario3`` or a parameter file) through the node graph;
-  ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given:
-  those laws have no feedforward (:mod:`ibvs_control.servo_laws`);
+  ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
+  (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
+  (:func:`ibvs_control.servo_laws.feedforward_overrides`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
 - ``report [--laws]``: scenarios 1-3 and the L2/L4 robustness sweep into
@@ -20,7 +21,7 @@ from pathlib import Path
 import sys
 import time
 
-from ibvs_control.servo_laws import WITHOUT_FEEDFORWARD
+from ibvs_control.servo_laws import feedforward_overrides
 
 from . import runner, scenario
 
@@ -37,9 +38,10 @@ def _print_summary(metrics, out=sys.stdout):
 
 
 def with_servo_law(overrides):
-    """Return ``overrides`` with feedforward_method 'hold' added for servo_law ibvs / pbvs."""
-    if overrides.get('servo_law') in WITHOUT_FEEDFORWARD:
-        overrides.setdefault('feedforward_method', 'hold')
+    """Return ``overrides`` with the feedforward parameters of its servo_law added."""
+    law = overrides.get('servo_law')
+    for key, value in (feedforward_overrides(law) if law is not None else {}).items():
+        overrides.setdefault(key, value)
     return overrides
 
 

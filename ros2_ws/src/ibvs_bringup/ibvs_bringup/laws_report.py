@@ -23,7 +23,7 @@ import json
 from pathlib import Path
 
 from ibvs_common import contract
-from ibvs_control.servo_laws import feedforward_method_for, SERVO_LAWS
+from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
 from ibvs_model import IRB4600
 import matplotlib
 
@@ -69,9 +69,8 @@ class LawRun:
 
 
 def overrides_for(law, case):
-    """Return the parameter overrides of one run (the law's feedforward_method included)."""
-    return {**CASES[case], 'servo_law': law,
-            'feedforward_method': feedforward_method_for(law)}
+    """Return the parameter overrides of one run (the law's feedforward ones included)."""
+    return {**CASES[case], 'servo_law': law, **feedforward_overrides(law)}
 
 
 def plan(out_dir, laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):

@@ -30,8 +30,9 @@ def test_plan_covers_every_law_scenario_and_case_ideal_first(tmp_path):
     cases = [o['actuators'] for _, _, o in plan]
     assert cases == sorted(cases), 'ideal before limited'
     for _, _, overrides in plan:
-        vision_only = overrides['servo_law'] in ('ibvs', 'pbvs')
-        assert (overrides['feedforward_method'] == 'hold') == vision_only
+        law = overrides['servo_law']
+        assert (overrides.get('feedforward_method') == 'hold') == (law in ('ibvs', 'pbvs'))
+        assert ('feedforward_ratio' in overrides) == (law == 'switching')
         assert overrides['feedback_latency_s'] == (0.067 if overrides['actuators'] ==
                                                    'limited' else 0.0)
 

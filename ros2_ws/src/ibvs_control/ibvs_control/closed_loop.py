@@ -20,9 +20,10 @@ from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
-from .controllers import (DAMPING, Feedforward, HOLD_SPEED, JointLoop, LINEARISE_AT,
-                          MAX_CORRECTION, RCOND)
-from .servo_laws import feedforward_method_for, make_law, SWITCH_SETTLE
+from .controllers import (DAMPING, Feedforward, FEEDFORWARD_RATIO, HOLD_SPEED, JointLoop,
+                          LINEARISE_AT, MAX_CORRECTION, RCOND)
+from .servo_laws import (feedforward_method_for, feedforward_overrides, make_law,
+                         SWITCH_SETTLE)
 
 
 @dataclass
@@ -59,7 +60,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              feedback_design='sampled', rcond=RCOND, damping=DAMPING,
              max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None,
              integration='exact', linearise_at=LINEARISE_AT, servo_law='paper', gain=None,
-             switch_settle=SWITCH_SETTLE):
+             switch_settle=SWITCH_SETTLE, feedforward_ratio=None):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -76,7 +77,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; ibvs and pbvs run with the
     feedforward held at q(0) ('hold'), ``gain`` (:class:`.servo_laws.AdaptiveGain`) is
     theirs, ``switch_settle`` (s) the switching law's. A frame is 'measured' when both
-    markers are in view of the true robot.
+    markers are in view of the true robot. ``feedforward_ratio``: T_forward's double pole
+    in tau_in, default the law's (:func:`.servo_laws.feedforward_overrides`: 2 for
+    switching, else the paper's 0.1).
     """
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera, model.params if plant_params is None
@@ -98,7 +101,10 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     q = q_true0 - d_q
     qd = np.zeros(6)
     joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_max)
-    ff = Feedforward(pose, tau_in, dt, model.params,
+    if feedforward_ratio is None:
+        feedforward_ratio = feedforward_overrides(servo_law).get('feedforward_ratio',
+                                                                 FEEDFORWARD_RATIO)
+    ff = Feedforward(pose, tau_in, dt, model.params, ratio=feedforward_ratio,
                      method=feedforward_method_for(servo_law, feedforward_method))
     q_target = ff.start(q)
     fb = make_law(servo_law, model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, gain,

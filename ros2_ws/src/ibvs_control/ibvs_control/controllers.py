@@ -138,6 +138,9 @@ class JointLoop:
         return u_sat
 
 
+#: T_forward's double pole at ``ratio`` tau_in (eq. 44-45): the paper's 0.1, so that
+#: T_d T_forward, the joints' designed response, has a 1 ms double pole.
+FEEDFORWARD_RATIO = 0.1
 #: Longest feedforward trajectory (samples): 60 s at 1 kHz. With the paper's values the
 #: output of T_forward has settled after about 2 s (Feedforward.trajectory).
 MAX_FEEDFORWARD_SAMPLES = 60_000
@@ -156,13 +159,19 @@ class Feedforward:
     filter on q0, so q_ff(0) = q(0) exactly, and every later step on q_target. (Feeding
     the target at t = 0 instead would make q_ff(0) = q0 + D (q_target - q0), D ~ 15 at
     1 kHz: the biproper filter's first answer to a step.)
+    ``ratio``: T_forward's double pole sits at ``ratio`` tau_in (eq. 44-45; the paper's
+    0.1): every joint then follows q(t) = q0 + s(t) (q_target - q0) with s the step
+    response of ((1 - p_f) / (z - p_f))^2 (z + 1) / 2, the same straight line in joint space
+    for any ratio, faster for a smaller one (peak joint speed about 0.37 |q_target - q0| /
+    (ratio tau_in)).
     ``method``: 'sampled' (default, :func:`.youla.feedforward_discrete`, the inverse of the
     sampled inner loop) or 'tustin' / 'zoh' (eq. 44 discretised by scipy), or 'hold': no
     feedforward, q_ff = q(0) at every step (the servo laws whose feedback carries the whole
     move, :mod:`.servo_laws`); the target is still checked reachable.
     """
 
-    def __init__(self, pose, tau_in, dt, params=IRB4600, ratio=0.1, method='sampled'):
+    def __init__(self, pose, tau_in, dt, params=IRB4600, ratio=FEEDFORWARD_RATIO,
+                 method='sampled'):
         """Check the target is reachable (eq. 43) and design T_forward at ``dt``."""
         self.pose = np.asarray(pose, dtype=float)
         self.params = params

@@ -18,6 +18,12 @@ FEEDFORWARD_METHOD = Param(
     "loop, no overshoot) or 'tustin' / 'zoh' (eq. 44 discretised by scipy); 'hold': no "
     "feedforward, q(0) held (servo_law 'ibvs' and 'pbvs' need it)", '-',
     choices=('sampled', 'tustin', 'zoh', 'hold'))
+FEEDFORWARD_RATIO = Param(
+    'feedforward_ratio', controllers.FEEDFORWARD_RATIO,
+    "T_forward's double pole at feedforward_ratio * tau_in (eq. 44-45; the paper: 0.1, a "
+    '1 ms joint response that asks up to 1.2e3 rad/s); larger is a slower, gentler '
+    "reference on the same joint-space line ('ibvs run' sets 2 for servo_law 'switching')",
+    '-', low=0.01, high=100.0)
 SERVO_LAW = Param(
     'servo_law', 'paper',
     "feedback law: 'paper' (adaptive Youla, eq. 38-41), 'switching' (the paper's law, "
