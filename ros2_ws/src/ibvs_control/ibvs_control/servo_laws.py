@@ -70,9 +70,11 @@ SUBSTEPS = 10
 
 def feedforward_overrides(law):
     """
-    Return the feedforward parameters that go with ``law`` (``ibvs run`` and the report
-    set them unless given): feedforward_method 'hold' for ibvs and pbvs, feedforward_ratio
-    :data:`SWITCHING_FEEDFORWARD_RATIO` for switching, none for paper.
+    Return the feedforward parameters that go with ``law``.
+
+    ``ibvs run`` and the report set them unless given: feedforward_method 'hold' for ibvs
+    and pbvs, feedforward_ratio :data:`SWITCHING_FEEDFORWARD_RATIO` for switching, none for
+    paper.
     """
     if law not in SERVO_LAWS:
         raise ValueError(f'servo_law must be one of {SERVO_LAWS}, got {law!r}')

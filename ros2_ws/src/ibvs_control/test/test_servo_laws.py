@@ -76,8 +76,10 @@ def test_hold_feedforward_stays_at_the_initial_joints():
 @pytest.mark.parametrize('scenario', [1, 2])
 def test_feedforward_ratio_keeps_the_joint_line_and_scales_the_speed(scenario):
     """
-    Before the switch the joints follow q0 + s(t) (q_target - q0), one s for all, whatever
-    the ratio; the peak joint speed goes as 1 / ratio (about 0.37 |dq| / (ratio tau_in)).
+    Follow one joint-space line at any ratio, with a peak speed that goes as 1 / ratio.
+
+    Before the switch the joints follow q0 + s(t) (q_target - q0), one s for all; the peak
+    joint speed is about 0.37 |dq| / (ratio tau_in).
     """
     peaks = {}
     for ratio in (1.0, 2.0):
