@@ -184,10 +184,13 @@ def test_feedforward_rejects_bad_joint_states_and_starts_on_the_first_good_one(c
     ({'omega_n': 150.0}, 'omega_n'),
     ({'omega_n': 100.0}, 'omega_n'),
     ({'physics_rate_hz': 5.0}, 'physics_rate_hz'),
+    ({'feedforward_ratio': 0.0}, 'feedforward_ratio'),
 ])
 def test_nodes_stop_at_start_on_bad_parameters(context, params, name):
     for cls in (FeedforwardNode, AdaptiveFeedbackNode, JointControllerNode):
         if name == 'physics_rate_hz' and cls is AdaptiveFeedbackNode:
+            continue
+        if name == 'feedforward_ratio' and cls is not FeedforwardNode:
             continue
         if name.startswith('target') and cls is JointControllerNode:
             continue
