@@ -332,7 +332,7 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         h.spin_until(lambda: node._trajectory is not None, 'the trajectory')
         # frame 0 acts at t = 0 (latency 0): still waiting for its q_feedback
         assert node.commands == 0 and node._missing(0) == [
-            f'{contract.Q_FEEDBACK} of frame 0 ns']
+            f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'effort command')
         assert stamps(out) == [0]
@@ -377,7 +377,8 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
         h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
         h.publish(contract.JOINT_STATES, joint_state(20 * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(node._states) == 1, 'joint state at 20 ms buffered')
-        assert node._missing(20 * MS) == [f'{contract.Q_FEEDBACK} of frame 0 ns']
+        assert node._missing(20 * MS) == [
+            f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answer at 20 ms')
         assert stamps(out) == [0, 19 * MS, 20 * MS]
