@@ -110,8 +110,8 @@ def test_focal_length_error_scales_f_only():
     k = StereoIntrinsics.zed2('HD720')
     c = calibrated_intrinsics(k, 1.01)
     assert (c.fu, c.fv) == (k.fu * 1.01, k.fv * 1.01)
-    assert (c.cu, c.cv, c.width, c.height, c.baseline) == (k.cu, k.cv, k.width, k.height,
-                                                          k.baseline)
+    kept = ('cu', 'cv', 'width', 'height', 'baseline')
+    assert [getattr(c, a) for a in kept] == [getattr(k, a) for a in kept]
 
 
 def test_simulator_renders_true_and_publishes_calibrated_camera():
