@@ -37,6 +37,15 @@ MAX_DROP_PROBABILITY = 0.9
 MAX_NOISE_STDDEV = 0.5
 
 
+class EffectError(ValueError):
+    """A camera effect's value cannot be used; ``param`` names its sim_node parameter."""
+
+    def __init__(self, param, message):
+        """Keep the parameter's name and the reason."""
+        super().__init__(f'{param}: {message}')
+        self.param = param
+
+
 def add_image_noise(image, stddev, rng):
     """
     Return an 8-bit image with additive Gaussian noise of ``stddev`` (module docstring).
@@ -66,9 +75,9 @@ def error_transform(xyz_m, rpy_deg):
     """
     xyz = np.asarray(xyz_m, dtype=float)
     rpy = np.asarray(rpy_deg, dtype=float)
-    if xyz.shape != (3,) or rpy.shape != (3,) or not (np.all(np.isfinite(xyz))
-                                                      and np.all(np.isfinite(rpy))):
-        raise ValueError('the pose error needs 3 finite translations and 3 finite angles')
+    for name, values in (('camera_pose_error_xyz_m', xyz), ('camera_pose_error_rpy_deg', rpy)):
+        if values.shape != (3,) or not np.all(np.isfinite(values)):
+            raise EffectError(name, f'{values.tolist()}: needs 3 finite values')
     tf = np.eye(4)
     tf[:3, :3] = Rotation.from_euler('xyz', rpy, degrees=True).as_matrix()
     tf[:3, 3] = xyz
@@ -97,7 +106,7 @@ def calibrated_intrinsics(intrinsics, focal_length_error):
     """
     scale = float(focal_length_error)
     if not (math.isfinite(scale) and scale > 0.0):
-        raise ValueError(f'focal_length_error must be finite and > 0, got {scale}')
+        raise EffectError('focal_length_error', f'{scale}: must be finite and > 0')
     k = intrinsics
     return StereoIntrinsics(k.width, k.height, k.fu * scale, k.fv * scale, k.cu, k.cv,
                             k.baseline)
@@ -114,12 +123,12 @@ class CameraEffects:
     def __init__(self, noise_stddev=0.0, drop_probability=0.0, seed=0):
         """Check the values and seed the Generator."""
         if not (math.isfinite(noise_stddev) and 0.0 <= noise_stddev <= MAX_NOISE_STDDEV):
-            raise ValueError(f'image_noise_stddev = {noise_stddev}: must be in '
-                             f'[0, {MAX_NOISE_STDDEV}]')
+            raise EffectError('image_noise_stddev', f'{noise_stddev}: must be in '
+                              f'[0, {MAX_NOISE_STDDEV}]')
         if not (math.isfinite(drop_probability)
                 and 0.0 <= drop_probability <= MAX_DROP_PROBABILITY):
-            raise ValueError(f'frame_drop_probability = {drop_probability}: must be in '
-                             f'[0, {MAX_DROP_PROBABILITY}]')
+            raise EffectError('frame_drop_probability', f'{drop_probability}: must be in '
+                              f'[0, {MAX_DROP_PROBABILITY}]')
         self.noise_stddev = float(noise_stddev)
         self.drop_probability = float(drop_probability)
         self.rng = np.random.default_rng(seed)

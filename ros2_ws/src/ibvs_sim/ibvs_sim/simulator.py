@@ -29,7 +29,7 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
 import numpy as np
 
 from .camera_effects import (calibrated_intrinsics, calibrated_pose, CameraEffects,
-                             error_transform)
+                             EffectError)
 from .world import (check_mount_height, DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M,
                     MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, RendererError, World)
 
@@ -101,18 +101,12 @@ class Simulator:
         try:
             self.effects = CameraEffects(image_noise_stddev, frame_drop_probability,
                                          camera_seed)
-        except ValueError as exc:
-            name = str(exc).split(' ', 1)[0]
-            raise ConfigError(name, str(exc)) from None
-        try:
-            self.pose_error = error_transform(camera_pose_error_xyz_m, camera_pose_error_rpy_deg)
-            intrinsics_cal = calibrated_intrinsics(intrinsics, focal_length_error)
-        except ValueError as exc:
-            raise ConfigError('camera_pose_error_xyz_m' if 'pose' in str(exc)
-                              else 'focal_length_error', str(exc)) from None
-        self.calibrated_camera = StereoCamera(
-            intrinsics_cal, calibrated_pose(self.camera.pose_C_O, camera_pose_error_xyz_m,
-                                            camera_pose_error_rpy_deg))
+            self.calibrated_camera = StereoCamera(
+                calibrated_intrinsics(intrinsics, focal_length_error),
+                calibrated_pose(self.camera.pose_C_O, camera_pose_error_xyz_m,
+                                camera_pose_error_rpy_deg))
+        except EffectError as exc:
+            raise ConfigError(exc.param, str(exc)) from None
         if supersampling not in range(1, MAX_SUPERSAMPLING + 1):
             raise ConfigError('render_supersampling', f'{supersampling!r}: samples per pixel '
                               f'along each axis must be an int in [1, {MAX_SUPERSAMPLING}]')

@@ -141,6 +141,7 @@ def test_simulator_renders_true_and_publishes_calibrated_camera():
     ({'frame_drop_probability': 1.0}, 'frame_drop_probability'),
     ({'focal_length_error': 0.0}, 'focal_length_error'),
     ({'camera_pose_error_xyz_m': (0.0, 0.0)}, 'camera_pose_error_xyz_m'),
+    ({'camera_pose_error_rpy_deg': (0.0, math.inf, 0.0)}, 'camera_pose_error_rpy_deg'),
 ])
 def test_simulator_rejects_bad_camera_effects(kwargs, name):
     with pytest.raises(ConfigError) as info:
