@@ -125,6 +125,17 @@ class AdaptiveGain:
         return float(a * np.exp(-self.slope * float(error_norm) / a) + self.lambda_inf)
 
 
+def _target_features(model, pose, p_target=None):
+    """Return p_bar: ``p_target`` (taught, checked) or the model's F at ``pose`` (eq. 30)."""
+    if p_target is not None:
+        p_target = np.asarray(p_target, dtype=float).reshape(-1)
+        if p_target.shape != (6,) or not np.all(np.isfinite(p_target)):
+            raise ValueError('p_target must be 6 finite values (u_l, u_r, v per marker)')
+        return p_target
+    markers = model.params.fiducials_E @ pose[:3, :3].T + pose[:3, 3]
+    return model.camera.project(markers).reshape(6)
+
+
 def _check_inputs(p_hat, q_encoder):
     p_hat = np.asarray(p_hat, dtype=float)
     q_encoder = np.asarray(q_encoder, dtype=float)
@@ -148,12 +159,15 @@ class ClassicIBVS:
     the law is the textbook one. Not measured: q_feedback is held (the robot stops).
     """
 
-    def __init__(self, model, pose, dt, gain=None, rcond=1e-6, damping=0.0):
-        """Project the target markers (p_bar = F(q_target), eq. 30); ``dt`` the camera period."""
+    def __init__(self, model, pose, dt, gain=None, rcond=1e-6, damping=0.0, p_target=None):
+        """
+        Project the target markers (p_bar = F(q_target), eq. 30); ``dt`` the camera period.
+
+        ``p_target``: a taught p_bar (6,) instead (the features measured at the target).
+        """
         self.model = model
         self.pose = np.asarray(pose, dtype=float)
-        markers = model.params.fiducials_E @ self.pose[:3, :3].T + self.pose[:3, 3]
-        self.p_target = model.camera.project(markers).reshape(6)
+        self.p_target = _target_features(model, self.pose, p_target)
         self.dt = float(dt)
         self.gain = AdaptiveGain() if gain is None else gain
         self.rcond = rcond
@@ -232,16 +246,24 @@ class PBVS:
     Not measured: q_feedback is held.
     """
 
-    def __init__(self, model, pose, dt, gain=None, rcond=1e-6, substeps=SUBSTEPS):
-        """Keep the target flange position and axis; ``dt`` the camera period."""
+    def __init__(self, model, pose, dt, gain=None, rcond=1e-6, substeps=SUBSTEPS,
+                 p_target=None):
+        """
+        Keep the target flange position and axis; ``dt`` the camera period.
+
+        ``p_target``: taught features (6,) at the target; the target position and axis are
+        then triangulated from them (:func:`tool_from_markers`), as a taught PBVS does.
+        """
         self.substeps = int(substeps)
         self.q_start = None
         self.model = model
         self.pose = np.asarray(pose, dtype=float)
-        self.t_target = self.pose[:3, 3].copy()
-        self.axis_target = self.pose[:3, 2].copy()
-        markers = model.params.fiducials_E @ self.pose[:3, :3].T + self.pose[:3, 3]
-        self.p_target = model.camera.project(markers).reshape(6)
+        self.p_target = _target_features(model, self.pose, p_target)
+        if p_target is None:
+            self.t_target = self.pose[:3, 3].copy()
+            self.axis_target = self.pose[:3, 2].copy()
+        else:
+            self.t_target, self.axis_target = tool_from_markers(model.camera, self.p_target)
         self.dt = float(dt)
         self.gain = AdaptiveGain() if gain is None else gain
         self.rcond = rcond
@@ -370,15 +392,17 @@ def make_law(law, model, pose, tau_in, omega_n, zeta, dt, gain=None, settle=SWIT
     Return the servo law ``law`` (one of :data:`SERVO_LAWS`) at camera period ``dt``.
 
     ``feedback_options`` go to :class:`.controllers.AdaptiveFeedback` (paper, switching);
-    ibvs takes its ``rcond`` and ``damping`` only, pbvs its ``rcond``.
+    ibvs takes its ``rcond``, ``damping`` and ``p_target`` only, pbvs its ``rcond`` and
+    ``p_target`` (a taught p_bar, see each class).
     """
     if law not in SERVO_LAWS:
         raise ValueError(f'servo_law must be one of {SERVO_LAWS}, got {law!r}')
     if law in WITHOUT_FEEDFORWARD:
         rcond = feedback_options.get('rcond', 1e-6)
+        p_target = feedback_options.get('p_target')
         if law == 'pbvs':
-            return PBVS(model, pose, dt, gain, rcond=rcond)
+            return PBVS(model, pose, dt, gain, rcond=rcond, p_target=p_target)
         return ClassicIBVS(model, pose, dt, gain, rcond=rcond,
-                           damping=feedback_options.get('damping', 0.0))
+                           damping=feedback_options.get('damping', 0.0), p_target=p_target)
     feedback = AdaptiveFeedback(model, pose, tau_in, omega_n, zeta, dt, **feedback_options)
     return feedback if law == 'paper' else Switching(feedback, settle)

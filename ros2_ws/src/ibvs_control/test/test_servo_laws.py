@@ -140,6 +140,24 @@ def test_pbvs_moves_the_flange_on_a_straight_line():
     assert path_metrics(r.t[:paper_path.shape[0]], paper_path, target)[1] > 0.1 * travelled
 
 
+def test_taught_target_features_set_the_vision_only_targets():
+    model = default_model()
+    pose = paper.target_pose()
+    taught = make_law('ibvs', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30)
+    shifted = taught.p_target + [2.0, 2.0, -1.0, 0.5, 0.5, 1.0]
+    ibvs = make_law('ibvs', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30,
+                    p_target=shifted)
+    np.testing.assert_array_equal(ibvs.p_target, shifted)
+    pbvs = make_law('pbvs', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30,
+                    p_target=shifted)
+    position, axis = tool_from_markers(model.camera, shifted)
+    np.testing.assert_array_equal(pbvs.t_target, position)
+    np.testing.assert_allclose(pbvs.pose_error(shifted), 0.0, atol=1e-12)
+    assert np.linalg.norm(position - pose[:3, 3]) > 1e-3, 'the taught target moved it'
+    with pytest.raises(ValueError, match='p_target'):
+        ClassicIBVS(model, pose, 1 / 30, p_target=[1.0, 2.0])
+
+
 def test_pbvs_pose_error_of_the_target_is_zero():
     model = default_model()
     pose = paper.target_pose()

@@ -55,7 +55,8 @@ def test_frame_schedule_30_hz_on_1_khz(sim):
     taken = []
     for _ in range(201):
         if sim.frame_due() is not None:
-            stamp, images = sim.take_frame(render=False)
+            stamp, images, lost = sim.take_frame(render=False)
+            assert not lost
             assert images is None
             assert stamp <= sim.t_ns < stamp + sim.dt_ns
             taken.append((stamp, sim.t_ns))

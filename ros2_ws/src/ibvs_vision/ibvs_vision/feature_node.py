@@ -24,7 +24,16 @@ at or after its stamp and publishes that step's joint state right after the imag
 (lockstep), so the estimate uses the very angles the image shows. A frame that cannot be
 published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
-newest input) is dropped, logged and counted on /diagnostics; the node keeps running.
+newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
+frame the camera lost (/stereo/frame_lost) brings no images: nothing is published for it.
+
+Taught target. The stereo pair of the tool at the target pose
+(/stereo/teach/{left,right}/image_raw, latched, published by the simulator before the run
+with target_features_source 'taught') is measured once, as soon as the camera model is
+there, by the same detector searching the whole images; the result p_bar goes latched to
+/ibvs/target_features (PolygonStamped, as /ibvs/features). A pair in which the markers are
+not found is reported (ERROR log and /diagnostics) and nothing is published: the adaptive
+feedback then keeps waiting for its target.
 """
 
 import bisect
@@ -104,18 +113,26 @@ class FeatureNode(Node):
         self._detector = None
         self._prior = None
         self._times_ms = []
+        self._teach = {}
+        self._teach_done = False
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, last_switch_time_s='none', switches=0)
         self._pub = self.create_publisher(PolygonStamped, contract.FEATURES, contract.RELIABLE)
+        self._target_pub = self.create_publisher(PolygonStamped, contract.TARGET_FEATURES,
+                                                 contract.LATCHED)
         self._status_pub = self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
                                                  contract.RELIABLE)
         self.create_subscription(Image, contract.LEFT_IMAGE,
                                  lambda m: self._on_image('left', m), contract.IMAGES)
         self.create_subscription(Image, contract.RIGHT_IMAGE,
                                  lambda m: self._on_image('right', m), contract.IMAGES)
+        self.create_subscription(Image, contract.TEACH_LEFT_IMAGE,
+                                 lambda m: self._on_teach('left', m), contract.LATCHED)
+        self.create_subscription(Image, contract.TEACH_RIGHT_IMAGE,
+                                 lambda m: self._on_teach('right', m), contract.LATCHED)
         self.create_subscription(CameraInfo, contract.LEFT_INFO,
                                  lambda m: self._on_info('left', m), contract.RELIABLE)
         self.create_subscription(CameraInfo, contract.RIGHT_INFO,
@@ -155,6 +172,42 @@ class FeatureNode(Node):
             frame.images[side] = array
             frame.encodings[side] = encoding
         self._try_frames()
+
+    def _on_teach(self, side, msg):
+        if self._teach_done:
+            return
+        try:
+            self._teach[side] = image_array(msg)
+        except InputError as exc:
+            self._diag.reject(f'{side} teach image', exc.reason, exc.detail)
+            return
+        self._try_frames()
+
+    def _try_teach(self):
+        """Measure p_bar on the teach pair once both images and the camera model are here."""
+        if self._teach_done or len(self._teach) < 2 or self._detector is None:
+            return
+        self._teach_done = True
+        (left, encoding), (right, right_encoding) = self._teach['left'], self._teach['right']
+        if right_encoding != encoding:
+            right = right[:, :, ::-1].copy()
+        k = self._detector.intrinsics
+        if any(image.shape[:2] != (k.height, k.width) for image in (left, right)):
+            self._diag.reject('teach image', 'size disagrees with camera_info',
+                              f'{left.shape[1]} x {left.shape[0]}, camera_info says '
+                              f'{k.width} x {k.height}')
+            return
+        detection = self._detector.detect(left, right, encoding, None)
+        if not detection.ok:
+            message = (f'taught target: markers not measured on the teach pair '
+                       f'({detection.reason.value}: {detection.detail}); no target features')
+            self.get_logger().error(message)
+            self._diag.set_level(DiagnosticStatus.ERROR, message)
+            return
+        self._target_pub.publish(features_msg(detection.features, ns_stamp(0)))
+        self._diag.update(taught_target_px=detection.features)
+        self.get_logger().info(f'taught target features p_bar = '
+                               f'{np.round(detection.features, 3).tolist()} px')
 
     def _on_joints(self, msg):
         t_ns = stamp_ns(msg.header.stamp)
@@ -250,6 +303,7 @@ class FeatureNode(Node):
     def _try_frames(self):
         """Publish every frame that is complete; drop those that can never be."""
         camera_problem = self._camera_ready()
+        self._try_teach()
         for t_ns in sorted(self._frames):
             frame = self._frames.get(t_ns)
             if frame is None:
