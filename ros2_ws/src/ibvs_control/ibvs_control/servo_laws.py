@@ -50,18 +50,19 @@ LAMBDA_0 = 12.0
 LAMBDA_INF = 3.0
 LAMBDA_SLOPE = 0.09
 #: The switching law's wait (s) and T_forward double pole, in tau_in (``feedforward_ratio``;
-#: the paper: 0.1). Before the switch the feedforward alone moves the arm. The paper's 1 ms
-#: joint response asks up to 1.2e3 rad/s and ~1e6 rad/s^2, and the computed-torque loop
-#: evaluates M(q) and h(q, qdot) (eq. 26) at the encoder angles, d_q away from the true
-#: ones: at such speeds and accelerations that 0.1-0.5 deg buys large torque errors (graph,
-#: ideal actuators: 44 / 1.8 / 125 mm overshoot in scenarios 1 / 2 / 3, all of it before
-#: the switch, against 0.1 / 1.8 / 2.3 mm model-only; scenario 2 has no d_q, and scenario 1
-#: with d_q = 0 overshoots 0.12 mm). A double pole at 2 tau_in = 20 ms (at most ~60 rad/s,
-#: 400 times less acceleration) is followed (scenario 3: 2.4 mm, within 1 mm after 0.51 s);
-#: the feedforward is then within 1 mm after about 0.2 s, and a switch before that would
-#: let the feedback integrate the feedforward's own transient. (At 1 tau_in scenario 3
-#: overshoots 9.3 mm; at 3 tau_in the switch waits for the joints to slow down until 0.23 s
-#: and the tool is within 1 mm after 0.55-0.57 s.)
+#: the paper: 0.1). Before the switch the feedforward alone moves the arm, and the paper's
+#: 1 ms joint response asks up to 1.2e3 rad/s and ~1e6 rad/s^2, which the simulated arm
+#: does not follow (graph, ideal actuators, 47 / 18 / 27 mm overshoot in scenarios 1 / 2 / 3,
+#: all of it before the switch, against 0.1 / 1.8 / 2.3 mm model-only): PyBullet clamps
+#: joint speeds at 100 rad/s (Bullet's default maxJointVelocity), so the arm lags the
+#: reference by up to 159 deg and overshoots when it catches up. (With the clamp lifted,
+#: an experiment: 44 / 1.8 / 125 mm, since the computed torque evaluates M and h at the
+#: encoder angles, d_q off the true ones in scenarios 1 and 3.) A double pole at
+#: 2 tau_in = 20 ms (at most ~60 rad/s, 400 times less acceleration) is followed; the
+#: feedforward is then within 1 mm after about 0.2 s, and a switch before that would let
+#: the feedback integrate the feedforward's own transient. (At 1 tau_in, without the
+#: clamp, scenario 3 overshot 9.3 mm; at 3 tau_in the switch waits for the joints to slow
+#: down until 0.23 s and the tool is within 1 mm after 0.55-0.57 s.)
 SWITCH_SETTLE = 0.2
 SWITCHING_FEEDFORWARD_RATIO = 2.0
 #: Sub-steps of the PBVS integration over one camera period (:class:`PBVS`).
