@@ -2,6 +2,7 @@
 
 from types import SimpleNamespace
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_common import contract, conversions
 from ibvs_common.conversions import InputError
@@ -14,6 +15,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 
 
 @pytest.fixture
@@ -68,6 +70,17 @@ def test_bad_parameters_name_the_parameter_and_range(context, overrides, match):
         node.destroy_node()
 
 
+def test_boolean_and_string_parameters_describe_their_values_not_a_number_range(context):
+    flag = Param('flag', False, 'a switch')
+    name = Param('label', 'x', 'a free string')
+    assert flag.allowed() == 'true or false'
+    assert name.allowed() == 'any string'
+    assert 'inf' not in flag.descriptor().description
+    assert 'inf' not in name.descriptor().description
+    with pytest.raises(ParameterError, match="'flag'.*not a boolean; allowed: true or false"):
+        flag.check(1)
+
+
 def test_feedback_frame_rule():
     period, latency = 33_333_333, 0
     assert contract.feedback_frame_ns(0, period, latency) == 0
@@ -95,18 +108,48 @@ def test_joint_state_round_trip_and_reordering():
 
 
 @pytest.mark.parametrize('position,names,reason', [
-    ([0.0] * 5, [], 'wrong position length'),
-    ([0.0] * 5 + [float('nan')], [], 'non-finite position'),
-    ([0.0] * 5 + [float('inf')], [], 'non-finite position'),
+    ([0.0] * 5, contract.JOINT_NAMES, 'wrong position length'),
+    ([0.0] * 5 + [float('nan')], contract.JOINT_NAMES, 'non-finite position'),
+    ([0.0] * 5 + [float('inf')], contract.JOINT_NAMES, 'non-finite position'),
     ([0.0] * 6, ['a', 'b', 'c', 'd', 'e', 'f'], 'wrong joint names'),
+    ([0.0] * 6, contract.JOINT_NAMES[:5] + ('joint_1',), 'wrong joint names'),
+    # values are mapped by name: a message that names no joint cannot be mapped
+    ([0.0] * 6, [], 'no joint names'),
 ])
 def test_read_joints_rejects_bad_messages(position, names, reason):
-    msg = conversions.joint_state(0, position=position, names=names or contract.JOINT_NAMES)
-    if not names:
-        msg.name = []
+    msg = conversions.joint_state(0, position=position, names=names)
     with pytest.raises(InputError) as info:
         conversions.read_joints(msg)
     assert info.value.reason == reason
+
+
+def test_check_finite_rejects_nan_or_inf_in_any_named_field_and_allows_empty_ones():
+    msg = conversions.joint_state(0, position=np.zeros(6))
+    conversions.check_finite(msg, ('velocity', 'effort'))  # empty: nothing to reject
+    for field in ('velocity', 'effort'):
+        for bad in (float('nan'), float('inf'), -float('inf')):
+            msg = conversions.joint_state(0, position=np.zeros(6), **{field: [0.0] * 5 + [bad]})
+            with pytest.raises(InputError) as info:
+                conversions.check_finite(msg, ('velocity', 'effort'))
+            assert info.value.reason == f'non-finite {field}'
+
+
+@pytest.mark.parametrize('sec,nanosec,reason', [
+    (-1, 0, 'negative time'),
+    (-2 ** 31, 999_999_999, 'negative time'),
+    (0, 1_000_000_000, 'malformed stamp'),
+    (3, 4_000_000_000, 'malformed stamp'),
+])
+def test_read_stamp_rejects_what_stamp_ns_would_misread(sec, nanosec, reason):
+    stamp = Time(sec=sec, nanosec=nanosec)
+    with pytest.raises(InputError) as info:
+        conversions.read_stamp(stamp)
+    assert info.value.reason == reason
+
+
+def test_read_stamp_is_stamp_ns_on_good_stamps():
+    for ns in (0, 1, 999_999_999, 1_000_000_000, 2 ** 31 * 1_000_000_000 - 1):
+        assert conversions.read_stamp(conversions.ns_stamp(ns)) == ns
 
 
 def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
@@ -216,3 +259,42 @@ def test_diagnostics_counts_rejections_and_publishes(context):
         executor.shutdown()
         node.destroy_node()
         listener.destroy_node()
+
+
+def test_a_malformed_clock_is_counted_and_the_node_keeps_its_sim_time(context):
+    """rclpy raises on /clock with sec < 0 inside the executor; Diagnostics' guard rejects it."""
+    node = Node('clock_test', context=context,
+                parameter_overrides=[Parameter('use_sim_time', value=True)])
+    talker = Node('clock_talker', context=context)
+    pub = talker.create_publisher(Clock, contract.CLOCK, 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(talker)
+    try:
+        diag = Diagnostics(node, 'test')
+        for _ in range(400):
+            if pub.get_subscription_count():
+                break
+            executor.spin_once(timeout_sec=0.05)
+
+        def send(sec, nanosec, until):
+            pub.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+            for _ in range(400):  # spin_once raises here without the guard
+                if until():
+                    return
+                executor.spin_once(timeout_sec=0.05)
+            raise AssertionError(f'no effect of /clock {sec} s {nanosec} ns')
+
+        send(5, 0, lambda: node.get_clock().now().nanoseconds == 5_000_000_000)
+        send(-1, 0, lambda: diag.rejections['/clock: negative time'] == 1)
+        send(7, 4_000_000_000, lambda: diag.rejections['/clock: malformed stamp'] == 1)
+        assert node.get_clock().now().nanoseconds == 5_000_000_000
+        send(6, 250, lambda: node.get_clock().now().nanoseconds == 6_000_000_250)
+        assert diag.rejected_total == 2
+        # use_sim_time still switches the node's clock, as rclpy's own TimeSource does
+        node.set_parameters([Parameter('use_sim_time', value=False)])
+        assert node.get_clock().now().nanoseconds > 1_000_000_000 * 10 ** 9
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        talker.destroy_node()

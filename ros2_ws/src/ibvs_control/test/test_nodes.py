@@ -8,6 +8,7 @@ against a hang), never on wall-clock time.
 
 import time
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
@@ -26,6 +27,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
@@ -70,6 +72,7 @@ class Harness:
             contract.LEFT_INFO: pub(CameraInfo, contract.LEFT_INFO, contract.IMAGES),
             contract.RIGHT_INFO: pub(CameraInfo, contract.RIGHT_INFO, contract.IMAGES),
             contract.STEREO_POSE: pub(PoseStamped, contract.STEREO_POSE, contract.LATCHED),
+            contract.CLOCK: pub(Clock, contract.CLOCK, contract.RELIABLE),
         }
         for topic, kind, qos in (
                 (contract.FEEDFORWARD_TRAJECTORY, JointTrajectory, contract.LATCHED),
@@ -174,6 +177,30 @@ def test_feedforward_rejects_bad_joint_states_and_starts_on_the_first_good_one(c
                         return values.get('rejected_total') == '2'
             return False
         h.spin_until(counted, 'the rejection count on /diagnostics')
+    finally:
+        h.close()
+
+
+def test_feedforward_ignores_a_first_joint_state_from_the_future_or_with_a_bad_stamp(context):
+    """A bad first stamp would start the trajectory there and hold the arm until then."""
+    node = FeedforwardNode(context=context, parameter_overrides=overrides(use_sim_time=True))
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.CLOCK])
+        h.publish(contract.CLOCK, Clock(clock=Time(sec=0, nanosec=MS)))
+        h.spin_until(lambda: node.get_clock().now().nanoseconds == MS, 'sim time 1 ms')
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        for stamp in (Time(sec=1_000_000), Time(sec=0, nanosec=4_000_000_000),
+                      Time(sec=-5, nanosec=MS)):
+            h.publish(contract.JOINT_STATES, joint_state(stamp, q0, np.zeros(6)))
+        h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
+        assert node.diagnostics.rejections == {
+            '/joint_states: stamp in the future': 1, '/joint_states: malformed stamp': 1,
+            '/joint_states: negative time': 1}
+        h.publish(contract.JOINT_STATES, joint_state(MS, q0, np.zeros(6)))
+        out = h.received[contract.FEEDFORWARD_TRAJECTORY]
+        h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
+        assert read_trajectory(out[0], MS)[0] == MS
     finally:
         h.close()
 
@@ -418,6 +445,72 @@ def test_joint_controller_rejects_bad_input(context):
             '/ibvs/feedforward_trajectory: wrong sample times'] == 1
         assert node.diagnostics.rejections['/joint_states: non-finite position'] == 1
         assert node.diagnostics.rejections['/joint_states: wrong velocity length'] == 1
+    finally:
+        h.close()
+
+
+def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_ones(context):
+    """A far-future /joint_states used to sit in the buffer; every good one after was stale."""
+    node = JointControllerNode(context=context, parameter_overrides=overrides(use_sim_time=True))
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1, 'answer at 0')
+        # no /clock here: the bound is the last answered stamp (0) + stale_timeout_s
+        for stamp in (Time(sec=1_000_000), Time(sec=0, nanosec=600 * MS),
+                      Time(sec=0, nanosec=4_000_000_000)):
+            h.publish(contract.JOINT_STATES, joint_state(stamp, q0, np.zeros(6)))
+        h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
+        assert node.diagnostics.rejections == {
+            '/joint_states: stamp in the future': 2, '/joint_states: malformed stamp': 1}
+        for k in (1, 2, 30):  # good states (frame 0's q_feedback acts until 33.3 ms)
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 4, 'answers after the bad ones')
+        assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node._states
+    finally:
+        h.close()
+
+
+def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dynamics):
+    """q_feedback: six finite positions by name, within the joint travel; finite or no rest."""
+    node = JointControllerNode(context=context)
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        unnamed = joint_state(0, np.zeros(6))
+        unnamed.name = []
+        bad = [joint_state(0, np.full(6, 1e308)),
+               joint_state(0, np.r_[np.zeros(5), -15.0]),
+               joint_state(0, np.zeros(6), velocity=[np.nan] * 6),
+               joint_state(0, np.zeros(6), effort=[0.0] * 5 + [np.inf]),
+               unnamed]
+        for msg in bad:
+            h.publish(contract.Q_FEEDBACK, msg)
+        h.spin_until(lambda: node.diagnostics.rejected_total == len(bad), 'rejections')
+        assert node.diagnostics.rejections == {
+            '/ibvs/q_feedback: out of range': 2, '/ibvs/q_feedback: non-finite velocity': 1,
+            '/ibvs/q_feedback: non-finite effort': 1, '/ibvs/q_feedback: no joint names': 1}
+        assert not out  # none of them was taken for frame 0
+        # a good q_feedback of the same frame still gets in, and the loop is sound
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6), velocity=np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1, 'answer')
+        np.testing.assert_allclose(read_joints(out[0], 'effort'),
+                                   dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
+        # the joint's whole travel is the bound: J4 and J6 turn +-400 deg
+        assert node.diagnostics.rejected_total == len(bad)
+        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.r_[np.zeros(5), 13.9]))
+        h.spin_until(lambda: CAMERA_NS in node._fb, 'a large but possible J6 correction')
     finally:
         h.close()
 
