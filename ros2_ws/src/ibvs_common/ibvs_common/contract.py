@@ -1,5 +1,5 @@
 """
-The interface contract of the node graph (DESIGN section 3) and its timing rule (section 4).
+The interface contract of the node graph (docs/design.md §3) and its timing rule (§4).
 
 Every name a node publishes or subscribes comes from here, so a rename is one edit.
 """

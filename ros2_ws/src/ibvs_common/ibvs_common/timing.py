@@ -1,5 +1,5 @@
 """
-The sim-time rules of DESIGN section 4, in integer nanoseconds; plain Python, no rclpy.
+The sim-time rules of docs/design.md §4, in integer nanoseconds; plain Python, no rclpy.
 
 Kept free of ROS so that the model-only closed loop (ibvs_control.closed_loop) and the
 simulator's core (ibvs_sim.simulator) use the very rule the nodes use.
@@ -17,7 +17,7 @@ def feedback_frame_ns(t_ns, camera_period_ns, latency_ns):
 
     Camera frames are taken at n * camera_period_ns (n = 0, 1, ...). The feedback computed
     from frame n takes effect ``latency_ns`` after it (camera-to-command latency, a
-    parameter in sim time, DESIGN section 4) and holds until the next one does. Returns
+    parameter in sim time, docs/design.md §4) and holds until the next one does. Returns
     None before the first frame takes effect. The joint controller waits for exactly this
     q_feedback before it answers /joint_states at ``t_ns``, which makes runs deterministic.
     """

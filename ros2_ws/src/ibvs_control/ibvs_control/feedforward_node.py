@@ -15,7 +15,7 @@ publishes it as one trajectory_msgs/JointTrajectory on /ibvs/feedforward_traject
 (latched): point k at t_0 + k dt, the last point held for ever after, as a joint
 trajectory controller does. The joint controller then never waits for the feedforward,
 and this node leaves the lockstep: it unsubscribes from /joint_states once it has
-published (DESIGN section 4).
+published (docs/design.md §4).
 
 A /joint_states that is malformed (wrong length, NaN, missing or unknown joint names, a stamp
 with a negative ``sec`` or ``nanosec`` >= 1e9) or stamped more than ``stale_timeout_s`` ahead

@@ -9,7 +9,7 @@ from PyBullet (:class:`.dynamics.RobotDynamics`), and publishes /joint_effort_co
 4600 speed and torque limits, reference governor and anti-windup:
 :class:`.controllers.JointLoop`).
 
-Lockstep (DESIGN section 4). The answer to t_k needs the feedforward trajectory
+Lockstep (docs/design.md §4). The answer to t_k needs the feedforward trajectory
 (/ibvs/feedforward_trajectory, published once at the start: q_feedforward(t_k) is its point
 at t_k, its first point before it starts and its last after it ends) and the q_feedback of
 frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero before the first

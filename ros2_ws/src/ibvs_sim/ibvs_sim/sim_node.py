@@ -1,5 +1,5 @@
 """
-sim_node: the simulated plant (paper Figure 3) on the contract of DESIGN sections 3 and 4.
+sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
 Lockstep. At step k (sim time t_k, from 0) the node publishes, first, /joint_states (encoder
 angles q - d_q, velocities, the torque of the previous step), so that the joint controller

@@ -1,7 +1,7 @@
 """
 The plant of the paper's Figure 3 without ROS: physics, encoders, camera frames, sim time.
 
-Time (DESIGN section 4). Step k is at t_k = k * dt_ns integer nanoseconds, dt_ns =
+Time (docs/design.md §4). Step k is at t_k = k * dt_ns integer nanoseconds, dt_ns =
 round(1e9 / physics_rate_hz). Camera frame n is stamped n * T_cam with T_cam =
 round(1e9 / camera_rate_hz) ns (ibvs_common.contract.feedback_frame_ns) and rendered from
 the state of the first physics step at or after that time: at the same instant when the

@@ -26,7 +26,7 @@ def world():
 
 @pytest.fixture(scope='module')
 def camera():
-    """Return the ZED 2 at HD720 at the default pose (DESIGN section 5)."""
+    """Return the ZED 2 at HD720 at the default pose (docs/design.md §5)."""
     return StereoCamera(StereoIntrinsics.zed2('HD720'),
                         look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
 

@@ -1,5 +1,5 @@
 """
-sim_node in an rclpy executor with a stand-in controller (DESIGN sections 3 and 4).
+sim_node in an rclpy executor with a stand-in controller (docs/design.md §3 and §4).
 
 Each test has its own rclpy Context (and ROS domain); the simulator and the stand-in share a
 SingleThreadedExecutor, and every wait is a spin_once loop on a condition with a deadline.

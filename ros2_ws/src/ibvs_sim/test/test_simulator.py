@@ -119,7 +119,7 @@ def test_scenario_files_hold_the_paper_values():
     for n in (1, 2, 3):
         data = yaml.safe_load((config / f'scenario{n}.yaml').read_text())
         params = dict(data['/**']['ros__parameters'])
-        # rclpy's own parameter: every node follows /clock (DESIGN section 4).
+        # rclpy's own parameter: every node follows /clock (docs/design.md §4).
         assert params.pop('use_sim_time') is True
         assert set(params) <= set(specs), set(params) - set(specs)
         for name, value in params.items():

@@ -2,7 +2,7 @@
 feature_node: stereo images -> /ibvs/features p_I, measured (eq. 2-3) or estimated (eq. 46).
 
 For every stereo frame (left and right image of equal stamp) the node publishes one
-PolygonStamped on /ibvs/features, stamped with the image stamp (DESIGN section 3):
+PolygonStamped on /ibvs/features, stamped with the image stamp (docs/design.md §3):
 
 - measured p^_I when the detector (:mod:`.detector`, Hough + sub-pixel, section 2.2)
   finds both fiducials in both images;

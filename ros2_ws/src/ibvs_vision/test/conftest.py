@@ -5,7 +5,7 @@ import pytest
 
 
 def make_camera(resolution):
-    """Return the ZED 2 at ``resolution`` at the default pose (DESIGN section 5)."""
+    """Return the ZED 2 at ``resolution`` at the default pose (docs/design.md §5)."""
     return StereoCamera(StereoIntrinsics.zed2(resolution),
                         look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
 
