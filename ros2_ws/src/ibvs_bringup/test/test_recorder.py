@@ -20,16 +20,6 @@ from sensor_msgs.msg import JointState
 DEADLINE_S = 20.0
 
 
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
-
-
 def channel_metadata(channel):
     """Return an MCAP channel's user metadata (map<string, string>) as a dict."""
     bio, out = BytesIO(channel.metadata), {}

@@ -11,21 +11,10 @@ from ibvs_common.params import declare, Param, ParameterError
 from ibvs_model import default_model, forward_kinematics
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-
-
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.shutdown(context=ctx)
 
 
 RATE = Param('rate_hz', 30.0, 'a rate', 'Hz', low=0.0, high=100.0, low_open=True)
@@ -262,7 +251,7 @@ def test_diagnostics_counts_rejections_and_publishes(context):
 
 
 def test_a_malformed_clock_is_counted_and_the_node_keeps_its_sim_time(context):
-    """rclpy raises on /clock with sec < 0 inside the executor; Diagnostics' guard rejects it."""
+    """A /clock with sec < 0 makes rclpy raise in the executor; Diagnostics' guard rejects it."""
     node = Node('clock_test', context=context,
                 parameter_overrides=[Parameter('use_sim_time', value=True)])
     talker = Node('clock_talker', context=context)

@@ -6,7 +6,6 @@ test node and the tests wait on conditions (with a generous deadline that only g
 against a hang), never on wall-clock time.
 """
 
-import time
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -15,6 +14,7 @@ from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, joint_state, joint_trajectory,
                                      pose_stamped, read_joints, read_trajectory, stamp_ns)
 from ibvs_common.params import ParameterError
+from ibvs_common.testing import spin_until
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
 from ibvs_control.dynamics import RobotDynamics
@@ -23,7 +23,6 @@ from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_model import default_model, inverse_kinematics, paper
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -35,16 +34,6 @@ from trajectory_msgs.msg import JointTrajectory
 MS = 1_000_000
 CAMERA_NS = 33_333_333
 DEADLINE_S = 20.0
-
-
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.shutdown(context=ctx)
 
 
 def overrides(**values):
@@ -84,10 +73,7 @@ class Harness:
                 kind, topic, lambda m, t=topic: self.received[t].append(m), qos)
 
     def spin_until(self, predicate, what='condition'):
-        deadline = time.monotonic() + DEADLINE_S
-        while not predicate():
-            assert time.monotonic() < deadline, f'timed out waiting for {what}'
-            self.executor.spin_once(timeout_sec=0.05)
+        spin_until(self.executor, predicate, DEADLINE_S, what)
 
     def wait_matched(self, topics):
         """Wait until every publisher in ``topics`` has its subscriber (discovery)."""

@@ -8,36 +8,23 @@ SingleThreadedExecutor, and every wait is a spin_once loop on a condition with a
 import os
 import subprocess
 import sys
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, pose_matrix, stamp_ns
 from ibvs_common.params import ParameterError
+from ibvs_common.testing import spin_until
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.world import World
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
-
-DEADLINE_S = 60.0
-
-
-@pytest.fixture
-def context(domain_id):
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 class StandIn(Node):
@@ -133,13 +120,6 @@ def graph(context):
         executor.shutdown()
         sim.destroy_node()
         stand_in.destroy_node()
-
-
-def spin_until(executor, condition, deadline_s=DEADLINE_S):
-    end = time.monotonic() + deadline_s
-    while not condition():
-        assert time.monotonic() < end, 'condition not met before the deadline'
-        executor.spin_once(timeout_sec=0.05)
 
 
 def test_lockstep_rates_and_stamps(graph):

@@ -9,7 +9,6 @@ projection of the TRUE angles the frame was rendered with (encoders + d_q, the p
 disturbance) within the acceptance tolerance, pixels away from the estimate F(q_T).
 """
 
-import os
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -21,8 +20,6 @@ from ibvs_sim.sim_node import SimNode
 from ibvs_sim.world import World
 from ibvs_vision.feature_node import FeatureNode
 import numpy as np
-import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -60,16 +57,6 @@ class Holder(Node):
         self.joints[stamp_ns(msg.header.stamp)] = q
         tau = self.model.inverse_dynamics(q, read_joints(msg, 'velocity'), np.zeros(6))
         self.pub.publish(joint_state(msg.header.stamp, effort=tau))
-
-
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=1 + (os.getpid() + 41) % 200)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 def test_one_measured_feature_message_per_simulated_frame(context, vga_model):
