@@ -71,15 +71,41 @@ def test_boolean_and_string_parameters_describe_their_values_not_a_number_range(
 
 
 def test_feedback_frame_rule():
-    period, latency = 33_333_333, 0
-    assert contract.feedback_frame_ns(0, period, latency) == 0
-    assert contract.feedback_frame_ns(period - 1, period, latency) == 0
-    assert contract.feedback_frame_ns(period, period, latency) == period
-    assert contract.feedback_frame_ns(10_000_000, period, 20_000_000) is None
-    assert contract.feedback_frame_ns(20_000_000, period, 20_000_000) == 0
-    assert contract.feedback_frame_ns(period + 20_000_000, period, 20_000_000) == period
-    with pytest.raises(ValueError):
-        contract.feedback_frame_ns(0, 0, 0)
+    period, latency, step = 33_333_333, 0, 1_000_000
+    # 30 Hz frames on 1 kHz physics are stamped with the step they are rendered from
+    assert [contract.frame_stamp_ns(n, period, step) for n in range(4)] == \
+        [0, 34_000_000, 67_000_000, 100_000_000]
+    assert contract.feedback_frame_ns(0, period, latency, step) == 0
+    assert contract.feedback_frame_ns(33_000_000, period, latency, step) == 0
+    assert contract.feedback_frame_ns(34_000_000, period, latency, step) == 34_000_000
+    assert contract.feedback_frame_ns(10_000_000, period, 20_000_000, step) is None
+    assert contract.feedback_frame_ns(20_000_000, period, 20_000_000, step) == 0
+    assert contract.feedback_frame_ns(53_000_000, period, 20_000_000, step) == 0
+    assert contract.feedback_frame_ns(54_000_000, period, 20_000_000, step) == 34_000_000
+    for bad in ((0, 0, 0, step), (0, period, -1, step), (0, period, 0, 0)):
+        with pytest.raises(ValueError):
+            contract.feedback_frame_ns(*bad)
+
+
+def test_feedback_frame_is_the_newest_frame_stamp_acting_by_then():
+    """By property: a frame stamp on the step grid, acting by t, and the next one not yet."""
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        step = int(rng.integers(1, 10 ** 7))
+        period = int(rng.integers(step, 20 * step))
+        latency = int(rng.integers(0, 10 ** 8))
+        t = int(rng.integers(0, 10 ** 10)) // step * step
+        got = contract.feedback_frame_ns(t, period, latency, step)
+        if t < latency:
+            assert got is None
+            continue
+        n = next(n for n in range(t // period + 2)
+                 if contract.frame_stamp_ns(n + 1, period, step) + latency > t)
+        assert got == contract.frame_stamp_ns(n, period, step)
+        assert got % step == 0 and got + latency <= t
+        # on a grid that the camera period divides, the stamps are n * period
+        if period % step == 0:
+            assert got == (t - latency) // period * period
 
 
 def test_stamp_round_trip_is_exact():

@@ -12,7 +12,7 @@ from PyBullet (:class:`.dynamics.RobotDynamics`), and publishes /joint_effort_co
 Lockstep (docs/design.md §4). The answer to t_k needs the feedforward trajectory
 (/ibvs/feedforward_trajectory, published once at the start: q_feedforward(t_k) is its point
 at t_k, its first point before it starts and its last after it ends) and the q_feedback of
-frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero before the first
+frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency, dt) (zero before the first
 frame takes effect). A frame the camera lost (/stereo/frame_lost, stamped with the frame's
 stamp: ibvs_sim.sim_node) will have no q_feedback: for it the controller holds the
 q_feedback of the latest frame before it that was not lost, as a real controller holds its
@@ -169,7 +169,8 @@ class JointControllerNode(Node):
         source = contract.Q_FEEDBACK
         # The oldest frame still needed: the one acting at the last answered step.
         needed = (None if self.last_answered_ns is None else
-                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns))
+                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns,
+                                    self.dt_ns))
         try:
             t_ns = read_stamp(msg.header.stamp)
             q = read_joints(msg)
@@ -196,9 +197,14 @@ class JointControllerNode(Node):
 
     def _on_frame_lost(self, msg):
         source = contract.FRAME_LOST
-        t_ns = stamp_ns(msg.stamp)
+        try:
+            t_ns = read_stamp(msg.stamp)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
         needed = (None if self.last_answered_ns is None else
-                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns))
+                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns,
+                                    self.dt_ns))
         if needed is not None and t_ns < needed:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
             return
@@ -224,7 +230,7 @@ class JointControllerNode(Node):
         missing = []
         if self._trajectory is None:
             missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
-        frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
+        frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns, self.dt_ns)
         if frame is not None and frame not in self._fb and frame not in self._lost:
             missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns (or its '
                            f'{contract.FRAME_LOST})')
@@ -234,7 +240,7 @@ class JointControllerNode(Node):
         """Answer the buffered joint states in order, as far as their inputs are here."""
         while self._states and not self._missing(self._states[0][0]):
             t_ns, q, qd = self._states.popleft()
-            frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
+            frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns, self.dt_ns)
             if frame is not None and frame in self._fb:
                 self._held = self._fb[frame]
             # Before the first frame: zero; a lost frame: the last one's, held.

@@ -353,9 +353,10 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         # at rest on its reference: u = h(q, 0), gravity compensation
         np.testing.assert_allclose(read_joints(out[0], 'effort'),
                                    dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
-        # next steps: frame 0's q_feedback still applies until frame 1 (33.33 ms)
+        # next steps: frame 0's q_feedback still applies until frame 1 (due at 33.33 ms,
+        # rendered from and stamped with the step at 34 ms)
         q_fb = np.full(6, 0.001)
-        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, q_fb))
+        h.publish(contract.Q_FEEDBACK, joint_state(34 * MS, q_fb))
         loop = JointLoop(0.01, 1e-3)
         loop.step(q0, q0, np.zeros(6))
         for k in (1, 2):

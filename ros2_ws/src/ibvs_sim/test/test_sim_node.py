@@ -142,8 +142,10 @@ def test_lockstep_rates_and_stamps(graph):
     assert [stamp_ns(m.header.stamp) for m in rec['tool']] == expected
     # One step per command: every /joint_states but the last was answered, once.
     assert stand_in.sent == len(expected) - 1 and sim.sim.k == len(expected) - 1
-    # Camera rate: frame n stamped n * T_cam, in both images and both CameraInfo.
-    frames = [n * frame for n in range(t_end // frame + 1)]
+    # Camera rate: frame n due at n * T_cam, stamped with the step it is rendered from (the
+    # first at or after), in both images and both CameraInfo.
+    frames = [-(-n * frame // period) * period for n in range(t_end // frame + 1)]
+    assert frames[:4] == [0, 34_000_000, 67_000_000, 100_000_000]
     for key in ('left', 'right', 'left_info', 'right_info'):
         assert [stamp_ns(m.header.stamp) for m in rec[key]] == frames, key
     k = StereoIntrinsics.zed2('VGA')

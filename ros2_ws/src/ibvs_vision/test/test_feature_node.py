@@ -29,8 +29,9 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
-#: 30 Hz frames on a 1 kHz physics grid, as the simulator stamps them: frame n at n * T_CAM,
-#: its joint state at the first millisecond at or after that.
+#: 30 Hz frames stamped off the 1 kHz physics grid, frame n at n * T_CAM (a camera with its own
+#: clock; the simulator stamps a frame with its step), its joint state at the first
+#: millisecond at or after that: the node matches the first within one step.
 T_CAM_NS = 33_333_333
 DT_NS = 1_000_000
 D_Q = np.radians(paper.DISTURBANCE_DEG)
