@@ -133,7 +133,9 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
     Return (start ns, (N, 6) positions) of a JointTrajectory sampled every ``period_ns``.
 
     The points must be at 0, period_ns, 2 period_ns, ... from the header stamp, with finite
-    positions for the six joints (in any order, mapped by name). Raises :class:`InputError`.
+    positions for the six joints (in any order, mapped by name). Velocities, accelerations
+    and efforts are not read: they may be empty, but a non-finite value there rejects the
+    trajectory (as :func:`check_finite` does for a JointState). Raises :class:`InputError`.
     """
     if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
         raise InputError('wrong joint names', f'{list(msg.joint_names)}')
@@ -151,6 +153,10 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
                          f'{positions.shape[1:]} values per point, expected {len(names)}')
     if not np.all(np.isfinite(positions)):
         raise InputError('non-finite positions')
+    for field in ('velocities', 'accelerations', 'effort'):
+        if not all(np.all(np.isfinite(np.asarray(getattr(p, field), dtype=float)))
+                   for p in msg.points):
+            raise InputError(f'non-finite {field}')
     order = [list(msg.joint_names).index(n) for n in names]
     return stamp_ns(msg.header.stamp), positions[:, order]
 

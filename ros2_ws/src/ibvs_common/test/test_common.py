@@ -187,6 +187,13 @@ def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
     msg.joint_names = ['a'] * 6
     with pytest.raises(InputError, match='wrong joint names'):
         conversions.read_trajectory(msg, 1_000_000)
+    for field in ('velocities', 'accelerations', 'effort'):
+        msg = conversions.joint_trajectory(0, 1_000_000, rows)
+        setattr(msg.points[3], field, [0.0] * 5 + [float('nan')])
+        with pytest.raises(InputError, match=f'non-finite {field}'):
+            conversions.read_trajectory(msg, 1_000_000)
+        setattr(msg.points[3], field, [0.0] * 6)  # finite: allowed, and not read
+        np.testing.assert_array_equal(conversions.read_trajectory(msg, 1_000_000)[1], rows)
     with pytest.raises(InputError, match='empty trajectory'):
         conversions.read_trajectory(conversions.joint_trajectory(0, 1, np.empty((0, 6))), 1)
 

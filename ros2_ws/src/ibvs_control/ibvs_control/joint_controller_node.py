@@ -23,12 +23,13 @@ it logs once a second (steady clock) what for.
 
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
 (wrong length, NaN, missing or unknown joint names: values are mapped by name; a trajectory
-not sampled at the physics period; a stamp with a negative ``sec`` or ``nanosec`` >= 1e9), a
-/joint_states not newer than the last one, or stamped more than ``stale_timeout_s`` ahead of
-the newest time the node knows (its last answered stamp, or its /clock: in lockstep the next
-state is one physics step on, so only a bad publisher is caught, and it cannot hold the
-buffer so that the good states after it go unanswered), a q_feedback older than what is
-still needed. A new trajectory replaces the old one.
+not sampled at the physics period or with a non-finite value in any field; a stamp with a
+negative ``sec`` or ``nanosec`` >= 1e9), a /joint_states not newer than the last one, or
+stamped more than ``stale_timeout_s`` ahead of the newest time the node knows (its last
+answered stamp, or its /clock: in lockstep the next state is one physics step on, so only a
+bad publisher is caught, and it cannot hold the buffer so that the good states after it go
+unanswered), a q_feedback older than what is still needed. A new trajectory replaces the
+old one.
 
 /ibvs/q_feedback contract: six finite positions, mapped by joint name, each within
 :data:`FEEDBACK_BOUND_RAD` (the joint's whole travel: no correction can be larger). Velocity

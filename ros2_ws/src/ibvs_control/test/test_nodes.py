@@ -323,6 +323,15 @@ def test_feedback_holds_on_bad_and_stale_features_and_freezes(context):
 
 # -- joint_controller_node ------------------------------------------------------------------
 
+def controller_harness(context, **params):
+    """Return a joint controller and a harness whose publishers it has matched."""
+    node = JointControllerNode(context=context, parameter_overrides=overrides(**params))
+    h = Harness(context, node)
+    h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                    contract.Q_FEEDBACK])
+    return node, h
+
+
 @pytest.fixture(scope='module')
 def dynamics():
     dyn = RobotDynamics()
@@ -331,11 +340,8 @@ def dynamics():
 
 
 def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, dynamics):
-    node = JointControllerNode(context=context)
-    h = Harness(context, node)
+    node, h = controller_harness(context)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
@@ -402,11 +408,8 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
 
 
 def test_joint_controller_rejects_bad_input(context):
-    node = JointControllerNode(context=context)
-    h = Harness(context, node)
+    node, h = controller_harness(context)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         h.publish(contract.JOINT_STATES, joint_state(0, [np.nan] * 6, np.zeros(6)))
         h.publish(contract.JOINT_STATES, joint_state(0, q0, [0.0] * 3))
@@ -438,11 +441,8 @@ def test_joint_controller_rejects_bad_input(context):
 
 def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_ones(context):
     """A far-future /joint_states used to sit in the buffer; every good one after was stale."""
-    node = JointControllerNode(context=context, parameter_overrides=overrides(use_sim_time=True))
-    h = Harness(context, node)
+    node, h = controller_harness(context, use_sim_time=True)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
@@ -466,11 +466,8 @@ def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_on
 
 def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dynamics):
     """q_feedback: six finite positions by name, within the joint travel; finite or no rest."""
-    node = JointControllerNode(context=context)
-    h = Harness(context, node)
+    node, h = controller_harness(context)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))

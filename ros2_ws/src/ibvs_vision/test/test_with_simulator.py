@@ -2,11 +2,12 @@
 feature_node behind the real simulator (ibvs_sim.sim_node) in one executor, in lockstep.
 
 A minimal stand-in controller answers every /joint_states with gravity compensation, so the
-simulator steps at 1 kHz and publishes 30 Hz frames due at n * T_cam, rendered from the first
-physics step at or after that time and stamped with it. At the scenario 1 start both markers are in view: the
-node must publish exactly one measured p_I per frame, stamped with the frame: the model
-projection of the TRUE angles the frame was rendered with (encoders + d_q, the paper's
-disturbance) within the acceptance tolerance, pixels away from the estimate F(q_T).
+simulator steps at 1 kHz and publishes 30 Hz frames due at n * T_cam, rendered from the
+first physics step at or after that time and stamped with it. At the scenario 1 start both
+markers are in view: the node must publish exactly one measured p_I per frame, stamped with
+the frame: the model projection of the TRUE angles the frame was rendered with (encoders +
+d_q, the paper's disturbance) within the acceptance tolerance, pixels away from the
+estimate F(q_T).
 """
 
 import time
