@@ -20,8 +20,8 @@ inputs by reason and the processing time.
 A frame is published as soon as both images, the joint state of its stamp, the camera infos
 and the camera pose are there. The joint state of a frame stamped t is the first one stamped
 in [t, t + 1 / physics_rate_hz): the simulator stamps a frame with the physics step it
-renders it from and publishes that step's joint state right after the images (lockstep),
-so the estimate uses the very angles the image shows. A frame that cannot be
+renders it from and publishes that step's joint state with it (lockstep), so the estimate
+uses the very angles the image shows. A frame that cannot be
 published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
 newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
