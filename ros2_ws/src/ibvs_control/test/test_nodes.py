@@ -568,11 +568,12 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         h.publish(contract.Q_FEEDBACK, joint_state(0, q_fb))
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'answer at 0')
-        # frame 1 (33.33 ms) is lost: at 34 ms the controller would wait for its q_feedback
+        # frame 1 (due at 33.33 ms, stamped 34 ms) is lost: at 34 ms the controller would wait
+        # for its q_feedback
         h.publish(contract.JOINT_STATES, joint_state(34 * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(node._states) == 1, 'joint state at 34 ms buffered')
         assert node.commands == 1
-        lost_pub.publish(Header(stamp=joint_state(CAMERA_NS, q0).header.stamp))
+        lost_pub.publish(Header(stamp=joint_state(34 * MS, q0).header.stamp))
         h.spin_until(lambda: len(out) == 2, 'answer at 34 ms')
         # ... and it holds frame 0's q_feedback
         loop = JointLoop(0.01, 1e-3)
@@ -582,7 +583,7 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         np.testing.assert_allclose(read_joints(out[1], 'effort'), expected, rtol=1e-9)
         assert node.frames_lost == 1
         # a q_feedback for the lost frame is rejected, frame 2 applies again
-        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.zeros(6)))
+        h.publish(contract.Q_FEEDBACK, joint_state(34 * MS, np.zeros(6)))
         rejected = node.diagnostics.rejections
         h.spin_until(lambda: rejected[f'{contract.Q_FEEDBACK}: frame was lost'] == 1,
                      'rejection of a lost frame')

@@ -218,7 +218,7 @@ class SimNode(Node):
             for pub, image, frame in zip(self._teach_pubs, self.sim.teach_images,
                                          (contract.LEFT_CAMERA_FRAME,
                                           contract.RIGHT_CAMERA_FRAME)):
-                pub.publish(image_msg(image, 0, frame))
+                pub.publish(image_msg(image, 0, 'rgb8', frame))
         self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
                                              self._on_command, contract.RELIABLE)
 
