@@ -35,7 +35,7 @@ import yaml
 from . import analysis, plots, scenario
 from .recorder import Recorder
 
-#: The graph of DESIGN section 1, in start order: the simulator last, so that every
+#: The graph of docs/design.md §1, in start order: the simulator last, so that every
 #: subscriber is up before the first /joint_states.
 NODES = (
     ('ibvs_vision', 'feature_node'),

@@ -1,10 +1,10 @@
 """
-sim_node: the simulated plant (paper Figure 3) on the contract of DESIGN sections 3 and 4.
+sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
 Lockstep. At step k (sim time t_k, from 0) the node publishes, first, /joint_states (encoder
 angles q - d_q, velocities, the torque of the previous step), so that the joint controller
 works on step k while the rest goes out: /clock, /ibvs/tool_pose and the camera frame due
-at t_k if any (both images and CameraInfo, stamped n * T_cam). Every consumer matches its
+at t_k if any (both images and CameraInfo, stamped t_k). Every consumer matches its
 inputs by stamp, so the order changes no result. It then
 waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
 torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
