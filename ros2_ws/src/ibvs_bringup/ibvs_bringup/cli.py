@@ -37,10 +37,13 @@ def cmd_run(args):
     print(f'running {args.scenario} -> {out}')
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
-                                     record_images=args.images)
+                                     record_images=args.images, stall_s=args.stall_s)
     except runner.NodeDied as exc:
         print(f'run failed: {exc}', file=sys.stderr)
         return 3
+    except runner.RunStalled as exc:
+        print(f'run stalled: {exc}', file=sys.stderr)
+        return 4
     print(f'wrote {out}/metrics.json, figures and the bag {result.bag_path}')
     _print_summary(result.metrics)
     return 0
@@ -88,6 +91,9 @@ def main(argv=None):
         p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
         p.add_argument('--duration', type=float, help='sim time limit, s')
         p.add_argument('--images', action='store_true', help='also record raw images')
+        p.add_argument('--stall-s', type=float, default=runner.STALL_S,
+                       help='wall seconds without sim-time progress that end the run as '
+                       'stalled (exit code 4; default %(default)s)')
         p.add_argument('-p', '--param', action='append', default=[],
                        help='override a parameter: name:=value (repeatable)')
         p.set_defaults(func=func)

@@ -8,6 +8,7 @@ node started with ``--ros-args --params-file <file>`` sees them.
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+from ibvs_common import contract
 import yaml
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
@@ -44,6 +45,24 @@ def load_parameters(name_or_path):
     except (KeyError, TypeError):
         raise ScenarioError(f"{path}: expected '/**: ros__parameters: {{...}}'") from None
     return params
+
+
+def check_progress(params):
+    """
+    Refuse a configuration with which the graph of ``ibvs run`` cannot advance sim time.
+
+    The joint controller answers /joint_states at t only once it has /ibvs/q_feedback of the
+    frame that applies at t (DESIGN section 4), and that comes from the feature node, which
+    needs both stereo images of the frame. Without images (``publish_images: false``) the run
+    would wait at the first frame forever; it is refused here, before any node starts.
+    """
+    if params.get('publish_images', True) is False:
+        raise ScenarioError(
+            f'publish_images is false: the feature node would get no {contract.LEFT_IMAGE} '
+            f'or {contract.RIGHT_IMAGE}, hence no {contract.FEATURES}, and the joint '
+            f'controller would wait for {contract.Q_FEEDBACK} of the first camera frame '
+            'forever; the node graph needs the images (publish_images:=false is for the '
+            'simulator on its own)')
 
 
 def parse_override(text):
