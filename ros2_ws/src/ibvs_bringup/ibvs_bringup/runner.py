@@ -67,9 +67,14 @@ class NodeDied(RuntimeError):
     """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
 
     def __init__(self, node, returncode, log_path):
-        """Keep which node died, its exit code and where its log is."""
+        """Keep which node died, its exit code and where its log is; quote its last line."""
+        try:
+            lines = Path(log_path).read_text(errors='replace').strip().splitlines()
+        except OSError:
+            lines = []
+        last = f'; its last words: {lines[-1].strip()}' if lines else ''
         super().__init__(f'node {node} exited with code {returncode} during the run '
-                         f'(log: {log_path})')
+                         f'(log: {log_path}){last}')
         self.node = node
         self.returncode = returncode
         self.log_path = log_path

@@ -18,6 +18,14 @@ class ScenarioError(ValueError):
     """A scenario cannot be found or its file is malformed."""
 
 
+def share_directory():
+    """Return the installed share directory of ibvs_bringup (the source tree if not built)."""
+    try:
+        return Path(get_package_share_directory('ibvs_bringup'))
+    except (PackageNotFoundError, OSError):  # not installed: the source tree
+        return Path(__file__).resolve().parents[1]
+
+
 def scenario_path(name_or_path):
     """Return the parameter file of a scenario name ('scenario1') or an explicit path."""
     path = Path(name_or_path)
@@ -25,10 +33,7 @@ def scenario_path(name_or_path):
         if not path.is_file():
             raise ScenarioError(f'scenario file {path} does not exist')
         return path
-    try:
-        share = Path(get_package_share_directory('ibvs_bringup'))
-    except (PackageNotFoundError, OSError):  # not installed: the source tree
-        share = Path(__file__).resolve().parents[1]
+    share = share_directory()
     candidate = share / 'config' / f'{name_or_path}.yaml'
     if not candidate.is_file():
         known = sorted(p.stem for p in (share / 'config').glob('*.yaml'))
