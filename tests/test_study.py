@@ -4,6 +4,10 @@ import csv
 import json
 import os
 from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
 
 from ibvs_bringup import study, study_spec
 import pytest
@@ -74,3 +78,50 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
     assert [r['cached'] for r in retried] == [True, True, True, False]
     assert json.loads((Path(failed['run_dir']) / 'run.json').read_text())['status'] == \
         'failed'
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
+        installed_workspace, tmp_path, proc_tools):
+    """SIGINT to the study's process group, as a terminal's Ctrl-C sends it, mid-run."""
+    spec_path = tmp_path / 'two.yaml'
+    spec_path.write_text(yaml.safe_dump({
+        'name': 'two', 'scenario': 'scenario1', 'duration_s': 0.2,
+        'grid': {'l2_scale': [1.0, 0.9, 0.8]}}, sort_keys=False))
+    out = tmp_path / 'studies'
+    cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'study', str(spec_path), '-o', str(out),
+           '--parallel', '1', '--domains', f'{DOMAINS[0]}-{DOMAINS[1]}']
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    seen = set()
+    try:
+        deadline = time.monotonic() + 600.0
+        interrupted = False
+        while time.monotonic() < deadline and not interrupted:
+            assert proc.poll() is None, proc.communicate()
+            seen.update(proc_tools.descendants(proc.pid))
+            finished = list(out.glob('two/runs/*/run.json'))
+            running = [p for p in out.glob('two/runs/*/logs/sim_node.log')
+                       if not (p.parents[1] / 'run.json').exists()]
+            if finished and running:
+                time.sleep(1.0)
+                seen.update(proc_tools.descendants(proc.pid))
+                os.killpg(proc.pid, signal.SIGINT)
+                interrupted = True
+            time.sleep(0.2)
+        assert interrupted, 'the study never had a finished and a running run'
+        output, _ = proc.communicate(timeout=120.0)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 130, output
+    assert 'interrupted' in output
+    leftovers = [pid for pid in seen if proc_tools.alive(pid)]
+    assert not leftovers, [proc_tools.cmdline(p) for p in leftovers]
+    done = [json.loads(p.read_text()) for p in out.glob('two/runs/*/run.json')]
+    assert done and all(r['status'] == 'ok' for r in done)
+    # Started again, the finished runs come from the cache and only the others would run.
+    records, todo = study.plan([study_spec.load(spec_path)], out)
+    assert {r['key'] for r in records['two'] if r.get('cached')} == {r['key'] for r in done}
+    assert len(todo) == 3 - len(done)

@@ -55,7 +55,10 @@ NODES = (
 
 
 #: Default wall time without sim-time progress after which a run is declared stalled (s).
-STALL_S = 10.0
+#: Long enough for the slowest single step seen on a loaded 2-core machine (the
+#: feedforward's trajectory at t = 0 took 11 s with a load average of 17); the runner then
+#: names who waits for what.
+STALL_S = 60.0
 #: Default wall time from the last node's launch to the simulator's first step (s):
 #: start-up (PyBullet, EGL, discovery) takes seconds, more on a loaded machine.
 START_TIMEOUT_S = 120.0

@@ -241,6 +241,26 @@ def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
     Returns ``{name: [record, ...]}`` in run order. Runs recorded under the same key are not
     run again (failed ones are with ``retry_failed``).
     """
+    records, todo = plan(specs, out_dir, retry_failed)
+    cached = sum(len(r) for r in records.values()) - len(todo)
+    total = cached + len(todo)
+    print(f'{total} runs in {len(specs)} stud{"y" if len(specs) == 1 else "ies"}: '
+          f'{cached} cached, {len(todo)} to run', file=out, flush=True)
+    if todo:
+        _execute(todo, address, parallel or default_parallel(), domains, stall_s,
+                 Progress(total, cached, out))
+    for spec in specs:
+        write_results(spec, records[spec.name], out_dir / spec.name)
+    return records
+
+
+def plan(specs, out_dir, retry_failed=False):
+    """
+    Return ``({name: [record, ...]}, [(spec, record), ...])``: every run, and those to run.
+
+    A run whose ``run.json`` holds the same key is taken from there (``cached``), unless it
+    failed and ``retry_failed`` is set.
+    """
     out_dir = Path(out_dir)
     version = code_version()
     todo, records = [], {}
@@ -261,16 +281,7 @@ def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
             else:
                 todo.append((spec, record))
             records[spec.name].append(record)
-    cached = sum(len(r) for r in records.values()) - len(todo)
-    total = cached + len(todo)
-    print(f'{total} runs in {len(specs)} stud{"y" if len(specs) == 1 else "ies"}: '
-          f'{cached} cached, {len(todo)} to run', file=out, flush=True)
-    if todo:
-        _execute(todo, address, parallel or default_parallel(), domains, stall_s,
-                 Progress(total, cached, out))
-    for spec in specs:
-        write_results(spec, records[spec.name], out_dir / spec.name)
-    return records
+    return records, todo
 
 
 def _execute(todo, address, parallel, domains, stall_s, progress):
