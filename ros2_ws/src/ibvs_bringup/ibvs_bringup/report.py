@@ -43,12 +43,14 @@ def load_specs(quick=False):
     """Return the report's study specs; ``quick`` keeps the sweep's endpoints and nominal."""
     specs = [study_spec.load(study.study_path(name)) for name in REPORT_STUDIES]
     if quick:
-        specs = [spec if spec.name != SWEEP_STUDY else dataclasses.replace(
-            spec, name=f'{SWEEP_STUDY}_quick',
-            grid=tuple({k: [v for v in values if v in QUICK_SCALES]
-                        for k, values in product.items()} for product in spec.grid))
-            for spec in specs]
+        specs = [_quick(spec) if spec.name == SWEEP_STUDY else spec for spec in specs]
     return specs
+
+
+def _quick(spec):
+    grid = tuple({k: [v for v in values if v in QUICK_SCALES] for k, values in product.items()}
+                 for product in spec.grid)
+    return dataclasses.replace(spec, name=f'{spec.name}_quick', grid=grid)
 
 
 def sweep_rows(records):

@@ -29,10 +29,10 @@ import subprocess
 import time
 
 from ament_index_python.packages import get_package_prefix
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix, stamp_ns
-from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_common.node_main import make_executor
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np

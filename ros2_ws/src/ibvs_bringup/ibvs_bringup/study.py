@@ -102,13 +102,11 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
     import ray
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    for stale in ('metrics.json',):
-        (run_dir / stale).unlink(missing_ok=True)
-    domain = None
-    while domain is None:
+    (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
+    domain = ray.get(pool.acquire.remote())
+    while domain is None:  # more runs at once than IDs in the pool: wait for one
+        time.sleep(0.5)
         domain = ray.get(pool.acquire.remote())
-        if domain is None:
-            time.sleep(0.5)
     cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', scenario_name, '-o', str(run_dir),
            '--stall-s', repr(float(stall_s))]
     if duration_s is not None:
@@ -135,7 +133,8 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
     finally:
         pool.release.remote(domain)
     record = {'exit_code': code, 'wall_s': time.monotonic() - start, 'domain_id': domain,
-              'command': cmd, 'host': os.uname().nodename}
+              'command': cmd, 'host': os.uname().nodename,
+              'ray_node': ray.get_runtime_context().get_node_id()}
     metrics_path = run_dir / 'metrics.json'
     if code == 0 and metrics_path.is_file():
         record.update(status='ok', metrics=json.loads(metrics_path.read_text()))
