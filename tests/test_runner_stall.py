@@ -51,7 +51,7 @@ def test_runner_reports_a_stall_and_who_waits(installed_workspace, tmp_path, pro
     # that the frozen feature node never delivers.
     assert '/joint_effort_commands' in waits['sim_node'], err
     assert '/ibvs/q_feedback of frame' in waits['joint_controller_node'], err
-    assert 'nothing reported' in waits['feature_node'], err
+    assert 'said nothing about waiting' in waits['feature_node'], err
     seen.update(proc_tools.descendants(runner.pid))
     leftovers = [pid for pid in seen if proc_tools.alive(pid)]
     assert not leftovers, [proc_tools.cmdline(p) for p in leftovers]

@@ -88,10 +88,11 @@ def cmd_study(args):
 
 def cmd_report(args):
     """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
-    from . import report
+    from . import report, study
     start = time.monotonic()
     path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
-                               parallel=args.parallel)
+                               parallel=args.parallel,
+                               domains=study.parse_domains(args.domains))
     print(f'wrote {path}')
     minutes, seconds = divmod(time.monotonic() - start, 60.0)
     print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
@@ -128,8 +129,6 @@ def main(argv=None):
     p = sub.add_parser('study', help=cmd_study.__doc__)
     p.add_argument('spec', help='a study spec file, or the name of an installed one')
     p.add_argument('-o', '--out', help='parent of the study directory (default results/studies)')
-    p.add_argument('--domains', default='-'.join(map(str, _study_defaults()['domains'])),
-                   help='pool of ROS_DOMAIN_IDs for the runs, LOW-HIGH (default %(default)s)')
     p.add_argument('--stall-s', type=float, default=runner.STALL_S,
                    help='wall seconds without sim-time progress that fail a run')
     p.add_argument('--retry-failed', action='store_true',
@@ -143,6 +142,9 @@ def main(argv=None):
         p = sub.choices[name]
         p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
                        'default: a local Ray started for this command')
+        p.add_argument('--domains', default='-'.join(map(str, _study_defaults()['domains'])),
+                       help='pool of ROS_DOMAIN_IDs for the runs, LOW-HIGH (default '
+                       '%(default)s)')
         p.add_argument('--parallel', type=int,
                        help='runs at once on the local Ray (default: one per core, '
                        f"{_study_defaults()['parallel']} here)")

@@ -85,12 +85,13 @@ def sweep_figure(rows, path):
     plt.close(fig)
 
 
-def build_report(out_dir, quick=False, progress=print, address=None, parallel=None):
+def build_report(out_dir, quick=False, address=None, parallel=None, domains=study.DOMAIN_IDS):
     """Run the report's studies and write ``<out_dir>/report.md``; return its path."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = load_specs(quick)
-    records = study.run_studies(specs, out_dir / 'studies', address=address, parallel=parallel)
+    records = study.run_studies(specs, out_dir / 'studies', address=address, parallel=parallel,
+                                domains=domains)
     failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
               for rs in records.values() for r in rs if r['status'] != 'ok']
     if failed:

@@ -62,6 +62,9 @@ STALL_S = 60.0
 #: Default wall time from the last node's launch to the simulator's first step (s):
 #: start-up (PyBullet, EGL, discovery) takes seconds, more on a loaded machine.
 START_TIMEOUT_S = 120.0
+#: What the stall report says of a node that reported no wait: busy, frozen, or a node that
+#: does not report its waits.
+SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
 #: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
 _WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[[^\]]+\]: (waiting .*)$')
 
@@ -228,7 +231,7 @@ class Monitor:
             said += [f'/diagnostics {k} = {v}'
                      for k, v in self.diagnostics.get(p.name, {}).items()
                      if k.startswith('waiting') and v not in ('', '-1')]
-            out[p.name] = '; '.join(said) or 'nothing reported (not waiting on its inputs)'
+            out[p.name] = '; '.join(said) or SILENT
         return out
 
     def _on_clock(self, msg):

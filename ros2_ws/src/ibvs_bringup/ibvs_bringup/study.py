@@ -28,6 +28,7 @@ import json
 import logging
 import os
 from pathlib import Path
+import resource
 import shutil
 import signal
 import subprocess
@@ -116,6 +117,7 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     start = time.monotonic()
+    cpu_start = _children_cpu_s()
     try:
         with open(run_dir / 'runner.log', 'wb') as log:
             proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
@@ -132,7 +134,9 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
                 raise
     finally:
         pool.release.remote(domain)
-    record = {'exit_code': code, 'wall_s': time.monotonic() - start, 'domain_id': domain,
+    # The run and its nodes are waited for, so their CPU time rolls up to this worker.
+    record = {'exit_code': code, 'wall_s': time.monotonic() - start,
+              'cpu_s': _children_cpu_s() - cpu_start, 'domain_id': domain,
               'command': cmd, 'host': os.uname().nodename,
               'ray_node': ray.get_runtime_context().get_node_id()}
     metrics_path = run_dir / 'metrics.json'
@@ -146,6 +150,11 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
         record.update(status='failed', metrics=None,
                       reason=' '.join(x.strip() for x in (why or text[-3:]))[:2000])
     return record
+
+
+def _children_cpu_s():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 class DomainPool:
@@ -342,7 +351,8 @@ def table_rows(spec, records):
         row.update({name: record['swept'].get(name, '') for name in spec.swept_names()})
         row.update({k: metrics.get(k) for k in TABLE_METRICS})
         row.update(status=record['status'], success=succeeded(record),
-                   wall_s=record.get('wall_s'), reason=record.get('reason', ''),
+                   wall_s=record.get('wall_s'), cpu_s=record.get('cpu_s'),
+                   reason=record.get('reason', ''),
                    run_dir=record['run_dir'])
         rows.append(row)
     return rows
