@@ -2,7 +2,7 @@
 Studies on Ray: every run of one or more study specs as a Ray task, cached, with a table.
 
 Each run is ``ibvs run`` in a subprocess of a Ray worker, isolated from the others by its
-own ``ROS_DOMAIN_ID`` (from a pool held by a Ray actor), ``ROS_AUTOMATIC_DISCOVERY_RANGE=
+own ``ROS_DOMAIN_ID`` (from a pool, :func:`lock_domain`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=
 LOCALHOST`` and its own output directory. A run declares ``num_cpus=CPUS_PER_RUN`` to Ray:
 the lockstep passes one message at a time through the graph's five processes, so one run
 keeps about one core busy (README, Studies, gives the measurement), and Ray runs as many at
@@ -22,6 +22,7 @@ records of the runs already finished.
 """
 
 import csv
+import fcntl
 import hashlib
 import importlib.util
 import json
@@ -53,6 +54,10 @@ DOMAIN_IDS = (101, 199)
 #: The packages whose sources make up the code version of a run.
 PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_control',
             'ibvs_bringup')
+#: Modules that organise runs but take no part in one: left out of the code version, so
+#: that a change to the study or report layer keeps the runs cached.
+NOT_IN_A_RUN = ('ibvs_bringup/study.py', 'ibvs_bringup/study_spec.py',
+                'ibvs_bringup/report.py', 'ibvs_bringup/bench.py')
 #: Success: final position error and final tool-axis error within these.
 SUCCESS_POSITION_M = 1e-3
 SUCCESS_AXIS_DEG = 0.1
@@ -65,7 +70,8 @@ CANCEL_GRACE_S = 30.0
 
 def code_version():
     """
-    Return a hash of the installed sources of the six packages (``*.py``, by path).
+    Return a hash of the installed sources of the six packages (``*.py``, by path) that
+    take part in a run (all but :data:`NOT_IN_A_RUN`).
 
     The same in a fresh clone, a colcon install and on every node of a cluster that runs
     the same code, and different as soon as one line changes: no git needed.
@@ -75,6 +81,8 @@ def code_version():
         spec = importlib.util.find_spec(package)
         root = Path(next(iter(spec.submodule_search_locations)))
         for path in sorted(root.rglob('*.py')):
+            if f'{package}/{path.relative_to(root)}' in NOT_IN_A_RUN:
+                continue
             digest.update(f'{package}/{path.relative_to(root)}\0'.encode())
             digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
@@ -93,9 +101,12 @@ def parse_domains(text):
     return low, high
 
 
-def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
+def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s):
     """
     Run ``ibvs run`` once in a subprocess on its own ROS domain; return what came of it.
+
+    The domain is the first of ``domains`` (low, high) that no other run on this machine
+    holds (:func:`lock_domain`).
 
     The body of the Ray task. Cancelled (KeyboardInterrupt from ``ray.cancel``), it sends
     SIGINT to the run, which stops its nodes cleanly, and waits for it.
@@ -104,10 +115,7 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
-    domain = ray.get(pool.acquire.remote())
-    while domain is None:  # more runs at once than IDs in the pool: wait for one
-        time.sleep(0.5)
-        domain = ray.get(pool.acquire.remote())
+    domain, lock = lock_domain(*domains)
     cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', scenario_name, '-o', str(run_dir),
            '--stall-s', repr(float(stall_s))]
     if duration_s is not None:
@@ -133,7 +141,7 @@ def execute_run(pool, run_dir, scenario_name, overrides, duration_s, stall_s):
                     os.killpg(proc.pid, signal.SIGKILL)
                 raise
     finally:
-        pool.release.remote(domain)
+        lock.close()
     # The run and its nodes are waited for, so their CPU time rolls up to this worker.
     record = {'exit_code': code, 'wall_s': time.monotonic() - start,
               'cpu_s': _children_cpu_s() - cpu_start, 'domain_id': domain,
@@ -157,20 +165,28 @@ def _children_cpu_s():
     return usage.ru_utime + usage.ru_stime
 
 
-class DomainPool:
-    """The ROS_DOMAIN_IDs of the running runs: one actor, so no two runs share one."""
+def lock_domain(low, high, poll_s=0.5):
+    """
+    Return ``(domain, lock)``: a ROS_DOMAIN_ID in [low, high] held until ``lock.close()``.
 
-    def __init__(self, low, high):
-        """Hold every ID from ``low`` to ``high`` (inclusive)."""
-        self.free = list(range(low, high + 1))
-
-    def acquire(self):
-        """Return a free ID, or None when all are taken."""
-        return self.free.pop(0) if self.free else None
-
-    def release(self, domain):
-        """Give ``domain`` back."""
-        self.free.append(domain)
+    One ``flock`` per ID in a directory under the system's temporary directory, so that no
+    two runs on one machine share a domain, whichever study or Ray session they belong to,
+    and a run that dies releases its ID with its process. (Not a Ray actor: a task that
+    waits on ``ray.get`` gives its CPU back to Ray, which then starts one run too many.)
+    Waits while every ID is taken.
+    """
+    directory = Path(tempfile.gettempdir()) / 'ibvs-ros-domains'
+    directory.mkdir(exist_ok=True)
+    while True:
+        for domain in range(low, high + 1):
+            lock = open(directory / f'{domain}.lock', 'w')
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                lock.close()
+                continue
+            return domain, lock
+        time.sleep(poll_s)
 
 
 class Progress:
@@ -294,11 +310,10 @@ def plan(specs, out_dir, retry_failed=False):
 
 def _execute(todo, address, parallel, domains, stall_s, progress):
     with _Ray(address, parallel) as ray:
-        pool = ray.remote(num_cpus=0)(DomainPool).remote(*domains)
         task = ray.remote(execute_run).options(num_cpus=CPUS_PER_RUN, max_retries=0)
         refs = {}
         for spec, record in todo:
-            ref = task.remote(pool, record['run_dir'], spec.scenario, record['overrides'],
+            ref = task.remote(domains, record['run_dir'], spec.scenario, record['overrides'],
                               spec.duration_s, stall_s)
             refs[ref] = record
         pending = list(refs)

@@ -91,3 +91,15 @@ def test_installed_study_specs_are_valid():
     from pathlib import Path
     for path in (Path(__file__).resolve().parents[1] / 'studies').glob('*.yaml'):
         assert study_spec.load(path).runs()
+
+
+def test_domain_locks_are_exclusive_and_released():
+    from ibvs_bringup.study import lock_domain
+    first, lock1 = lock_domain(195, 196)
+    second, lock2 = lock_domain(195, 196)
+    assert first != second and {first, second} == {195, 196}
+    lock1.close()
+    again, lock3 = lock_domain(195, 196)
+    assert again == first
+    lock2.close()
+    lock3.close()
