@@ -70,8 +70,9 @@ CANCEL_GRACE_S = 30.0
 
 def code_version():
     """
-    Return a hash of the installed sources of the six packages (``*.py``, by path) that
-    take part in a run (all but :data:`NOT_IN_A_RUN`).
+    Return a hash of the installed sources (``*.py``) that take part in a run.
+
+    The six packages, by path, all but :data:`NOT_IN_A_RUN`.
 
     The same in a fresh clone, a colcon install and on every node of a cluster that runs
     the same code, and different as soon as one line changes: no git needed.
