@@ -4,9 +4,9 @@ Studies on Ray: every run of one or more study specs as a Ray task, cached, with
 Each run is ``ibvs run`` in a subprocess of a Ray worker, isolated from the others by its
 own ``ROS_DOMAIN_ID`` (from a pool, :func:`lock_domain`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=
 LOCALHOST`` and its own output directory. A run declares ``num_cpus=CPUS_PER_RUN`` to Ray:
-the lockstep passes one message at a time through the graph's five processes, so one run
-keeps about one core busy (README, Studies, gives the measurement), and Ray runs as many at
-once as the machine (or the cluster) has cores.
+the lockstep passes one message at a time through the graph's five processes, so they take
+turns and one run keeps at most about one core busy (each record's ``cpu_s`` says how much
+it used), and Ray runs as many at once as the machine (or the cluster) has cores.
 
 Without ``address`` a local Ray is started for the study (its temporary directory under
 /tmp, removed afterwards) and shut down at the end; with ``address`` the runs go to an
