@@ -19,6 +19,9 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   not move net), as the paper's Figures 10-12 show them;
 - ``lowest_tool_z_m``: the lowest the tool came, z of {O} (0 is the robot's base plane;
   below ``-mount_height_m`` of the simulator it is under the floor, hidden from the camera);
+- ``*_last_0_5s_*``: the mean and the maximum of the position and tool-axis errors over
+  the last ``LAST_WINDOW_S`` = 0.5 s of the run (one final sample says little under image
+  noise); the whole run when it is shorter;
 - ``time_estimated_s``: sim time during which the feature node published model estimates
   (or blended them) instead of measurements.
 """
@@ -37,6 +40,8 @@ import yaml
 #: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
 PARAMS_KEY = 'ibvs.parameters'
 RUN_KEY = 'ibvs.run'
+#: The closing window of the run over which the error's mean and maximum are reported, s.
+LAST_WINDOW_S = 0.5
 
 
 @dataclass
@@ -102,10 +107,15 @@ def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_dur
                       np.abs(position - target[:3, 3]))
     overshoot_axes = np.maximum(beyond.max(axis=0), 0.0)
     sim_duration = float(t[-1] - t[0])
+    last = t >= t[-1] - LAST_WINDOW_S
     metrics = {
         'scenario': scenario,
         'final_position_error_m': float(error[-1]),
         'final_tool_axis_error_deg': float(axis_err[-1]),
+        'mean_position_error_last_0_5s_m': float(error[last].mean()),
+        'max_position_error_last_0_5s_m': float(error[last].max()),
+        'mean_tool_axis_error_last_0_5s_deg': float(axis_err[last].mean()),
+        'max_tool_axis_error_last_0_5s_deg': float(axis_err[last].max()),
         'initial_position_error_m': float(error[0]),
         'settling_time_2pct_s': _relative(_settle_time(t, error <= 0.02 * error[0]), t),
         'time_to_1mm_s': _relative(_settle_time(t, error <= 1e-3), t),

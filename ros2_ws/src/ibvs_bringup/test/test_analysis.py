@@ -102,3 +102,30 @@ def test_scenario_overrides_and_parameter_files(tmp_path):
     bad.write_text('node: {}\n')
     with pytest.raises(scenario.ScenarioError, match='ros__parameters'):
         scenario.load_parameters(bad)
+
+
+def test_mean_and_max_error_over_the_last_half_second():
+    """A tool that ends oscillating around the target: the last 0.5 s, not its last sample."""
+    t = np.arange(0.0, 2.0 + 1e-9, 1e-3)
+    target = np.eye(4)
+    # 10 mm before 1.5 s, then up to 3 mm in the last 0.5 s, whose last sample is 0
+    error = np.where(t < 1.5, 0.01, 0.003 * np.abs(np.sin(2 * np.pi * (t - 2.0))))
+    position = np.outer(error, [1.0, 0.0, 0.0])
+    # the tool axis tilted by 0.2 deg before and 0.05 deg in the last 0.5 s
+    tilt = np.radians(np.where(t < 1.5, 0.2, 0.05))
+    c, s = np.cos(tilt), np.sin(tilt)
+    rotation = np.zeros((t.size, 3, 3))
+    rotation[:, 0, 0] = 1.0
+    rotation[:, 1, 1], rotation[:, 1, 2], rotation[:, 2, 1], rotation[:, 2, 2] = c, -s, s, c
+    m = analysis.compute_metrics(t, position, rotation, target)
+    last = t >= t[-1] - 0.5
+    assert m['final_position_error_m'] == pytest.approx(0.0, abs=1e-15)
+    assert m['max_position_error_last_0_5s_m'] == pytest.approx(0.003, rel=1e-6)
+    assert m['mean_position_error_last_0_5s_m'] == pytest.approx(error[last].mean(), rel=1e-12)
+    # |sin| over a whole number of half periods has the mean 2 / pi
+    assert m['mean_position_error_last_0_5s_m'] == pytest.approx(0.003 * 2 / np.pi, rel=1e-2)
+    assert m['mean_tool_axis_error_last_0_5s_deg'] == pytest.approx(0.05, rel=1e-6)
+    assert m['max_tool_axis_error_last_0_5s_deg'] == pytest.approx(0.05, rel=1e-6)
+    # a run shorter than the window: the whole run
+    short = analysis.compute_metrics(t[:100], position[:100], rotation[:100], target)
+    assert short['max_position_error_last_0_5s_m'] == pytest.approx(0.01)

@@ -17,6 +17,17 @@ RIGHT_IMAGE = '/stereo/right/image_raw'
 LEFT_INFO = '/stereo/left/camera_info'
 RIGHT_INFO = '/stereo/right/camera_info'
 STEREO_POSE = '/stereo/pose'
+#: One std_msgs/Header per stereo frame the camera lost (sim_node frame_drop_probability),
+#: stamped with the frame's stamp and published in place of its images: in lockstep it
+#: tells the joint controller that no q_feedback will come for that frame.
+FRAME_LOST = '/stereo/frame_lost'
+#: The stereo pair of the tool at the target pose, rendered once before the run (sim_node,
+#: target_features_source 'taught'); latched.
+TEACH_LEFT_IMAGE = '/stereo/teach/left/image_raw'
+TEACH_RIGHT_IMAGE = '/stereo/teach/right/image_raw'
+#: The target features p_bar the feature node measured on the teach pair (PolygonStamped,
+#: as /ibvs/features); latched.
+TARGET_FEATURES = '/ibvs/target_features'
 FEATURES = '/ibvs/features'
 #: The feedforward's joint reference, one trajectory_msgs/JointTrajectory for the whole run,
 #: sampled at the physics rate; latched, so a node that joins late still gets it.

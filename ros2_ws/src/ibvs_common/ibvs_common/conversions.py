@@ -10,7 +10,7 @@ from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
 from ibvs_model import StereoCamera, StereoIntrinsics
 import numpy as np
 from scipy.spatial.transform import Rotation
-from sensor_msgs.msg import CameraInfo, JointState
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
@@ -160,6 +160,22 @@ def pose_stamped(tf, stamp, frame_id=contract.BASE_FRAME):
     msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
     msg.header.frame_id = frame_id
     msg.pose = matrix_pose(tf)
+    return msg
+
+
+def image_msg(array, stamp, encoding='rgb8', frame_id=''):
+    """Return an (H, W, 3) uint8 array as a sensor_msgs/Image of ``encoding``."""
+    array = np.ascontiguousarray(array, dtype=np.uint8)
+    if array.ndim != 3 or array.shape[2] != 3:
+        raise ValueError('array must be (H, W, 3)')
+    msg = Image()
+    msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
+    msg.header.frame_id = frame_id
+    msg.height, msg.width = int(array.shape[0]), int(array.shape[1])
+    msg.encoding = encoding
+    msg.is_bigendian = 0
+    msg.step = 3 * msg.width
+    msg.data = array.tobytes()
     return msg
 
 

@@ -1,6 +1,9 @@
 """
 Parameters declared with descriptors (units, ranges) and validated when a node starts.
 
+A :class:`Param` and its :meth:`Param.check` are plain Python (only :meth:`Param.descriptor`
+needs ROS), so a pure module can hold the one definition of its tuning and check it.
+
 A bad value raises :class:`ParameterError` with a message that names the parameter and
 the allowed range; :func:`ibvs_common.node_main.run` turns it into a fatal log line and a
 non-zero exit code.
@@ -8,8 +11,6 @@ non-zero exit code.
 
 from dataclasses import dataclass
 import math
-
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 
 class ParameterError(ValueError):
@@ -52,6 +53,8 @@ class Param:
 
     def descriptor(self):
         """Return the ParameterDescriptor shown by ``ros2 param describe``."""
+        # Imported here: a Param (and its check) is pure Python, usable without ROS.
+        from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
         desc = ParameterDescriptor(
             description=f'{self.description} [{self.units or "-"}]; allowed: {self.allowed()}',
             read_only=self.read_only)

@@ -23,11 +23,17 @@ TARGET_ROTATION = Param('target_rotation',
                         [float(v) for row in paper.TARGET_ROTATION for v in row],
                         'target flange rotation [n s a] in {O}, row-major 3x3', '-',
                         low=-1.0, high=1.0, length=9)
+TARGET_FEATURES_SOURCE = Param(
+    'target_features_source', 'model', "target features p_bar: 'model' (the paper: the "
+    "target markers projected with the calibrated camera, F(q_target)) or 'taught' "
+    '(measured by the feature node on a stereo pair of the tool placed at the target pose '
+    'before the run)', '-', choices=('model', 'taught'))
 CAMERA_RATE_HZ = Param('camera_rate_hz', 30.0, 'stereo frame rate (ZED 2 HD720: 15/30/60)',
                        'Hz', low=0.0, high=100.0, low_open=True)
 FEEDBACK_LATENCY_S = Param(
     'feedback_latency_s', 0.0,
-    'camera-to-command latency in sim time: q_feedback of a frame acts this long after it',
+    'camera-to-command latency in sim time: q_feedback of a frame acts this long after it '
+    '(a ZED 2 delivers a frame 2-3 frame periods after its exposure: 0.067-0.1 s at 30 Hz)',
     's', low=0.0, high=1.0)
 PHYSICS_RATE_HZ = Param('physics_rate_hz', 1000.0, 'physics and joint-loop rate', 'Hz',
                         low=100.0, high=10000.0)

@@ -3,8 +3,11 @@ adaptive_feedback_node: the adaptive Youla feedback of section 4.2, one q_feedba
 
 Inputs: the camera model from /stereo/{left,right}/camera_info and /stereo/pose
 (ibvs_common.conversions.camera_from_msgs), the encoder joints /joint_states, and the
-features /ibvs/features (stamp t_f = the frame's). Target features p_bar = F(q_target):
-the target markers projected (eq. 30). Per frame (:class:`.controllers.AdaptiveFeedback`):
+features /ibvs/features (stamp t_f = the frame's). Target features p_bar
+(``target_features_source``): 'model', F(q_target), the target markers projected with the
+calibrated camera (eq. 30); or 'taught', the latched /ibvs/target_features that the feature
+node measured on a stereo pair of the tool at the target pose (no frame is answered before
+it has come). Per frame (:class:`.controllers.AdaptiveFeedback`):
 q~ = F^-1(p_hat) (eq. 42) with q6 and the IK branch from the encoder joints, C1 = J (eq.
 31) at the encoder angles (default) or at q~ (``linearise_at``: 'features', the paper's
 choice), SVD decoupling (eq. 34, rank 5), q_feedback = k_d(z) C1^+ (p_bar - p_hat)
@@ -20,7 +23,9 @@ Every frame is answered by one /ibvs/q_feedback stamped t_f, so that the joint c
 which waits for it, never stalls: a frame that cannot be used (NaN or wrong number of
 points, no triangulation or IK: rejected and counted on /diagnostics; older than
 ``stale_timeout_s`` of sim time: rejected as stale) is answered with the held q_feedback,
-its integrator frozen. Sim time "now" is the newest /joint_states stamp (deterministic in
+its integrator frozen. A frame the camera lost (/stereo/frame_lost) brings no features and
+gets no answer: the controller skips that sample and q_feedback holds (the joint controller
+holds it too). Sim time "now" is the newest /joint_states stamp (deterministic in
 lockstep, unlike the arrival of /clock). When no usable frame has come for
 ``stale_timeout_s`` of sim time, the feedback is marked frozen (WARN on /diagnostics) and
 logged; it resumes with the next fresh frame. A frame not newer than the last one
@@ -40,7 +45,8 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
-                                       TARGET_POSITION, TARGET_ROTATION, TAU_IN, ZETA)
+                                       TARGET_FEATURES_SOURCE, TARGET_POSITION,
+                                       TARGET_ROTATION, TAU_IN, ZETA)
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
@@ -53,7 +59,7 @@ from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, LINEARISE_AT
 
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED,
-          LINEARISE_AT)
+          LINEARISE_AT, TARGET_FEATURES_SOURCE)
 
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
@@ -73,6 +79,8 @@ class AdaptiveFeedbackNode(Node):
         self.feedback = None
         self._infos = [None, None]
         self._camera_pose = None
+        self._taught = values['target_features_source'] == 'taught'
+        self._p_target = None
         self._stamps = deque(maxlen=HISTORY)
         self._joints = deque(maxlen=HISTORY)
         self._pending = deque()
@@ -94,6 +102,9 @@ class AdaptiveFeedbackNode(Node):
                                  contract.RELIABLE)
         self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
                                  contract.RELIABLE)
+        if self._taught:
+            self.create_subscription(PolygonStamped, contract.TARGET_FEATURES,
+                                     self._on_target, contract.LATCHED)
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_info(self, index, msg):
@@ -108,8 +119,21 @@ class AdaptiveFeedbackNode(Node):
         self._camera_pose = msg
         self._try_camera()
 
+    def _on_target(self, msg):
+        if self.feedback is not None:
+            return
+        try:
+            self._p_target = read_features(msg)
+        except InputError as exc:
+            self.diagnostics.reject(contract.TARGET_FEATURES, exc.reason, exc.detail)
+            return
+        self._try_camera()
+
     def _try_camera(self):
         if self._camera_pose is None or None in self._infos:
+            return
+        if self._taught and self._p_target is None:
+            self.diagnostics.update(state=f'waiting for the taught {contract.TARGET_FEATURES}')
             return
         try:
             camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
@@ -120,7 +144,7 @@ class AdaptiveFeedbackNode(Node):
                 design=self.values['feedback_design'],
                 max_correction=self.values['max_correction_rad'],
                 hold_speed=self.values['hold_speed_fraction'],
-                linearise_at=self.values['linearise_at'])
+                linearise_at=self.values['linearise_at'], p_target=self._p_target)
         except (InputError, ModelError) as exc:
             # e.g. the target behind the camera: nothing to servo on; keep waiting.
             self.diagnostics.reject('camera model', type(exc).__name__, str(exc))
@@ -128,7 +152,8 @@ class AdaptiveFeedbackNode(Node):
             return
         self.diagnostics.update(state='running', p_target=self.feedback.p_target)
         self.get_logger().info(
-            f'camera model ready; target features p_bar = '
+            f'camera model ready; {"taught" if self._taught else "model"} target features '
+            f'p_bar = '
             f'{np.round(self.feedback.p_target, 2).tolist()} px')
         self._drain()
 

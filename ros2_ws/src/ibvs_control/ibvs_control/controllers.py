@@ -291,8 +291,13 @@ class AdaptiveFeedback:
 
     def __init__(self, model, pose, tau_in, omega_n, zeta, dt, rcond=RCOND, damping=DAMPING,
                  design='sampled', max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED,
-                 linearise_at=LINEARISE_AT):
-        """Compute p_bar = F(q_target) (projection of the target markers) and design k."""
+                 linearise_at=LINEARISE_AT, p_target=None):
+        """
+        Set p_bar and design k.
+
+        p_bar is ``p_target`` (6,) when given (a taught target: features measured with the
+        tool at the target pose), else F(q_target), the target markers projected (eq. 30).
+        """
         youla.check_bandwidth_rule(tau_in, omega_n)
         if linearise_at not in LINEARISATION_POINTS:
             raise ValueError(f'linearise_at must be one of {LINEARISATION_POINTS}, got '
@@ -302,6 +307,11 @@ class AdaptiveFeedback:
         self.pose = np.asarray(pose, dtype=float)
         markers = model.params.fiducials_E @ self.pose[:3, :3].T + self.pose[:3, 3]
         self.p_target = model.camera.project(markers).reshape(6)
+        if p_target is not None:
+            p_target = np.asarray(p_target, dtype=float).reshape(-1)
+            if p_target.shape != (6,) or not np.all(np.isfinite(p_target)):
+                raise ValueError('p_target must be 6 finite values (u_l, u_r, v per marker)')
+            self.p_target = p_target
         if design == 'sampled':
             k = youla.outer_controller_discrete(tau_in, omega_n, zeta, dt)
         elif design == 'tustin':

@@ -12,7 +12,7 @@ own, so that it shares no state with the simulator's world:
   URDF has zero joint damping and friction, so B = 0),
 
 both on the flat lists of the six movable joints (the tool and its markers hang on fixed
-joints). Torque limits are the URDF's joint ``effort`` (ibvs_model.urdf.joint_efforts).
+joints). Torque limits are the URDF's joint ``effort`` (ibvs_model.mass_model.joint_efforts).
 """
 
 from pathlib import Path

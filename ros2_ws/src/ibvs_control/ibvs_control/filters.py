@@ -14,7 +14,7 @@ input and does not wind up. This needs a biproper filter (D != 0).
 
 import numpy as np
 
-from .tf import TransferFunction
+from .transfer_function import TransferFunction
 
 
 class StateSpaceFilter:

@@ -13,7 +13,10 @@ Lockstep (DESIGN section 4). The answer to t_k needs the feedforward trajectory
 (/ibvs/feedforward_trajectory, published once at the start: q_feedforward(t_k) is its point
 at t_k, its first point before it starts and its last after it ends) and the q_feedback of
 frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero before the first
-frame takes effect). A joint state whose inputs have not all arrived is
+frame takes effect). A frame the camera lost (/stereo/frame_lost, stamped with the frame's
+stamp: ibvs_sim.sim_node) will have no q_feedback: for it the controller holds the
+q_feedback of the latest frame before it that was not lost, as a real controller holds its
+last output until a new frame comes. A joint state whose inputs have not all arrived is
 buffered and answered as soon as they have, in stamp order; nothing is answered early or
 twice, so a run is the same however the executor interleaves the callbacks. While it waits
 it logs once a second (steady clock) what for.
@@ -40,6 +43,7 @@ import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import JointLoop
@@ -81,8 +85,11 @@ class JointControllerNode(Node):
         self._states = deque()
         self._trajectory = None
         self._fb = {}
+        self._lost = set()
+        self._held = np.zeros(6)
         self.last_answered_ns = None
         self.commands = 0
+        self.frames_lost = 0
         self.diagnostics = Diagnostics(self, 'joint controller')
         self.diagnostics.update(actuators=values['actuators'], commands=0,
                                 torque_limits=self.torque_limits)
@@ -93,6 +100,8 @@ class JointControllerNode(Node):
         self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
                                  self._on_trajectory, contract.LATCHED)
         self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
+                                 contract.RELIABLE)
+        self.create_subscription(Header, contract.FRAME_LOST, self._on_frame_lost,
                                  contract.RELIABLE)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._progress = True
@@ -151,11 +160,32 @@ class JointControllerNode(Node):
         if needed is not None and t_ns < needed:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
             return
+        if t_ns in self._lost:
+            self.diagnostics.reject(source, 'frame was lost', f'{t_ns} ns')
+            return
         if t_ns in self._fb or len(self._fb) >= MAX_BUFFER:
             self.diagnostics.reject(source, 'duplicate stamp' if t_ns in self._fb
                                     else 'buffer full', f'{t_ns} ns')
             return
         self._fb[t_ns] = q
+        self._drain()
+
+    def _on_frame_lost(self, msg):
+        source = contract.FRAME_LOST
+        t_ns = stamp_ns(msg.stamp)
+        needed = (None if self.last_answered_ns is None else
+                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns))
+        if needed is not None and t_ns < needed:
+            self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
+            return
+        if t_ns in self._lost or t_ns in self._fb or len(self._lost) >= MAX_BUFFER:
+            reason = ('duplicate stamp' if t_ns in self._lost else 'frame has a q_feedback'
+                      if t_ns in self._fb else 'buffer full')
+            self.diagnostics.reject(source, reason, f'{t_ns} ns')
+            return
+        self._lost.add(t_ns)
+        self.frames_lost += 1
+        self.diagnostics.update(frames_lost=self.frames_lost)
         self._drain()
 
     def q_feedforward(self, t_ns):
@@ -171,8 +201,9 @@ class JointControllerNode(Node):
         if self._trajectory is None:
             missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
         frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
-        if frame is not None and frame not in self._fb:
-            missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns')
+        if frame is not None and frame not in self._fb and frame not in self._lost:
+            missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns (or its '
+                           f'{contract.FRAME_LOST})')
         return missing
 
     def _drain(self):
@@ -180,11 +211,14 @@ class JointControllerNode(Node):
         while self._states and not self._missing(self._states[0][0]):
             t_ns, q, qd = self._states.popleft()
             frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
-            q_fb = np.zeros(6) if frame is None else self._fb[frame]
-            self._answer(t_ns, q, qd, self.q_feedforward(t_ns) + q_fb)
+            if frame is not None and frame in self._fb:
+                self._held = self._fb[frame]
+            # Before the first frame: zero; a lost frame: the last one's, held.
+            self._answer(t_ns, q, qd, self.q_feedforward(t_ns) + self._held)
             if frame is not None:
                 for stamp in [s for s in self._fb if s < frame]:
                     del self._fb[stamp]
+                self._lost = {s for s in self._lost if s >= frame}
 
     def _answer(self, t_ns, q, qd, q_ref):
         with self.diagnostics.timing.section('joint_loop'):

@@ -42,7 +42,7 @@ import math
 
 import numpy as np
 
-from .tf import TransferFunction
+from .transfer_function import TransferFunction
 
 
 def check_bandwidth_rule(tau_in, omega_n):

@@ -6,7 +6,7 @@ from ibvs_control.controllers import (AdaptiveFeedback, check_reachable, Feedfor
 from ibvs_control.decoupling import decouple
 from ibvs_control.filters import StateSpaceFilter
 from ibvs_control.governor import ReferenceGovernor
-from ibvs_control.tf import TransferFunction
+from ibvs_control.transfer_function import TransferFunction
 from ibvs_model import (default_model, forward_kinematics, ik_solutions, InvalidInputError,
                         inverse_kinematics, IRB4600, ModelError, paper, pose_error,
                         UnreachablePoseError)

@@ -27,6 +27,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, JointState
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
@@ -332,7 +333,7 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         h.spin_until(lambda: node._trajectory is not None, 'the trajectory')
         # frame 0 acts at t = 0 (latency 0): still waiting for its q_feedback
         assert node.commands == 0 and node._missing(0) == [
-            f'{contract.Q_FEEDBACK} of frame 0 ns']
+            f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'effort command')
         assert stamps(out) == [0]
@@ -377,7 +378,8 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
         h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
         h.publish(contract.JOINT_STATES, joint_state(20 * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(node._states) == 1, 'joint state at 20 ms buffered')
-        assert node._missing(20 * MS) == [f'{contract.Q_FEEDBACK} of frame 0 ns']
+        assert node._missing(20 * MS) == [
+            f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answer at 20 ms')
         assert stamps(out) == [0, 19 * MS, 20 * MS]
@@ -472,3 +474,46 @@ def test_feedforward_and_joint_controller_in_lockstep_with_a_stand_in_plant(cont
         assert np.linalg.norm(q - q_target) < 0.5 * np.linalg.norm(q_start - q_target)
     finally:
         h.close()
+
+
+def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context, dynamics):
+    node = JointControllerNode(context=context)
+    h = Harness(context, node)
+    lost_pub = h.node.create_publisher(Header, contract.FRAME_LOST, contract.RELIABLE)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
+        h.spin_until(lambda: lost_pub.get_subscription_count() > 0, 'discovery')
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        q_fb = np.full(6, 0.002)
+        h.publish(contract.Q_FEEDBACK, joint_state(0, q_fb))
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1, 'answer at 0')
+        # frame 1 (33.33 ms) is lost: at 34 ms the controller would wait for its q_feedback
+        h.publish(contract.JOINT_STATES, joint_state(34 * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: len(node._states) == 1, 'joint state at 34 ms buffered')
+        assert node.commands == 1
+        lost_pub.publish(Header(stamp=joint_state(CAMERA_NS, q0).header.stamp))
+        h.spin_until(lambda: len(out) == 2, 'answer at 34 ms')
+        # ... and it holds frame 0's q_feedback
+        loop = JointLoop(0.01, 1e-3)
+        mass, bias = dynamics.mass_matrix(q0), dynamics.bias(q0, np.zeros(6))
+        loop.step(q0 + q_fb, q0, np.zeros(6), mass, bias)
+        expected = loop.step(q0 + q_fb, q0, np.zeros(6), mass, bias)
+        np.testing.assert_allclose(read_joints(out[1], 'effort'), expected, rtol=1e-9)
+        assert node.frames_lost == 1
+        # a q_feedback for the lost frame is rejected, frame 2 applies again
+        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.zeros(6)))
+        rejected = node.diagnostics.rejections
+        h.spin_until(lambda: rejected[f'{contract.Q_FEEDBACK}: frame was lost'] == 1,
+                     'rejection of a lost frame')
+    finally:
+        h.close()
+
+
+def test_feedback_rejects_an_unknown_target_features_source(context):
+    with pytest.raises(ParameterError, match="'target_features_source'"):
+        AdaptiveFeedbackNode(context=context, parameter_overrides=overrides(
+            target_features_source='camera'))

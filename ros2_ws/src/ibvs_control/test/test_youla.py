@@ -2,7 +2,7 @@
 
 from ibvs_control import youla
 from ibvs_control.filters import StateSpaceFilter
-from ibvs_control.tf import TransferFunction
+from ibvs_control.transfer_function import TransferFunction
 import numpy as np
 import pytest
 

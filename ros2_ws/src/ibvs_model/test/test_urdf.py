@@ -10,9 +10,10 @@ import math
 import xml.etree.ElementTree as ET
 
 from ibvs_model import IRB4600, joint_frames
+from ibvs_model.mass_model import joint_efforts, ROBOT_MASS_KG
+from ibvs_model.mesh import icosphere_obj, MARKER_MESH
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
-from ibvs_model.urdf import (icosphere_obj, joint_efforts, JOINT_NAMES, MARKER_MESH,
-                             ROBOT_MASS_KG, robot_urdf, write_urdf)
+from ibvs_model.urdf import JOINT_NAMES, robot_urdf, write_urdf
 import numpy as np
 import pytest
 

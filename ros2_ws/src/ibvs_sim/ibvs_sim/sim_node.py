@@ -1,9 +1,11 @@
 """
 sim_node: the simulated plant (paper Figure 3) on the contract of DESIGN sections 3 and 4.
 
-Lockstep. At step k (sim time t_k, from 0) the node publishes /clock, the camera frame due
-at t_k if any (both images and CameraInfo, stamped n * T_cam), /ibvs/tool_pose and, last,
-/joint_states (encoder angles q - d_q, velocities, the torque of the previous step). It then
+Lockstep. At step k (sim time t_k, from 0) the node publishes, first, /joint_states (encoder
+angles q - d_q, velocities, the torque of the previous step), so that the joint controller
+works on step k while the rest goes out: /clock, /ibvs/tool_pose and the camera frame due
+at t_k if any (both images and CameraInfo, stamped n * T_cam). Every consumer matches its
+inputs by stamp, so the order changes no result. It then
 waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
 torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
 sleeps, so any number of nodes can share one executor. While it waits, a steady-clock timer
@@ -13,6 +15,22 @@ Start. Step 0 is published once somebody will answer and listen: /joint_effort_c
 has a publisher, /joint_states a subscriber and, with publish_images, both image topics a
 subscriber (so that no lockstep message is published before its reader is matched). Until
 then it logs once a second what is missing.
+
+A real camera (ibvs_sim.camera_effects, all off by default). Images are rendered with the
+true camera and get Gaussian noise (image_noise_stddev); /stereo/pose and camera_info carry
+the calibrated camera (camera_pose_error_xyz_m, camera_pose_error_rpy_deg,
+focal_length_error), so every controller-side consumer sees what a calibration would give
+it while the images show the truth. A lost frame (frame_drop_probability) has no images and
+no CameraInfo: in their place one std_msgs/Header stamped with the frame's stamp goes to
+/stereo/frame_lost, and the step is published as usual. Downstream: the feature node gets
+nothing for that stamp and publishes nothing; the adaptive feedback gets no features, so
+its controller skips that sample and its q_feedback holds; the joint controller, which
+would wait for the q_feedback of that frame, learns from /stereo/frame_lost that none will
+come and holds the previous frame's (what a real controller does with a missing frame; the
+notice exists only so that the lockstep needs no timeout). Draws come from one Generator
+seeded with camera_seed. With target_features_source 'taught' the tool is first placed at
+the target pose and a stereo pair rendered (true camera, noise added); it is published
+latched on /stereo/teach/{left,right}/image_raw for the feature node to measure p_bar.
 
 Bad input. A command with another stamp is rejected as stale (older) or early (newer) and
 ignored. A command with the right stamp but a wrong length, unknown joint names, NaN or inf
@@ -25,20 +43,23 @@ import time
 
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_infos, InputError, joint_state, ns_stamp,
-                                     pose_stamped, read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
+                                     ns_stamp, pose_stamped, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
-                                       PHYSICS_RATE_HZ, SCENARIO)
+                                       PHYSICS_RATE_HZ, SCENARIO, TARGET_FEATURES_SOURCE,
+                                       TARGET_POSITION, TARGET_ROTATION)
 from ibvs_model import paper
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_msgs.msg import Header
 
+from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
 from .simulator import ConfigError, Simulator
 from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M, DEFAULT_SUPERSAMPLING,
                     MAX_FOCUS_SUPERSAMPLING, MAX_MOUNT_HEIGHT_M, MAX_SUPERSAMPLING, RENDERERS)
@@ -67,6 +88,10 @@ MOUNT_HEIGHT_M = Param(
     'mount_height_m', DEFAULT_MOUNT_HEIGHT_M, 'height of the robot base above the floor (a '
     'riser fills it; drawn only, nothing collides): a tool below the floor is hidden from the '
     'camera; 0: robot on the floor', 'm', low=0.0, high=MAX_MOUNT_HEIGHT_M)
+RENDER_PARALLEL_LENSES = Param(
+    'render_parallel_lenses', True, 'render the right lens in a second process while this one '
+    'renders the left (ibvs_sim.lens_worker): the same images in about half the wall time on '
+    'two cores; false: both lenses in this process', '-')
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
@@ -75,26 +100,38 @@ MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
 
+IMAGE_NOISE_STDDEV = Param(
+    'image_noise_stddev', 0.0, 'standard deviation of the Gaussian noise added to each pixel '
+    'and channel of the rendered images, intensity in [0, 1] (Gazebo camera noise); the sum '
+    'is clipped and rounded to 8 bits; 0: off', '-', low=0.0, high=MAX_NOISE_STDDEV)
+FRAME_DROP_PROBABILITY = Param(
+    'frame_drop_probability', 0.0, 'probability that a stereo frame is lost (both images), '
+    'each frame drawn on its own; 0: off', '-', low=0.0, high=MAX_DROP_PROBABILITY)
+CAMERA_SEED = Param('camera_seed', 0, 'seed of the Generator that draws image noise and '
+                    'frame drops', '-', low=0, high=2 ** 31 - 1)
+CAMERA_POSE_ERROR_XYZ_M = Param(
+    'camera_pose_error_xyz_m', [0.0, 0.0, 0.0], 'calibration error of the camera position: '
+    'the published /stereo/pose is the true one moved by this along the true camera axes '
+    '(x right, y down, z forward)', 'm', low=-0.5, high=0.5, length=3)
+CAMERA_POSE_ERROR_RPY_DEG = Param(
+    'camera_pose_error_rpy_deg', [0.0, 0.0, 0.0], 'calibration error of the camera '
+    'orientation: the published /stereo/pose is the true one turned by roll, pitch, yaw '
+    'about the true camera axes x, y, z (R = Rz Ry Rx)', 'deg', low=-10.0, high=10.0,
+    length=3)
+FOCAL_LENGTH_ERROR = Param(
+    'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
+    'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
+
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
           CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
-          RENDER_MARKER_SUPERSAMPLING, MOUNT_HEIGHT_M, PUBLISH_IMAGES, MIN_JOINT_STATE_SUBSCRIBERS)
+          RENDER_MARKER_SUPERSAMPLING, RENDER_PARALLEL_LENSES, MOUNT_HEIGHT_M, PUBLISH_IMAGES,
+          MIN_JOINT_STATE_SUBSCRIBERS, IMAGE_NOISE_STDDEV, FRAME_DROP_PROBABILITY, CAMERA_SEED,
+          CAMERA_POSE_ERROR_XYZ_M, CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR,
+          TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
 WAIT_LOG_S = 1.0
-
-
-def image_msg(image, stamp, frame_id):
-    """Return an (H, W, 3) uint8 RGB array as sensor_msgs/Image (encoding rgb8)."""
-    msg = Image()
-    msg.header.stamp = ns_stamp(stamp)
-    msg.header.frame_id = frame_id
-    msg.height, msg.width = int(image.shape[0]), int(image.shape[1])
-    msg.encoding = 'rgb8'
-    msg.is_bigendian = 0
-    msg.step = int(image.shape[1]) * 3
-    msg.data = np.ascontiguousarray(image, dtype=np.uint8).tobytes()
-    return msg
 
 
 class SimNode(Node):
@@ -115,6 +152,15 @@ class SimNode(Node):
         values = declare(self, PARAMS)
         self._publish_images = values['publish_images']
         self._min_joint_subscribers = values['min_joint_state_subscribers']
+        teach = values['target_features_source'] == 'taught'
+        if teach and not self._publish_images:
+            raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
+                                 'it needs publish_images true; allowed: model')
+        teach_pose = None
+        if teach:
+            teach_pose = np.eye(4)
+            teach_pose[:3, 3] = values['target_position']
+            teach_pose[:3, :3] = np.reshape(values['target_rotation'], (3, 3))
         try:
             self.sim = Simulator(
                 scenario=values['scenario'], disturbance_deg=values['disturbance_deg'],
@@ -125,7 +171,14 @@ class SimNode(Node):
                 renderer=values['renderer'] if self._publish_images else 'tiny',
                 supersampling=values['render_supersampling'],
                 marker_supersampling=values['render_marker_supersampling'],
-                mount_height_m=values['mount_height_m'])
+                mount_height_m=values['mount_height_m'],
+                image_noise_stddev=values['image_noise_stddev'],
+                frame_drop_probability=values['frame_drop_probability'],
+                camera_seed=values['camera_seed'],
+                camera_pose_error_xyz_m=values['camera_pose_error_xyz_m'],
+                camera_pose_error_rpy_deg=values['camera_pose_error_rpy_deg'],
+                focal_length_error=values['focal_length_error'], teach_pose=teach_pose,
+                parallel_lenses=values['render_parallel_lenses'] and self._publish_images)
         except ConfigError as exc:
             raise ParameterError(str(exc)) from None
         log = self.get_logger()
@@ -139,7 +192,7 @@ class SimNode(Node):
 
         self.diagnostics = Diagnostics(self, 'simulator')
         self.diagnostics.update(step=0, sim_time_s=0.0, waiting_for_ns=-1, frames=0,
-                                held_steps=0, renderer=self.sim.world.renderer,
+                                frames_lost=0, held_steps=0, renderer=self.sim.world.renderer,
                                 start_residual_m=pos_err)
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
         self._pub_joints = self.create_publisher(JointState, contract.JOINT_STATES,
@@ -152,9 +205,20 @@ class SimNode(Node):
                                      for topic in (contract.LEFT_IMAGE, contract.RIGHT_IMAGE))
             self._pub_infos = tuple(self.create_publisher(CameraInfo, topic, contract.IMAGES)
                                     for topic in (contract.LEFT_INFO, contract.RIGHT_INFO))
+        self._pub_lost = self.create_publisher(Header, contract.FRAME_LOST, contract.RELIABLE)
+        # The controllers get the calibrated camera; the images show the true one.
         pose_pub = self.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
-        pose_pub.publish(pose_stamped(self.sim.camera.pose_C_O, 0))
+        pose_pub.publish(pose_stamped(self.sim.calibrated_camera.pose_C_O, 0))
         self._pose_pub = pose_pub
+        self._teach_pubs = ()
+        if self.sim.teach_images is not None:
+            self._teach_pubs = tuple(
+                self.create_publisher(Image, topic, contract.LATCHED)
+                for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE))
+            for pub, image, frame in zip(self._teach_pubs, self.sim.teach_images,
+                                         (contract.LEFT_CAMERA_FRAME,
+                                          contract.RIGHT_CAMERA_FRAME)):
+                pub.publish(image_msg(image, 0, 'rgb8', frame))
         self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
                                              self._on_command, contract.RELIABLE)
 
@@ -211,28 +275,33 @@ class SimNode(Node):
         sim = self.sim
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
-        self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+        with timing.section('step_messages'):
+            q, qd = sim.encoders()
+            self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
+            self._published_at = time.perf_counter()
+            # The controller works on step k from here on, while the rest is published.
+            self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
         self._frame_step = sim.frame_due() is not None
         if self._frame_step:
             with timing.section('render'):
-                stamp, images = sim.take_frame(render=self._publish_images)
+                stamp, images, lost = sim.take_frame(render=self._publish_images)
             self.frames += 1
-            if images is not None:
+            if lost:
+                self._pub_lost.publish(Header(stamp=ns_stamp(stamp),
+                                              frame_id=contract.CAMERA_FRAME))
+            elif images is not None:
                 with timing.section('image_messages'):
                     frames = (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)
-                    infos = camera_infos(sim.camera.intrinsics, stamp)
+                    infos = camera_infos(sim.calibrated_camera.intrinsics, stamp)
                     for pub, info_pub, image, info, frame in zip(
                             self._pub_images, self._pub_infos, images, infos, frames):
-                        pub.publish(image_msg(image, stamp, frame))
+                        pub.publish(image_msg(image, stamp, 'rgb8', frame))
                         info_pub.publish(info)
-        with timing.section('step_messages'):
-            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
-            q, qd = sim.encoders()
-            self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
-        self._published_at = time.perf_counter()
         timing.reached(t_ns)
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
-                                frames=self.frames, held_steps=self.held_steps)
+                                frames=self.frames, frames_lost=sim.frames_lost,
+                                held_steps=self.held_steps)
 
     def _on_command(self, msg):
         """Apply the effort command stamped t_k: one physics step, then publish step k + 1."""

@@ -11,6 +11,13 @@ camera period is a whole number of physics steps, otherwise at most one physics 
 Joint disturbance (the paper's d_q, eq. 30): true angle = encoder angle + d_q, so the
 encoders read q_T = q - d_q. The start pose of a scenario is reached by the TRUE angles:
 q(0) = IK(start pose) of the simulated robot (which may have scaled L2 and L4, Figure 13).
+
+A real camera (:mod:`.camera_effects`). Images are rendered with the true camera
+(``camera``) and get the image noise of ``effects``; a frame may be lost (both images).
+``calibrated_camera`` is what a calibration with the set pose and focal-length errors gives:
+the one to publish to the controllers. With ``teach_pose``, ``teach_images`` is the stereo
+pair of the tool placed at that flange pose (the true robot's IK), rendered with the true
+camera and noise before the run, as a user teaches a target on the real cell.
 """
 
 from fractions import Fraction
@@ -21,6 +28,9 @@ from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
+from .camera_effects import (calibrated_intrinsics, calibrated_pose, CameraEffects,
+                             EffectError)
+from .lens_worker import LensWorkerError
 from .world import (check_mount_height, DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M,
                     MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, RendererError, World)
 
@@ -39,7 +49,8 @@ class Simulator:
     The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
 
     Raises :class:`ConfigError` at construction for a configuration it cannot run: rates,
-    scenario, unreachable start pose, camera pose, renderer.
+    scenario, unreachable start pose, camera pose, renderer. ``parallel_lenses`` renders the
+    right lens in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
     """
 
     def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
@@ -47,7 +58,10 @@ class Simulator:
                  camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
                  renderer='auto', supersampling=1,
                  marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING,
-                 mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
+                 mount_height_m=DEFAULT_MOUNT_HEIGHT_M, image_noise_stddev=0.0,
+                 frame_drop_probability=0.0, camera_seed=0, camera_pose_error_xyz_m=(0.0,) * 3,
+                 camera_pose_error_rpy_deg=(0.0,) * 3, focal_length_error=1.0, teach_pose=None,
+                 parallel_lenses=False):
         """Check the configuration, solve the start pose and build the PyBullet world."""
         for name, rate in (('physics_rate_hz', physics_rate_hz),
                            ('camera_rate_hz', camera_rate_hz)):
@@ -87,6 +101,15 @@ class Simulator:
         except ModelError as exc:
             raise ConfigError('camera_look_at', f'camera_eye = {list(camera_eye)}, '
                               f'camera_look_at = {list(camera_look_at)}: {exc}') from None
+        try:
+            self.effects = CameraEffects(image_noise_stddev, frame_drop_probability,
+                                         camera_seed)
+            self.calibrated_camera = StereoCamera(
+                calibrated_intrinsics(intrinsics, focal_length_error),
+                calibrated_pose(self.camera.pose_C_O, camera_pose_error_xyz_m,
+                                camera_pose_error_rpy_deg))
+        except EffectError as exc:
+            raise ConfigError(exc.param, str(exc)) from None
         if supersampling not in range(1, MAX_SUPERSAMPLING + 1):
             raise ConfigError('render_supersampling', f'{supersampling!r}: samples per pixel '
                               f'along each axis must be an int in [1, {MAX_SUPERSAMPLING}]')
@@ -103,12 +126,24 @@ class Simulator:
             raise ConfigError('mount_height_m', str(exc)) from None
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer,
-                               mount_height_m=mount_height_m)
+                               mount_height_m=mount_height_m, lens_worker=parallel_lenses)
         except RendererError as exc:
             raise ConfigError('renderer', str(exc)) from None
+        except LensWorkerError as exc:
+            raise ConfigError('render_parallel_lenses', str(exc)) from None
+        self.teach_q = self.teach_images = None
+        if teach_pose is not None:
+            try:
+                self.teach_q = inverse_kinematics(teach_pose, self.params)
+            except ModelError as exc:
+                raise ConfigError('target_position', f'the target pose to teach is '
+                                  f'unreachable by the simulated robot: {exc}') from None
+            self.world.reset(self.teach_q)
+            self.teach_images = self._render()
         self.world.reset(self.q_start)
         self.k = 0
         self.next_frame = 0
+        self.frames_lost = 0
         self.last_torque = np.zeros(6)
 
     @property
@@ -140,19 +175,27 @@ class Simulator:
 
     def take_frame(self, render=True):
         """
-        Return (stamp ns, (left, right) images or None) of the frame due now; advance n.
+        Return (stamp ns, (left, right) images or None, lost) of the frame due now; advance n.
 
-        With ``render`` False the frame is only counted (images off).
+        ``lost``: the camera lost this frame (``frame_drop_probability``); its images are
+        then None and nothing is rendered. With ``render`` False a kept frame is only
+        counted (images off). The images are rendered with the true camera, noise added.
         """
         stamp = self.frame_due()
         if stamp is None:
             raise RuntimeError(f'no frame due at t = {self.t_ns} ns')
         self.next_frame += 1
-        images = (self.world.render_stereo(self.camera, self.supersampling,
-                                           self.world.marker_spheres(),
-                                           self.marker_supersampling) if render
-                  else None)
-        return stamp, images
+        if self.effects.frame_lost():
+            self.frames_lost += 1
+            return stamp, None, True
+        return stamp, (self._render() if render else None), False
+
+    def _render(self):
+        """Return the stereo pair of the current state: true camera, image noise added."""
+        images = self.world.render_stereo(self.camera, self.supersampling,
+                                          self.world.marker_spheres(),
+                                          self.marker_supersampling)
+        return self.effects.noisy(images)
 
     def hold_torque(self):
         """Return the torque that stops the arm where it is in one step (World.hold_torque)."""

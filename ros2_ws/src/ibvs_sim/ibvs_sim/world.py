@@ -11,43 +11,11 @@ commanded joint torques with TORQUE_CONTROL. Gravity is -9.81 m/s^2 along z of {
 integrates semi-implicitly: qd_{k+1} = qd_k + h qdd_k, q_{k+1} = q_k + h qd_{k+1}, with a
 fixed step h = 1 / physics_rate_hz.
 
-Rendering. Each lens is a pinhole with the intrinsics of :class:`ibvs_model.StereoIntrinsics`
-at the pose of :class:`ibvs_model.StereoCamera` shifted by -b/2 (left) or +b/2 (right) along
-x of {C} (ROS sign convention, ibvs_model.camera). The OpenGL projection matrix is built from
-f_u, f_v, c_u, c_v so that a point projects where eq. (16)-(22) put it, with the pixel
-convention of ibvs_model.camera (the centre of pixel (i, j) is at u = i, v = j):
-
-    x_ndc = 2 (u + 1/2) / W - 1,   y_ndc = 1 - 2 (v + 1/2) / H.
-
-The two renderers need two corrections to honour this convention exactly (measured: without
-them marker centres are off by up to 0.6 px):
-
-- TinyRenderer samples pixel (i, j) at its corner (window coordinates (i, H - 1 - j)), not at
-  its centre, so the projection it is given has its principal point moved by half a pixel:
-  (c_u - 1/2, c_v + 1/2).
-- The EGL plugin draws into a 1024 x 768 window and resamples larger requests by nearest
-  neighbour (bullet3 eglRendererVisualShapeConverter.cpp), which shifts features by up to
-  0.6 px at HD720. Images wider or taller than the window are rendered in tiles (each with
-  its own principal point) and put together.
-
-Pixel integration. Both renderers sample each pixel at one point, so a marker's outline is
-a staircase and its measured centre jumps by a few hundredths of a pixel as it moves, which
-stereo turns into millimetres of depth. A camera pixel integrates light over its area:
-``supersampling`` s > 1 renders s x s samples per pixel (the same pinhole with f and the
-principal point scaled, c' = s (c + 1/2) - 1/2, so that the samples sit at the centres of
-an s x s grid inside each pixel) and averages them (a box filter, rounded to 8 bits).
-Where it matters most, around the fiducials, ``focus`` spheres are rendered again with
-``focus_supersampling`` samples per pixel along each axis (default 8 x 8) in small windows
-that hold their whole images (:func:`focus_windows`), pasted over the full image: each window
-is the same pinhole with the principal point moved to the window's corner, so it keeps the
-geometry. With 8 x 8 samples around the markers and 1 elsewhere, the detected disparity of
-a marker moves by 0.005 px rms with its sub-pixel position instead of 0.02-0.04 px with 2 x 2
-everywhere (about 0.3 mm instead of 1.3 mm of tool position at 2.4 m), for a quarter of the
-cost (measured at HD720 near the target pose).
-
-The EGL plugin (OpenGL without a display) is used where it loads, TinyRenderer otherwise.
-Lighting is mostly ambient, without specular highlights or shadows, so that a marker keeps its
-hue all over its disc.
+Rendering: the pure geometry (OpenGL matrices of the pinhole lenses, tiles of the EGL window,
+supersampling, the windows around the fiducials) is :mod:`ibvs_sim.rendering`; this module
+makes the PyBullet calls. The EGL plugin (OpenGL without a display) is used where it loads,
+TinyRenderer otherwise. Lighting is mostly ambient, without specular highlights or shadows,
+so that a marker keeps its hue all over its disc.
 """
 
 import math
@@ -56,15 +24,19 @@ import pkgutil
 import tempfile
 
 from ibvs_model import IRB4600
-from ibvs_model.camera import merge_windows, StereoCamera, StereoIntrinsics
+from ibvs_model.camera import StereoCamera
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
 import pybullet
 
-#: Near and far clipping planes of the render, m.
-NEAR_M = 0.05
-FAR_M = 30.0
+from .lens_worker import LensWorker
+from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
+                        DEFAULT_SUPERSAMPLING, EGL_WINDOW, FAR_M, focus_windows, gl_matrix,
+                        lens_poses, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M,
+                        projection_matrix, render_windows, supersampled, tiles, view_matrix,
+                        window_intrinsics)
+
 #: Ground plane: a thin box, this grey, this many metres each side of {O}, its top
 #: ``mount_height_m`` below the robot's base plane z = 0 of {O}.
 GROUND_RGBA = (0.55, 0.55, 0.55, 1.0)
@@ -83,18 +55,6 @@ LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
 RENDERERS = ('auto', 'egl', 'tiny')
 #: The World that holds the process's EGL plugin, if any (one at a time: see World).
 _egl_owner = None
-#: Size of the EGL plugin's window (bullet3: START_WIDTH, START_HEIGHT).
-EGL_WINDOW = (1024, 768)
-#: Largest number of samples per pixel along each axis (render_stereo's supersampling).
-MAX_SUPERSAMPLING = 4
-#: The simulator's default (sim_node parameter render_supersampling): see the docstring.
-DEFAULT_SUPERSAMPLING = 1
-#: Samples per pixel along each axis in the windows around the fiducials: largest and the
-#: simulator's default (sim_node parameter render_marker_supersampling).
-MAX_FOCUS_SUPERSAMPLING = 16
-DEFAULT_FOCUS_SUPERSAMPLING = 8
-#: Pixels added around the bound of a focus sphere's image (covers the partly covered rim).
-FOCUS_MARGIN_PX = 2
 
 
 def check_mount_height(mount_height_m):
@@ -107,138 +67,6 @@ def check_mount_height(mount_height_m):
 
 class RendererError(RuntimeError):
     """The requested renderer cannot be used here (e.g. the EGL plugin does not load)."""
-
-
-def projection_matrix(intrinsics, near=NEAR_M, far=FAR_M, renderer='egl'):
-    """
-    Return the 4x4 OpenGL projection matrix of a pinhole with ``intrinsics`` (eq. 16).
-
-    Eye coordinates are OpenGL's (x right, y up, looking along -z); see the module docstring
-    for the pixel convention and the half-pixel shift that ``renderer`` 'tiny' needs.
-    """
-    k = intrinsics
-    w, h = float(k.width), float(k.height)
-    cu, cv = (k.cu - 0.5, k.cv + 0.5) if renderer == 'tiny' else (k.cu, k.cv)
-    return np.array([
-        [2.0 * k.fu / w, 0.0, 1.0 - 2.0 * (cu + 0.5) / w, 0.0],
-        [0.0, 2.0 * k.fv / h, 2.0 * (cv + 0.5) / h - 1.0, 0.0],
-        [0.0, 0.0, -(far + near) / (far - near), -2.0 * far * near / (far - near)],
-        [0.0, 0.0, -1.0, 0.0],
-    ])
-
-
-def tiles(intrinsics, max_width=EGL_WINDOW[0], max_height=EGL_WINDOW[1]):
-    """
-    Return the tiles of an image no larger than ``max_width`` x ``max_height``.
-
-    Each tile is (u0, v0, intrinsics of the tile): the same f_u, f_v with the principal
-    point moved to (c_u - u0, c_v - v0). Tiles split the image as evenly as possible.
-    """
-    k = intrinsics
-    nu = -(-k.width // max_width)
-    nv = -(-k.height // max_height)
-    u_edges = [round(i * k.width / nu) for i in range(nu + 1)]
-    v_edges = [round(j * k.height / nv) for j in range(nv + 1)]
-    out = []
-    for v0, v1 in zip(v_edges[:-1], v_edges[1:]):
-        for u0, u1 in zip(u_edges[:-1], u_edges[1:]):
-            out.append((u0, v0, StereoIntrinsics(u1 - u0, v1 - v0, k.fu, k.fv, k.cu - u0,
-                                                 k.cv - v0, k.baseline)))
-    return out
-
-
-def supersampled(intrinsics, factor):
-    """Return the intrinsics of an image ``factor`` times finer with the same view (above)."""
-    k, s = intrinsics, int(factor)
-    return StereoIntrinsics(k.width * s, k.height * s, k.fu * s, k.fv * s,
-                            s * (k.cu + 0.5) - 0.5, s * (k.cv + 0.5) - 0.5, k.baseline)
-
-
-def box_downsample(image, factor):
-    """Return the mean of each ``factor`` x ``factor`` block of ``image`` as uint8."""
-    s = int(factor)
-    if s == 1:
-        return image
-    h, w = image.shape[0] // s, image.shape[1] // s
-    blocks = image.reshape(h, s, w, s, -1).astype(np.float32)
-    return np.rint(blocks.mean(axis=(1, 3))).astype(np.uint8)
-
-
-def focus_windows(intrinsics, lens_pose, spheres, margin_px=FOCUS_MARGIN_PX):
-    """
-    Return the windows (u0, v0, u1, v1), u1 and v1 excluded, that hold the images of ``spheres``.
-
-    ``spheres``: (centre (3,) in {O}, radius m) pairs; ``lens_pose``: T of the lens's
-    optical frame in {O}. A sphere lies in its axis-aligned cube in the lens frame, whose
-    image is the convex hull of its eight projected corners: their bounding box, grown by
-    ``margin_px``, holds the sphere's image. Windows that overlap are merged, all are clipped
-    to the image; a sphere that reaches behind the near plane or lies outside the image gives
-    none.
-    """
-    k = intrinsics
-    to_lens = np.linalg.inv(np.asarray(lens_pose, dtype=float))
-    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
-                       dtype=float)
-    boxes = []
-    for centre, radius in spheres:
-        c = to_lens[:3, :3] @ np.asarray(centre, dtype=float) + to_lens[:3, 3]
-        points = c + radius * corners
-        if np.any(points[:, 2] <= NEAR_M):
-            continue
-        u = k.fu * points[:, 0] / points[:, 2] + k.cu
-        v = k.fv * points[:, 1] / points[:, 2] + k.cv
-        box = [max(0, math.floor(u.min() - margin_px)), max(0, math.floor(v.min() - margin_px)),
-               min(k.width, math.ceil(u.max() + margin_px) + 1),
-               min(k.height, math.ceil(v.max() + margin_px) + 1)]
-        if box[0] < box[2] and box[1] < box[3]:
-            boxes.append(box)
-    return merge_windows(boxes)
-
-
-def render_windows(windows, factor, max_size=EGL_WINDOW):
-    """
-    Return the windows to render with ``factor`` x ``factor`` samples per pixel, one call each.
-
-    Each call of the EGL renderer costs about 8 ms whatever its size (measured at HD720:
-    the plugin draws its whole 1024 x 768 window and its shadow map every time), so
-    separate ``windows`` whose bounding box, ``factor`` times finer, still fits
-    ``max_size`` are rendered as that one box; otherwise they stay as they are.
-    """
-    if len(windows) < 2:
-        return list(windows)
-    box = (min(w[0] for w in windows), min(w[1] for w in windows),
-           max(w[2] for w in windows), max(w[3] for w in windows))
-    if (box[2] - box[0]) * factor <= max_size[0] and (box[3] - box[1]) * factor <= max_size[1]:
-        return [box]
-    return list(windows)
-
-
-def window_intrinsics(intrinsics, window):
-    """Return the intrinsics of the window (u0, v0, u1, v1) of an image: c moved to its corner."""
-    u0, v0, u1, v1 = window
-    k = intrinsics
-    return StereoIntrinsics(u1 - u0, v1 - v0, k.fu, k.fv, k.cu - u0, k.cv - v0, k.baseline)
-
-
-def lens_poses(camera):
-    """Return (T_left^O, T_right^O): the lenses at x = -b/2 and +b/2 of {C} (ROS signs)."""
-    poses = []
-    for sign in (-1.0, 1.0):
-        shift = np.eye(4)
-        shift[0, 3] = sign * camera.intrinsics.baseline / 2.0
-        poses.append(camera.pose_C_O @ shift)
-    return tuple(poses)
-
-
-def view_matrix(lens_pose):
-    """Return the OpenGL view matrix of an optical frame (x right, y down, z forward) in {O}."""
-    flip = np.diag([1.0, -1.0, -1.0, 1.0])  # optical axes -> OpenGL eye axes
-    return flip @ np.linalg.inv(lens_pose)
-
-
-def _gl(matrix):
-    """Return a 4x4 matrix as the column-major list of 16 floats that PyBullet expects."""
-    return [float(v) for v in np.asarray(matrix).T.reshape(16)]
 
 
 def _pose_matrix(position, quaternion):
@@ -260,10 +88,14 @@ class World:
     ``renderer``: 'egl' (fail if the plugin does not load), 'tiny', or 'auto' (EGL where it
     loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'. One
     World per process at a time can use EGL; 'auto' gives the others TinyRenderer.
+
+    ``lens_worker``: render the right lens in a second process (:mod:`ibvs_sim.lens_worker`)
+    while this one renders the left, so that a stereo pair takes about one lens's time on
+    two cores; the images are the same.
     """
 
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
-                 with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M):
+                 with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M, lens_worker=False):
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
         self.mount_height_m = check_mount_height(mount_height_m)
         if renderer not in RENDERERS:
@@ -274,10 +106,16 @@ class World:
         self.dt = 1.0 / physics_rate_hz
         self._client = pybullet.connect(pybullet.DIRECT)
         self._plugin = None
+        self._lens_worker = None
         try:
             # The EGL plugin only draws bodies loaded after it: load it first.
             self.renderer = self._setup_renderer(renderer)
             self._setup(with_tool)
+            if lens_worker:
+                self._lens_worker = LensWorker({
+                    'params': params, 'physics_rate_hz': physics_rate_hz,
+                    'renderer': self.renderer, 'with_tool': with_tool,
+                    'mount_height_m': self.mount_height_m})
         except Exception:
             self.close()
             raise
@@ -359,8 +197,11 @@ class World:
         return 'egl'
 
     def close(self):
-        """Disconnect the client (idempotent)."""
+        """Stop the lens worker and disconnect the client (idempotent)."""
         global _egl_owner
+        if self._lens_worker is not None:
+            self._lens_worker.close()
+            self._lens_worker = None
         if self._client is not None and self._call(pybullet.isConnected):
             if self._plugin is not None:
                 self._call(pybullet.unloadPlugin, self._plugin)
@@ -421,11 +262,11 @@ class World:
         Return (left, right) RGB images (H, W, 3) uint8 seen by ``camera`` (eq. 16-22).
 
         ``camera`` is an :class:`ibvs_model.StereoCamera`; both lenses share its intrinsics.
-        ``supersampling``: samples per pixel along each axis, 1 to MAX_SUPERSAMPLING (module
-        docstring, pixel integration); the cost grows with its square. ``focus``: spheres
-        (centre in {O}, radius m), e.g. :meth:`marker_spheres`, whose images are rendered
-        again with ``focus_supersampling`` (1 to MAX_FOCUS_SUPERSAMPLING) samples per pixel
-        along each axis in the windows of :func:`focus_windows`.
+        ``supersampling``: samples per pixel along each axis, 1 to MAX_SUPERSAMPLING
+        (:mod:`ibvs_sim.rendering`, pixel integration); the cost grows with its square.
+        ``focus``: spheres (centre in {O}, radius m), e.g. :meth:`marker_spheres`, whose
+        images are rendered again with ``focus_supersampling`` (1 to MAX_FOCUS_SUPERSAMPLING)
+        samples per pixel along each axis in the windows of :func:`focus_windows`.
         """
         if not isinstance(camera, StereoCamera):
             raise TypeError('camera must be an ibvs_model.StereoCamera')
@@ -435,21 +276,32 @@ class World:
         if focus_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
             raise ValueError('focus_supersampling must be an int in '
                              f'[1, {MAX_FOCUS_SUPERSAMPLING}], got {focus_supersampling!r}')
-        coarse = camera.intrinsics
-        images = []
-        for pose in lens_poses(camera):
-            view = _gl(view_matrix(pose))
-            image = self._render(view, coarse, supersampling)
-            if focus and focus_supersampling > supersampling:
-                windows = focus_windows(coarse, pose, focus)
-                if self.renderer == 'egl':
-                    windows = render_windows(windows, focus_supersampling)
-                for window in windows:
-                    u0, v0, u1, v1 = window
-                    image[v0:v1, u0:u1] = self._render(
-                        view, window_intrinsics(coarse, window), focus_supersampling)
-            images.append(image)
-        return tuple(images)
+        left, right = lens_poses(camera)
+        args = (camera.intrinsics, supersampling, tuple(focus), focus_supersampling)
+        if self._lens_worker is None:
+            return self.render_lens(left, *args), self.render_lens(right, *args)
+        self._lens_worker.submit(self.joint_state()[0], right, *args)
+        image = self.render_lens(left, *args)
+        return image, self._lens_worker.result()
+
+    def render_lens(self, pose, intrinsics, supersampling=1, focus=(),
+                    focus_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
+        """
+        Return the RGB image (H, W, 3) uint8 of one lens at ``pose`` (T of its optical frame).
+
+        The arguments are those of :meth:`render_stereo`, checked there.
+        """
+        view = gl_matrix(view_matrix(pose))
+        image = self._render(view, intrinsics, supersampling)
+        if focus and focus_supersampling > supersampling:
+            windows = focus_windows(intrinsics, pose, focus)
+            if self.renderer == 'egl':
+                windows = render_windows(windows, focus_supersampling)
+            for window in windows:
+                u0, v0, u1, v1 = window
+                image[v0:v1, u0:u1] = self._render(
+                    view, window_intrinsics(intrinsics, window), focus_supersampling)
+        return image
 
     def _render(self, view, intrinsics, supersampling):
         """Return the image with ``intrinsics`` rendered with s x s samples per pixel."""
@@ -463,7 +315,7 @@ class World:
             _, _, rgba, _, _ = self._call(
                 pybullet.getCameraImage, int(part.width), int(part.height),
                 viewMatrix=view, renderer=renderer,
-                projectionMatrix=_gl(projection_matrix(part, renderer=self.renderer)),
+                projectionMatrix=gl_matrix(projection_matrix(part, renderer=self.renderer)),
                 flags=pybullet.ER_NO_SEGMENTATION_MASK, **LIGHT)
             rgba = np.asarray(rgba, dtype=np.uint8).reshape(part.height, part.width, 4)
             image[v0:v0 + part.height, u0:u0 + part.width] = rgba[:, :, :3]

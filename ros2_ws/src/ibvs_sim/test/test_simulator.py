@@ -55,7 +55,8 @@ def test_frame_schedule_30_hz_on_1_khz(sim):
     taken = []
     for _ in range(201):
         if sim.frame_due() is not None:
-            stamp, images = sim.take_frame(render=False)
+            stamp, images, lost = sim.take_frame(render=False)
+            assert not lost
             assert images is None
             assert stamp <= sim.t_ns < stamp + sim.dt_ns
             taken.append((stamp, sim.t_ns))
@@ -138,7 +139,8 @@ def test_scenario_files_hold_the_paper_values():
 
 def test_installed_urdf_is_the_generated_one():
     """urdf/irb4600_screwdriver.urdf (installed to share/ibvs_sim/urdf) is up to date."""
-    from ibvs_model.urdf import icosphere_obj, MARKER_MESH, robot_urdf
+    from ibvs_model.mesh import icosphere_obj, MARKER_MESH
+    from ibvs_model.urdf import robot_urdf
     path = Path(__file__).resolve().parents[1] / 'urdf' / 'irb4600_screwdriver.urdf'
     assert (path.parent / MARKER_MESH).read_text() == icosphere_obj()
     assert path.read_text() == robot_urdf(), (

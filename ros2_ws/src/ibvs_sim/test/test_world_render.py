@@ -10,8 +10,9 @@ from ibvs_model import (fiducial_points, ik_position_axis, inverse_kinematics, l
                         StereoCamera, StereoIntrinsics, UnreachablePoseError)
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
-from ibvs_sim.world import (box_downsample, focus_windows, lens_poses, projection_matrix,
-                            supersampled, tiles, view_matrix, World)
+from ibvs_sim.rendering import (box_downsample, focus_windows, lens_poses, projection_matrix,
+                                supersampled, tiles, view_matrix)
+from ibvs_sim.world import World
 import numpy as np
 import pytest
 

@@ -24,7 +24,16 @@ at or after its stamp and publishes that step's joint state right after the imag
 (lockstep), so the estimate uses the very angles the image shows. A frame that cannot be
 published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
-newest input) is dropped, logged and counted on /diagnostics; the node keeps running.
+newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
+frame the camera lost (/stereo/frame_lost) brings no images: nothing is published for it.
+
+Taught target. The stereo pair of the tool at the target pose
+(/stereo/teach/{left,right}/image_raw, latched, published by the simulator before the run
+with target_features_source 'taught') is measured once, as soon as the camera model is
+there, by the same detector searching the whole images; the result p_bar goes latched to
+/ibvs/target_features (PolygonStamped, as /ibvs/features). A pair in which the markers are
+not found is reported (ERROR log and /diagnostics) and nothing is published: the adaptive
+feedback then keeps waiting for its target.
 """
 
 import bisect
@@ -37,7 +46,7 @@ from ibvs_common.conversions import (camera_from_msgs, features_msg, InputError,
                                      pose_matrix, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
-from ibvs_common.params import declare, Param, ParameterError
+from ibvs_common.params import declare, Param
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
@@ -45,6 +54,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from .blend import BumplessSwitch
 from .detector import DetectorConfig, StereoDetector
+from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
 from .imageconv import image_array
 
 PARAMS = (
@@ -54,21 +64,7 @@ PARAMS = (
     Param('hold_model_error', False, 'while the markers are not seen, publish F(q_T) plus '
           'the model error the last measurement showed instead of F(q_T) alone (the paper)',
           '-'),
-    Param('epipolar_tolerance_px', 1.5, 'largest |v_left - v_right| of one marker in a '
-          'rectified pair', 'px', low=0.0, high=50.0, low_open=True),
-    Param('hough_min_radius_px', 2, 'smallest marker image radius searched by the Hough '
-          'transform', 'px', low=1, high=200),
-    Param('hough_max_radius_px', 40, 'largest marker image radius searched by the Hough '
-          'transform', 'px', low=2, high=1000),
-    Param('hough_canny_high', 60.0, 'upper Canny threshold of the Hough transform on the '
-          'colour channel (cv2.HoughCircles param1)', '-', low=1.0, high=1000.0),
-    Param('hough_votes', 6, 'accumulator votes a circle centre needs (cv2.HoughCircles '
-          'param2)', '-', low=1, high=1000),
-    Param('min_colour_score', 25.0, 'least median colour channel (dominant channel minus '
-          'the largest other) inside a marker', '0-255', low=1.0, high=255.0),
-    Param('roi_margin_px', 40, 'search first within this margin around the last measured '
-          'or the estimated features, then the whole image; 0: always the whole image',
-          'px', low=0, high=2000),
+    *DETECTOR_PARAMS,
     Param('joint_history_s', 2.0, 'how long joint states are kept to match image stamps',
           's', low=0.0, high=60.0, low_open=True),
     shared_params.PHYSICS_RATE_HZ,
@@ -96,15 +92,7 @@ class FeatureNode(Node):
         """Declare and check the parameters, then create the subscriptions and publishers."""
         super().__init__('feature_node', **kwargs)
         p = declare(self, PARAMS)
-        if p['hough_min_radius_px'] >= p['hough_max_radius_px']:
-            raise ParameterError(
-                f"parameter 'hough_max_radius_px' = {p['hough_max_radius_px']} is invalid: "
-                f"it must exceed 'hough_min_radius_px' = {p['hough_min_radius_px']}")
-        self._config = DetectorConfig(
-            min_radius_px=p['hough_min_radius_px'], max_radius_px=p['hough_max_radius_px'],
-            canny_high=p['hough_canny_high'], votes=p['hough_votes'],
-            min_score=p['min_colour_score'], epipolar_tolerance_px=p['epipolar_tolerance_px'],
-            roi_margin_px=p['roi_margin_px'])
+        self._config = DetectorConfig.from_parameters(p)
         self._stale_ns = int(round(p['stale_timeout_s'] * 1e9))
         self._history_ns = int(round(p['joint_history_s'] * 1e9))
         self._window_ns = int(round(1e9 / p['physics_rate_hz']))
@@ -125,18 +113,26 @@ class FeatureNode(Node):
         self._detector = None
         self._prior = None
         self._times_ms = []
+        self._teach = {}
+        self._teach_done = False
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, last_switch_time_s='none', switches=0)
         self._pub = self.create_publisher(PolygonStamped, contract.FEATURES, contract.RELIABLE)
+        self._target_pub = self.create_publisher(PolygonStamped, contract.TARGET_FEATURES,
+                                                 contract.LATCHED)
         self._status_pub = self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
                                                  contract.RELIABLE)
         self.create_subscription(Image, contract.LEFT_IMAGE,
                                  lambda m: self._on_image('left', m), contract.IMAGES)
         self.create_subscription(Image, contract.RIGHT_IMAGE,
                                  lambda m: self._on_image('right', m), contract.IMAGES)
+        self.create_subscription(Image, contract.TEACH_LEFT_IMAGE,
+                                 lambda m: self._on_teach('left', m), contract.LATCHED)
+        self.create_subscription(Image, contract.TEACH_RIGHT_IMAGE,
+                                 lambda m: self._on_teach('right', m), contract.LATCHED)
         self.create_subscription(CameraInfo, contract.LEFT_INFO,
                                  lambda m: self._on_info('left', m), contract.RELIABLE)
         self.create_subscription(CameraInfo, contract.RIGHT_INFO,
@@ -176,6 +172,42 @@ class FeatureNode(Node):
             frame.images[side] = array
             frame.encodings[side] = encoding
         self._try_frames()
+
+    def _on_teach(self, side, msg):
+        if self._teach_done:
+            return
+        try:
+            self._teach[side] = image_array(msg)
+        except InputError as exc:
+            self._diag.reject(f'{side} teach image', exc.reason, exc.detail)
+            return
+        self._try_frames()
+
+    def _try_teach(self):
+        """Measure p_bar on the teach pair once both images and the camera model are here."""
+        if self._teach_done or len(self._teach) < 2 or self._detector is None:
+            return
+        self._teach_done = True
+        (left, encoding), (right, right_encoding) = self._teach['left'], self._teach['right']
+        if right_encoding != encoding:
+            right = right[:, :, ::-1].copy()
+        k = self._detector.intrinsics
+        if any(image.shape[:2] != (k.height, k.width) for image in (left, right)):
+            self._diag.reject('teach image', 'size disagrees with camera_info',
+                              f'{left.shape[1]} x {left.shape[0]}, camera_info says '
+                              f'{k.width} x {k.height}')
+            return
+        detection = self._detector.detect(left, right, encoding, None)
+        if not detection.ok:
+            message = (f'taught target: markers not measured on the teach pair '
+                       f'({detection.reason.value}: {detection.detail}); no target features')
+            self.get_logger().error(message)
+            self._diag.set_level(DiagnosticStatus.ERROR, message)
+            return
+        self._target_pub.publish(features_msg(detection.features, ns_stamp(0)))
+        self._diag.update(taught_target_px=detection.features)
+        self.get_logger().info(f'taught target features p_bar = '
+                               f'{np.round(detection.features, 3).tolist()} px')
 
     def _on_joints(self, msg):
         t_ns = stamp_ns(msg.header.stamp)
@@ -271,6 +303,7 @@ class FeatureNode(Node):
     def _try_frames(self):
         """Publish every frame that is complete; drop those that can never be."""
         camera_problem = self._camera_ready()
+        self._try_teach()
         for t_ns in sorted(self._frames):
             frame = self._frames.get(t_ns)
             if frame is None:

@@ -1,14 +1,14 @@
 """
-sensor_msgs/Image <-> numpy for the 8-bit colour encodings the detector reads (no cv_bridge).
+sensor_msgs/Image -> numpy for the 8-bit colour encodings the detector reads (no cv_bridge).
+
+The other way is :func:`ibvs_common.conversions.image_msg`, which the simulator uses too.
 
 Readers raise :class:`ibvs_common.conversions.InputError` with a short reason, used as
 the rejection reason on /diagnostics.
 """
 
-from builtin_interfaces.msg import Time
-from ibvs_common.conversions import InputError, ns_stamp
+from ibvs_common.conversions import InputError
 import numpy as np
-from sensor_msgs.msg import Image
 
 from .detector import ENCODINGS
 
@@ -33,19 +33,3 @@ def image_array(msg):
         raise InputError('bad image data length',
                          f'{data.size} bytes, expected step * height = {step * height}')
     return data.reshape(height, step)[:, :3 * width].reshape(height, width, 3), msg.encoding
-
-
-def image_msg(array, stamp, encoding='rgb8', frame_id=''):
-    """Return an (H, W, 3) uint8 array as a sensor_msgs/Image of ``encoding``."""
-    array = np.ascontiguousarray(array, dtype=np.uint8)
-    if array.ndim != 3 or array.shape[2] != 3:
-        raise ValueError('array must be (H, W, 3)')
-    msg = Image()
-    msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
-    msg.header.frame_id = frame_id
-    msg.height, msg.width = int(array.shape[0]), int(array.shape[1])
-    msg.encoding = encoding
-    msg.is_bigendian = 0
-    msg.step = 3 * msg.width
-    msg.data = array.tobytes()
-    return msg

@@ -257,8 +257,8 @@ def test_bgr8_images_give_the_same_features(hd_model, hd_frames):
 
 def test_config_rejects_meaningless_values():
     with pytest.raises(ValueError, match='min_radius_px'):
-        DetectorConfig(min_radius_px=0)
+        DetectorConfig(hough_min_radius_px=0)
     with pytest.raises(ValueError, match='max_radius_px'):
-        DetectorConfig(min_radius_px=10, max_radius_px=10)
+        DetectorConfig(hough_min_radius_px=10, hough_max_radius_px=10)
     with pytest.raises(ValueError, match='marker_rgb'):
         DetectorConfig(marker_rgb=((200, 20, 20), (210, 40, 30)))

@@ -16,13 +16,12 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_infos, joint_state, ns_stamp, pose_stamped,
-                                     read_features, stamp_ns)
+from ibvs_common.conversions import (camera_infos, image_msg, joint_state, ns_stamp,
+                                     pose_stamped, read_features, stamp_ns)
 from ibvs_common.params import ParameterError
 from ibvs_model import fiducial_points, inverse_kinematics, paper
 from ibvs_vision import synthetic
 from ibvs_vision.feature_node import FeatureNode
-from ibvs_vision.imageconv import image_msg
 import numpy as np
 import pytest
 import rclpy

@@ -1,7 +1,7 @@
 """sensor_msgs/Image <-> numpy without cv_bridge: round trips and the rejections."""
 
-from ibvs_common.conversions import InputError, stamp_ns
-from ibvs_vision.imageconv import image_array, image_msg
+from ibvs_common.conversions import image_msg, InputError, stamp_ns
+from ibvs_vision.imageconv import image_array
 import numpy as np
 import pytest
 

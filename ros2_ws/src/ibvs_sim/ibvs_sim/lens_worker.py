@@ -1,0 +1,156 @@
+"""
+A second process that renders one lens of the stereo pair while the simulator renders the other.
+
+Rendering is most of a frame's cost and one lens does not need the other, so the two can be
+drawn at once on two cores: :class:`LensWorker` starts a process (``python -m
+ibvs_sim.lens_worker``: a fresh interpreter, nothing of the parent's ROS, DDS or OpenGL state
+is inherited, and the parent's ``__main__`` is not imported again) that builds its own
+:class:`ibvs_sim.world.World` with the same robot, floor and renderer. For each frame the
+simulator sends the true joint angles and the lens to draw; the worker sets its robot to
+those angles (``resetJointState``: a copy of the state, no dynamics), renders, and sends the
+image back over a pipe. The image depends only on the joint angles and the lens, so a run
+stays deterministic; :func:`ibvs_sim.world.World.render_stereo` draws the same pair either way
+(tested to the bit).
+
+The worker dies with the simulator: it asks Linux for SIGKILL when its parent exits, and it
+ends on a closed pipe, on ``close`` and on SIGINT.
+"""
+
+import ctypes
+from multiprocessing.connection import Connection
+import signal
+import socket
+import subprocess
+import sys
+import traceback
+
+import numpy as np
+
+#: How long to wait for the worker to start (spawn, imports, PyBullet and EGL), s.
+START_TIMEOUT_S = 120.0
+#: How long to wait for one lens image, s (a render takes well under a second).
+RENDER_TIMEOUT_S = 60.0
+
+
+class LensWorkerError(RuntimeError):
+    """The lens worker could not start, failed to render, or is gone."""
+
+
+def _die_with_parent():
+    try:
+        libc = ctypes.CDLL('libc.so.6', use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+def _serve(conn):
+    """Worker side: build the World it is sent, then answer render requests until told to stop."""
+    _die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    from .world import World  # in the child only: the parent imported it already
+    try:
+        world = World(**conn.recv())
+    except Exception:
+        conn.send(('error', traceback.format_exc()))
+        return
+    conn.send(('ready', world.renderer))
+    try:
+        while True:
+            try:
+                request = conn.recv()
+            except EOFError:
+                return
+            if request is None:
+                return
+            q, args = request
+            try:
+                world.reset(q)
+                image = world.render_lens(*args)
+            except Exception:
+                conn.send(('error', traceback.format_exc()))
+                continue
+            conn.send(('image', image.shape))
+            conn.send_bytes(np.ascontiguousarray(image).reshape(-1))
+    finally:
+        world.close()
+
+
+class LensWorker:
+    """
+    Render a lens in another process: :meth:`submit`, do other work, then :meth:`result`.
+
+    ``world_kwargs`` are the keyword arguments of the :class:`ibvs_sim.world.World` to build
+    there (the same robot, floor and renderer as the simulator's own).
+    """
+
+    def __init__(self, world_kwargs):
+        """Start the worker and wait until its World is built; raise LensWorkerError if not."""
+        ours, theirs = socket.socketpair()
+        self._process = subprocess.Popen(
+            [sys.executable, '-m', 'ibvs_sim.lens_worker', str(theirs.fileno())],
+            pass_fds=(theirs.fileno(),))
+        theirs.close()
+        self._conn = Connection(ours.detach())
+        self._pending = False
+        self._conn.send(world_kwargs)
+        kind, detail = self._receive(START_TIMEOUT_S, 'start')
+        if kind != 'ready':
+            self.close()
+            raise LensWorkerError(f'the lens worker did not start: {detail}')
+        #: The renderer the worker's World uses ('egl' or 'tiny').
+        self.renderer = detail
+
+    def _receive(self, timeout_s, what):
+        if not self._conn.poll(timeout_s):
+            alive = self._process.poll() is None
+            self.close()
+            raise LensWorkerError(f'no answer from the lens worker within {timeout_s:.0f} s '
+                                  f'({what}); process {"alive" if alive else "gone"}')
+        try:
+            return self._conn.recv()
+        except (EOFError, OSError) as exc:
+            self.close()
+            raise LensWorkerError(f'the lens worker is gone ({what}): {exc!r}') from None
+
+    def submit(self, q, *args):
+        """Ask for :meth:`World.render_lens` (``args``) with the robot at joint angles ``q``."""
+        if self._pending:
+            raise LensWorkerError('submit() again before result()')
+        try:
+            self._conn.send((np.asarray(q, dtype=float), args))
+        except (BrokenPipeError, OSError) as exc:
+            self.close()
+            raise LensWorkerError(f'the lens worker is gone: {exc!r}') from None
+        self._pending = True
+
+    def result(self):
+        """Return the (H, W, 3) uint8 image asked for by the last :meth:`submit`."""
+        if not self._pending:
+            raise LensWorkerError('result() without submit()')
+        self._pending = False
+        kind, detail = self._receive(RENDER_TIMEOUT_S, 'render')
+        if kind != 'image':
+            raise LensWorkerError(f'the lens worker failed to render: {detail}')
+        data = self._conn.recv_bytes()
+        return np.frombuffer(data, dtype=np.uint8).reshape(detail).copy()
+
+    def close(self):
+        """Stop the worker (idempotent)."""
+        if self._process is None:
+            return
+        try:
+            self._conn.send(None)
+        except (BrokenPipeError, OSError):
+            pass
+        try:
+            self._process.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait(timeout=5.0)
+        self._conn.close()
+        self._process = None
+
+
+if __name__ == '__main__':
+    _serve(Connection(int(sys.argv[1])))
