@@ -309,9 +309,12 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             if executable == 'sim_node':
                 _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
                 # The recorder and every node must see step 0: the simulator starts only
-                # when all of today's /joint_states subscribers are matched with it.
+                # when all of today's /joint_states and /ibvs/tool_pose subscribers are
+                # matched with it (a late tool pose match lost the first samples of a run).
                 subscribers = max(1, watcher.count_subscribers(contract.JOINT_STATES))
-                extra = ('-p', f'min_joint_state_subscribers:={subscribers}')
+                tool = watcher.count_subscribers(contract.TOOL_POSE)
+                extra = ('-p', f'min_joint_state_subscribers:={subscribers}',
+                         '-p', f'min_tool_pose_subscribers:={tool}')
             procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
         last_print = 0.0
         last_sim_ns, last_advance = -1, time.monotonic()

@@ -8,6 +8,7 @@ SingleThreadedExecutor, and every wait is a spin_once loop on a condition with a
 import os
 import subprocess
 import sys
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
@@ -313,3 +314,18 @@ def test_waiting_is_logged_once_a_second(domain_id):
     finally:
         proc.send_signal(2)
         assert proc.wait(timeout=30) == 0
+
+
+def test_the_start_waits_for_the_tool_pose_subscribers_it_is_told_of(graph):
+    # The stand-in subscribes /ibvs/tool_pose once; ask for one more, then add it.
+    sim, stand_in, executor = graph(publish_images=False, min_tool_pose_subscribers=2)
+    deadline = time.monotonic() + 3.0
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    assert not sim.started
+    assert sim._missing() == [f'1 more subscriber(s) on {contract.TOOL_POSE}']
+    stand_in.create_subscription(PoseStamped, contract.TOOL_POSE, lambda m: None,
+                                 contract.RELIABLE)
+    spin_until(executor, lambda: sim.started)
+    spin_until(executor, lambda: stand_in.rec['tool'])
+    assert stamp_ns(stand_in.rec['tool'][0].header.stamp) == 0
