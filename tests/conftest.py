@@ -1,20 +1,9 @@
-"""Fixtures of the cross-package tests: a private rclpy context, the installed workspace."""
+"""Fixtures of the cross-package tests: the shared ones, the installed workspace, /proc."""
 
 import os
 
+from ibvs_common.testing import context  # noqa: F401 (the shared fixture)
 import pytest
-import rclpy
-
-
-@pytest.fixture
-def context():
-    """Yield a private, initialised rclpy Context (as rclpy's own tests do)."""
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 @pytest.fixture(scope='session')

@@ -1,7 +1,7 @@
 """
 The whole graph in one process, on one rclpy executor: the paper's scenario 1 end to end.
 
-The five nodes of DESIGN section 1 are built with the scenario 1 parameters (as
+The five nodes of docs/design.md §1 are built with the scenario 1 parameters (as
 ``--params-file`` would give them) and share a SingleThreadedExecutor; the simulator advances
 only as the controllers answer, so the run is the same however slow this machine is. The
 true tool pose on /ibvs/tool_pose must reach the target.

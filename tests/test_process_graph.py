@@ -16,7 +16,7 @@ from rclpy.executors import SingleThreadedExecutor
 NODE_NAMES = {'sim_node', 'feature_node', 'joint_controller_node', 'feedforward_node',
               'adaptive_feedback_node'}
 
-#: topic -> (type, publishers, subscribers): the contract of DESIGN section 3.
+#: topic -> (type, publishers, subscribers): the contract of docs/design.md §3.
 EXPECTED = {
     '/clock': ('rosgraph_msgs/msg/Clock', 1, None),
     '/joint_states': ('sensor_msgs/msg/JointState', 1, None),

@@ -7,7 +7,7 @@ bag with ``rosbags``, so ``analyse <bag>`` reproduces every number and figure of
 Definitions (tool = flange frame {E}, target = the scenario's target pose):
 
 - position error e(t) = |p(t) - p_target|; tool-axis error = angle between z6(t) and the
-  target's z6 (the roll about the tool axis is not controlled: DESIGN section 5);
+  target's z6 (the roll about the tool axis is not controlled: docs/design.md §5);
 - ``settling_time_2pct_s``: first time after which e(t) stays within 2 % of e(0);
 - ``time_to_1mm_s``: first time after which e(t) stays within 1 mm;
 - ``max_overshoot_m``: how far the tool goes past the target along the approach direction

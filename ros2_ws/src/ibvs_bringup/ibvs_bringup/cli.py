@@ -10,7 +10,9 @@ Commands:
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
-- ``report [--laws]``: scenarios 1-3 and the L2/L4 robustness sweep into
+- ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
+  of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
+- ``report [--laws]``: scenarios 1-3 and the L2/L4 robustness sweep, as studies, into
   ``results/report.md``; ``--laws`` adds each servo law on scenarios 1-3 with ideal and
   with limited actuators (:mod:`ibvs_bringup.laws_report`).
 """
@@ -23,7 +25,7 @@ import time
 
 from ibvs_control.servo_laws import feedforward_overrides
 
-from . import runner, scenario
+from . import runner, scenario, study_spec
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
                 'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',
@@ -52,10 +54,13 @@ def cmd_run(args):
     print(f'running {args.scenario} -> {out}')
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
-                                     record_images=args.images)
+                                     record_images=args.images, stall_s=args.stall_s)
     except runner.NodeDied as exc:
         print(f'run failed: {exc}', file=sys.stderr)
         return 3
+    except runner.RunStalled as exc:
+        print(f'run stalled: {exc}', file=sys.stderr)
+        return 4
     print(f'wrote {out}/metrics.json, figures and the bag {result.bag_path}')
     _print_summary(result.metrics)
     return 0
@@ -80,15 +85,37 @@ def cmd_demo(args):
     return cmd_run(args)
 
 
+def cmd_study(args):
+    """Run a study spec's runs on Ray (local or --address), then its table and figures."""
+    from . import study
+    spec = study_spec.load(study.study_path(args.spec))
+    out = Path(args.out or Path('results') / 'studies')
+    start = time.monotonic()
+    records = study.run_studies([spec], out, address=args.address, parallel=args.parallel,
+                                domains=study.parse_domains(args.domains),
+                                stall_s=args.stall_s, retry_failed=args.retry_failed)
+    failed = sum(r['status'] != 'ok' for r in records[spec.name])
+    print(f'wrote {out / spec.name}/table.md, table.csv and figures; {failed} failed run(s); '
+          f'{time.monotonic() - start:.0f} s of wall time')
+    return 0
+
+
 def cmd_report(args):
     """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
-    from . import report
+    from . import report, study
     start = time.monotonic()
-    path = report.build_report(Path(args.out), quick=args.quick, laws=args.laws)
+    path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
+                               parallel=args.parallel,
+                               domains=study.parse_domains(args.domains), laws=args.laws)
     print(f'wrote {path}')
     minutes, seconds = divmod(time.monotonic() - start, 60.0)
     print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
     return 0
+
+
+def _study_defaults():
+    from . import study
+    return {'domains': study.DOMAIN_IDS, 'parallel': study.default_parallel()}
 
 
 def main(argv=None):
@@ -103,6 +130,9 @@ def main(argv=None):
         p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
         p.add_argument('--duration', type=float, help='sim time limit, s')
         p.add_argument('--images', action='store_true', help='also record raw images')
+        p.add_argument('--stall-s', type=float, default=runner.STALL_S,
+                       help='wall seconds without sim-time progress that end the run as '
+                       'stalled (exit code 4; default %(default)s)')
         p.add_argument('-p', '--param', action='append', default=[],
                        help='override a parameter: name:=value (repeatable)')
         p.set_defaults(func=func)
@@ -110,16 +140,35 @@ def main(argv=None):
     p.add_argument('bag', help='bag directory of a run')
     p.add_argument('-o', '--out', help='output directory (default: next to the bag)')
     p.set_defaults(func=cmd_analyse)
+    p = sub.add_parser('study', help=cmd_study.__doc__)
+    p.add_argument('spec', help='a study spec file, or the name of an installed one')
+    p.add_argument('-o', '--out', help='parent of the study directory (default results/studies)')
+    p.add_argument('--stall-s', type=float, default=runner.STALL_S,
+                   help='wall seconds without sim-time progress that fail a run')
+    p.add_argument('--retry-failed', action='store_true',
+                   help='run again the runs recorded as failed')
+    p.set_defaults(func=cmd_study)
     p = sub.add_parser('report', help=cmd_report.__doc__)
     p.add_argument('-o', '--out', default='results', help='results directory')
     p.add_argument('--quick', action='store_true', help='sweep endpoints only')
     p.add_argument('--laws', action='store_true',
                    help='also each servo law on scenarios 1-3, two actuator cases')
     p.set_defaults(func=cmd_report)
+    for name in ('study', 'report'):
+        p = sub.choices[name]
+        p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
+                       'default: a local Ray started for this command')
+        p.add_argument('--domains', default='-'.join(map(str, _study_defaults()['domains'])),
+                       help='pool of ROS_DOMAIN_IDs for the runs, LOW-HIGH (default '
+                       '%(default)s)')
+        p.add_argument('--parallel', type=int,
+                       help='runs at once on the local Ray (default: one per core, '
+                       f"{_study_defaults()['parallel']} here)")
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (scenario.ScenarioError, FileNotFoundError, TimeoutError) as exc:
+    except (scenario.ScenarioError, study_spec.StudyError, FileNotFoundError,
+            TimeoutError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:

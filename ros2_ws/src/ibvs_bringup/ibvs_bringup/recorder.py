@@ -2,23 +2,41 @@
 Recorder: every topic of the graph, raw images only on request, into a rosbag2 MCAP bag.
 
 Written with ``rosbags`` (rosbag2 format version 9, MCAP storage, message definitions from
-the ROS 2 Jazzy type store), so ``ros2 bag info``, Foxglove and PlotJuggler open it.
-Messages are received serialized (``raw=True``) and written as they are: no
-deserialisation on the hot path. The topics of the contract are subscribed before the
-simulator starts, so nothing of the run's beginning is lost; any other topic that appears
-is picked up by discovery, as ``ros2 bag record --all`` does.
+the ROS 2 Jazzy type store), so ``ros2 bag info``, Foxglove and PlotJuggler open it: the
+file is ``<bag>/<bag>.mcap`` (``bag/bag.mcap`` in a run's directory). Messages are received
+serialized (``raw=True``) and written as they are: no deserialisation on the hot path. The
+topics of the contract are subscribed before the simulator starts, so nothing of the run's
+beginning is lost; any other topic that appears is picked up by discovery, as
+``ros2 bag record --all`` does.
+
+What ``ros2 bag play`` needs beyond the messages, as ``ros2 bag record`` writes it: each
+topic's ``offered_qos_profiles`` (the QoS of its publishers, read when its first message
+comes, so that /stereo/pose and the feedforward trajectory are replayed transient local),
+its type hash (RIHS01, in metadata.yaml and on the MCAP channel as ``topic_type_hash``) and
+``ros_distro: jazzy`` (:class:`JazzyWriter`). A topic is added to the bag with its first
+message: one that never had a message is not in it.
 """
 
 from functools import partial
 import importlib
+from io import BytesIO, StringIO
 
 from ibvs_common import contract
 from ibvs_common.profiling import Stopwatch
+from ibvs_common.sim_time import clock_problem
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                QosReliability, QosTime)
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, write_string
 from rosbags.typesys import get_typestore, Stores
+from ruamel.yaml import YAML
+
+#: The type store the bag's message definitions come from, and the distro the bag names.
+TYPESTORE = Stores.ROS2_JAZZY
+ROS_DISTRO = 'jazzy'
 
 #: The contract's topics and their types, subscribed from the start.
 KNOWN_TOPICS = {
@@ -44,6 +62,68 @@ RECORD_QOS = QoSProfile(depth=2000, reliability=contract.RELIABLE.reliability,
 LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY}
 
 
+def bag_qos(profile):
+    """Return an rclpy QoSProfile as the rosbags ``Qos`` written to the bag's metadata."""
+    def duration(d):
+        sec, nsec = divmod(d.nanoseconds, 1_000_000_000)
+        return QosTime(sec, nsec)
+
+    return Qos(QosHistory(int(profile.history)), profile.depth,
+               QosReliability(int(profile.reliability)), QosDurability(int(profile.durability)),
+               duration(profile.deadline), duration(profile.lifespan),
+               QosLiveliness(int(profile.liveliness)),
+               duration(profile.liveliness_lease_duration),
+               profile.avoid_ros_namespace_conventions)
+
+
+def _with_distro(text):
+    """Return rosbag2 metadata YAML ``text`` with ``ros_distro`` set to :data:`ROS_DISTRO`."""
+    yaml = YAML(typ='safe')
+    yaml.default_flow_style = False
+    data = yaml.load(text)
+    info = data.get('rosbag2_bagfile_information', data)
+    info['ros_distro'] = ROS_DISTRO
+    out = StringIO()
+    yaml.dump(data, out)
+    return out.getvalue()
+
+
+class _JazzyMcapStorage(McapWriter):
+    """rosbags' MCAP storage, with each channel's type hash and the distro that rosbag2 writes."""
+
+    def add_connection(self, connection, offered_qos_profiles):
+        """
+        Add the channel with ``offered_qos_profiles`` and ``topic_type_hash`` (RIHS01).
+
+        rosbags' own method writes the first key only; rosbag2 (Jazzy) writes both and reads
+        the hash back from ``topic_type_hash``.
+        """
+        metadata = BytesIO()
+        for key, value in (('offered_qos_profiles', offered_qos_profiles),
+                           ('topic_type_hash', connection.digest)):
+            write_string(metadata, key)
+            write_string(metadata, value)
+        self.channels.append(Channel(connection.id, connection.msgtype, connection.topic,
+                                     connection.ext.serialization_format, metadata.getvalue()))
+        self.channel_stats[connection.id] = 0
+        write_channel(self.chunk.bio, self.channels[-1], self.schemas)
+
+    def close(self, version, metadata):
+        """Close the file, its embedded metadata naming :data:`ROS_DISTRO`."""
+        super().close(version, _with_distro(metadata).strip())
+
+
+class JazzyWriter(Writer):
+    """A rosbags rosbag2 writer whose bag says ``ros_distro: jazzy`` and carries type hashes."""
+
+    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _JazzyMcapStorage}
+
+    def close(self):
+        """Close the bag; metadata.yaml names :data:`ROS_DISTRO`."""
+        super().close()
+        self.metapath.write_text(_with_distro(self.metapath.read_text('utf8')), 'utf8')
+
+
 def message_class(type_name):
     """Return the Python class of 'pkg/msg/Type' (what rosidl_runtime_py.get_message does)."""
     pkg, kind, name = type_name.split('/')
@@ -57,12 +137,14 @@ class Recorder(Node):
         """Open the bag at ``bag_path`` (must not exist) and subscribe to the known topics."""
         super().__init__('ibvs_recorder', **kwargs)
         self._include_images = include_images
-        self._typestore = get_typestore(Stores.ROS2_JAZZY)
-        self._writer = Writer(bag_path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._typestore = get_typestore(TYPESTORE)
+        self._writer = JazzyWriter(bag_path, version=9, storage_plugin=StoragePlugin.MCAP)
         for key, value in (custom_data or {}).items():
             self._writer.set_custom_data(key, value)
         self._writer.open()
         self._connections = {}
+        self._types = {}
+        self._qos = {}
         self._topic_subs = {}
         self.clock_ns = 0
         #: Wall time spent writing messages (ibvs_common.profiling), for ``make bench``.
@@ -86,28 +168,40 @@ class Recorder(Node):
                 self._skipped.add(topic)
                 self.get_logger().warn(f'not recording {topic}: unknown type {type_name}')
             return
-        conn = self._writer.add_connection(topic, type_name, typestore=self._typestore)
-        self._connections[topic] = conn
         qos = contract.LATCHED if topic in LATCHED_TOPICS else RECORD_QOS
+        self._types[topic], self._qos[topic] = type_name, qos
         self._topic_subs[topic] = self.create_subscription(
             message_class(type_name), topic, partial(self._on_message, topic), qos, raw=True)
         self.counts[topic] = 0
 
     def _discover(self):
         for topic, types in self.get_topic_names_and_types():
-            if topic in self._connections or topic in self._skipped or not types:
+            if topic in self._topic_subs or topic in self._skipped or not types:
                 continue
             if topic.startswith('/rosout') or topic.startswith('/parameter_events'):
                 continue
             self._record(topic, types[0])
 
+    def _connection(self, topic):
+        """Return the bag connection of ``topic``, added with its publishers' QoS at first."""
+        conn = self._connections.get(topic)
+        if conn is None:
+            offered = [bag_qos(info.qos_profile)
+                       for info in self.get_publishers_info_by_topic(topic)]
+            conn = self._writer.add_connection(
+                topic, self._types[topic], typestore=self._typestore,
+                offered_qos_profiles=offered or [bag_qos(self._qos[topic])])
+            self._connections[topic] = conn
+        return conn
+
     def _on_message(self, topic, data):
         with self.timing.section('recording'):
             if topic == contract.CLOCK:
-                clock = self._typestore.deserialize_cdr(data, 'rosgraph_msgs/msg/Clock')
-                self.clock_ns = clock.clock.sec * 1_000_000_000 + clock.clock.nanosec
-                self.timing.reached(self.clock_ns)
-            self._writer.write(self._connections[topic], self.clock_ns, data)
+                clock = self._typestore.deserialize_cdr(data, 'rosgraph_msgs/msg/Clock').clock
+                if clock_problem(clock.sec, clock.nanosec) is None:  # else keep the last time
+                    self.clock_ns = clock.sec * 1_000_000_000 + clock.nanosec
+                    self.timing.reached(self.clock_ns)
+            self._writer.write(self._connection(topic), self.clock_ns, data)
         self.counts[topic] += 1
 
     def close(self):

@@ -3,8 +3,15 @@ The reproduction report: scenarios 1-3 and the L2/L4 robustness sweep (paper Fig
 
 Every number in ``results/report.md`` comes from a run's ``metrics.json``, which comes from
 its bag; the table puts each claim of the paper next to what we measured.
+
+Every run is part of a study (:mod:`ibvs_bringup.study`): the studies named in
+:data:`REPORT_STUDIES` (spec files in ``ibvs_bringup/studies/``, installed to the package's
+share directory) run together on one Ray session, cached, into ``<out>/studies/<name>/``.
+To add a study to the report, add its spec file there and its name to
+:data:`EXTRA_STUDIES`: the report then shows its table and figures.
 """
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -15,15 +22,15 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import laws_report, runner  # noqa: E402
+from . import laws_report, study, study_spec  # noqa: E402
 
-SWEEP_SCALES = (0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1)
-
-
-def _run(name, out_dir, overrides=None, progress=print):
-    out_dir = Path(out_dir)
-    progress(f'running {name} {overrides or ""} -> {out_dir}')
-    return runner.run_scenario(name, out_dir, overrides, progress=progress).metrics
+SCENARIO_STUDIES = ('scenario1', 'scenario2', 'scenario3')
+SWEEP_STUDY = 'fig13_link_lengths'
+#: Studies beyond the paper's that the report shows as they are (table and figures).
+EXTRA_STUDIES = ()
+REPORT_STUDIES = SCENARIO_STUDIES + (SWEEP_STUDY,) + EXTRA_STUDIES
+#: The sweep factors of ``--quick``: the endpoints and nominal.
+QUICK_SCALES = (0.5, 1.0, 1.1)
 
 
 def _fmt(value, unit='', scale=1.0, digits=3):
@@ -32,16 +39,30 @@ def _fmt(value, unit='', scale=1.0, digits=3):
     return f'{value * scale:.{digits}f}{unit}'
 
 
-def sweep(out_dir, scales=SWEEP_SCALES, progress=print):
-    """Run scenario 1 with L2 and L4 of the simulated robot scaled one at a time."""
+def load_specs(quick=False):
+    """Return the report's study specs; ``quick`` keeps the sweep's endpoints and nominal."""
+    specs = [study_spec.load(study.study_path(name)) for name in REPORT_STUDIES]
+    if quick:
+        specs = [_quick(spec) if spec.name == SWEEP_STUDY else spec for spec in specs]
+    return specs
+
+
+def _quick(spec):
+    grid = tuple({k: [v for v in values if v in QUICK_SCALES] for k, values in product.items()}
+                 for product in spec.grid)
+    return dataclasses.replace(spec, name=f'{spec.name}_quick', grid=grid)
+
+
+def sweep_rows(records):
+    """Return the Figure 13 sweep's rows (link, scale, metrics) from its study's records."""
     rows = []
-    for link in ('l2_scale', 'l4_scale'):
-        for scale in scales:
-            run_dir = Path(out_dir) / 'sweep' / f'{link}_{scale:.1f}'
-            metrics = _run('scenario1', run_dir, {link: float(scale)}, progress)
-            final_x = metrics.get('final_position_error_m')
-            rows.append({'link': link[:2].upper(), 'scale': scale, 'metrics': metrics,
-                         'final_position_error_m': final_x})
+    for record in records:
+        (name, scale), = record['swept'].items()
+        metrics = record.get('metrics') or {}
+        rows.append({'link': name[:2].upper(), 'scale': scale, 'metrics': metrics,
+                     'status': record['status'],
+                     'final_position_error_m': metrics.get('final_position_error_m',
+                                                           float('nan'))})
     return rows
 
 
@@ -64,17 +85,29 @@ def sweep_figure(rows, path):
     plt.close(fig)
 
 
-def build_report(out_dir, quick=False, progress=print, laws=False):
+def build_report(out_dir, quick=False, address=None, parallel=None, domains=study.DOMAIN_IDS,
+                 laws=False):
     """
-    Run everything and write ``<out_dir>/report.md``; return its path.
+    Run the report's studies and write ``<out_dir>/report.md``; return its path.
 
-    ``laws``: also the servo laws side by side (:mod:`.laws_report`, 24 runs).
+    ``laws``: also the servo laws side by side (:mod:`.laws_report`, 24 runs, one at a
+    time).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    scenarios = {name: _run(name, out_dir / name, progress=progress)
-                 for name in ('scenario1', 'scenario2', 'scenario3')}
-    rows = sweep(out_dir, (0.5, 1.0, 1.1) if quick else SWEEP_SCALES, progress)
+    specs = load_specs(quick)
+    records = study.run_studies(specs, out_dir / 'studies', address=address, parallel=parallel,
+                                domains=domains)
+    failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
+              for rs in records.values() for r in rs if r['status'] != 'ok']
+    if failed:
+        raise RuntimeError('report runs failed (logs in their run directories):\n'
+                           + '\n'.join(failed))
+    scenarios = {name: records[name][0]['metrics'] for name in SCENARIO_STUDIES}
+    run_dirs = {name: Path(records[name][0]['run_dir']).relative_to(out_dir)
+                for name in SCENARIO_STUDIES}
+    sweep_spec = next(spec for spec in specs if spec.name.startswith(SWEEP_STUDY))
+    rows = sweep_rows(records[sweep_spec.name])
     sweep_figure(rows, out_dir / 'robustness.png')
     worst = max(rows, key=lambda r: r['final_position_error_m'])
     (out_dir / 'report.json').write_text(json.dumps(
@@ -123,10 +156,10 @@ def build_report(out_dir, quick=False, progress=print, laws=False):
         lines += [f'### {name}', '', '| metric | value |', '|---|---|']
         lines += [f'| {k} | {v:.6g} |' if isinstance(v, float) else f'| {k} | {v} |'
                   for k, v in metrics.items() if k not in ('bag',)]
-        lines += ['', f'![pose]({name}/pose_vs_time.png)',
-                  f'![trajectory]({name}/trajectory_3d.png)',
-                  f'![image plane]({name}/image_plane.png)',
-                  f'![features]({name}/feature_timeline.png)', '']
+        lines += ['', f'![pose]({run_dirs[name]}/pose_vs_time.png)',
+                  f'![trajectory]({run_dirs[name]}/trajectory_3d.png)',
+                  f'![image plane]({run_dirs[name]}/image_plane.png)',
+                  f'![features]({run_dirs[name]}/feature_timeline.png)', '']
     lines += ['## Robustness sweep (scenario 1, Figure 13)', '',
               '| link | factor | final position error [mm] | final axis error [deg] | '
               'lowest tool z [m] |',
@@ -138,8 +171,20 @@ def build_report(out_dir, quick=False, progress=print, laws=False):
     lines += ['', '![robustness](robustness.png)', '']
     within = np.all([r['final_position_error_m'] <= 0.01 for r in rows])
     lines += [f"Every sweep point within 1 cm: {'yes' if within else 'NO'}.", '']
+    lines += ['## Studies', '',
+              'Each study of this report, with its table (CSV beside it) and figures; '
+              '`ros2 run ibvs_bringup ibvs study <name>` runs one on its own.', '']
+    for spec in specs:
+        lines += [f'- [{spec.name}](studies/{spec.name}/table.md): {len(records[spec.name])} '
+                  f'run(s). {spec.description}']
+    for name in EXTRA_STUDIES:
+        spec = next(s for s in specs if s.name == name)
+        lines += ['', f'### {name}', '', spec.description, '']
+        lines += [f'![{p.stem}](studies/{name}/{p.name})'
+                  for p in sorted((out_dir / 'studies' / name).glob('*.png'))]
+    lines += ['']
     if laws:
-        runs = laws_report.run_all(out_dir / 'laws', progress=progress)
+        runs = laws_report.run_all(out_dir / 'laws')
         lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))

@@ -9,6 +9,12 @@ ament index). The runner records the run, prints progress, stops when the sim ti
 reached or the tool has converged, and stops every process cleanly (SIGINT, then SIGTERM,
 then SIGKILL). If a node dies, the run stops and :class:`NodeDied` names it and its exit
 code; no process is left behind in any case (children also get SIGKILL if the runner dies).
+
+No silent hang: a configuration that cannot advance sim time is refused before any node
+starts (:func:`scenario.check_progress`), and a run whose sim time stops advancing for
+``stall_s`` of wall time ends with :class:`RunStalled`, which quotes what each node last
+said it waits for (its once-a-second "waiting ..." log line and the ``waiting_for`` values
+it publishes on /diagnostics).
 """
 
 import ctypes
@@ -16,12 +22,14 @@ from dataclasses import dataclass
 import json
 import os
 from pathlib import Path
+import re
 import shutil
 import signal
 import subprocess
 import time
 
 from ament_index_python.packages import get_package_prefix
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix, stamp_ns
@@ -35,7 +43,7 @@ import yaml
 from . import analysis, plots, scenario
 from .recorder import Recorder
 
-#: The graph of DESIGN section 1, in start order: the simulator last, so that every
+#: The graph of docs/design.md §1, in start order: the simulator last, so that every
 #: subscriber is up before the first /joint_states.
 NODES = (
     ('ibvs_vision', 'feature_node'),
@@ -46,16 +54,68 @@ NODES = (
 )
 
 
+#: Default wall time without sim-time progress after which a run is declared stalled (s).
+#: Long enough for the slowest single step seen on a loaded 2-core machine (the
+#: feedforward's trajectory at t = 0 took 11 s with a load average of 17); the runner then
+#: names who waits for what.
+STALL_S = 60.0
+#: Default wall time from the last node's launch to the simulator's first step (s):
+#: start-up (PyBullet, EGL, discovery) takes seconds, more on a loaded machine.
+START_TIMEOUT_S = 120.0
+#: What the stall report says of a node that reported no wait: busy, frozen, or a node that
+#: does not report its waits.
+SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
+#: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
+_WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[[^\]]+\]: (waiting .*)$')
+
+
 class NodeDied(RuntimeError):
     """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
 
     def __init__(self, node, returncode, log_path):
-        """Keep which node died, its exit code and where its log is."""
+        """Keep which node died, its exit code and where its log is; quote its last line."""
+        try:
+            lines = Path(log_path).read_text(errors='replace').strip().splitlines()
+        except OSError:
+            lines = []
+        last = f'; its last words: {lines[-1].strip()}' if lines else ''
         super().__init__(f'node {node} exited with code {returncode} during the run '
-                         f'(log: {log_path})')
+                         f'(log: {log_path}){last}')
         self.node = node
         self.returncode = returncode
         self.log_path = log_path
+
+
+class RunStalled(RuntimeError):
+    """Sim time stopped advancing; ``waits`` maps each node to what it said it waits for."""
+
+    def __init__(self, what, sim_s, waits):
+        """Keep the sim time reached and each node's wait; the message lists them."""
+        lines = [f'  {node}: {text}' for node, text in waits.items()]
+        super().__init__(f'{what} at sim time {sim_s:.3f} s; what each node waits for:\n'
+                         + '\n'.join(lines))
+        self.sim_s = sim_s
+        self.waits = waits
+
+
+def last_waiting_line(log_path, since_epoch_s):
+    """
+    Return the last "waiting ..." line a node logged at or after ``since_epoch_s``, or None.
+
+    Every node of the graph logs what it waits for once a second while it makes no progress
+    (``sim_node``, ``joint_controller_node``; DESIGN section 4): a line from within the
+    stall window is what the node waits for now.
+    """
+    try:
+        text = Path(log_path).read_text(errors='replace')
+    except FileNotFoundError:
+        return None
+    found = None
+    for line in text.splitlines():
+        match = _WAITING_LINE.match(line.strip())
+        if match and float(match.group(1)) >= since_epoch_s:
+            found = match.group(2)
+    return found
 
 
 def executable_command(package, executable):
@@ -98,6 +158,10 @@ class NodeProcess:
 
     def stop(self, timeout_s=10.0):
         """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
+        try:  # a stopped (SIGSTOP) process handles no signal until it is continued
+            os.killpg(self.proc.pid, signal.SIGCONT)
+        except (ProcessLookupError, PermissionError):
+            pass
         for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
                           (signal.SIGKILL, 3.0)):
             if self.proc.poll() is not None:
@@ -146,6 +210,29 @@ class Monitor:
         node.create_subscription(Clock, contract.CLOCK, self._on_clock, contract.RELIABLE)
         node.create_subscription(PoseStamped, contract.TOOL_POSE, self._on_pose,
                                  contract.RELIABLE)
+        #: Latest /diagnostics status values of each node, by node name.
+        self.diagnostics = {}
+        node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diagnostics,
+                                 10)
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            node = status.name.split(':', 1)[0]
+            self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
+
+    def waits(self, procs, since_epoch_s):
+        """Return, per node, what it last said it waits for (log line, /diagnostics)."""
+        out = {}
+        for p in procs:
+            said = []
+            line = last_waiting_line(p.log_path, since_epoch_s)
+            if line:
+                said.append(line)
+            said += [f'/diagnostics {k} = {v}'
+                     for k, v in self.diagnostics.get(p.name, {}).items()
+                     if k.startswith('waiting') and v not in ('', '-1')]
+            out[p.name] = '; '.join(said) or SILENT
+        return out
 
     def _on_clock(self, msg):
         if self.started_wall is None:
@@ -169,16 +256,22 @@ class Monitor:
 
 
 def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
-                 wall_timeout_s=1800.0, converge_hold_s=None, progress=print):
+                 wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
+                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S):
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
 
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
-    0.1 mm and 0.01 deg of the target for that long (sim time).
+    0.1 mm and 0.01 deg of the target for that long (sim time). Raises
+    :class:`scenario.ScenarioError` for a configuration that cannot make progress (before
+    starting anything), :class:`NodeDied` if a node exits, and :class:`RunStalled` if sim
+    time does not advance for ``stall_s`` of wall time (or the simulator has not taken its
+    first step ``start_timeout_s`` after it was launched).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
+    scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
     duration_s = float(duration_s or params.get('run_duration_s', 3.0))
     out_dir = Path(out_dir)
@@ -207,6 +300,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     procs = []
     converged = False
     died = None
+    stalled = None
     wall_duration = None
     wall_start = time.monotonic()
     try:
@@ -215,11 +309,15 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             if executable == 'sim_node':
                 _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
                 # The recorder and every node must see step 0: the simulator starts only
-                # when all of today's /joint_states subscribers are matched with it.
+                # when all of today's /joint_states and /ibvs/tool_pose subscribers are
+                # matched with it (a late tool pose match lost the first samples of a run).
                 subscribers = max(1, watcher.count_subscribers(contract.JOINT_STATES))
-                extra = ('-p', f'min_joint_state_subscribers:={subscribers}')
+                tool = watcher.count_subscribers(contract.TOOL_POSE)
+                extra = ('-p', f'min_joint_state_subscribers:={subscribers}',
+                         '-p', f'min_tool_pose_subscribers:={tool}')
             procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
         last_print = 0.0
+        last_sim_ns, last_advance = -1, time.monotonic()
         while True:
             executor.spin_once(timeout_sec=0.05)
             for p in procs:
@@ -247,6 +345,16 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             if now - wall_start > wall_timeout_s:
                 progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim {sim_s:.3f} s')
                 break
+            if monitor.sim_ns > last_sim_ns and monitor.started_wall is not None:
+                last_sim_ns, last_advance = monitor.sim_ns, now
+            limit = stall_s if monitor.started_wall is not None else start_timeout_s
+            if now - last_advance > limit:
+                window_start = time.time() - min(limit, 3.0)
+                what = (f'no sim-time progress for {limit:.0f} s of wall time'
+                        if monitor.started_wall is not None
+                        else f'the simulator took no step within {limit:.0f} s of its launch')
+                stalled = RunStalled(what, sim_s, monitor.waits(procs, window_start))
+                break
         # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
         wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
     finally:
@@ -261,6 +369,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         rclpy.shutdown(context=context)
     if died:
         raise died
+    if stalled:
+        raise stalled
     metrics = write_results(bag_path, out_dir, wall_duration)
     return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
 

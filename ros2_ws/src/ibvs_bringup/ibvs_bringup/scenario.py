@@ -8,6 +8,7 @@ node started with ``--ros-args --params-file <file>`` sees them.
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+from ibvs_common import contract
 import yaml
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
@@ -17,6 +18,14 @@ class ScenarioError(ValueError):
     """A scenario cannot be found or its file is malformed."""
 
 
+def share_directory():
+    """Return the installed share directory of ibvs_bringup (the source tree if not built)."""
+    try:
+        return Path(get_package_share_directory('ibvs_bringup'))
+    except (PackageNotFoundError, OSError):  # not installed: the source tree
+        return Path(__file__).resolve().parents[1]
+
+
 def scenario_path(name_or_path):
     """Return the parameter file of a scenario name ('scenario1') or an explicit path."""
     path = Path(name_or_path)
@@ -24,10 +33,7 @@ def scenario_path(name_or_path):
         if not path.is_file():
             raise ScenarioError(f'scenario file {path} does not exist')
         return path
-    try:
-        share = Path(get_package_share_directory('ibvs_bringup'))
-    except (PackageNotFoundError, OSError):  # not installed: the source tree
-        share = Path(__file__).resolve().parents[1]
+    share = share_directory()
     candidate = share / 'config' / f'{name_or_path}.yaml'
     if not candidate.is_file():
         known = sorted(p.stem for p in (share / 'config').glob('*.yaml'))
@@ -44,6 +50,24 @@ def load_parameters(name_or_path):
     except (KeyError, TypeError):
         raise ScenarioError(f"{path}: expected '/**: ros__parameters: {{...}}'") from None
     return params
+
+
+def check_progress(params):
+    """
+    Refuse a configuration with which the graph of ``ibvs run`` cannot advance sim time.
+
+    The joint controller answers /joint_states at t only once it has /ibvs/q_feedback of the
+    frame that applies at t (DESIGN section 4), and that comes from the feature node, which
+    needs both stereo images of the frame. Without images (``publish_images: false``) the run
+    would wait at the first frame forever; it is refused here, before any node starts.
+    """
+    if params.get('publish_images', True) is False:
+        raise ScenarioError(
+            f'publish_images is false: the feature node would get no {contract.LEFT_IMAGE} '
+            f'or {contract.RIGHT_IMAGE}, hence no {contract.FEATURES}, and the joint '
+            f'controller would wait for {contract.Q_FEEDBACK} of the first camera frame '
+            'forever; the node graph needs the images (publish_images:=false is for the '
+            'simulator on its own)')
 
 
 def parse_override(text):

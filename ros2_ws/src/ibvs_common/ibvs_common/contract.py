@@ -1,12 +1,13 @@
 """
-The interface contract of the node graph (DESIGN section 3) and its timing rule (section 4).
+The interface contract of the node graph (docs/design.md §3) and its timing rule (§4).
 
 Every name a node publishes or subscribes comes from here, so a rename is one edit.
 """
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
-from .timing import feedback_frame_ns  # noqa: F401 (the timing rule is part of the contract)
+# The timing rule is part of the contract.
+from .timing import feedback_frame_ns, frame_stamp_ns  # noqa: F401
 
 JOINT_NAMES = tuple(f'joint_{i}' for i in range(1, 7))
 

@@ -14,6 +14,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
+from .sim_time import clock_problem
 
 
 class InputError(ValueError):
@@ -29,6 +30,19 @@ class InputError(ValueError):
 def stamp_ns(stamp):
     """Return a builtin_interfaces/Time as integer nanoseconds (exact)."""
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def read_stamp(stamp):
+    """
+    Return a header stamp as integer nanoseconds; :class:`InputError` if it is malformed.
+
+    Malformed: a negative ``sec`` (before the sim starts at 0) or ``nanosec`` of a second or
+    more, which :func:`stamp_ns` would silently carry into the seconds.
+    """
+    problem = clock_problem(stamp.sec, stamp.nanosec)
+    if problem is not None:
+        raise InputError(*problem)
+    return stamp_ns(stamp)
 
 
 def ns_stamp(ns):
@@ -56,22 +70,36 @@ def read_joints(msg, field='position', names=contract.JOINT_NAMES):
     """
     Return ``msg.<field>`` as a (6,) array in the order of ``names``.
 
-    Accepts messages without names (then the order is the contract's) or with the six
-    names in any order. Raises :class:`InputError` for a wrong length, unknown names or a
+    Values are mapped by joint name: the message must name the six joints, in any order.
+    Raises :class:`InputError` for a wrong length, missing, unknown or repeated names, or a
     non-finite value.
     """
     values = np.asarray(getattr(msg, field), dtype=float)
     if values.shape != (len(names),):
         raise InputError(f'wrong {field} length',
                          f'{values.size} values, expected {len(names)}')
-    if len(msg.name):
-        if len(msg.name) != len(names) or set(msg.name) != set(names):
-            raise InputError('wrong joint names', f'{list(msg.name)}')
-        order = [list(msg.name).index(n) for n in names]
-        values = values[order]
+    if not len(msg.name):
+        raise InputError('no joint names', 'JointState.name is empty; values are mapped by name')
+    if len(msg.name) != len(names) or set(msg.name) != set(names):
+        raise InputError('wrong joint names', f'{list(msg.name)}')
+    values = values[[list(msg.name).index(n) for n in names]]
     if not np.all(np.isfinite(values)):
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
     return values
+
+
+def check_finite(msg, fields):
+    """
+    Raise :class:`InputError` if a JointState field in ``fields`` holds a non-finite value.
+
+    For the fields a consumer does not read (e.g. velocity and effort of a position
+    reference): they may be empty, but a NaN or inf there means a broken publisher, and the
+    whole message is rejected rather than half used.
+    """
+    for field in fields:
+        values = np.asarray(getattr(msg, field), dtype=float)
+        if not np.all(np.isfinite(values)):
+            raise InputError(f'non-finite {field}', f'{values.tolist()}')
 
 
 def duration_ns(duration):
@@ -105,7 +133,9 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
     Return (start ns, (N, 6) positions) of a JointTrajectory sampled every ``period_ns``.
 
     The points must be at 0, period_ns, 2 period_ns, ... from the header stamp, with finite
-    positions for the six joints (in any order, mapped by name). Raises :class:`InputError`.
+    positions for the six joints (in any order, mapped by name). Velocities, accelerations
+    and efforts are not read: they may be empty, but a non-finite value there rejects the
+    trajectory (as :func:`check_finite` does for a JointState). Raises :class:`InputError`.
     """
     if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
         raise InputError('wrong joint names', f'{list(msg.joint_names)}')
@@ -123,6 +153,10 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
                          f'{positions.shape[1:]} values per point, expected {len(names)}')
     if not np.all(np.isfinite(positions)):
         raise InputError('non-finite positions')
+    for field in ('velocities', 'accelerations', 'effort'):
+        if not all(np.all(np.isfinite(np.asarray(getattr(p, field), dtype=float)))
+                   for p in msg.points):
+            raise InputError(f'non-finite {field}')
     order = [list(msg.joint_names).index(n) for n in names]
     return stamp_ns(msg.header.stamp), positions[:, order]
 

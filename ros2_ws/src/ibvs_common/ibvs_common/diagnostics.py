@@ -3,7 +3,10 @@ Counting and reporting of rejected inputs and node status on /diagnostics.
 
 Every rejected input (NaN, wrong length, stale stamp, ...) is counted per reason and
 logged the first time that reason occurs (then at most every ``log_period_s``), never
-raised: a node keeps running whatever it is fed.
+raised: a node keeps running whatever it is fed. That includes /clock, which rclpy reads
+itself: a :class:`Diagnostics` puts its node's sim time behind
+:class:`ibvs_common.sim_time.GuardedTimeSource`, so that a malformed /clock is counted here
+instead of ending the process.
 """
 
 from collections import Counter
@@ -13,6 +16,7 @@ from rclpy.clock import Clock, ClockType
 
 from . import contract
 from .profiling import Stopwatch
+from .sim_time import guard_clock
 
 
 class Diagnostics:
@@ -21,7 +25,8 @@ class Diagnostics:
 
     ``values`` are free key/value pairs the node sets (mode, rank, condition number, ...).
     Rejections are counted per ``'<input>: <reason>'``. Publishing runs on a steady-clock
-    timer so that it goes on while sim time is paused.
+    timer so that it goes on while sim time is paused. A /clock message that rclpy could not
+    convert (negative seconds, nanosec >= 1e9) is counted as a rejection of ``/clock``.
     """
 
     def __init__(self, node, name, period_s=1.0, log_period_s=5.0):
@@ -40,6 +45,7 @@ class Diagnostics:
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_log = {}
         self._timer = node.create_timer(period_s, self.publish, clock=self._steady)
+        guard_clock(node, self.reject)
 
     def reject(self, source, reason, detail=''):
         """Count one rejected input from ``source`` for ``reason``; log it once per period."""

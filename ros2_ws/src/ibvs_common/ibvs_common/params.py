@@ -43,6 +43,10 @@ class Param:
         """Describe the allowed values in words, for descriptors and error messages."""
         if self.choices is not None:
             return 'one of ' + ', '.join(repr(c) for c in self.choices)
+        if isinstance(self.default, bool):
+            return 'true or false'
+        if isinstance(self.default, str):
+            return 'any string'
         lo = '-inf' if self.low is None else f'{self.low:g}'
         hi = 'inf' if self.high is None else f'{self.high:g}'
         text = f"{'(' if self.low_open or self.low is None else '['}{lo}, {hi}" \

@@ -50,5 +50,7 @@ L4_SCALE = Param('l4_scale', 1.0, 'factor on link length L4 of the simulated rob
 ACTUATORS = Param('actuators', 'ideal', "'ideal' (the paper: no limits) or 'limited' "
                   '(IRB 4600 speed and torque limits)', '-', choices=('ideal', 'limited'))
 STALE_TIMEOUT_S = Param('stale_timeout_s', 0.5,
-                        'inputs older than this (sim time) are rejected as stale', 's',
+                        'inputs older than this (sim time) are rejected as stale, and '
+                        '/joint_states stamped further than this ahead of the newest time a '
+                        'node knows as from a bad publisher', 's',
                         low=0.0, high=60.0, low_open=True)

@@ -1,5 +1,5 @@
 """
-The sim-time rules of DESIGN section 4, in integer nanoseconds; plain Python, no rclpy.
+The sim-time rules of docs/design.md §4, in integer nanoseconds; plain Python, no rclpy.
 
 Kept free of ROS so that the model-only closed loop (ibvs_control.closed_loop) and the
 simulator's core (ibvs_sim.simulator) use the very rule the nodes use.
@@ -11,18 +11,33 @@ def period_ns(rate_hz):
     return int(round(1e9 / float(rate_hz)))
 
 
-def feedback_frame_ns(t_ns, camera_period_ns, latency_ns):
+def frame_stamp_ns(n, camera_period_ns, step_ns):
+    """
+    Return the stamp (ns) of camera frame ``n``: the sim time of the step it is rendered from.
+
+    Frame n is due at n * camera_period_ns and rendered from the first physics step at or
+    after that time (the camera period need not be a whole number of steps: 30 Hz frames on
+    1 kHz physics are stamped 0, 34, 67, 100 ms, ...).
+    """
+    return -(-n * camera_period_ns // step_ns) * step_ns
+
+
+def feedback_frame_ns(t_ns, camera_period_ns, latency_ns, step_ns):
     """
     Return the stamp (ns) of the camera frame whose q_feedback applies at sim time ``t_ns``.
 
-    Camera frames are taken at n * camera_period_ns (n = 0, 1, ...). The feedback computed
-    from frame n takes effect ``latency_ns`` after it (camera-to-command latency, a
-    parameter in sim time, DESIGN section 4) and holds until the next one does. Returns
-    None before the first frame takes effect. The joint controller waits for exactly this
-    q_feedback before it answers /joint_states at ``t_ns``, which makes runs deterministic.
+    Frames are stamped :func:`frame_stamp_ns` (on the physics grid of ``step_ns``). The
+    feedback computed from a frame takes effect ``latency_ns`` after its stamp
+    (camera-to-command latency, a parameter in sim time, docs/design.md §4) and holds until
+    the next one does. Returns None before the first frame takes effect. The joint
+    controller waits for exactly this q_feedback before it answers /joint_states at
+    ``t_ns``, which makes runs deterministic.
     """
-    if camera_period_ns <= 0 or latency_ns < 0:
-        raise ValueError('camera_period_ns must be > 0 and latency_ns >= 0')
+    if camera_period_ns <= 0 or latency_ns < 0 or step_ns <= 0:
+        raise ValueError('camera_period_ns and step_ns must be > 0 and latency_ns >= 0')
     if t_ns < latency_ns:
         return None
-    return ((t_ns - latency_ns) // camera_period_ns) * camera_period_ns
+    # The newest frame n whose stamp is at most t - latency: stamps are on the step grid,
+    # so ceil(n T / dt) dt <= x  <=>  n T <= floor(x / dt) dt.
+    n = (t_ns - latency_ns) // step_ns * step_ns // camera_period_ns
+    return frame_stamp_ns(n, camera_period_ns, step_ns)

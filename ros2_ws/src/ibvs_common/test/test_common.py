@@ -2,6 +2,7 @@
 
 from types import SimpleNamespace
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_common import contract, conversions
 from ibvs_common.conversions import InputError
@@ -10,20 +11,10 @@ from ibvs_common.params import declare, Param, ParameterError
 from ibvs_model import default_model, forward_kinematics
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-
-
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.shutdown(context=ctx)
+from rosgraph_msgs.msg import Clock
 
 
 RATE = Param('rate_hz', 30.0, 'a rate', 'Hz', low=0.0, high=100.0, low_open=True)
@@ -68,16 +59,53 @@ def test_bad_parameters_name_the_parameter_and_range(context, overrides, match):
         node.destroy_node()
 
 
+def test_boolean_and_string_parameters_describe_their_values_not_a_number_range(context):
+    flag = Param('flag', False, 'a switch')
+    name = Param('label', 'x', 'a free string')
+    assert flag.allowed() == 'true or false'
+    assert name.allowed() == 'any string'
+    assert 'inf' not in flag.descriptor().description
+    assert 'inf' not in name.descriptor().description
+    with pytest.raises(ParameterError, match="'flag'.*not a boolean; allowed: true or false"):
+        flag.check(1)
+
+
 def test_feedback_frame_rule():
-    period, latency = 33_333_333, 0
-    assert contract.feedback_frame_ns(0, period, latency) == 0
-    assert contract.feedback_frame_ns(period - 1, period, latency) == 0
-    assert contract.feedback_frame_ns(period, period, latency) == period
-    assert contract.feedback_frame_ns(10_000_000, period, 20_000_000) is None
-    assert contract.feedback_frame_ns(20_000_000, period, 20_000_000) == 0
-    assert contract.feedback_frame_ns(period + 20_000_000, period, 20_000_000) == period
-    with pytest.raises(ValueError):
-        contract.feedback_frame_ns(0, 0, 0)
+    period, latency, step = 33_333_333, 0, 1_000_000
+    # 30 Hz frames on 1 kHz physics are stamped with the step they are rendered from
+    assert [contract.frame_stamp_ns(n, period, step) for n in range(4)] == \
+        [0, 34_000_000, 67_000_000, 100_000_000]
+    assert contract.feedback_frame_ns(0, period, latency, step) == 0
+    assert contract.feedback_frame_ns(33_000_000, period, latency, step) == 0
+    assert contract.feedback_frame_ns(34_000_000, period, latency, step) == 34_000_000
+    assert contract.feedback_frame_ns(10_000_000, period, 20_000_000, step) is None
+    assert contract.feedback_frame_ns(20_000_000, period, 20_000_000, step) == 0
+    assert contract.feedback_frame_ns(53_000_000, period, 20_000_000, step) == 0
+    assert contract.feedback_frame_ns(54_000_000, period, 20_000_000, step) == 34_000_000
+    for bad in ((0, 0, 0, step), (0, period, -1, step), (0, period, 0, 0)):
+        with pytest.raises(ValueError):
+            contract.feedback_frame_ns(*bad)
+
+
+def test_feedback_frame_is_the_newest_frame_stamp_acting_by_then():
+    """By property: a frame stamp on the step grid, acting by t, and the next one not yet."""
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        step = int(rng.integers(1, 10 ** 7))
+        period = int(rng.integers(step, 20 * step))
+        latency = int(rng.integers(0, 10 ** 8))
+        t = int(rng.integers(0, 10 ** 10)) // step * step
+        got = contract.feedback_frame_ns(t, period, latency, step)
+        if t < latency:
+            assert got is None
+            continue
+        n = next(n for n in range(t // period + 2)
+                 if contract.frame_stamp_ns(n + 1, period, step) + latency > t)
+        assert got == contract.frame_stamp_ns(n, period, step)
+        assert got % step == 0 and got + latency <= t
+        # on a grid that the camera period divides, the stamps are n * period
+        if period % step == 0:
+            assert got == (t - latency) // period * period
 
 
 def test_stamp_round_trip_is_exact():
@@ -95,18 +123,48 @@ def test_joint_state_round_trip_and_reordering():
 
 
 @pytest.mark.parametrize('position,names,reason', [
-    ([0.0] * 5, [], 'wrong position length'),
-    ([0.0] * 5 + [float('nan')], [], 'non-finite position'),
-    ([0.0] * 5 + [float('inf')], [], 'non-finite position'),
+    ([0.0] * 5, contract.JOINT_NAMES, 'wrong position length'),
+    ([0.0] * 5 + [float('nan')], contract.JOINT_NAMES, 'non-finite position'),
+    ([0.0] * 5 + [float('inf')], contract.JOINT_NAMES, 'non-finite position'),
     ([0.0] * 6, ['a', 'b', 'c', 'd', 'e', 'f'], 'wrong joint names'),
+    ([0.0] * 6, contract.JOINT_NAMES[:5] + ('joint_1',), 'wrong joint names'),
+    # values are mapped by name: a message that names no joint cannot be mapped
+    ([0.0] * 6, [], 'no joint names'),
 ])
 def test_read_joints_rejects_bad_messages(position, names, reason):
-    msg = conversions.joint_state(0, position=position, names=names or contract.JOINT_NAMES)
-    if not names:
-        msg.name = []
+    msg = conversions.joint_state(0, position=position, names=names)
     with pytest.raises(InputError) as info:
         conversions.read_joints(msg)
     assert info.value.reason == reason
+
+
+def test_check_finite_rejects_nan_or_inf_in_any_named_field_and_allows_empty_ones():
+    msg = conversions.joint_state(0, position=np.zeros(6))
+    conversions.check_finite(msg, ('velocity', 'effort'))  # empty: nothing to reject
+    for field in ('velocity', 'effort'):
+        for bad in (float('nan'), float('inf'), -float('inf')):
+            msg = conversions.joint_state(0, position=np.zeros(6), **{field: [0.0] * 5 + [bad]})
+            with pytest.raises(InputError) as info:
+                conversions.check_finite(msg, ('velocity', 'effort'))
+            assert info.value.reason == f'non-finite {field}'
+
+
+@pytest.mark.parametrize('sec,nanosec,reason', [
+    (-1, 0, 'negative time'),
+    (-2 ** 31, 999_999_999, 'negative time'),
+    (0, 1_000_000_000, 'malformed stamp'),
+    (3, 4_000_000_000, 'malformed stamp'),
+])
+def test_read_stamp_rejects_what_stamp_ns_would_misread(sec, nanosec, reason):
+    stamp = Time(sec=sec, nanosec=nanosec)
+    with pytest.raises(InputError) as info:
+        conversions.read_stamp(stamp)
+    assert info.value.reason == reason
+
+
+def test_read_stamp_is_stamp_ns_on_good_stamps():
+    for ns in (0, 1, 999_999_999, 1_000_000_000, 2 ** 31 * 1_000_000_000 - 1):
+        assert conversions.read_stamp(conversions.ns_stamp(ns)) == ns
 
 
 def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
@@ -129,6 +187,13 @@ def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
     msg.joint_names = ['a'] * 6
     with pytest.raises(InputError, match='wrong joint names'):
         conversions.read_trajectory(msg, 1_000_000)
+    for field in ('velocities', 'accelerations', 'effort'):
+        msg = conversions.joint_trajectory(0, 1_000_000, rows)
+        setattr(msg.points[3], field, [0.0] * 5 + [float('nan')])
+        with pytest.raises(InputError, match=f'non-finite {field}'):
+            conversions.read_trajectory(msg, 1_000_000)
+        setattr(msg.points[3], field, [0.0] * 6)  # finite: allowed, and not read
+        np.testing.assert_array_equal(conversions.read_trajectory(msg, 1_000_000)[1], rows)
     with pytest.raises(InputError, match='empty trajectory'):
         conversions.read_trajectory(conversions.joint_trajectory(0, 1, np.empty((0, 6))), 1)
 
@@ -216,3 +281,42 @@ def test_diagnostics_counts_rejections_and_publishes(context):
         executor.shutdown()
         node.destroy_node()
         listener.destroy_node()
+
+
+def test_a_malformed_clock_is_counted_and_the_node_keeps_its_sim_time(context):
+    """A /clock with sec < 0 makes rclpy raise in the executor; Diagnostics' guard rejects it."""
+    node = Node('clock_test', context=context,
+                parameter_overrides=[Parameter('use_sim_time', value=True)])
+    talker = Node('clock_talker', context=context)
+    pub = talker.create_publisher(Clock, contract.CLOCK, 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(talker)
+    try:
+        diag = Diagnostics(node, 'test')
+        for _ in range(400):
+            if pub.get_subscription_count():
+                break
+            executor.spin_once(timeout_sec=0.05)
+
+        def send(sec, nanosec, until):
+            pub.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+            for _ in range(400):  # spin_once raises here without the guard
+                if until():
+                    return
+                executor.spin_once(timeout_sec=0.05)
+            raise AssertionError(f'no effect of /clock {sec} s {nanosec} ns')
+
+        send(5, 0, lambda: node.get_clock().now().nanoseconds == 5_000_000_000)
+        send(-1, 0, lambda: diag.rejections['/clock: negative time'] == 1)
+        send(7, 4_000_000_000, lambda: diag.rejections['/clock: malformed stamp'] == 1)
+        assert node.get_clock().now().nanoseconds == 5_000_000_000
+        send(6, 250, lambda: node.get_clock().now().nanoseconds == 6_000_000_250)
+        assert diag.rejected_total == 2
+        # use_sim_time still switches the node's clock, as rclpy's own TimeSource does
+        node.set_parameters([Parameter('use_sim_time', value=False)])
+        assert node.get_clock().now().nanoseconds > 1_000_000_000 * 10 ** 9
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        talker.destroy_node()

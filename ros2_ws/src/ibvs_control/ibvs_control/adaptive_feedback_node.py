@@ -13,7 +13,7 @@ q~ = F^-1(p_hat) (eq. 42) with q6 and the IK branch from the encoder joints, C1 
 choice), SVD decoupling (eq. 34, rank 5), q_feedback = k_d(z) C1^+ (p_bar - p_hat)
 (eq. 38-41), discretised at the camera period.
 
-Determinism (DESIGN section 4). The encoder joints of frame t_f are those of the first
+Determinism (docs/design.md §4). The encoder joints of frame t_f are those of the first
 /joint_states stamped at or after t_f (the simulator renders frame n from the first physics
 step at or after n * T_cam and publishes that step's joint state with it), kept in a short
 history by stamp. A frame waits until the camera model and that joint state have arrived;

@@ -8,8 +8,9 @@ disturbance); image features p_hat = F(true angles) (eq. 30) at the camera rate.
 feedforward and the adaptive feedback run as in the nodes, with the same timing rule
 (ibvs_common.timing.feedback_frame_ns, the contract's own, free of rclpy): integer
 nanosecond stamps, physics step
-k at k * dt, camera frame n at n * camera_period, taken at the first physics step at or
-after it, and its q_feedback acting from ``latency`` after the frame.
+k at k * dt, camera frame n due at n * camera_period, taken at the first physics step at or
+after it and stamped with that step's time, and its q_feedback acting from ``latency``
+after the frame.
 
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
@@ -125,18 +126,18 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
             measured = bool(np.all(plant.in_view(q_now)))
             p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
                 else model.features(q)
-            try:
-                feedback_by_stamp[next_frame * cam_ns] = fb.update(
-                    p_hat, q, qd, measured=measured, t=next_frame * cam_ns * 1e-9).q_feedback
+            try:  # as the simulator stamps it: the time of this step
+                feedback_by_stamp[t_ns] = fb.update(p_hat, q, qd, measured=measured,
+                                                    t=t_ns * 1e-9).q_feedback
             except ModelError:
                 # As the node: a frame F^-1 cannot use is rejected, q_feedback held.
-                feedback_by_stamp[next_frame * cam_ns] = fb.q_feedback
+                feedback_by_stamp[t_ns] = fb.q_feedback
                 rejected += 1
             frames_t.append(t_ns * 1e-9)
             frames_p.append(p_hat)
             frames_measured.append(measured)
             next_frame += 1
-        stamp = feedback_frame_ns(t_ns, cam_ns, latency_ns)
+        stamp = feedback_frame_ns(t_ns, cam_ns, latency_ns, dt_ns)
         q_fb = np.zeros(6) if stamp is None else feedback_by_stamp[stamp]
         for old in [s for s in feedback_by_stamp if stamp is not None and s < stamp]:
             del feedback_by_stamp[old]

@@ -5,7 +5,7 @@ C1 = U_L diag(gain) U_R (eq. 34 with the constant matrix C1: U_L = U, gain = the
 values, U_R = V^T). The controller of eq. (38)-(41) is G_C = U_R^T diag(M_Y/S) U_L^T
 (the paper writes U_R M_Y U_L, transposes implied), i.e. C1^+ k(s).
 
-Unobservable direction (DESIGN section 5): both fiducials lie on the joint-6 axis, so
+Unobservable direction (docs/design.md §5): both fiducials lie on the joint-6 axis, so
 joint 6 moves no feature, the sixth singular value of C1 is 0 (numerically ~1e-13 of the
 first) and eq. (37) would divide by it. Only the singular values above ``rcond`` times the
 largest are inverted (truncated SVD: rank 5), so the feedback never moves the

@@ -15,19 +15,23 @@ publishes it as one trajectory_msgs/JointTrajectory on /ibvs/feedforward_traject
 (latched): point k at t_0 + k dt, the last point held for ever after, as a joint
 trajectory controller does. The joint controller then never waits for the feedforward,
 and this node leaves the lockstep: it unsubscribes from /joint_states once it has
-published (DESIGN section 4).
+published (docs/design.md §4).
 
-A /joint_states that is malformed is rejected (counted on /diagnostics) and the node waits
-for the next one.
+A /joint_states that is malformed (wrong length, NaN, missing or unknown joint names, a stamp
+with a negative ``sec`` or ``nanosec`` >= 1e9) or stamped more than ``stale_timeout_s`` ahead
+of the node's /clock is rejected (counted on /diagnostics) and the node waits for the next
+one: the trajectory starts at the stamp of the state it comes from, and one from a bad
+publisher would hold the arm at its start until then.
 """
 
 from ibvs_common import contract
-from ibvs_common.conversions import InputError, joint_trajectory, read_joints, stamp_ns
+from ibvs_common.conversions import InputError, joint_trajectory, read_joints, read_stamp
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (OMEGA_N, PHYSICS_RATE_HZ, TARGET_POSITION,
-                                       TARGET_ROTATION, TAU_IN)
+from ibvs_common.shared_params import (OMEGA_N, PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
+                                       TARGET_POSITION, TARGET_ROTATION, TAU_IN)
+from ibvs_common.sim_time import known_now_ns
 from ibvs_common.timing import period_ns
 import numpy as np
 from rclpy.node import Node
@@ -38,7 +42,7 @@ from .controllers import Feedforward
 from .node_params import check_gains, FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, target_from
 
 PARAMS = (TAU_IN, OMEGA_N, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
-          FEEDFORWARD_METHOD, FEEDFORWARD_RATIO)
+          FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, STALE_TIMEOUT_S)
 
 
 class FeedforwardNode(Node):
@@ -51,6 +55,7 @@ class FeedforwardNode(Node):
         check_gains(values)
         self.pose = target_from(values)
         self.dt_ns = period_ns(values['physics_rate_hz'])
+        self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
         self.ff = Feedforward(self.pose, values['tau_in'], self.dt_ns * 1e-9,
                               ratio=values['feedforward_ratio'],
                               method=values['feedforward_method'])
@@ -70,11 +75,18 @@ class FeedforwardNode(Node):
         if self.t0_ns is not None:
             return  # a message already queued when the subscription was destroyed
         try:
+            t_ns = read_stamp(msg.header.stamp)
             q = read_joints(msg)
         except InputError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
             return
-        self.t0_ns = stamp_ns(msg.header.stamp)
+        now_ns = known_now_ns(self)
+        if now_ns is not None and t_ns > now_ns + self.future_ns:
+            self.diagnostics.reject(contract.JOINT_STATES, 'stamp in the future',
+                                    f'{t_ns} ns, more than stale_timeout_s after the clock '
+                                    f'({now_ns} ns)')
+            return
+        self.t0_ns = t_ns
         q_target = self.ff.start(q)
         positions = self.ff.trajectory()
         self._pub.publish(joint_trajectory(self.t0_ns, self.dt_ns, positions))

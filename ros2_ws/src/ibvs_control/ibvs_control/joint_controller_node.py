@@ -9,10 +9,10 @@ from PyBullet (:class:`.dynamics.RobotDynamics`), and publishes /joint_effort_co
 4600 speed and torque limits, reference governor and anti-windup:
 :class:`.controllers.JointLoop`).
 
-Lockstep (DESIGN section 4). The answer to t_k needs the feedforward trajectory
+Lockstep (docs/design.md §4). The answer to t_k needs the feedforward trajectory
 (/ibvs/feedforward_trajectory, published once at the start: q_feedforward(t_k) is its point
 at t_k, its first point before it starts and its last after it ends) and the q_feedback of
-frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency) (zero before the first
+frame ibvs_common.contract.feedback_frame_ns(t_k, T_cam, latency, dt) (zero before the first
 frame takes effect). A frame the camera lost (/stereo/frame_lost, stamped with the frame's
 stamp: ibvs_sim.sim_node) will have no q_feedback: for it the controller holds the
 q_feedback of the latest frame before it that was not lost, as a real controller holds its
@@ -22,21 +22,33 @@ twice, so a run is the same however the executor interleaves the callbacks. Whil
 it logs once a second (steady clock) what for.
 
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
-(wrong length, NaN, unknown joint names; a trajectory not sampled at the physics period), a
-/joint_states not newer than the last one, a q_feedback older than what is still needed. A
-new trajectory replaces the old one.
+(wrong length, NaN, missing or unknown joint names: values are mapped by name; a trajectory
+not sampled at the physics period or with a non-finite value in any field; a stamp with a
+negative ``sec`` or ``nanosec`` >= 1e9), a /joint_states not newer than the last one, or
+stamped more than ``stale_timeout_s`` ahead of the newest time the node knows (its last
+answered stamp, or its /clock: in lockstep the next state is one physics step on, so only a
+bad publisher is caught, and it cannot hold the buffer so that the good states after it go
+unanswered), a q_feedback older than what is still needed. A new trajectory replaces the
+old one.
+
+/ibvs/q_feedback contract: six finite positions, mapped by joint name, each within
+:data:`FEEDBACK_BOUND_RAD` (the joint's whole travel: no correction can be larger). Velocity
+and effort are not read; they may be empty, but a non-finite value there rejects the
+message. A rejected q_feedback is not stored, so a good one with the same stamp still gets in
+and the loop goes on as if the bad one had never come.
 """
 
 from collections import deque
 
 from ibvs_common import contract
-from ibvs_common.conversions import (InputError, joint_state, read_joints, read_trajectory,
-                                     stamp_ns)
+from ibvs_common.conversions import (check_finite, InputError, joint_state, read_joints,
+                                     read_stamp, read_trajectory)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
 from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S,
-                                       OMEGA_N, PHYSICS_RATE_HZ, TAU_IN)
+                                       OMEGA_N, PHYSICS_RATE_HZ, STALE_TIMEOUT_S, TAU_IN)
+from ibvs_common.sim_time import known_now_ns
 from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import IRB4600
 import numpy as np
@@ -51,12 +63,14 @@ from .dynamics import RobotDynamics
 from .node_params import (ACCELERATION_MARGIN, check_gains, SPEED_MARGIN, TORQUE_LIMITS)
 
 PARAMS = (TAU_IN, OMEGA_N, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS,
-          TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN)
+          TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN, STALE_TIMEOUT_S)
 
 #: Steady-clock period of the 'waiting for' log.
 WAIT_LOG_S = 1.0
 #: Most buffered inputs of each kind (lockstep keeps one or two; this bounds a flood).
 MAX_BUFFER = 1000
+#: Largest |q_feedback| per joint (rad) that is taken as meant: the joint's whole travel.
+FEEDBACK_BOUND_RAD = np.asarray(IRB4600.q_max) - np.asarray(IRB4600.q_min)
 
 
 class JointControllerNode(Node):
@@ -70,6 +84,7 @@ class JointControllerNode(Node):
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.latency_ns = int(round(values['feedback_latency_s'] * 1e9))
+        self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
         if self.camera_ns < self.dt_ns:
             raise ParameterError(
                 f"parameter 'camera_rate_hz' = {values['camera_rate_hz']!r} is invalid: "
@@ -118,8 +133,8 @@ class JointControllerNode(Node):
     # -- inputs ----------------------------------------------------------------------------
     def _on_joint_state(self, msg):
         source = contract.JOINT_STATES
-        t_ns = stamp_ns(msg.header.stamp)
         try:
+            t_ns = read_stamp(msg.header.stamp)
             q = read_joints(msg)
             qd = read_joints(msg, 'velocity')
         except InputError as exc:
@@ -128,6 +143,11 @@ class JointControllerNode(Node):
         newest = self._states[-1][0] if self._states else self.last_answered_ns
         if newest is not None and t_ns <= newest:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns, not after {newest} ns')
+            return
+        known = [t for t in (self.last_answered_ns, known_now_ns(self)) if t is not None]
+        if known and t_ns > max(known) + self.future_ns:
+            self.diagnostics.reject(source, 'stamp in the future',
+                                    f'{t_ns} ns, more than stale_timeout_s after {max(known)} ns')
             return
         if len(self._states) >= MAX_BUFFER:
             self.diagnostics.reject(source, 'buffer full', f'{t_ns} ns dropped')
@@ -148,14 +168,20 @@ class JointControllerNode(Node):
 
     def _on_feedback(self, msg):
         source = contract.Q_FEEDBACK
-        t_ns = stamp_ns(msg.header.stamp)
         # The oldest frame still needed: the one acting at the last answered step.
         needed = (None if self.last_answered_ns is None else
-                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns))
+                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns,
+                                    self.dt_ns))
         try:
+            t_ns = read_stamp(msg.header.stamp)
             q = read_joints(msg)
+            check_finite(msg, ('velocity', 'effort'))
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
+        if np.any(np.abs(q) > FEEDBACK_BOUND_RAD):
+            self.diagnostics.reject(source, 'out of range',
+                                    f'{q.tolist()} rad: a joint beyond its whole travel')
             return
         if needed is not None and t_ns < needed:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
@@ -172,9 +198,14 @@ class JointControllerNode(Node):
 
     def _on_frame_lost(self, msg):
         source = contract.FRAME_LOST
-        t_ns = stamp_ns(msg.stamp)
+        try:
+            t_ns = read_stamp(msg.stamp)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
         needed = (None if self.last_answered_ns is None else
-                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns))
+                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns,
+                                    self.dt_ns))
         if needed is not None and t_ns < needed:
             self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
             return
@@ -200,7 +231,7 @@ class JointControllerNode(Node):
         missing = []
         if self._trajectory is None:
             missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
-        frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
+        frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns, self.dt_ns)
         if frame is not None and frame not in self._fb and frame not in self._lost:
             missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns (or its '
                            f'{contract.FRAME_LOST})')
@@ -210,7 +241,7 @@ class JointControllerNode(Node):
         """Answer the buffered joint states in order, as far as their inputs are here."""
         while self._states and not self._missing(self._states[0][0]):
             t_ns, q, qd = self._states.popleft()
-            frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns)
+            frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns, self.dt_ns)
             if frame is not None and frame in self._fb:
                 self._held = self._fb[frame]
             # Before the first frame: zero; a lost frame: the last one's, held.

@@ -6,7 +6,7 @@ what P forces on it), then Y = T / P and the controller G = Y / (1 - T) (eq. 38-
 one channel). For the double integrator of the inner loop (eq. 27), T must also satisfy
 T(0) = 1 and T'(0) = 0 so that G cancels no unstable pole of P.
 
-Continuous designs (the paper, with the errata of DESIGN section 5):
+Continuous designs (the paper, with the errata of docs/design.md §5):
 
 - inner loop, eq. (28) corrected: G_c = (3 tau s + 1) / (tau^3 s + 3 tau^2) around 1/s^2
   gives T = (3 tau s + 1) / (tau s + 1)^3, eq. (29). The printed (3 tau^2 s + 1) /
@@ -81,7 +81,7 @@ def inner_closed_loop(tau):
 
 
 def inner_controller(tau):
-    """Return G_c = (3 tau s + 1) / (tau^3 s + 3 tau^2): eq. (28) corrected (DESIGN 5)."""
+    """Return G_c = (3 tau s + 1) / (tau^3 s + 3 tau^2): eq. (28) fixed (docs/design.md §5)."""
     return TransferFunction([3.0 * tau, 1.0], [tau ** 3, 3.0 * tau ** 2])
 
 
@@ -121,7 +121,7 @@ def outer_channel_design(tau, omega_n, zeta, gain=1.0):
 
 def outer_controller(tau, omega_n, zeta):
     """
-    Return k(s) = wn^2 (tau s + 1)^3 / ((3 tau s + 1) s (s + 2 zeta wn)) (DESIGN 5).
+    Return k(s) = wn^2 (tau s + 1)^3 / ((3 tau s + 1) s (s + 2 zeta wn)) (docs/design.md §5).
 
     G_C = C1^+ k(s) (eq. 38-41 with C1 = U_L diag(gain) U_R): an integrator (zero
     steady-state image error) and the inverse of the inner loop eq. (29).
@@ -136,7 +136,7 @@ def feedforward(tau, ratio=0.1):
     Return T_forward = (tau s + 1)^3 / ((3 tau s + 1)(tau_f s + 1)^2), eq. (44).
 
     tau_f = ratio * tau, eq. (45) (ratio = 0.1). Biproper with high-frequency gain
-    tau^3 / (3 tau tau_f^2) ~ 33: a step asks ~33 times the step at first (DESIGN 5).
+    tau^3 / (3 tau tau_f^2) ~ 33: a step asks ~33 times the step at first (docs/design.md §5).
     """
     tau_f = ratio * tau
     num = np.poly([-1.0 / tau] * 3) * tau ** 3

@@ -110,9 +110,10 @@ def test_timing_rule_is_the_contract_s():
     for _ in range(2000):
         period = int(rng.integers(1, 10**8))
         latency = int(rng.integers(0, 10**8))
+        step = int(rng.integers(1, period + 1))
         t = int(rng.integers(0, 10**10))
-        assert feedback_frame_ns(t, period, latency) == \
-            contract.feedback_frame_ns(t, period, latency)
+        assert feedback_frame_ns(t, period, latency, step) == \
+            contract.feedback_frame_ns(t, period, latency, step)
 
 
 def test_semi_implicit_plant_as_pybullet_steps_it_also_converges():

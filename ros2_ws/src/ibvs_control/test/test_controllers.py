@@ -156,7 +156,7 @@ def test_feedforward_starts_at_rest_and_reaches_the_target():
     out = np.array([ff.step() for _ in range(1000)])
     np.testing.assert_allclose(out[0], q0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(out[-1], q_target, atol=1e-9)
-    # biproper: the first answer to the step is many times the step (DESIGN section 5)
+    # biproper: the first answer to the step is many times the step (docs/design.md §5)
     assert np.max(np.abs(out[1] - q0) / np.maximum(np.abs(q_target - q0), 1e-9)) > 10
 
 

@@ -6,14 +6,15 @@ test node and the tests wait on conditions (with a generous deadline that only g
 against a hang), never on wall-clock time.
 """
 
-import time
 
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, joint_state, joint_trajectory,
                                      pose_stamped, read_joints, read_trajectory, stamp_ns)
 from ibvs_common.params import ParameterError
+from ibvs_common.testing import spin_until
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
 from ibvs_control.dynamics import RobotDynamics
@@ -23,10 +24,10 @@ from ibvs_control.servo_laws import ClassicIBVS
 from ibvs_model import default_model, inverse_kinematics, paper
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
@@ -34,16 +35,6 @@ from trajectory_msgs.msg import JointTrajectory
 MS = 1_000_000
 CAMERA_NS = 33_333_333
 DEADLINE_S = 20.0
-
-
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.shutdown(context=ctx)
 
 
 def overrides(**values):
@@ -71,6 +62,7 @@ class Harness:
             contract.LEFT_INFO: pub(CameraInfo, contract.LEFT_INFO, contract.IMAGES),
             contract.RIGHT_INFO: pub(CameraInfo, contract.RIGHT_INFO, contract.IMAGES),
             contract.STEREO_POSE: pub(PoseStamped, contract.STEREO_POSE, contract.LATCHED),
+            contract.CLOCK: pub(Clock, contract.CLOCK, contract.RELIABLE),
         }
         for topic, kind, qos in (
                 (contract.FEEDFORWARD_TRAJECTORY, JointTrajectory, contract.LATCHED),
@@ -82,10 +74,7 @@ class Harness:
                 kind, topic, lambda m, t=topic: self.received[t].append(m), qos)
 
     def spin_until(self, predicate, what='condition'):
-        deadline = time.monotonic() + DEADLINE_S
-        while not predicate():
-            assert time.monotonic() < deadline, f'timed out waiting for {what}'
-            self.executor.spin_once(timeout_sec=0.05)
+        spin_until(self.executor, predicate, DEADLINE_S, what)
 
     def wait_matched(self, topics):
         """Wait until every publisher in ``topics`` has its subscriber (discovery)."""
@@ -175,6 +164,30 @@ def test_feedforward_rejects_bad_joint_states_and_starts_on_the_first_good_one(c
                         return values.get('rejected_total') == '2'
             return False
         h.spin_until(counted, 'the rejection count on /diagnostics')
+    finally:
+        h.close()
+
+
+def test_feedforward_ignores_a_first_joint_state_from_the_future_or_with_a_bad_stamp(context):
+    """A bad first stamp would start the trajectory there and hold the arm until then."""
+    node = FeedforwardNode(context=context, parameter_overrides=overrides(use_sim_time=True))
+    h = Harness(context, node)
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.CLOCK])
+        h.publish(contract.CLOCK, Clock(clock=Time(sec=0, nanosec=MS)))
+        h.spin_until(lambda: node.get_clock().now().nanoseconds == MS, 'sim time 1 ms')
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        for stamp in (Time(sec=1_000_000), Time(sec=0, nanosec=4_000_000_000),
+                      Time(sec=-5, nanosec=MS)):
+            h.publish(contract.JOINT_STATES, joint_state(stamp, q0, np.zeros(6)))
+        h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
+        assert node.diagnostics.rejections == {
+            '/joint_states: stamp in the future': 1, '/joint_states: malformed stamp': 1,
+            '/joint_states: negative time': 1}
+        h.publish(contract.JOINT_STATES, joint_state(MS, q0, np.zeros(6)))
+        out = h.received[contract.FEEDFORWARD_TRAJECTORY]
+        h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
+        assert read_trajectory(out[0], MS)[0] == MS
     finally:
         h.close()
 
@@ -363,6 +376,15 @@ def test_feedback_holds_on_bad_and_stale_features_and_freezes(context):
 
 # -- joint_controller_node ------------------------------------------------------------------
 
+def controller_harness(context, **params):
+    """Return a joint controller and a harness whose publishers it has matched."""
+    node = JointControllerNode(context=context, parameter_overrides=overrides(**params))
+    h = Harness(context, node)
+    h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                    contract.Q_FEEDBACK])
+    return node, h
+
+
 @pytest.fixture(scope='module')
 def dynamics():
     dyn = RobotDynamics()
@@ -371,11 +393,8 @@ def dynamics():
 
 
 def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, dynamics):
-    node = JointControllerNode(context=context)
-    h = Harness(context, node)
+    node, h = controller_harness(context)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
@@ -393,9 +412,10 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         # at rest on its reference: u = h(q, 0), gravity compensation
         np.testing.assert_allclose(read_joints(out[0], 'effort'),
                                    dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
-        # next steps: frame 0's q_feedback still applies until frame 1 (33.33 ms)
+        # next steps: frame 0's q_feedback still applies until frame 1 (due at 33.33 ms,
+        # rendered from and stamped with the step at 34 ms)
         q_fb = np.full(6, 0.001)
-        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, q_fb))
+        h.publish(contract.Q_FEEDBACK, joint_state(34 * MS, q_fb))
         loop = JointLoop(0.01, 1e-3)
         loop.step(q0, q0, np.zeros(6))
         for k in (1, 2):
@@ -441,11 +461,8 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
 
 
 def test_joint_controller_rejects_bad_input(context):
-    node = JointControllerNode(context=context)
-    h = Harness(context, node)
+    node, h = controller_harness(context)
     try:
-        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                        contract.Q_FEEDBACK])
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         h.publish(contract.JOINT_STATES, joint_state(0, [np.nan] * 6, np.zeros(6)))
         h.publish(contract.JOINT_STATES, joint_state(0, q0, [0.0] * 3))
@@ -471,6 +488,66 @@ def test_joint_controller_rejects_bad_input(context):
             '/ibvs/feedforward_trajectory: wrong sample times'] == 1
         assert node.diagnostics.rejections['/joint_states: non-finite position'] == 1
         assert node.diagnostics.rejections['/joint_states: wrong velocity length'] == 1
+    finally:
+        h.close()
+
+
+def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_ones(context):
+    """A far-future /joint_states used to sit in the buffer; every good one after was stale."""
+    node, h = controller_harness(context, use_sim_time=True)
+    try:
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1, 'answer at 0')
+        # no /clock here: the bound is the last answered stamp (0) + stale_timeout_s
+        for stamp in (Time(sec=1_000_000), Time(sec=0, nanosec=600 * MS),
+                      Time(sec=0, nanosec=4_000_000_000)):
+            h.publish(contract.JOINT_STATES, joint_state(stamp, q0, np.zeros(6)))
+        h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
+        assert node.diagnostics.rejections == {
+            '/joint_states: stamp in the future': 2, '/joint_states: malformed stamp': 1}
+        for k in (1, 2, 30):  # good states (frame 0's q_feedback acts until 33.3 ms)
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 4, 'answers after the bad ones')
+        assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node._states
+    finally:
+        h.close()
+
+
+def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dynamics):
+    """q_feedback: six finite positions by name, within the joint travel; finite or no rest."""
+    node, h = controller_harness(context)
+    try:
+        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+        out = h.received[contract.EFFORT_COMMANDS]
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        unnamed = joint_state(0, np.zeros(6))
+        unnamed.name = []
+        bad = [joint_state(0, np.full(6, 1e308)),
+               joint_state(0, np.r_[np.zeros(5), -15.0]),
+               joint_state(0, np.zeros(6), velocity=[np.nan] * 6),
+               joint_state(0, np.zeros(6), effort=[0.0] * 5 + [np.inf]),
+               unnamed]
+        for msg in bad:
+            h.publish(contract.Q_FEEDBACK, msg)
+        h.spin_until(lambda: node.diagnostics.rejected_total == len(bad), 'rejections')
+        assert node.diagnostics.rejections == {
+            '/ibvs/q_feedback: out of range': 2, '/ibvs/q_feedback: non-finite velocity': 1,
+            '/ibvs/q_feedback: non-finite effort': 1, '/ibvs/q_feedback: no joint names': 1}
+        assert not out  # none of them was taken for frame 0
+        # a good q_feedback of the same frame still gets in, and the loop is sound
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6), velocity=np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1, 'answer')
+        np.testing.assert_allclose(read_joints(out[0], 'effort'),
+                                   dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
+        # the joint's whole travel is the bound: J4 and J6 turn +-400 deg
+        assert node.diagnostics.rejected_total == len(bad)
+        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.r_[np.zeros(5), 13.9]))
+        h.spin_until(lambda: CAMERA_NS in node._fb, 'a large but possible J6 correction')
     finally:
         h.close()
 
@@ -544,11 +621,12 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         h.publish(contract.Q_FEEDBACK, joint_state(0, q_fb))
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'answer at 0')
-        # frame 1 (33.33 ms) is lost: at 34 ms the controller would wait for its q_feedback
+        # frame 1 (due at 33.33 ms, stamped 34 ms) is lost: at 34 ms the controller would wait
+        # for its q_feedback
         h.publish(contract.JOINT_STATES, joint_state(34 * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(node._states) == 1, 'joint state at 34 ms buffered')
         assert node.commands == 1
-        lost_pub.publish(Header(stamp=joint_state(CAMERA_NS, q0).header.stamp))
+        lost_pub.publish(Header(stamp=joint_state(34 * MS, q0).header.stamp))
         h.spin_until(lambda: len(out) == 2, 'answer at 34 ms')
         # ... and it holds frame 0's q_feedback
         loop = JointLoop(0.01, 1e-3)
@@ -558,7 +636,7 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         np.testing.assert_allclose(read_joints(out[1], 'effort'), expected, rtol=1e-9)
         assert node.frames_lost == 1
         # a q_feedback for the lost frame is rejected, frame 2 applies again
-        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.zeros(6)))
+        h.publish(contract.Q_FEEDBACK, joint_state(34 * MS, np.zeros(6)))
         rejected = node.diagnostics.rejections
         h.spin_until(lambda: rejected[f'{contract.Q_FEEDBACK}: frame was lost'] == 1,
                      'rejection of a lost frame')

@@ -47,7 +47,7 @@ def test_printed_eq28_makes_the_inner_loop_unstable():
     poles = loop.poles()
     assert not loop.is_stable()
     unstable = poles[poles.real > 0.0]
-    # DESIGN section 5: +4.7 +- 56.7j for tau = 0.01.
+    # docs/design.md §5: +4.7 +- 56.7j for tau = 0.01.
     np.testing.assert_allclose(sorted(unstable.imag), [-56.65, 56.65], atol=0.05)
     np.testing.assert_allclose(unstable.real, [4.736, 4.736], atol=0.01)
     # and in a sampled run the error grows without bound
@@ -134,7 +134,7 @@ def test_eq44_inverts_eq29_up_to_the_double_pole():
     cascade = (ff * youla.inner_closed_loop(TAU)).minreal(1e-3)
     tau_f = 0.1 * TAU
     assert cascade.same_as(TransferFunction([1.0], np.poly([-1 / tau_f] * 2) * tau_f ** 2))
-    # biproper, high-frequency gain tau^3 / (3 tau tau_f^2) = 33.3 (DESIGN section 5)
+    # biproper, high-frequency gain tau^3 / (3 tau tau_f^2) = 33.3 (docs/design.md §5)
     assert ff(1e9j).real == pytest.approx(1.0 / (3 * 0.01), rel=1e-4)
 
 

@@ -26,7 +26,7 @@ __all__ = [
 
 
 def default_model(resolution='HD720', params=IRB4600):
-    """Return F for the paper's robot and the ZED 2 at the default pose (DESIGN section 5)."""
+    """Return F for the paper's robot and the ZED 2 at the default pose (docs/design.md §5)."""
     from . import paper
     camera = StereoCamera(StereoIntrinsics.zed2(resolution),
                           look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))

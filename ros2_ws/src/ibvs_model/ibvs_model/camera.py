@@ -4,7 +4,7 @@ ZED 2 stereo camera model: pose (eq. 12-15), projection (eq. 16-22), triangulati
 Frame {C} is the paper's: midway between the two lenses, x right, y down, z along the
 parallel optical axes. Both images share the intrinsics (f_u, f_v, c_u, c_v), no skew.
 
-Sign convention (DESIGN section 5). The paper's eq. (19)-(20) put the left lens at
+Sign convention (docs/design.md §5). The paper's eq. (19)-(20) put the left lens at
 X = +b/2, so that u_r > u_l. ROS puts the left lens at x = -b/2 (x to the right), and the
 right camera's CameraInfo has P[3] = -f_u * b. This module follows ROS:
 

@@ -4,7 +4,7 @@ The camera-and-robot model F (eq. 30), its Jacobian C1 (eq. 31-32) and inverse F
 F maps joint angles q to the six image coordinates of the two fiducials,
 p_I = [u_l1, u_r1, v1, u_l2, u_r2, v2] (eq. 2-3, 21-22). Both fiducials lie on the tool
 axis z6, which is the joint-6 axis, so joint 6 moves no feature: C1 has rank 5 and its
-null space is spanned by e6 (DESIGN section 5). F^-1 therefore recovers q1..q5 from the
+null space is spanned by e6 (docs/design.md §5). F^-1 therefore recovers q1..q5 from the
 features and takes q6 from the caller.
 """
 

@@ -1,7 +1,7 @@
 """
 Masses, centres of mass, inertias and torque limits of the IRB 4600 and the tool (no ROS).
 
-ABB publishes neither link masses nor inertias (DESIGN section 5), only the
+ABB publishes neither link masses nor inertias (docs/design.md §5), only the
 total robot mass, 425 kg (IRB 4600-60/2.05 product specification), and a dimension drawing.
 Each link is drawn as a few boxes and cylinders sized after that drawing (the numbers in
 :func:`link_shapes`, each with its reason). The 425 kg are spread over all these solids at

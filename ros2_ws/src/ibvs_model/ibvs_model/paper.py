@@ -1,5 +1,5 @@
 """
-Numbers of the paper's section 5 and of DESIGN section 5, in one place.
+Numbers of the paper's section 5 and of docs/design.md §5, in one place.
 
 Poses are T_E^O of the flange {E}; the paper prints rotations with four digits, so
 :func:`nearest_rotation` makes them orthonormal before they are used as IK targets.
@@ -34,7 +34,7 @@ TAU_IN = 0.01
 OMEGA_N = 10.0
 ZETA = 1.0 / math.sqrt(2.0)
 
-#: Camera pose (the paper gives none; DESIGN section 5): eye and look-at point in {O}, z up.
+#: Camera pose (the paper gives none; docs/design.md §5): eye and look-at point in {O}, z up.
 CAMERA_EYE = (0.3, -1.6, 1.2)
 CAMERA_LOOK_AT = (0.3, 0.2, 0.5)
 

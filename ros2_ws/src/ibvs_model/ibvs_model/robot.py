@@ -12,7 +12,7 @@ Frames follow the paper's Table 1 (Denavit-Hartenberg, eq. 4-5)::
     6      0      0        Lt    q6 + pi
 
 With q = 0 the flange {E} is at (a1 + L4 + Lt, 0, L1 + L2 + L3) = (1.27, 0, 1.57) m with
-R = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]] (DESIGN section 5).
+R = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]] (docs/design.md §5).
 
 The inverse kinematics is the closed form of an elbow manipulator with a spherical wrist:
 the wrist centre p_w = p_E - Lt * z6 fixes q1..q3 (two shoulder and two elbow branches),
@@ -42,7 +42,7 @@ class RobotParams:
     Geometry and joint limits of the IRB 4600-60/2.05 (paper Appendix, Table 2).
 
     Lengths in metres, angles in radians, speeds in rad/s. Joint ranges and speed limits
-    are ABB's product specification for the IRB 4600-60/2.05 (DESIGN section 5), applied to
+    are ABB's product specification for the IRB 4600-60/2.05 (docs/design.md §5), applied to
     the paper's DH angles q (which share the zero pose and signs of ABB's axes 1-6).
     """
 

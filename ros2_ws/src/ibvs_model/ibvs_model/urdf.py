@@ -39,7 +39,7 @@ depth turns into centimetres (1 mm at 2.4 m is 0.014 px of disparity at HD720).
 Joints. Ranges and speeds are ABB's (``RobotParams.q_min``, ``q_max``, ``qd_max``). ABB does
 not publish motor torques; ``effort`` is the estimate of
 :func:`ibvs_model.mass_model.joint_efforts`.
-Damping and friction are zero, so computed torque linearises the plant (DESIGN section 5).
+Damping and friction are zero, so computed torque linearises the plant (docs/design.md §5).
 No collision shapes: the arm is torque controlled in free space and contact is outside the
 paper's scope.
 """

@@ -120,7 +120,7 @@ def test_paper_poses_report_their_residuals():
     residual = np.max(np.abs(printed.T @ printed - np.eye(3)))
     assert 1e-6 < residual < 1e-3
     assert np.max(np.abs(nearest_rotation(printed) - printed)) < 1e-3
-    # The scenario 2/3 start is 1.5 cm from FK(0) (DESIGN section 5), not FK(0) itself.
+    # The scenario 2/3 start is 1.5 cm from FK(0) (docs/design.md §5), not FK(0) itself.
     start = paper.scenario_start_pose(2)
     offset = np.linalg.norm(start[:3, 3] - forward_kinematics(np.zeros(6))[:3, 3])
     assert offset == pytest.approx(0.015, abs=1e-12)

@@ -1,10 +1,10 @@
 """
-sim_node: the simulated plant (paper Figure 3) on the contract of DESIGN sections 3 and 4.
+sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
 Lockstep. At step k (sim time t_k, from 0) the node publishes, first, /joint_states (encoder
 angles q - d_q, velocities, the torque of the previous step), so that the joint controller
 works on step k while the rest goes out: /clock, /ibvs/tool_pose and the camera frame due
-at t_k if any (both images and CameraInfo, stamped n * T_cam). Every consumer matches its
+at t_k if any (both images and CameraInfo, stamped t_k). Every consumer matches its
 inputs by stamp, so the order changes no result. It then
 waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
 torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
@@ -99,6 +99,9 @@ PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo im
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
+MIN_TOOL_POSE_SUBSCRIBERS = Param(
+    'min_tool_pose_subscribers', 0, 'the start waits until /ibvs/tool_pose has this many '
+    'subscribers (a recorder whose metrics start at step 0)', '-', low=0, high=1000)
 
 IMAGE_NOISE_STDDEV = Param(
     'image_noise_stddev', 0.0, 'standard deviation of the Gaussian noise added to each pixel '
@@ -125,9 +128,10 @@ FOCAL_LENGTH_ERROR = Param(
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
           CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
           RENDER_MARKER_SUPERSAMPLING, RENDER_PARALLEL_LENSES, MOUNT_HEIGHT_M, PUBLISH_IMAGES,
-          MIN_JOINT_STATE_SUBSCRIBERS, IMAGE_NOISE_STDDEV, FRAME_DROP_PROBABILITY, CAMERA_SEED,
-          CAMERA_POSE_ERROR_XYZ_M, CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR,
-          TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION)
+          MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, IMAGE_NOISE_STDDEV,
+          FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
+          CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR, TARGET_FEATURES_SOURCE, TARGET_POSITION,
+          TARGET_ROTATION)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -152,6 +156,7 @@ class SimNode(Node):
         values = declare(self, PARAMS)
         self._publish_images = values['publish_images']
         self._min_joint_subscribers = values['min_joint_state_subscribers']
+        self._min_tool_subscribers = values['min_tool_pose_subscribers']
         teach = values['target_features_source'] == 'taught'
         if teach and not self._publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
@@ -218,7 +223,7 @@ class SimNode(Node):
             for pub, image, frame in zip(self._teach_pubs, self.sim.teach_images,
                                          (contract.LEFT_CAMERA_FRAME,
                                           contract.RIGHT_CAMERA_FRAME)):
-                pub.publish(image_msg(image, 0, frame))
+                pub.publish(image_msg(image, 0, 'rgb8', frame))
         self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
                                              self._on_command, contract.RELIABLE)
 
@@ -248,6 +253,10 @@ class SimNode(Node):
         if have < self._min_joint_subscribers:
             missing.append(f'{self._min_joint_subscribers - have} more subscriber(s) on '
                            f'{contract.JOINT_STATES}')
+        have = self._pub_tool.get_subscription_count()
+        if have < self._min_tool_subscribers:
+            missing.append(f'{self._min_tool_subscribers - have} more subscriber(s) on '
+                           f'{contract.TOOL_POSE}')
         for pub in self._pub_images:
             if pub.get_subscription_count() < 1:
                 missing.append(f'a subscriber on {pub.topic_name}')

@@ -1,12 +1,14 @@
 """
 The plant of the paper's Figure 3 without ROS: physics, encoders, camera frames, sim time.
 
-Time (DESIGN section 4). Step k is at t_k = k * dt_ns integer nanoseconds, dt_ns =
-round(1e9 / physics_rate_hz). Camera frame n is stamped n * T_cam with T_cam =
-round(1e9 / camera_rate_hz) ns (ibvs_common.contract.feedback_frame_ns) and rendered from
-the state of the first physics step at or after that time: at the same instant when the
-camera period is a whole number of physics steps, otherwise at most one physics step later
-(e.g. 30 Hz frames on a 1 kHz physics grid, the paper's values: 0 to 0.67 ms).
+Time (docs/design.md §4). Step k is at t_k = k * dt_ns integer nanoseconds, dt_ns =
+round(1e9 / physics_rate_hz). Camera frame n is due at n * T_cam, T_cam =
+round(1e9 / camera_rate_hz) ns, and rendered from the state of the first physics step at or
+after that time; its stamp is the sim time of that step
+(ibvs_common.timing.frame_stamp_ns), so an image and the joint state it shows carry the
+same stamp. The camera period need not be a whole number of steps: 30 Hz frames on a 1 kHz
+physics grid, the paper's values, are stamped 0, 34, 67, 100 ms, ... (up to 0.67 ms after
+n * T_cam).
 
 Joint disturbance (the paper's d_q, eq. 30): true angle = encoder angle + d_q, so the
 encoders read q_T = q - d_q. The start pose of a scenario is reached by the TRUE angles:
@@ -169,7 +171,7 @@ class Simulator:
         return forward_kinematics(self.world.joint_state()[0], self.params)
 
     def frame_due(self):
-        """Return the stamp (ns) of the camera frame to take at this step, or None."""
+        """Return when the camera frame to take at this step was due (n * T_cam ns), or None."""
         stamp = self.next_frame * self.camera_period_ns
         return stamp if stamp <= self.t_ns else None
 
@@ -177,13 +179,14 @@ class Simulator:
         """
         Return (stamp ns, (left, right) images or None, lost) of the frame due now; advance n.
 
-        ``lost``: the camera lost this frame (``frame_drop_probability``); its images are
-        then None and nothing is rendered. With ``render`` False a kept frame is only
-        counted (images off). The images are rendered with the true camera, noise added.
+        The stamp is this step's sim time. ``lost``: the camera lost this frame
+        (``frame_drop_probability``); its images are then None and nothing is rendered.
+        With ``render`` False a kept frame is only counted (images off). The images are
+        rendered with the true camera, noise added.
         """
-        stamp = self.frame_due()
-        if stamp is None:
+        if self.frame_due() is None:
             raise RuntimeError(f'no frame due at t = {self.t_ns} ns')
+        stamp = self.t_ns
         self.next_frame += 1
         if self.effects.frame_lost():
             self.frames_lost += 1

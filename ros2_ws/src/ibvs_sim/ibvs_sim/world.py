@@ -4,7 +4,7 @@ The PyBullet world of the simulator (the plant of the paper's Figure 3); no ROS 
 The IRB 4600 with screwdriver and fiducials, torque controlled, and the ZED 2 stereo pair
 that renders it.
 
-Dynamics (DESIGN section 5). The URDF of :mod:`ibvs_model.urdf` is loaded with its own
+Dynamics (docs/design.md §5). The URDF of :mod:`ibvs_model.urdf` is loaded with its own
 inertias (URDF_USE_INERTIA_FROM_FILE), the default velocity motors are switched off
 (VELOCITY_CONTROL with force 0), joint and body damping are zero, and each step applies the
 commanded joint torques with TORQUE_CONTROL. Gravity is -9.81 m/s^2 along z of {O}. PyBullet

@@ -1,34 +1,9 @@
-"""Fixtures shared by the ibvs_sim tests: PyBullet worlds and the default stereo camera."""
+"""Fixtures of the ibvs_sim tests: the shared ones (ibvs_common.testing), and a collector."""
 
 import gc
-import os
 
-from ibvs_model import look_at, paper, StereoCamera, StereoIntrinsics
-from ibvs_sim.world import World
+from ibvs_common.testing import camera, context, domain_id, world  # noqa: F401
 import pytest
-
-
-@pytest.fixture(scope='session')
-def domain_id():
-    """Return a ROS domain for this test process, so parallel runs do not talk to each other."""
-    return int(os.environ.get('IBVS_TEST_DOMAIN_ID', 1 + os.getpid() % 200))
-
-
-@pytest.fixture(scope='module')
-def world():
-    """Yield the paper's robot in a PyBullet world with the default renderer ('auto')."""
-    w = World()
-    try:
-        yield w
-    finally:
-        w.close()
-
-
-@pytest.fixture(scope='module')
-def camera():
-    """Return the ZED 2 at HD720 at the default pose (DESIGN section 5)."""
-    return StereoCamera(StereoIntrinsics.zed2('HD720'),
-                        look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
 
 
 @pytest.fixture(scope='module', autouse=True)

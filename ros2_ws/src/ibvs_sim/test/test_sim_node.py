@@ -1,5 +1,5 @@
 """
-sim_node in an rclpy executor with a stand-in controller (DESIGN sections 3 and 4).
+sim_node in an rclpy executor with a stand-in controller (docs/design.md §3 and §4).
 
 Each test has its own rclpy Context (and ROS domain); the simulator and the stand-in share a
 SingleThreadedExecutor, and every wait is a spin_once loop on a condition with a deadline.
@@ -15,29 +15,17 @@ from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, pose_matrix, stamp_ns
 from ibvs_common.params import ParameterError
+from ibvs_common.testing import spin_until
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.world import World
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
-
-DEADLINE_S = 60.0
-
-
-@pytest.fixture
-def context(domain_id):
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 class StandIn(Node):
@@ -135,13 +123,6 @@ def graph(context):
         stand_in.destroy_node()
 
 
-def spin_until(executor, condition, deadline_s=DEADLINE_S):
-    end = time.monotonic() + deadline_s
-    while not condition():
-        assert time.monotonic() < end, 'condition not met before the deadline'
-        executor.spin_once(timeout_sec=0.05)
-
-
 def test_lockstep_rates_and_stamps(graph):
     """/clock, /joint_states, images: configured rates, consistent stamps, one step each."""
     steps = 200
@@ -162,8 +143,10 @@ def test_lockstep_rates_and_stamps(graph):
     assert [stamp_ns(m.header.stamp) for m in rec['tool']] == expected
     # One step per command: every /joint_states but the last was answered, once.
     assert stand_in.sent == len(expected) - 1 and sim.sim.k == len(expected) - 1
-    # Camera rate: frame n stamped n * T_cam, in both images and both CameraInfo.
-    frames = [n * frame for n in range(t_end // frame + 1)]
+    # Camera rate: frame n due at n * T_cam, stamped with the step it is rendered from (the
+    # first at or after), in both images and both CameraInfo.
+    frames = [-(-n * frame // period) * period for n in range(t_end // frame + 1)]
+    assert frames[:4] == [0, 34_000_000, 67_000_000, 100_000_000]
     for key in ('left', 'right', 'left_info', 'right_info'):
         assert [stamp_ns(m.header.stamp) for m in rec[key]] == frames, key
     k = StereoIntrinsics.zed2('VGA')
@@ -331,3 +314,18 @@ def test_waiting_is_logged_once_a_second(domain_id):
     finally:
         proc.send_signal(2)
         assert proc.wait(timeout=30) == 0
+
+
+def test_the_start_waits_for_the_tool_pose_subscribers_it_is_told_of(graph):
+    # The stand-in subscribes /ibvs/tool_pose once; ask for one more, then add it.
+    sim, stand_in, executor = graph(publish_images=False, min_tool_pose_subscribers=2)
+    deadline = time.monotonic() + 3.0
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    assert not sim.started
+    assert sim._missing() == [f'1 more subscriber(s) on {contract.TOOL_POSE}']
+    stand_in.create_subscription(PoseStamped, contract.TOOL_POSE, lambda m: None,
+                                 contract.RELIABLE)
+    spin_until(executor, lambda: sim.started)
+    spin_until(executor, lambda: stand_in.rec['tool'])
+    assert stamp_ns(stand_in.rec['tool'][0].header.stamp) == 0

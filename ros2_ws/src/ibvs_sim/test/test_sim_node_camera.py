@@ -7,19 +7,18 @@ feedback do, one q_feedback per frame with images): the graph must keep stepping
 every frame the camera loses.
 """
 
-import time
 
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, joint_trajectory, pose_matrix, stamp_ns
 from ibvs_common.params import ParameterError
+from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_sim.camera_effects import error_transform
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -28,16 +27,6 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 DEADLINE_S = 120.0
-
-
-@pytest.fixture
-def context(domain_id):
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 def _overrides(**values):
@@ -84,10 +73,7 @@ class Vision(Node):
 
 
 def spin_until(executor, condition, deadline_s=DEADLINE_S):
-    end = time.monotonic() + deadline_s
-    while not condition():
-        assert time.monotonic() < end, 'condition not met before the deadline'
-        executor.spin_once(timeout_sec=0.05)
+    shared_spin_until(executor, condition, deadline_s)
 
 
 @pytest.fixture

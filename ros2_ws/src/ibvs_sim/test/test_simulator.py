@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from ibvs_common import shared_params
+from ibvs_common.timing import frame_stamp_ns
 from ibvs_model import forward_kinematics, paper, pose_error
 from ibvs_sim.simulator import ConfigError, Simulator
 import numpy as np
@@ -48,7 +49,7 @@ def test_scaled_robot_reaches_the_start_with_other_angles():
 
 
 def test_frame_schedule_30_hz_on_1_khz(sim):
-    """Frame n is stamped n * T_cam and taken at the first step at or after it."""
+    """Frame n is due at n * T_cam, taken at the first step at or after it, stamped then."""
     assert sim.dt_ns == 1_000_000 and sim.camera_period_ns == 33_333_333
     assert not sim.frames_exact
     k0 = sim.k
@@ -58,12 +59,13 @@ def test_frame_schedule_30_hz_on_1_khz(sim):
             stamp, images, lost = sim.take_frame(render=False)
             assert not lost
             assert images is None
-            assert stamp <= sim.t_ns < stamp + sim.dt_ns
             taken.append((stamp, sim.t_ns))
         sim.step(sim.hold_torque())
-    assert [s for s, _ in taken] == [n * 33_333_333 for n in range(len(taken))]
     assert [t for _, t in taken] == [0, 34_000_000, 67_000_000, 100_000_000, 134_000_000,
                                      167_000_000, 200_000_000]
+    assert [s for s, _ in taken] == [t for _, t in taken]
+    assert [s for s, _ in taken] == [frame_stamp_ns(n, 33_333_333, 1_000_000)
+                                     for n in range(len(taken))]
     assert sim.k == k0 + 201
     with pytest.raises(RuntimeError):
         sim.take_frame()  # none due right after a frame
@@ -119,7 +121,7 @@ def test_scenario_files_hold_the_paper_values():
     for n in (1, 2, 3):
         data = yaml.safe_load((config / f'scenario{n}.yaml').read_text())
         params = dict(data['/**']['ros__parameters'])
-        # rclpy's own parameter: every node follows /clock (DESIGN section 4).
+        # rclpy's own parameter: every node follows /clock (docs/design.md §4).
         assert params.pop('use_sim_time') is True
         assert set(params) <= set(specs), set(params) - set(specs)
         for name, value in params.items():

@@ -1,7 +1,7 @@
 """
 Rendering is reproducible: the same state gives the same image, from the first one on.
 
-DESIGN section 4 wants the same numbers from the same scenario; the EGL plugin's first two
+docs/design.md §4 wants the same numbers from the same scenario; the EGL plugin's first two
 images after loading differ from later ones (World draws two before any real one), and two
 plugins in one process break each other (World lets one World at a time use EGL).
 """

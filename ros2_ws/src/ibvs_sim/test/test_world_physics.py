@@ -2,7 +2,7 @@
 PyBullet's reading of the generated URDF: frames and dynamics.
 
 Link frames are the DH model's (eq. 4-7), and computed torque from PyBullet's own inverse
-dynamics holds the arm (DESIGN section 5: no hidden damping or motors).
+dynamics holds the arm (docs/design.md §5: no hidden damping or motors).
 """
 
 import math

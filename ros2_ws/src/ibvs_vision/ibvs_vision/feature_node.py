@@ -2,7 +2,7 @@
 feature_node: stereo images -> /ibvs/features p_I, measured (eq. 2-3) or estimated (eq. 46).
 
 For every stereo frame (left and right image of equal stamp) the node publishes one
-PolygonStamped on /ibvs/features, stamped with the image stamp (DESIGN section 3):
+PolygonStamped on /ibvs/features, stamped with the image stamp (docs/design.md §3):
 
 - measured p^_I when the detector (:mod:`.detector`, Hough + sub-pixel, section 2.2)
   finds both fiducials in both images;
@@ -19,9 +19,9 @@ inputs by reason and the processing time.
 
 A frame is published as soon as both images, the joint state of its stamp, the camera infos
 and the camera pose are there. The joint state of a frame stamped t is the first one stamped
-in [t, t + 1 / physics_rate_hz): the simulator renders a frame from the first physics step
-at or after its stamp and publishes that step's joint state right after the images
-(lockstep), so the estimate uses the very angles the image shows. A frame that cannot be
+in [t, t + 1 / physics_rate_hz): the simulator stamps a frame with the physics step it
+renders it from and publishes that step's joint state with it (lockstep), so the estimate
+uses the very angles the image shows. A frame that cannot be
 published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
 newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
@@ -254,11 +254,11 @@ class FeatureNode(Node):
         """
         Return (q, None) for the frame stamped t_ns, (None, None) to wait, (None, why) to drop.
 
-        The simulator renders frame n (stamped n * T_cam) from the state of the first physics
-        step at or after its stamp and publishes that step's /joint_states with it
-        (ibvs_sim.simulator): the encoder angles of the image are those of the first joint
-        state stamped in [t_ns, t_ns + 1 / physics_rate_hz). When T_cam is a whole number of
-        steps that is the joint state with the image stamp itself.
+        The simulator renders frame n from the state of the first physics step at or after
+        n * T_cam, stamps it with that step's time and publishes that step's /joint_states
+        with it (ibvs_sim.simulator): the encoder angles of the image are those of the joint
+        state with the image stamp. A camera that stamps its frames off the physics grid is
+        matched with the first joint state stamped in [t_ns, t_ns + 1 / physics_rate_hz).
         """
         i = bisect.bisect_left(self._joint_stamps, t_ns)
         first = self._joint_stamps[i] if i < len(self._joint_stamps) else None

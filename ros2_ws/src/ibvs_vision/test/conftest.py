@@ -1,22 +1,17 @@
-"""Fixtures shared by the ibvs_vision tests: the default ZED 2 stereo camera and model F."""
+"""Fixtures of the ibvs_vision tests: the shared ones (ibvs_common.testing) and model F."""
 
-from ibvs_model import CameraRobotModel, IRB4600, look_at, paper, StereoCamera, StereoIntrinsics
+from ibvs_common.testing import context, default_camera, world  # noqa: F401
+from ibvs_model import CameraRobotModel, IRB4600
 import pytest
-
-
-def make_camera(resolution):
-    """Return the ZED 2 at ``resolution`` at the default pose (DESIGN section 5)."""
-    return StereoCamera(StereoIntrinsics.zed2(resolution),
-                        look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
 
 
 @pytest.fixture(scope='module')
 def hd_model():
     """Return F (eq. 30) of the paper's robot and the ZED 2 at HD720."""
-    return CameraRobotModel(make_camera('HD720'), IRB4600)
+    return CameraRobotModel(default_camera('HD720'), IRB4600)
 
 
 @pytest.fixture(scope='module')
 def vga_model():
     """Return F (eq. 30) of the paper's robot and the ZED 2 at VGA."""
-    return CameraRobotModel(make_camera('VGA'), IRB4600)
+    return CameraRobotModel(default_camera('VGA'), IRB4600)

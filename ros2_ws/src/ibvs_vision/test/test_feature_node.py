@@ -10,8 +10,6 @@ d_q, while the node gets the encoder angles q_T, so measured and estimated featu
 as in the paper's scenarios 1 and 3.
 """
 
-import os
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped, PoseStamped
@@ -19,21 +17,21 @@ from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, joint_state, ns_stamp,
                                      pose_stamped, read_features, stamp_ns)
 from ibvs_common.params import ParameterError
+from ibvs_common.testing import spin_until
 from ibvs_model import fiducial_points, inverse_kinematics, paper
 from ibvs_vision import synthetic
 from ibvs_vision.feature_node import FeatureNode
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
-DEADLINE_S = 20.0
-#: 30 Hz frames on a 1 kHz physics grid, as the simulator stamps them: frame n at n * T_CAM,
-#: its joint state at the first millisecond at or after that.
+#: 30 Hz frames stamped off the 1 kHz physics grid, frame n at n * T_CAM (a camera with its own
+#: clock; the simulator stamps a frame with its step), its joint state at the first
+#: millisecond at or after that: the node matches the first within one step.
 T_CAM_NS = 33_333_333
 DT_NS = 1_000_000
 D_Q = np.radians(paper.DISTURBANCE_DEG)
@@ -41,16 +39,6 @@ D_Q = np.radians(paper.DISTURBANCE_DEG)
 
 def joint_stamp(frame_ns):
     return -(-frame_ns // DT_NS) * DT_NS
-
-
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=1 + (os.getpid() + 17) % 200)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 class Driver(Node):
@@ -120,13 +108,6 @@ class Driver(Node):
 
     def stamps(self):
         return [stamp_ns(m.header.stamp) for m in self.features]
-
-
-def spin_until(executor, condition, deadline_s=DEADLINE_S):
-    end = time.monotonic() + deadline_s
-    while not condition():
-        assert time.monotonic() < end, 'condition not met before the deadline'
-        executor.spin_once(timeout_sec=0.05)
 
 
 def latest_diag(driver, executor, condition):

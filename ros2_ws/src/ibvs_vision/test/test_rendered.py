@@ -18,20 +18,11 @@ once per module.
 from ibvs_model import (fiducial_points, forward_kinematics, ik_position_axis,
                         inverse_kinematics, paper, UnreachablePoseError)
 from ibvs_sim import markers
-from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, World
+from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING
 from ibvs_vision import synthetic
 from ibvs_vision.detector import Reason, StereoDetector
 import numpy as np
 import pytest
-
-
-@pytest.fixture(scope='module')
-def world():
-    w = World()
-    try:
-        yield w
-    finally:
-        w.close()
 
 
 def _render(world, camera, q):

@@ -8,13 +8,13 @@ pose or focal length error the model's p_bar moves by pixels while the taught on
 shows where the tool really is.
 """
 
-import os
 import time
 
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_stamped,
                                      read_features, read_joints)
+from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_model import IRB4600, look_at, paper, StereoIntrinsics
 from ibvs_sim.sim_node import SimNode
@@ -24,7 +24,6 @@ from ibvs_vision.detector import DetectorConfig, StereoDetector
 from ibvs_vision.feature_node import FeatureNode
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -101,16 +100,6 @@ class Holder(Node):
         self.pub.publish(joint_state(msg.header.stamp, effort=tau))
 
 
-@pytest.fixture
-def context():
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=1 + (os.getpid() + 53) % 200)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
-
-
 def test_taught_target_through_the_nodes(context):
     """sim_node teaches, feature_node measures, adaptive_feedback_node servos on it."""
     taught_params = [Parameter('target_features_source', value='taught')]
@@ -158,10 +147,7 @@ def test_taught_feedback_waits_for_its_target(context):
             (contract.TARGET_FEATURES, PolygonStamped, contract.LATCHED))}
 
         def spin_until(condition):
-            end = time.monotonic() + 20.0
-            while not condition():
-                assert time.monotonic() < end
-                executor.spin_once(timeout_sec=0.05)
+            shared_spin_until(executor, condition, 20.0)
 
         spin_until(lambda: all(p.get_subscription_count() > 0 for p in pubs.values()))
         pubs[contract.STEREO_POSE].publish(pose_stamped(camera_pose, 0))

@@ -26,7 +26,7 @@ marker 2 blue):
    taken (:func:`_symmetric_centre`; at the target pose this takes the vertical bias from
    0.07-0.09 px to under 0.01 px, and the implied tool-axis error from 0.16 to 0.06 deg).
 4. **Stereo pairing** by the epipolar constraint of a rectified pair: same v within a
-   tolerance, positive disparity u_l - u_r (ROS signs, DESIGN section 5: the left lens at
+   tolerance, positive disparity u_l - u_r (ROS signs, docs/design.md §5: the left lens at
    x = -b/2 of {C}), and radii that agree with each other and with the depth given by the
    disparity (a sphere of radius R at depth Z = f_u b / d has an image radius
    f_u R / Z = R d / b).

@@ -1,0 +1,477 @@
+"""
+Studies on Ray: every run of one or more study specs as a Ray task, cached, with a table.
+
+Each run is ``ibvs run`` in a subprocess of a Ray worker, isolated from the others by its
+own ``ROS_DOMAIN_ID`` (from a pool, :func:`lock_domain`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=
+LOCALHOST`` and its own output directory. A run declares ``num_cpus=CPUS_PER_RUN`` to Ray:
+the lockstep passes one message at a time through the graph's five processes, so they take
+turns and one run keeps at most about one core busy (each record's ``cpu_s`` says how much
+it used), and Ray runs as many at once as the machine (or the cluster) has cores.
+
+Without ``address`` a local Ray is started for the study (its temporary directory under
+/tmp, removed afterwards) and shut down at the end; with ``address`` the runs go to an
+existing cluster (``ray start --head`` / ``ray start --address=...``), whose workers must
+have the workspace sourced and see the study directory at the same path (a shared file
+system when the nodes are separate machines).
+
+A finished run (succeeded, or failed with its logs) is recorded in ``<run dir>/run.json``
+under a key that hashes the run's parameters, the scenario file and the code
+(:func:`code_version`): a study started again skips what it finished. Ctrl-C cancels every
+run (each stops its nodes as ``ibvs run`` does on SIGINT), shuts Ray down, and keeps the
+records of the runs already finished.
+"""
+
+import csv
+import fcntl
+import hashlib
+import importlib.util
+import json
+import logging
+import os
+from pathlib import Path
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import matplotlib
+
+matplotlib.use('Agg')
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from . import scenario, study_spec  # noqa: E402
+from .runner import _die_with_parent, STALL_S  # noqa: E402
+
+#: Cores one run keeps busy (the Ray resource each run task declares).
+CPUS_PER_RUN = 1
+#: Default pool of ROS_DOMAIN_IDs for the runs (inclusive).
+DOMAIN_IDS = (101, 199)
+#: The packages whose sources make up the code version of a run.
+PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_control',
+            'ibvs_bringup')
+#: Modules that organise runs but take no part in one: left out of the code version, so
+#: that a change to the study or report layer keeps the runs cached.
+NOT_IN_A_RUN = ('ibvs_bringup/study.py', 'ibvs_bringup/study_spec.py',
+                'ibvs_bringup/report.py', 'ibvs_bringup/bench.py')
+#: Success: final position error and final tool-axis error within these.
+SUCCESS_POSITION_M = 1e-3
+SUCCESS_AXIS_DEG = 0.1
+#: Metrics in the study table, in this order.
+TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
+                 'max_overshoot_m')
+#: Seconds a cancelled run gets to stop its nodes before Ray is shut down.
+CANCEL_GRACE_S = 30.0
+
+
+def code_version():
+    """
+    Return a hash of the installed sources (``*.py``) that take part in a run.
+
+    The six packages, by path, all but :data:`NOT_IN_A_RUN`.
+
+    The same in a fresh clone, a colcon install and on every node of a cluster that runs
+    the same code, and different as soon as one line changes: no git needed.
+    """
+    digest = hashlib.sha256()
+    for package in PACKAGES:
+        spec = importlib.util.find_spec(package)
+        root = Path(next(iter(spec.submodule_search_locations)))
+        for path in sorted(root.rglob('*.py')):
+            if f'{package}/{path.relative_to(root)}' in NOT_IN_A_RUN:
+                continue
+            digest.update(f'{package}/{path.relative_to(root)}\0'.encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def parse_domains(text):
+    """Parse ``'LOW-HIGH'`` into the inclusive range of ROS_DOMAIN_IDs."""
+    try:
+        low, high = (int(x) for x in str(text).split('-'))
+    except ValueError:
+        raise study_spec.StudyError(f'domain range {text!r}: expected LOW-HIGH, '
+                                    'e.g. 101-199') from None
+    if not 0 <= low <= high <= 232:
+        raise study_spec.StudyError(f'domain range {text!r}: expected 0 <= LOW <= HIGH '
+                                    '<= 232')
+    return low, high
+
+
+def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s):
+    """
+    Run ``ibvs run`` once in a subprocess on its own ROS domain; return what came of it.
+
+    The domain is the first of ``domains`` (low, high) that no other run on this machine
+    holds (:func:`lock_domain`).
+
+    The body of the Ray task. Cancelled (KeyboardInterrupt from ``ray.cancel``), it sends
+    SIGINT to the run, which stops its nodes cleanly, and waits for it.
+    """
+    import ray
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
+    domain, lock = lock_domain(*domains)
+    cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', scenario_name, '-o', str(run_dir),
+           '--stall-s', repr(float(stall_s))]
+    if duration_s is not None:
+        cmd += ['--duration', repr(float(duration_s))]
+    for name, value in overrides.items():
+        cmd += ['-p', f'{name}:={json.dumps(value)}']
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    start = time.monotonic()
+    cpu_start = _children_cpu_s()
+    try:
+        with open(run_dir / 'runner.log', 'wb') as log:
+            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
+                                    stdin=subprocess.DEVNULL, env=env,
+                                    preexec_fn=_die_with_parent)
+            try:
+                code = proc.wait()
+            except KeyboardInterrupt:
+                os.killpg(proc.pid, signal.SIGINT)
+                try:
+                    proc.wait(CANCEL_GRACE_S - 5.0)
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                raise
+    finally:
+        lock.close()
+    # The run and its nodes are waited for, so their CPU time rolls up to this worker.
+    record = {'exit_code': code, 'wall_s': time.monotonic() - start,
+              'cpu_s': _children_cpu_s() - cpu_start, 'domain_id': domain,
+              'command': cmd, 'host': os.uname().nodename,
+              'ray_node': ray.get_runtime_context().get_node_id()}
+    metrics_path = run_dir / 'metrics.json'
+    if code == 0 and metrics_path.is_file():
+        record.update(status='ok', metrics=json.loads(metrics_path.read_text()))
+    else:
+        text = (run_dir / 'runner.log').read_text(errors='replace').splitlines()
+        why = [line for line in text if line.startswith(('run failed', 'run stalled',
+                                                         'error', '  '))
+               and not line.startswith('  [')]
+        record.update(status='failed', metrics=None,
+                      reason=' '.join(x.strip() for x in (why or text[-3:]))[:2000])
+    return record
+
+
+def _children_cpu_s():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def lock_domain(low, high, poll_s=0.5):
+    """
+    Return ``(domain, lock)``: a ROS_DOMAIN_ID in [low, high] held until ``lock.close()``.
+
+    One ``flock`` per ID in a directory under the system's temporary directory, so that no
+    two runs on one machine share a domain, whichever study or Ray session they belong to,
+    and a run that dies releases its ID with its process. (Not a Ray actor: a task that
+    waits on ``ray.get`` gives its CPU back to Ray, which then starts one run too many.)
+    Waits while every ID is taken.
+    """
+    directory = Path(tempfile.gettempdir()) / 'ibvs-ros-domains'
+    directory.mkdir(exist_ok=True)
+    while True:
+        for domain in range(low, high + 1):
+            lock = open(directory / f'{domain}.lock', 'w')
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                lock.close()
+                continue
+            return domain, lock
+        time.sleep(poll_s)
+
+
+class Progress:
+    """One line per finished run: count, share, failures, elapsed time and ETA."""
+
+    def __init__(self, total, cached, out=sys.stdout):
+        """Count ``total`` runs of which ``cached`` are done already."""
+        self.total, self.done, self.failed, self.cached = total, cached, 0, cached
+        self.start = time.monotonic()
+        self.out = out
+
+    def update(self, label, record):
+        """Account for one finished run and print the line."""
+        self.done += 1
+        self.failed += record['status'] != 'ok'
+        elapsed = time.monotonic() - self.start
+        fresh = self.done - self.cached
+        remaining = self.total - self.done
+        eta = elapsed / fresh * remaining if fresh else float('nan')
+        width = 20
+        filled = int(round(width * self.done / max(self.total, 1)))
+        result = (f"{1e3 * record['metrics']['final_position_error_m']:.3f} mm"
+                  if record['status'] == 'ok' else 'FAILED')
+        print(f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
+              f'({self.failed} failed, {self.cached} cached)  elapsed {_clock(elapsed)}  '
+              f'ETA {_clock(eta)}  {label}: {result}', file=self.out, flush=True)
+
+
+def _clock(seconds):
+    if not np.isfinite(seconds):
+        return '--:--'
+    minutes, seconds = divmod(int(round(seconds)), 60)
+    return f'{minutes}:{seconds:02d}'
+
+
+class _Ray:
+    """Ray for the length of a study: a local one started here, or a cluster joined."""
+
+    def __init__(self, address, parallel):
+        self.address, self.parallel = address, parallel
+        self.temp_dir = None
+
+    def __enter__(self):
+        import ray
+        os.environ.setdefault('RAY_USAGE_STATS_ENABLED', '0')
+        quiet = {'include_dashboard': False, 'log_to_driver': False,
+                 'logging_level': logging.ERROR, 'configure_logging': True}
+        if self.address:
+            ray.init(address=self.address, **quiet)
+        else:
+            self.temp_dir = tempfile.mkdtemp(prefix='ibvs-ray-')
+            ray.init(num_cpus=self.parallel * CPUS_PER_RUN, _temp_dir=self.temp_dir,
+                     object_store_memory=100 * 2 ** 20, **quiet)
+        return ray
+
+    def __exit__(self, *exc):
+        import ray
+        ray.shutdown()
+        if self.temp_dir:
+            shutil.rmtree(self.temp_dir, ignore_errors=True)
+        return False
+
+
+def default_parallel():
+    """Return how many runs fit at once on this machine (cores / CPUS_PER_RUN, at least 1)."""
+    return max(1, (os.cpu_count() or 1) // CPUS_PER_RUN)
+
+
+def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
+                stall_s=STALL_S, retry_failed=False, out=sys.stdout):
+    """
+    Run every run of ``specs`` (a list of :class:`study_spec.Spec`) in one Ray session.
+
+    Each study writes into ``<out_dir>/<name>/``: ``runs/<key>/`` per run (``ibvs run``'s
+    output, ``runner.log``, ``run.json``), ``table.csv``, ``table.md`` and its figures.
+    Returns ``{name: [record, ...]}`` in run order. Runs recorded under the same key are not
+    run again (failed ones are with ``retry_failed``).
+    """
+    records, todo = plan(specs, out_dir, retry_failed)
+    cached = sum(len(r) for r in records.values()) - len(todo)
+    total = cached + len(todo)
+    print(f'{total} runs in {len(specs)} stud{"y" if len(specs) == 1 else "ies"}: '
+          f'{cached} cached, {len(todo)} to run', file=out, flush=True)
+    if todo:
+        _execute(todo, address, parallel or default_parallel(), domains, stall_s,
+                 Progress(total, cached, out))
+    for spec in specs:
+        write_results(spec, records[spec.name], out_dir / spec.name)
+    return records
+
+
+def plan(specs, out_dir, retry_failed=False):
+    """
+    Return ``({name: [record, ...]}, [(spec, record), ...])``: every run, and those to run.
+
+    A run whose ``run.json`` holds the same key is taken from there (``cached``), unless it
+    failed and ``retry_failed`` is set.
+    """
+    out_dir = Path(out_dir)
+    version = code_version()
+    todo, records = [], {}
+    for spec in specs:
+        base = scenario.load_parameters(spec.scenario)
+        study_dir = out_dir / spec.name
+        records[spec.name] = []
+        for run in spec.runs():
+            key = study_spec.run_key(base, run.overrides, spec.duration_s, version)
+            run_dir = study_dir / 'runs' / key[:16]
+            record = {'study': spec.name, 'index': run.index, 'key': key,
+                      'swept': run.swept, 'overrides': run.overrides,
+                      'run_dir': str(run_dir)}
+            previous = _load_record(run_dir, key)
+            if previous and (previous['status'] == 'ok' or not retry_failed):
+                record.update({k: v for k, v in previous.items() if k not in record},
+                              cached=True)
+            else:
+                todo.append((spec, record))
+            records[spec.name].append(record)
+    return records, todo
+
+
+def _execute(todo, address, parallel, domains, stall_s, progress):
+    with _Ray(address, parallel) as ray:
+        task = ray.remote(execute_run).options(num_cpus=CPUS_PER_RUN, max_retries=0)
+        refs = {}
+        for spec, record in todo:
+            ref = task.remote(domains, record['run_dir'], spec.scenario, record['overrides'],
+                              spec.duration_s, stall_s)
+            refs[ref] = record
+        pending = list(refs)
+        try:
+            while pending:
+                ready, pending = ray.wait(pending, num_returns=1, timeout=1.0)
+                for ref in ready:
+                    record = refs[ref]
+                    try:
+                        result = ray.get(ref)
+                    except ray.exceptions.RayError as exc:
+                        result = {'status': 'failed', 'metrics': None,
+                                  'reason': f'Ray task failed: {exc}'[:2000]}
+                    record.update(result, cached=False)
+                    Path(record['run_dir'], 'run.json').write_text(
+                        json.dumps(record, indent=2, default=str) + '\n')
+                    progress.update(f"{record['study']}#{record['index']}", record)
+        except KeyboardInterrupt:
+            print(f'\ninterrupted: stopping {len(pending)} runs (finished runs stay cached)',
+                  file=progress.out, flush=True)
+            for ref in pending:
+                ray.cancel(ref)
+            ray.wait(pending, num_returns=len(pending), timeout=CANCEL_GRACE_S)
+            raise
+
+
+def _load_record(run_dir, key):
+    path = Path(run_dir) / 'run.json'
+    try:
+        record = json.loads(path.read_text())
+    except (FileNotFoundError, ValueError):
+        return None
+    return record if record.get('key') == key and 'status' in record else None
+
+
+def succeeded(record):
+    """Return whether a run finished within 1 mm and 0.1 deg of the target."""
+    metrics = record.get('metrics') or {}
+    return record.get('status') == 'ok' and \
+        metrics.get('final_position_error_m', np.inf) <= SUCCESS_POSITION_M and \
+        metrics.get('final_tool_axis_error_deg', np.inf) <= SUCCESS_AXIS_DEG
+
+
+def table_rows(spec, records):
+    """Return the study table as dicts: run, swept parameters, metrics, status, wall time."""
+    rows = []
+    for record in records:
+        metrics = record.get('metrics') or {}
+        row = {'run': record['index']}
+        row.update({name: record['swept'].get(name, '') for name in spec.swept_names()})
+        row.update({k: metrics.get(k) for k in TABLE_METRICS})
+        row.update(status=record['status'], success=succeeded(record),
+                   wall_s=record.get('wall_s'), cpu_s=record.get('cpu_s'),
+                   reason=record.get('reason', ''),
+                   run_dir=record['run_dir'])
+        rows.append(row)
+    return rows
+
+
+def _cell(value):
+    if value is None:
+        return '-'
+    if isinstance(value, float):
+        return f'{value:.6g}'
+    return str(value).replace('|', '/')
+
+
+def write_results(spec, records, study_dir):
+    """Write ``table.csv``, ``table.md`` and the figures of one study; return the rows."""
+    study_dir = Path(study_dir)
+    study_dir.mkdir(parents=True, exist_ok=True)
+    rows = table_rows(spec, records)
+    with open(study_dir / 'table.csv', 'w', newline='') as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    columns = [c for c in rows[0] if c != 'run_dir']
+    ok = sum(r['success'] for r in rows)
+    lines = [f'# Study {spec.name}', '', spec.description, '',
+             f'Scenario {spec.scenario}, {len(rows)} runs, '
+             f"{sum(r['status'] != 'ok' for r in rows)} failed, success (final error within "
+             f'{1e3 * SUCCESS_POSITION_M:g} mm and {SUCCESS_AXIS_DEG:g} deg): {ok}/{len(rows)}.',
+             '', '| ' + ' | '.join(columns) + ' |', '|' + '---|' * len(columns)]
+    lines += ['| ' + ' | '.join(_cell(r[c]) for c in columns) + ' |' for r in rows]
+    figures = write_figures(spec, rows, study_dir)
+    lines += [''] + [f'![{p.stem}]({p.name})' for p in figures] + ['']
+    (study_dir / 'table.md').write_text('\n'.join(lines))
+    return rows
+
+
+def write_figures(spec, rows, study_dir):
+    """Error against each swept parameter, a CDF for draws, the success rate; return paths."""
+    paths = []
+    for name in spec.swept_names():
+        sel = [r for r in rows if r[name] != '']
+        if not sel or not all(isinstance(r[name], (int, float)) for r in sel):
+            continue
+        fig, ax = plt.subplots(figsize=(6, 4))
+        good = [r for r in sel if r['status'] == 'ok']
+        ax.plot([r[name] for r in good], [1e3 * r['final_position_error_m'] for r in good],
+                'o', label='finished')
+        bad = [r for r in sel if r['status'] != 'ok']
+        if bad:
+            top = max([1e3 * r['final_position_error_m'] for r in good] + [1.0])
+            ax.plot([r[name] for r in bad], [top] * len(bad), 'x', color='tab:red',
+                    ms=10, label='failed run')
+        ax.axhline(1e3 * SUCCESS_POSITION_M, color='tab:green', ls='--', label='1 mm')
+        ax.set_yscale('log')
+        ax.set_xlabel(name)
+        ax.set_ylabel('final position error [mm]')
+        ax.set_title(f'{spec.name}: final error against {name}')
+        ax.grid(alpha=0.3, which='both')
+        ax.legend()
+        paths.append(_save(fig, study_dir / f'error_vs_{name}.png'))
+    errors = np.sort([1e3 * r['final_position_error_m'] for r in rows if r['status'] == 'ok'])
+    if spec.draws and errors.size:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        ax.step(errors, np.arange(1, errors.size + 1) / len(rows), where='post')
+        ax.axvline(1e3 * SUCCESS_POSITION_M, color='tab:green', ls='--', label='1 mm')
+        ax.set_xscale('log')
+        ax.set_xlabel('final position error [mm]')
+        ax.set_ylabel('fraction of all runs')
+        ax.set_title(f'{spec.name}: CDF over {len(rows)} runs (failed runs never reach 1)')
+        ax.grid(alpha=0.3, which='both')
+        ax.legend()
+        paths.append(_save(fig, study_dir / 'error_cdf.png'))
+    counts = {'success': sum(r['success'] for r in rows),
+              'outside 1 mm / 0.1 deg': sum(r['status'] == 'ok' and not r['success']
+                                            for r in rows),
+              'failed run': sum(r['status'] != 'ok' for r in rows)}
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.bar(list(counts), list(counts.values()),
+           color=['tab:green', 'tab:orange', 'tab:red'])
+    ax.set_ylabel('runs')
+    ax.set_title(f"{spec.name}: success rate {counts['success']}/{len(rows)} "
+                 f"({100 * counts['success'] / len(rows):.0f} %)")
+    paths.append(_save(fig, study_dir / 'success_rate.png'))
+    return paths
+
+
+def _save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def study_path(name_or_path):
+    """Return the spec file of an installed study name ('fig13_link_lengths') or a path."""
+    path = Path(name_or_path)
+    if path.suffix in ('.yaml', '.yml'):
+        if not path.is_file():
+            raise study_spec.StudyError(f'study spec {path} does not exist')
+        return path
+    directory = scenario.share_directory() / 'studies'
+    candidate = directory / f'{name_or_path}.yaml'
+    if not candidate.is_file():
+        known = sorted(p.stem for p in directory.glob('*.yaml'))
+        raise study_spec.StudyError(f'unknown study {name_or_path!r}; known: {known}')
+    return candidate

@@ -1,0 +1,109 @@
+"""The recorder's bag says what ``ros2 bag play`` and ``ros2 bag info`` need to replay it."""
+
+from io import BytesIO
+import time
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped
+from ibvs_bringup.recorder import Recorder
+from ibvs_common import contract
+from ibvs_common.conversions import joint_state
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rosbags.interfaces import QosDurability, QosReliability
+from rosbags.rosbag2 import Reader
+from rosbags.rosbag2.storage_mcap import McapReader, read_string
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+DEADLINE_S = 20.0
+
+
+def channel_metadata(channel):
+    """Return an MCAP channel's user metadata (map<string, string>) as a dict."""
+    bio, out = BytesIO(channel.metadata), {}
+    while bio.tell() < len(channel.metadata):
+        key = read_string(bio)
+        out[key] = read_string(bio)
+    return out
+
+
+@pytest.fixture(scope='module')
+def bag(tmp_path_factory):
+    """Record a latched pose, a /clock (one of them malformed) and joint states; return the bag."""
+    path = tmp_path_factory.mktemp('rec') / 'bag'
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    recorder = Recorder(path, context=ctx)
+    talker = rclpy.create_node('talker', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(recorder)
+    executor.add_node(talker)
+    try:
+        pose = talker.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
+        clock = talker.create_publisher(Clock, contract.CLOCK, contract.RELIABLE)
+        joints = talker.create_publisher(JointState, contract.JOINT_STATES, contract.RELIABLE)
+        deadline = time.monotonic() + DEADLINE_S
+        while not all(p.get_subscription_count() for p in (pose, clock, joints)):
+            assert time.monotonic() < deadline, 'discovery'
+            executor.spin_once(timeout_sec=0.05)
+        pose.publish(PoseStamped())
+        clock.publish(Clock(clock=Time(sec=2)))
+        clock.publish(Clock(clock=Time(sec=-1)))  # a bad publisher: not fatal, not a time
+        joints.publish(joint_state(2_000_000_000, position=[0.0] * 6))
+        while recorder.counts[contract.JOINT_STATES] < 1 or recorder.counts[contract.CLOCK] < 2 \
+                or recorder.counts[contract.STEREO_POSE] < 1:
+            assert time.monotonic() < deadline, 'messages'
+            executor.spin_once(timeout_sec=0.05)
+        recorder.close()
+    finally:
+        executor.shutdown()
+        talker.destroy_node()
+        recorder.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    return path
+
+
+def test_the_bag_file_is_where_the_readme_says(bag):
+    # README, "Recordings": a run's bag/ holds bag/bag.mcap
+    assert sorted(p.name for p in bag.iterdir()) == ['bag.mcap', 'metadata.yaml']
+
+
+def test_the_bag_names_jazzy_in_both_copies_of_its_metadata(bag):
+    with Reader(bag) as reader:
+        assert reader.ros_distro == 'jazzy'
+    # the copy inside the MCAP file, which a reader of the bare .mcap sees
+    assert b'ros_distro: jazzy' in (bag / 'bag.mcap').read_bytes()
+    assert b'ros_distro: rosbags' not in (bag / 'bag.mcap').read_bytes()
+
+
+def test_each_topic_has_its_publishers_qos_and_its_type_hash(bag):
+    with Reader(bag) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        hashes = {c.topic: c.digest for c in reader.connections}
+    assert set(conns) == {contract.STEREO_POSE, contract.CLOCK, contract.JOINT_STATES}
+    for topic, conn in conns.items():
+        qos = conn.ext.offered_qos_profiles
+        assert len(qos) == 1, topic
+        assert qos[0].reliability == QosReliability.RELIABLE
+        expected = (QosDurability.TRANSIENT_LOCAL if topic == contract.STEREO_POSE
+                    else QosDurability.VOLATILE)
+        assert qos[0].durability == expected, topic
+        assert hashes[topic].startswith('RIHS01_'), topic
+    storage = McapReader(bag / 'bag.mcap')
+    storage.open()
+    try:
+        channels = {c.topic: channel_metadata(c) for c in storage.channels.values()}
+    finally:
+        storage.close()
+    for topic, meta in channels.items():
+        assert meta['topic_type_hash'] == hashes[topic]
+        assert ('transient_local' in meta['offered_qos_profiles']) \
+            == (topic == contract.STEREO_POSE)
+
+
+def test_a_malformed_clock_is_recorded_but_does_not_move_the_bag_time(bag):
+    with Reader(bag) as reader:
+        times = [t for c, t, _ in reader.messages() if c.topic == contract.JOINT_STATES]
+    assert times == [2_000_000_000]

@@ -1,0 +1,96 @@
+"""
+The test fixtures and helpers every package's tests share (imported by tests only).
+
+Each test directory's ``conftest.py`` imports the fixtures it uses from here, so they work
+both from the repository root (``make test``, ``pytest``) and under ``colcon test``, which
+runs each package's tests on their own. Importing this module also puts the test process on
+its own ROS domain, on the loopback interface only (:func:`isolate`).
+
+- :func:`context`: a private, initialised rclpy Context on this process's domain;
+- :func:`domain_id`: that domain, for child processes;
+- :func:`spin_until`: spin an executor until a condition holds (a deadline guards a hang;
+  tests wait on conditions, never on wall-clock time);
+- :func:`world`: the paper's robot in a PyBullet world (module scope);
+- :func:`camera` / :func:`default_camera`: the ZED 2 at the default pose.
+"""
+
+import os
+import time
+
+from ibvs_model import look_at, paper, StereoCamera, StereoIntrinsics
+import pytest
+import rclpy
+
+from . import dds
+
+#: Default deadline of :func:`spin_until` (seconds): only a guard against a hang.
+DEADLINE_S = 60.0
+
+
+def isolate():
+    """
+    Give this test process its own ROS domain and keep discovery on localhost.
+
+    Parallel test runs (two CI jobs, a developer's shell, other agents' graphs) must not
+    hear each other. An explicit ``ROS_DOMAIN_ID`` in the environment wins. Also loads the
+    graph's Fast DDS profiles (:mod:`ibvs_common.dds`), as every node does.
+    """
+    os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    dds.configure()
+
+
+isolate()
+
+
+def domain_id_of_process():
+    """Return the ROS domain of this test process (``ROS_DOMAIN_ID``, set by :func:`isolate`)."""
+    return int(os.environ['ROS_DOMAIN_ID'])
+
+
+@pytest.fixture(scope='session')
+def domain_id():
+    """Return the ROS domain of this test process, e.g. for the environment of a child."""
+    return domain_id_of_process()
+
+
+@pytest.fixture
+def context():
+    """Yield a private, initialised rclpy Context (as rclpy's own tests do)."""
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=domain_id_of_process())
+    try:
+        yield ctx
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def spin_until(executor, condition, deadline_s=DEADLINE_S, what='condition'):
+    """Spin ``executor`` until ``condition()`` is true; fail naming ``what`` at the deadline."""
+    end = time.monotonic() + deadline_s
+    while not condition():
+        assert time.monotonic() < end, f'timed out waiting for {what}'
+        executor.spin_once(timeout_sec=0.05)
+
+
+@pytest.fixture(scope='module')
+def world():
+    """Yield the paper's robot in a PyBullet world with the default renderer ('auto')."""
+    from ibvs_sim.world import World  # ibvs_sim depends on ibvs_common, not the reverse
+    w = World()
+    try:
+        yield w
+    finally:
+        w.close()
+
+
+def default_camera(resolution='HD720'):
+    """Return the ZED 2 at ``resolution`` at the default pose (docs/design.md §5)."""
+    return StereoCamera(StereoIntrinsics.zed2(resolution),
+                        look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+
+
+@pytest.fixture(scope='module')
+def camera():
+    """Return the ZED 2 at HD720 at the default pose (docs/design.md §5)."""
+    return default_camera('HD720')

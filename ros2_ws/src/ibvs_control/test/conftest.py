@@ -1,0 +1,3 @@
+"""Fixtures of the ibvs_control tests: the shared ones (ibvs_common.testing)."""
+
+from ibvs_common.testing import context  # noqa: F401

@@ -1,0 +1,127 @@
+"""A study through local Ray: a 2 x 2 grid of short runs, one failing, then resumed from cache."""
+
+import csv
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from ibvs_bringup import study, study_spec
+import pytest
+import yaml
+
+#: Domain IDs of the study's runs: clear of the 1-100 that the suite derives from PIDs.
+DOMAINS = (170, 199)
+
+
+def _ray_processes(proc_tools):
+    """Return the PIDs of Ray's own daemons (raylet, gcs_server) below this process."""
+    return [pid for pid in proc_tools.descendants(os.getpid())
+            if any(name in proc_tools.cmdline(pid) for name in ('raylet', 'gcs_server'))]
+
+
+@pytest.mark.slow
+def test_grid_study_records_a_failure_and_resumes_from_cache(
+        installed_workspace, tmp_path, proc_tools):
+    # omega_n < 1 / tau_in (eq. 36): tau_in = 0.05 s with omega_n = 30 rad/s is refused by
+    # the controller nodes at start, the three other grid points run.
+    spec_path = tmp_path / 'grid.yaml'
+    spec_path.write_text(yaml.safe_dump({
+        'name': 'grid', 'scenario': 'scenario1', 'duration_s': 0.3,
+        'grid': {'tau_in': [0.01, 0.05], 'omega_n': [10.0, 30.0]}}, sort_keys=False))
+    spec = study_spec.load(spec_path)
+    out = tmp_path / 'studies'
+    records = study.run_studies([spec], out, parallel=2, domains=DOMAINS)['grid']
+
+    assert [r['swept'] for r in records] == [
+        {'tau_in': 0.01, 'omega_n': 10.0}, {'tau_in': 0.01, 'omega_n': 30.0},
+        {'tau_in': 0.05, 'omega_n': 10.0}, {'tau_in': 0.05, 'omega_n': 30.0}]
+    status = [r['status'] for r in records]
+    assert status == ['ok', 'ok', 'ok', 'failed'], [r.get('reason') for r in records]
+    failed = records[3]
+    assert 'omega_n' in failed['reason'] and 'exited with code 2' in failed['reason']
+    assert (Path(failed['run_dir']) / 'runner.log').is_file()
+    assert any((Path(failed['run_dir']) / 'logs').glob('*.log'))
+    assert len({r['domain_id'] for r in records}) >= 1
+    assert all(DOMAINS[0] <= r['domain_id'] <= DOMAINS[1] for r in records)
+
+    with open(out / 'grid' / 'table.csv') as f:
+        rows = list(csv.DictReader(f))
+    assert [row['status'] for row in rows] == status
+    assert [float(row['tau_in']) for row in rows] == [0.01, 0.01, 0.05, 0.05]
+    for row, record in zip(rows[:3], records[:3]):
+        assert float(row['final_position_error_m']) == \
+            record['metrics']['final_position_error_m']
+        assert float(row['wall_s']) > 0.0
+    assert rows[3]['final_position_error_m'] == '' and 'omega_n' in rows[3]['reason']
+    table = (out / 'grid' / 'table.md').read_text()
+    assert table.count('| failed |') == 1 and table.count('| ok |') == 3
+    for figure in ('error_vs_tau_in.png', 'error_vs_omega_n.png', 'success_rate.png'):
+        assert (out / 'grid' / figure).stat().st_size > 0
+    assert not _ray_processes(proc_tools)
+
+    # Again: nothing runs, every record (the failure included) comes from the cache.
+    stamps = {r['run_dir']: (Path(r['run_dir']) / 'run.json').stat().st_mtime_ns
+              for r in records}
+    again = study.run_studies([spec], out, parallel=2, domains=DOMAINS)['grid']
+    assert all(r['cached'] for r in again)
+    assert [r['status'] for r in again] == status
+    assert [r.get('metrics') for r in again] == [r.get('metrics') for r in records]
+    assert stamps == {r['run_dir']: (Path(r['run_dir']) / 'run.json').stat().st_mtime_ns
+                      for r in again}
+    # Retrying the failure runs that one alone, which fails again the same way.
+    retried = study.run_studies([spec], out, parallel=2, domains=DOMAINS,
+                                retry_failed=True)['grid']
+    assert [r['cached'] for r in retried] == [True, True, True, False]
+    assert json.loads((Path(failed['run_dir']) / 'run.json').read_text())['status'] == \
+        'failed'
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
+        installed_workspace, tmp_path, proc_tools):
+    """SIGINT to the study's process group, as a terminal's Ctrl-C sends it, mid-run."""
+    spec_path = tmp_path / 'two.yaml'
+    spec_path.write_text(yaml.safe_dump({
+        'name': 'two', 'scenario': 'scenario1', 'duration_s': 0.2,
+        'grid': {'l2_scale': [1.0, 0.9, 0.8]}}, sort_keys=False))
+    out = tmp_path / 'studies'
+    cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'study', str(spec_path), '-o', str(out),
+           '--parallel', '1', '--domains', f'{DOMAINS[0]}-{DOMAINS[1]}']
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    seen = set()
+    try:
+        deadline = time.monotonic() + 600.0
+        interrupted = False
+        while time.monotonic() < deadline and not interrupted:
+            assert proc.poll() is None, proc.communicate()
+            seen.update(proc_tools.descendants(proc.pid))
+            finished = list(out.glob('two/runs/*/run.json'))
+            running = [p for p in out.glob('two/runs/*/logs/sim_node.log')
+                       if not (p.parents[1] / 'run.json').exists()]
+            if finished and running:
+                time.sleep(1.0)
+                seen.update(proc_tools.descendants(proc.pid))
+                os.killpg(proc.pid, signal.SIGINT)
+                interrupted = True
+            time.sleep(0.2)
+        assert interrupted, 'the study never had a finished and a running run'
+        output, _ = proc.communicate(timeout=120.0)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 130, output
+    assert 'interrupted' in output
+    leftovers = [pid for pid in seen if proc_tools.alive(pid)]
+    assert not leftovers, [proc_tools.cmdline(p) for p in leftovers]
+    done = [json.loads(p.read_text()) for p in out.glob('two/runs/*/run.json')]
+    assert done and all(r['status'] == 'ok' for r in done)
+    # Started again, the finished runs come from the cache and only the others would run.
+    records, todo = study.plan([study_spec.load(spec_path)], out)
+    assert {r['key'] for r in records['two'] if r.get('cached')} == {r['key'] for r in done}
+    assert len(todo) == 3 - len(done)
