@@ -18,9 +18,13 @@ PYTEST_ARGS ?=
 .PHONY: all venv build test demo report bench lint lock clean
 all: build
 
-$(VENV_STAMP): requirements.txt
+# requirements-test.txt: test-only peer packages, without their declared dependencies
+# (they would pull opencv-python over the headless cv2; see the file).
+$(VENV_STAMP): requirements.txt requirements-test.txt
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r requirements.txt
+	$(VENV)/bin/pip install --quiet --disable-pip-version-check --no-deps \
+	  -r requirements-test.txt
 	touch $@
 
 venv: $(VENV_STAMP)

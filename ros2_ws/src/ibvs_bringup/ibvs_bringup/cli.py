@@ -5,12 +5,16 @@ Commands:
 
 - ``run <scenario> [-o DIR] [--duration S] [--images] [-p name:=value ...]``: one run of a
   scenario (``scenario1``..``scenario3`` or a parameter file) through the node graph;
+  ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
+  (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
+  (:func:`ibvs_control.servo_laws.feedforward_overrides`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
   of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
-- ``report``: scenarios 1-3 and the L2/L4 robustness sweep, as studies, into
-  ``results/report.md``.
+- ``report [--laws]``: scenarios 1-3 and the L2/L4 robustness sweep, as studies, into
+  ``results/report.md``; ``--laws`` adds each servo law on scenarios 1-3 with ideal and
+  with limited actuators (:mod:`ibvs_bringup.laws_report`).
 """
 
 import argparse
@@ -18,6 +22,8 @@ import json
 from pathlib import Path
 import sys
 import time
+
+from ibvs_control.servo_laws import feedforward_overrides
 
 from . import runner, scenario, study_spec
 
@@ -33,9 +39,17 @@ def _print_summary(metrics, out=sys.stdout):
         print(f'  {key:28s} {text}', file=out)
 
 
+def with_servo_law(overrides):
+    """Return ``overrides`` with the feedforward parameters of its servo_law added."""
+    law = overrides.get('servo_law')
+    for key, value in (feedforward_overrides(law) if law is not None else {}).items():
+        overrides.setdefault(key, value)
+    return overrides
+
+
 def cmd_run(args):
     """Run one scenario and print its metrics."""
-    overrides = dict(scenario.parse_override(p) for p in args.param)
+    overrides = with_servo_law(dict(scenario.parse_override(p) for p in args.param))
     out = Path(args.out or Path('results') / Path(args.scenario).stem)
     print(f'running {args.scenario} -> {out}')
     try:
@@ -92,7 +106,7 @@ def cmd_report(args):
     start = time.monotonic()
     path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
                                parallel=args.parallel,
-                               domains=study.parse_domains(args.domains))
+                               domains=study.parse_domains(args.domains), laws=args.laws)
     print(f'wrote {path}')
     minutes, seconds = divmod(time.monotonic() - start, 60.0)
     print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
@@ -137,6 +151,8 @@ def main(argv=None):
     p = sub.add_parser('report', help=cmd_report.__doc__)
     p.add_argument('-o', '--out', default='results', help='results directory')
     p.add_argument('--quick', action='store_true', help='sweep endpoints only')
+    p.add_argument('--laws', action='store_true',
+                   help='also each servo law on scenarios 1-3, two actuator cases')
     p.set_defaults(func=cmd_report)
     for name in ('study', 'report'):
         p = sub.choices[name]

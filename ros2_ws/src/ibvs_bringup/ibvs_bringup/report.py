@@ -22,7 +22,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import study, study_spec  # noqa: E402
+from . import laws_report, study, study_spec  # noqa: E402
 
 SCENARIO_STUDIES = ('scenario1', 'scenario2', 'scenario3')
 SWEEP_STUDY = 'fig13_link_lengths'
@@ -85,8 +85,14 @@ def sweep_figure(rows, path):
     plt.close(fig)
 
 
-def build_report(out_dir, quick=False, address=None, parallel=None, domains=study.DOMAIN_IDS):
-    """Run the report's studies and write ``<out_dir>/report.md``; return its path."""
+def build_report(out_dir, quick=False, address=None, parallel=None, domains=study.DOMAIN_IDS,
+                 laws=False):
+    """
+    Run the report's studies and write ``<out_dir>/report.md``; return its path.
+
+    ``laws``: also the servo laws side by side (:mod:`.laws_report`, 24 runs, one at a
+    time).
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     specs = load_specs(quick)
@@ -177,6 +183,9 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         lines += [f'![{p.stem}](studies/{name}/{p.name})'
                   for p in sorted((out_dir / 'studies' / name).glob('*.png'))]
     lines += ['']
+    if laws:
+        runs = laws_report.run_all(out_dir / 'laws')
+        lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path

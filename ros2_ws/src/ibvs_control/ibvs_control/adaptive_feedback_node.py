@@ -31,12 +31,21 @@ lockstep, unlike the arrival of /clock). When no usable frame has come for
 logged; it resumes with the next fresh frame. A frame not newer than the last one
 answered is rejected, not answered. /diagnostics: singular values of C1, condition
 number, rank used, image error norm.
+
+Servo law (``servo_law``, :mod:`.servo_laws`): 'paper' (default) is the above. 'ibvs'
+(classic IBVS) and 'pbvs' (position-based) integrate a velocity command per frame and
+carry the whole move (the feedforward node then holds q(0): feedforward_method 'hold',
+checked at start); 'switching' runs the paper's feedback from the first measured frame
+after the feedforward has settled. These three need to know whether a frame was measured
+or estimated (eq. 46): they also wait, per frame, for /ibvs/feature_status of the same
+stamp ('reason' 'measured': the detector found both markers in both images). 'paper'
+does not subscribe to it and runs exactly as before.
 """
 
 import bisect
 from collections import deque
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, read_features,
@@ -53,13 +62,19 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
-from .controllers import AdaptiveFeedback
-from .node_params import (check_gains, FEEDBACK_DESIGN, HOLD_SPEED, LINEARISE_AT,
-                          MAX_CORRECTION, SVD_DAMPING, SVD_RCOND, target_from)
+from .node_params import (check_gains, check_servo_law, FEEDBACK_DESIGN, FEEDFORWARD_METHOD,
+                          HOLD_SPEED, LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, LINEARISE_AT,
+                          MAX_CORRECTION, SERVO_LAW, SVD_DAMPING, SVD_RCOND, SWITCH_SETTLE,
+                          target_from)
+from .servo_laws import make_law
 
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED,
-          LINEARISE_AT, TARGET_FEATURES_SOURCE)
+          LINEARISE_AT, TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0,
+          LAMBDA_INF, LAMBDA_SLOPE, SWITCH_SETTLE)
+#: What the diagnostics say while a law holds q_feedback on a usable frame.
+HOLDING = {'paper': 'holding (arm slewing)', 'switching': 'feedforward only (before the switch)',
+           'ibvs': 'holding (markers not measured)', 'pbvs': 'holding (markers not measured)'}
 
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
@@ -73,6 +88,10 @@ class AdaptiveFeedbackNode(Node):
         super().__init__('adaptive_feedback_node', **kwargs)
         self.values = values = declare(self, PARAMS)
         check_gains(values)
+        self.gain = check_servo_law(values)
+        self.law = values['servo_law']
+        self.needs_status = self.law != 'paper'
+        self._measured = {}
         self.pose = target_from(values)
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.timeout_ns = int(round(values['stale_timeout_s'] * 1e9))
@@ -105,6 +124,10 @@ class AdaptiveFeedbackNode(Node):
         if self._taught:
             self.create_subscription(PolygonStamped, contract.TARGET_FEATURES,
                                      self._on_target, contract.LATCHED)
+        if self.needs_status:
+            self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS,
+                                     self._on_status, contract.RELIABLE)
+        self.get_logger().info(f"servo law '{self.law}'")
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_info(self, index, msg):
@@ -137,9 +160,10 @@ class AdaptiveFeedbackNode(Node):
             return
         try:
             camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
-            self.feedback = AdaptiveFeedback(
-                CameraRobotModel(camera, IRB4600), self.pose, self.values['tau_in'],
+            self.feedback = make_law(
+                self.law, CameraRobotModel(camera, IRB4600), self.pose, self.values['tau_in'],
                 self.values['omega_n'], self.values['zeta'], self.camera_ns * 1e-9,
+                gain=self.gain, settle=self.values['switch_settle_s'],
                 rcond=self.values['svd_rcond'], damping=self.values['svd_damping'],
                 design=self.values['feedback_design'],
                 max_correction=self.values['max_correction_rad'],
@@ -150,7 +174,8 @@ class AdaptiveFeedbackNode(Node):
             self.diagnostics.reject('camera model', type(exc).__name__, str(exc))
             self._infos = [None, None]
             return
-        self.diagnostics.update(state='running', p_target=self.feedback.p_target)
+        self.diagnostics.update(state='running', servo_law=self.law,
+                                p_target=self.feedback.p_target)
         self.get_logger().info(
             f'camera model ready; {"taught" if self._taught else "model"} target features '
             f'p_bar = '
@@ -194,6 +219,18 @@ class AdaptiveFeedbackNode(Node):
         self._pending.append((t_ns, features))
         self._drain()
 
+    def _on_status(self, msg):
+        """Keep whether the frame of this /ibvs/feature_status stamp was measured."""
+        t_ns = stamp_ns(msg.header.stamp)
+        if self.last_answered_ns is not None and t_ns <= self.last_answered_ns:
+            return
+        if len(self._measured) >= HISTORY:
+            self.diagnostics.reject(contract.FEATURE_STATUS, 'buffer full', f'{t_ns} ns')
+            return
+        self._measured[t_ns] = any(kv.key == 'reason' and kv.value == 'measured'
+                                   for status in msg.status for kv in status.values)
+        self._drain()
+
     # -- processing ------------------------------------------------------------------------
     def _joints_at(self, t_ns):
         """Return (q, qdot) of the first joint state at or after ``t_ns``, else None."""
@@ -205,12 +242,15 @@ class AdaptiveFeedbackNode(Node):
         while self._pending and self.feedback is not None:
             t_ns, features = self._pending[0]
             joints = self._joints_at(t_ns)
-            if joints is None:
+            if joints is None or (self.needs_status and t_ns not in self._measured):
                 return
             self._pending.popleft()
-            self._answer(t_ns, features, joints)
+            measured = self._measured.pop(t_ns, True)
+            for old in [s for s in self._measured if s < t_ns]:
+                del self._measured[old]
+            self._answer(t_ns, features, joints, measured)
 
-    def _answer(self, t_ns, features, joints):
+    def _answer(self, t_ns, features, joints, measured=True):
         source = contract.FEATURES
         now_ns = self._stamps[-1]
         if isinstance(features, InputError):
@@ -224,7 +264,8 @@ class AdaptiveFeedbackNode(Node):
         else:
             try:
                 with self.diagnostics.timing.section('feedback_update'):
-                    update = self.feedback.update(features, joints[0], joints[1])
+                    update = self.feedback.update(features, joints[0], joints[1],
+                                                  measured=measured, t=t_ns * 1e-9)
             except ModelError as exc:
                 self.diagnostics.reject(source, type(exc).__name__,
                                         f'{exc}; q_feedback held')
@@ -243,7 +284,7 @@ class AdaptiveFeedbackNode(Node):
             self.get_logger().info(f'fresh features at {t_ns * 1e-9:.6f} s: feedback resumes')
             self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
         self.diagnostics.update(
-            state='holding (arm slewing)' if update.held else 'running',
+            state=HOLDING[self.law] if update.held else 'running',
             singular_values=update.singular_values, condition_number=update.condition,
             rank=update.rank, image_error_norm_px=update.error_norm,
             q_estimate=update.q_estimate, correction_clipped=update.clipped)

@@ -21,8 +21,10 @@ from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
-from .controllers import (AdaptiveFeedback, DAMPING, Feedforward, HOLD_SPEED, JointLoop,
+from .controllers import (DAMPING, Feedforward, FEEDFORWARD_RATIO, HOLD_SPEED, JointLoop,
                           LINEARISE_AT, MAX_CORRECTION, RCOND)
+from .servo_laws import (feedforward_method_for, feedforward_overrides, make_law,
+                         SWITCH_SETTLE)
 
 
 @dataclass
@@ -58,7 +60,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              torque_max=None, estimate_out_of_view=True, feedforward_method='sampled',
              feedback_design='sampled', rcond=RCOND, damping=DAMPING,
              max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None,
-             integration='exact', linearise_at=LINEARISE_AT):
+             integration='exact', linearise_at=LINEARISE_AT, servo_law='paper', gain=None,
+             switch_settle=SWITCH_SETTLE, feedforward_ratio=None):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -72,6 +75,12 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     acceleration over a step: the continuous arm) or 'semi-implicit' (qd += a dt, then
     q += qd dt: how PyBullet steps the simulated arm; use it to compare with the graph).
     ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
+    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; ibvs and pbvs run with the
+    feedforward held at q(0) ('hold'), ``gain`` (:class:`.servo_laws.AdaptiveGain`) is
+    theirs, ``switch_settle`` (s) the switching law's. A frame is 'measured' when both
+    markers are in view of the true robot. ``feedforward_ratio``: T_forward's double pole
+    in tau_in, default the law's (:func:`.servo_laws.feedforward_overrides`: 2 for
+    switching, else the paper's 0.1).
     """
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera, model.params if plant_params is None
@@ -93,10 +102,16 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     q = q_true0 - d_q
     qd = np.zeros(6)
     joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_max)
-    ff = Feedforward(pose, tau_in, dt, model.params, method=feedforward_method)
+    if feedforward_ratio is None:
+        feedforward_ratio = feedforward_overrides(servo_law).get('feedforward_ratio',
+                                                                 FEEDFORWARD_RATIO)
+    ff = Feedforward(pose, tau_in, dt, model.params, ratio=feedforward_ratio,
+                     method=feedforward_method_for(servo_law, feedforward_method))
     q_target = ff.start(q)
-    fb = AdaptiveFeedback(model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, rcond, damping,
-                          feedback_design, max_correction, hold_speed, linearise_at)
+    fb = make_law(servo_law, model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, gain,
+                  switch_settle, rcond=rcond, damping=damping, design=feedback_design,
+                  max_correction=max_correction, hold_speed=hold_speed,
+                  linearise_at=linearise_at)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
@@ -112,7 +127,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
             p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
                 else model.features(q)
             try:  # as the simulator stamps it: the time of this step
-                feedback_by_stamp[t_ns] = fb.update(p_hat, q, qd).q_feedback
+                feedback_by_stamp[t_ns] = fb.update(p_hat, q, qd, measured=measured,
+                                                    t=t_ns * 1e-9).q_feedback
             except ModelError:
                 # As the node: a frame F^-1 cannot use is rejected, q_feedback held.
                 feedback_by_stamp[t_ns] = fb.q_feedback

@@ -138,6 +138,9 @@ class JointLoop:
         return u_sat
 
 
+#: T_forward's double pole at ``ratio`` tau_in (eq. 44-45): the paper's 0.1, so that
+#: T_d T_forward, the joints' designed response, has a 1 ms double pole.
+FEEDFORWARD_RATIO = 0.1
 #: Longest feedforward trajectory (samples): 60 s at 1 kHz. With the paper's values the
 #: output of T_forward has settled after about 2 s (Feedforward.trajectory).
 MAX_FEEDFORWARD_SAMPLES = 60_000
@@ -156,22 +159,32 @@ class Feedforward:
     filter on q0, so q_ff(0) = q(0) exactly, and every later step on q_target. (Feeding
     the target at t = 0 instead would make q_ff(0) = q0 + D (q_target - q0), D ~ 15 at
     1 kHz: the biproper filter's first answer to a step.)
+    ``ratio``: T_forward's double pole sits at ``ratio`` tau_in (eq. 44-45; the paper's
+    0.1): every joint then follows q(t) = q0 + s(t) (q_target - q0) with s the step
+    response of ((1 - p_f) / (z - p_f))^2 (z + 1) / 2, the same straight line in joint space
+    for any ratio, faster for a smaller one (peak joint speed about 0.37 |q_target - q0| /
+    (ratio tau_in)).
     ``method``: 'sampled' (default, :func:`.youla.feedforward_discrete`, the inverse of the
-    sampled inner loop) or 'tustin' / 'zoh' (eq. 44 discretised by scipy).
+    sampled inner loop) or 'tustin' / 'zoh' (eq. 44 discretised by scipy), or 'hold': no
+    feedforward, q_ff = q(0) at every step (the servo laws whose feedback carries the whole
+    move, :mod:`.servo_laws`); the target is still checked reachable.
     """
 
-    def __init__(self, pose, tau_in, dt, params=IRB4600, ratio=0.1, method='sampled'):
+    def __init__(self, pose, tau_in, dt, params=IRB4600, ratio=FEEDFORWARD_RATIO,
+                 method='sampled'):
         """Check the target is reachable (eq. 43) and design T_forward at ``dt``."""
         self.pose = np.asarray(pose, dtype=float)
         self.params = params
         check_reachable(self.pose, params)
-        if method == 'sampled':
+        self.hold = method == 'hold'
+        if method in ('sampled', 'hold'):
             design = youla.feedforward_discrete(tau_in, dt, ratio)
         elif method in ('tustin', 'zoh'):
             design = youla.feedforward(tau_in, ratio).discretise(
                 dt, 'bilinear' if method == 'tustin' else 'zoh')
         else:
-            raise ValueError(f"method must be 'sampled', 'tustin' or 'zoh', got {method!r}")
+            raise ValueError(f"method must be 'sampled', 'tustin', 'zoh' or 'hold', got "
+                             f'{method!r}')
         self.filter = StateSpaceFilter(design, 6)
         self.q_target = None
         self.q_start = None
@@ -189,9 +202,12 @@ class Feedforward:
         return self.q_target
 
     def step(self):
-        """Return q_feedforward for the next sample (the first one is q0)."""
+        """Return q_feedforward for the next sample (the first one is q0; 'hold': all)."""
         if not self.started:
             raise RuntimeError('Feedforward.start(q0) first')
+        if self.hold:
+            self.filter.steps += 1
+            return self.q_start.copy()
         return self.filter.step(self.q_start if self.filter.steps == 0 else self.q_target)
 
     def trajectory(self, max_samples=MAX_FEEDFORWARD_SAMPLES, atol=SETTLED_RAD,
@@ -330,9 +346,12 @@ class AdaptiveFeedback:
         """Return the latest output of k (zeros before the first frame)."""
         return self.filter.last_output.copy()
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None):
+    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
         """
         Return the :class:`FeedbackUpdate` of one frame and advance k one sample.
+
+        ``measured`` and ``t`` (the frame time) are ignored: the paper's law integrates
+        estimated features too (the signature is that of :mod:`.servo_laws`).
 
         Raises ibvs_model.ModelError (bad features, no triangulation, no IK branch); the
         state is then unchanged and the caller holds the previous q_feedback.

@@ -39,10 +39,10 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import Feedforward
-from .node_params import check_gains, FEEDFORWARD_METHOD, target_from
+from .node_params import check_gains, FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, target_from
 
 PARAMS = (TAU_IN, OMEGA_N, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
-          FEEDFORWARD_METHOD, STALE_TIMEOUT_S)
+          FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, STALE_TIMEOUT_S)
 
 
 class FeedforwardNode(Node):
@@ -57,6 +57,7 @@ class FeedforwardNode(Node):
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
         self.ff = Feedforward(self.pose, values['tau_in'], self.dt_ns * 1e-9,
+                              ratio=values['feedforward_ratio'],
                               method=values['feedforward_method'])
         self.t0_ns = None
         self.diagnostics = Diagnostics(self, 'feedforward')
@@ -67,7 +68,8 @@ class FeedforwardNode(Node):
                                              self._on_joint_state, contract.RELIABLE)
         self.get_logger().info(
             f'target {np.round(self.pose[:3, 3], 4).tolist()} m; T_forward '
-            f"'{values['feedforward_method']}' at {1e9 / self.dt_ns:g} Hz")
+            f"'{values['feedforward_method']}' at {1e9 / self.dt_ns:g} Hz, double pole at "
+            f"{values['feedforward_ratio']:g} tau_in")
 
     def _on_joint_state(self, msg):
         if self.t0_ns is not None:

@@ -10,13 +10,43 @@ at start (exit code 2, ibvs_common.node_main.run) instead of misbehaving later.
 from ibvs_common.params import Param, ParameterError
 from ibvs_model import IRB4600, ModelError
 
-from . import controllers, youla
+from . import controllers, servo_laws, youla
 
 FEEDFORWARD_METHOD = Param(
     'feedforward_method', 'sampled',
     "T_forward (eq. 44-45) at the physics rate: 'sampled' (inverse of the sampled inner "
-    "loop, no overshoot) or 'tustin' / 'zoh' (eq. 44 discretised by scipy)", '-',
-    choices=('sampled', 'tustin', 'zoh'))
+    "loop, no overshoot) or 'tustin' / 'zoh' (eq. 44 discretised by scipy); 'hold': no "
+    "feedforward, q(0) held (servo_law 'ibvs' and 'pbvs' need it)", '-',
+    choices=('sampled', 'tustin', 'zoh', 'hold'))
+FEEDFORWARD_RATIO = Param(
+    'feedforward_ratio', controllers.FEEDFORWARD_RATIO,
+    "T_forward's double pole at feedforward_ratio * tau_in (eq. 44-45; the paper: 0.1, a "
+    '1 ms joint response that asks up to 1.2e3 rad/s); larger is a slower, gentler '
+    "reference on the same joint-space line ('ibvs run' sets 2 for servo_law 'switching')",
+    '-', low=0.01, high=100.0)
+SERVO_LAW = Param(
+    'servo_law', 'paper',
+    "feedback law: 'paper' (adaptive Youla, eq. 38-41), 'switching' (the paper's law, "
+    "switched on once the markers are measured and the feedforward has settled), 'ibvs' "
+    "(classic IBVS, -lambda C1^+ e) or 'pbvs' (position-based, flange and tool axis); "
+    "'ibvs' and 'pbvs' need feedforward_method 'hold'", '-', choices=servo_laws.SERVO_LAWS)
+LAMBDA_0 = Param('lambda_0', servo_laws.LAMBDA_0,
+                 "servo_law 'ibvs' / 'pbvs': gain lambda at zero error (ViSP's lambda(0); "
+                 "'pbvs' uses it as its constant gain)", '1/s', low=0.0, high=1000.0,
+                 low_open=True)
+LAMBDA_INF = Param('lambda_inf', servo_laws.LAMBDA_INF,
+                   "servo_law 'ibvs': gain lambda at a very large image error (ViSP's "
+                   'lambda(inf)); used only when lambda_slope > 0, then <= lambda_0', '1/s',
+                   low=0.0, high=1000.0, low_open=True)
+LAMBDA_SLOPE = Param('lambda_slope', servo_laws.LAMBDA_SLOPE,
+                     "servo_law 'ibvs': ViSP's lambda'(0), how fast the gain falls from "
+                     'lambda_0 towards lambda_inf as |p_hat - p_bar| grows; 0: constant '
+                     'gain lambda_0', '1/(s px)', low=0.0, high=1000.0)
+SWITCH_SETTLE = Param('switch_settle_s', servo_laws.SWITCH_SETTLE,
+                      "servo_law 'switching': the feedback switches on no earlier than this "
+                      'after the first frame (the feedforward transient), and only on a '
+                      'measured frame with every joint slower than hold_speed_fraction of '
+                      'its limit', 's', low=0.0, high=100.0)
 FEEDBACK_DESIGN = Param(
     'feedback_design', 'sampled',
     "outer controller k at the camera period: 'sampled' (eq. 37-41 on the ZOH plant: eq. 36 "
@@ -58,6 +88,33 @@ def check_gains(values):
         raise ParameterError(
             f"parameter 'omega_n' = {values['omega_n']!r} is invalid with tau_in = "
             f"{values['tau_in']!r}: {exc}; allowed: omega_n < 1 / tau_in") from None
+
+
+def check_servo_law(values):
+    """
+    Raise ParameterError unless the servo law, its gains and the feedforward agree.
+
+    'ibvs' and 'pbvs' carry the whole move in q_feedback and need feedforward_method
+    'hold' (q_feedforward = q(0)); 'paper' and 'switching' need the feedforward. With
+    lambda_slope > 0, lambda_inf must not exceed lambda_0 (:class:`.servo_laws.AdaptiveGain`).
+    """
+    law, method = values['servo_law'], values['feedforward_method']
+    wanted = servo_laws.feedforward_method_for(law, method)
+    if law in servo_laws.WITHOUT_FEEDFORWARD and method != 'hold':
+        raise ParameterError(
+            f"parameter 'feedforward_method' = {method!r} is invalid with servo_law = {law!r}:"
+            f' that law has no feedforward; allowed: {wanted!r} (ibvs run sets it for you)')
+    if law not in servo_laws.WITHOUT_FEEDFORWARD and method == 'hold':
+        raise ParameterError(
+            f"parameter 'feedforward_method' = 'hold' is invalid with servo_law = {law!r}: "
+            "that law needs the feedforward; allowed: 'sampled', 'tustin' or 'zoh'")
+    try:
+        return servo_laws.AdaptiveGain(values['lambda_0'], values['lambda_inf'],
+                                       values['lambda_slope'])
+    except ValueError as exc:
+        raise ParameterError(
+            f"parameter 'lambda_inf' = {values['lambda_inf']!r} is invalid: {exc}; allowed: "
+            'lambda_inf <= lambda_0, or lambda_slope 0') from None
 
 
 def target_from(values, params=IRB4600):

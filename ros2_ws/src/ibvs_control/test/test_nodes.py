@@ -8,7 +8,7 @@ against a hang), never on wall-clock time.
 
 
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, joint_state, joint_trajectory,
@@ -20,6 +20,7 @@ from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
 from ibvs_control.dynamics import RobotDynamics
 from ibvs_control.feedforward_node import FeedforwardNode
 from ibvs_control.joint_controller_node import JointControllerNode
+from ibvs_control.servo_laws import ClassicIBVS
 from ibvs_model import default_model, inverse_kinematics, paper
 import numpy as np
 import pytest
@@ -197,10 +198,13 @@ def test_feedforward_ignores_a_first_joint_state_from_the_future_or_with_a_bad_s
     ({'omega_n': 150.0}, 'omega_n'),
     ({'omega_n': 100.0}, 'omega_n'),
     ({'physics_rate_hz': 5.0}, 'physics_rate_hz'),
+    ({'feedforward_ratio': 0.0}, 'feedforward_ratio'),
 ])
 def test_nodes_stop_at_start_on_bad_parameters(context, params, name):
     for cls in (FeedforwardNode, AdaptiveFeedbackNode, JointControllerNode):
         if name == 'physics_rate_hz' and cls is AdaptiveFeedbackNode:
+            continue
+        if name == 'feedforward_ratio' and cls is not FeedforwardNode:
             continue
         if name.startswith('target') and cls is JointControllerNode:
             continue
@@ -262,6 +266,55 @@ def test_feedback_answers_each_frame_like_the_pure_controller(context):
         assert float(values['image_error_norm_px']) > 0.0
     finally:
         h.close()
+
+
+def feature_status(t_ns, measured):
+    msg = DiagnosticArray()
+    msg.header.stamp = joint_state(t_ns).header.stamp
+    msg.status = [DiagnosticStatus(name='feature_node: features', values=[
+        KeyValue(key='reason', value='measured' if measured else 'not found: test')])]
+    return msg
+
+
+def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context):
+    model = default_model()
+    node, h = feedback_harness(context, servo_law='ibvs', feedforward_method='hold')
+    status_pub = h.pub[contract.FEATURE_STATUS] = h.node.create_publisher(
+        DiagnosticArray, contract.FEATURE_STATUS, contract.RELIABLE)
+    try:
+        h.spin_until(lambda: status_pub.get_subscription_count() > 0, 'discovery')
+        q_target = inverse_kinematics(paper.target_pose())
+        q = q_target + np.radians([0.3, 0.2, -0.2, 0.0, 0.1, 0.0])
+        sent = model.features(q).astype(np.float32).astype(float)
+        left, right, pose = camera_messages(model)
+        h.publish(contract.LEFT_INFO, left)
+        h.publish(contract.RIGHT_INFO, right)
+        h.publish(contract.STEREO_POSE, pose)
+        h.spin_until(lambda: node.feedback is not None, 'camera model')
+        frames = [n * CAMERA_NS for n in range(3)]
+        for t in frames:
+            h.publish(contract.FEATURES, features_msg(model.features(q), t))
+        for t in (0, 34 * MS, 67 * MS):
+            h.publish(contract.JOINT_STATES, joint_state(t, q, np.zeros(6)))
+        h.spin_until(lambda: len(node._pending) == 3 and len(node._stamps) == 3, 'inputs')
+        out = h.received[contract.Q_FEEDBACK]
+        assert out == [], 'a frame waits for its /ibvs/feature_status'
+        for t, measured in zip(frames, (True, False, True)):
+            h.publish(contract.FEATURE_STATUS, feature_status(t, measured))
+        h.spin_until(lambda: len(out) == 3, 'q_feedback')
+        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, damping=0.1)
+        for msg, measured in zip(out, (True, False, True)):
+            up = ref.update(sent, q, measured=measured)
+            np.testing.assert_allclose(read_joints(msg), up.q_feedback, atol=1e-9)
+        np.testing.assert_allclose(read_joints(out[0]), read_joints(out[1]), atol=0.0)
+    finally:
+        h.close()
+
+
+def test_vision_only_law_without_hold_stops_at_start(context):
+    with pytest.raises(ParameterError, match="'feedforward_method'"):
+        AdaptiveFeedbackNode(context=context,
+                             parameter_overrides=overrides(servo_law='pbvs'))
 
 
 def test_feedback_holds_on_bad_and_stale_features_and_freezes(context):

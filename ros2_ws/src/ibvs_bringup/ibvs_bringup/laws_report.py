@@ -1,0 +1,228 @@
+"""
+Servo laws side by side: each law on scenarios 1-3, two actuator cases, a table and figures.
+
+The runs (:func:`plan`): every law of :data:`ibvs_control.servo_laws.SERVO_LAWS` on
+scenarios 1-3, with the paper's ideal actuators and with the IRB 4600's limited actuators
+plus 0.067 s between a camera frame and the command it causes (:data:`CASES`). Each run is an
+ordinary ``ibvs run`` (``ibvs_bringup.runner.run_scenario``) into its own folder; this module
+only reads the folders back (:func:`read_run`), so the runs may come from any scheduler.
+
+Per run (:class:`LawRun`, the metrics of :mod:`.analysis` plus the joint speeds of the bag):
+final position and tool-axis error, time to 1 mm (after which the tool stays within 1 mm),
+overshoot past the target along the approach, peak joint speed (rad/s, and as a share of the
+IRB 4600's limit qd_max), and converged: within :data:`CONVERGED_M` and
+:data:`CONVERGED_DEG` of the target at the end and within 1 mm from ``time_to_1mm_s`` on.
+
+``python -m ibvs_bringup.laws_report DIR`` writes ``DIR/laws.md`` and one figure of the
+tool's path per law from the run folders under ``DIR``; ``ibvs report --laws`` runs them.
+"""
+
+import argparse
+from dataclasses import dataclass
+import json
+from pathlib import Path
+
+from ibvs_common import contract
+from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
+from ibvs_model import IRB4600
+import matplotlib
+
+matplotlib.use('Agg')
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from rosbags.typesys import get_typestore, Stores  # noqa: E402
+import yaml  # noqa: E402
+
+from . import analysis  # noqa: E402
+
+SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
+#: Actuator cases: name -> parameter overrides.
+CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
+         'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067}}
+#: Converged: at the end within this far (m) and this angle (deg) of the target.
+CONVERGED_M = 1e-3
+CONVERGED_DEG = 0.5
+
+
+@dataclass(frozen=True)
+class LawRun:
+    """One run read back: its law, case, scenario, metrics, joint speeds and tool path."""
+
+    law: str
+    case: str
+    scenario: str
+    metrics: dict
+    peak_joint_speed: float
+    peak_speed_share: float
+    position: np.ndarray
+    target: np.ndarray
+
+    @property
+    def converged(self):
+        """Return True when the run ended within CONVERGED_M / CONVERGED_DEG and stayed."""
+        m = self.metrics
+        return (m.get('time_to_1mm_s') is not None
+                and m['final_position_error_m'] <= CONVERGED_M
+                and m['final_tool_axis_error_deg'] <= CONVERGED_DEG)
+
+
+def overrides_for(law, case):
+    """Return the parameter overrides of one run (the law's feedforward ones included)."""
+    return {**CASES[case], 'servo_law': law, **feedforward_overrides(law)}
+
+
+def plan(out_dir, laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
+    """Return (scenario, run folder, overrides) of every run, ideal actuators first."""
+    return [(name, Path(out_dir) / case / law / name, overrides_for(law, case))
+            for case in cases for law in laws for name in scenarios]
+
+
+def run_all(out_dir, progress=print, **selection):
+    """Run :func:`plan` one run at a time (``runner.run_scenario``); return :func:`read_all`."""
+    from . import runner
+    for name, run_dir, overrides in plan(out_dir, **selection):
+        progress(f'running {name} {overrides} -> {run_dir}')
+        runner.run_scenario(name, run_dir, overrides, progress=progress)
+    return read_all(out_dir)
+
+
+def joint_speeds(bag_path):
+    """Return the measured joint speeds (N, 6) of a run's /joint_states (rad/s)."""
+    rows = []
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
+        conns = [c for c in reader.connections if c.topic == contract.JOINT_STATES]
+        for conn, _, raw in reader.messages(connections=conns):
+            rows.append(reader.deserialize(raw, conn.msgtype).velocity)
+    return np.array(rows, dtype=float).reshape(-1, 6)
+
+
+def case_of(params):
+    """Return the case name of a run's parameters ('ideal', 'limited' or a description)."""
+    for name, values in CASES.items():
+        if all(params.get(k) == v for k, v in values.items()):
+            return name
+    return f"{params.get('actuators')}, {params.get('feedback_latency_s', 0.0)} s latency"
+
+
+def summarise(params, metrics, qdot, position, target, qd_max=IRB4600.qd_max):
+    """Return the :class:`LawRun` of a run's parameters, metrics, joint speeds and path."""
+    speed = np.abs(np.asarray(qdot, dtype=float))
+    return LawRun(law=params.get('servo_law', 'paper'), case=case_of(params),
+                  scenario=str(params.get('scenario_name', metrics.get('scenario'))),
+                  metrics=metrics, peak_joint_speed=float(speed.max(initial=0.0)),
+                  peak_speed_share=float((speed / np.asarray(qd_max)).max(initial=0.0)),
+                  position=np.asarray(position, dtype=float),
+                  target=np.asarray(target, dtype=float)[:3, 3])
+
+
+def read_run(run_dir):
+    """Return the :class:`LawRun` of a folder written by ``runner.run_scenario``."""
+    run_dir = Path(run_dir)
+    data, metrics = analysis.analyse_bag(run_dir / 'bag')
+    params = dict(data.params)
+    if (run_dir / 'params.yaml').exists():
+        loaded = yaml.safe_load((run_dir / 'params.yaml').read_text()) or {}
+        params = {**loaded.get('/**', {}).get('ros__parameters', {}), **params}
+    params.setdefault('scenario_name', run_dir.name)
+    return summarise(params, metrics, joint_speeds(run_dir / 'bag'), data.position,
+                     data.target)
+
+
+def read_all(out_dir):
+    """Return the :class:`LawRun` of every run folder (one with a ``bag``) under out_dir."""
+    runs = [read_run(bag.parent) for bag in sorted(Path(out_dir).rglob('bag'))
+            if (bag / 'metadata.yaml').exists()]
+    order = {law: i for i, law in enumerate(SERVO_LAWS)}
+    return sorted(runs, key=lambda r: (list(CASES).index(r.case) if r.case in CASES else 9,
+                                       r.scenario, order.get(r.law, 9)))
+
+
+def _mm(value, digits=2):
+    return 'not reached' if value is None else f'{1e3 * value:.{digits}f}'
+
+
+def table(runs):
+    """Return the markdown lines of the table: one row per run."""
+    lines = ['| actuators | scenario | law | final position [mm] | final axis [deg] | '
+             'time to 1 mm [s] | overshoot [mm] | peak joint speed [rad/s] (share of '
+             'limit) | converged |',
+             '|---|---|---|---|---|---|---|---|---|']
+    for r in runs:
+        m = r.metrics
+        t1 = m.get('time_to_1mm_s')
+        lines.append(
+            f'| {r.case} | {r.scenario} | {r.law} | {_mm(m["final_position_error_m"])} | '
+            f'{m["final_tool_axis_error_deg"]:.3f} | '
+            f'{"not reached" if t1 is None else f"{t1:.3f}"} | '
+            f'{_mm(m["max_overshoot_m"], 1)} | {r.peak_joint_speed:.3g} '
+            f'({r.peak_speed_share:.2f}) | {"yes" if r.converged else "no"} |')
+    return lines
+
+
+def path_figure(runs, law, path):
+    """Plot the tool's path of each run of ``law`` (one colour per scenario) to ``path``."""
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection='3d')
+    styles = {'ideal': '-', 'limited': '--'}
+    for i, name in enumerate(SCENARIOS):
+        for r in (r for r in runs if r.law == law and r.scenario == name):
+            p = r.position
+            ax.plot(p[:, 0], p[:, 1], p[:, 2], styles.get(r.case, ':'), color=f'C{i}',
+                    label=f'{name}, {r.case}')
+            ax.scatter(*p[0], color=f'C{i}', marker='o')
+    targets = {tuple(r.target) for r in runs if r.law == law}
+    for target in targets:
+        ax.scatter(*target, color='k', marker='x', s=60)
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m]')
+    ax.set_zlabel('z [m]')
+    ax.set_title(f'tool path, servo_law = {law} (o start, x target)')
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def section(runs, out_dir, figure_prefix=''):
+    """
+    Write one path figure per law into ``out_dir``; return the report's markdown lines.
+
+    ``figure_prefix``: the figures' folder as the markdown file that holds the lines sees it.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lines = ['## Servo laws side by side', '',
+             f'Ideal actuators (the paper), and limited actuators with '
+             f"{CASES['limited']['feedback_latency_s']} s latency. Converged: within "
+             f'{CONVERGED_M * 1e3:g} mm and {CONVERGED_DEG:g} deg at the end, and within 1 mm '
+             'from the time to 1 mm on.', '']
+    lines += table(runs) + ['']
+    for law in dict.fromkeys(r.law for r in runs):
+        name = f'law_path_{law}.png'
+        path_figure(runs, law, out_dir / name)
+        lines += [f'![{law}]({figure_prefix}{name})', '']
+    return lines
+
+
+def main(argv=None):
+    """Write DIR/laws.md and the path figures from the run folders under DIR."""
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument('dir', help='folder holding the run folders (any depth)')
+    args = parser.parse_args(argv)
+    runs = read_all(args.dir)
+    lines = section(runs, args.dir)
+    (Path(args.dir) / 'laws.md').write_text('\n'.join(lines) + '\n')
+    (Path(args.dir) / 'laws.json').write_text(json.dumps(
+        [{'law': r.law, 'case': r.case, 'scenario': r.scenario, 'converged': r.converged,
+          'peak_joint_speed_rad_s': r.peak_joint_speed,
+          'peak_speed_share': r.peak_speed_share, **r.metrics} for r in runs],
+        indent=2) + '\n')
+    print('\n'.join(lines))
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,64 @@
+"""The servo-law table (ibvs_bringup.laws_report) from synthetic runs: no graph, no bag."""
+
+from ibvs_bringup import laws_report
+from ibvs_bringup.analysis import compute_metrics
+from ibvs_control.servo_laws import SERVO_LAWS
+from ibvs_model import IRB4600
+import numpy as np
+import pytest
+
+
+def straight_run(law, case, name, end_error, qdot_peak=1.0, n=200):
+    """Return a LawRun of a tool moving straight to 1 m away from the start, ending off."""
+    t = np.linspace(0.0, 2.0, n)
+    target = np.eye(4)
+    target[:3, 3] = [1.0, 0.0, 0.0]
+    s = np.clip(t / 0.5, 0.0, 1.0)[:, None]
+    position = s * (target[:3, 3] + [end_error, 0.0, 0.0])
+    metrics = compute_metrics(t, position, np.tile(np.eye(3), (n, 1, 1)), target,
+                              scenario=name)
+    qdot = np.zeros((n, 6))
+    qdot[n // 2, 2] = -qdot_peak
+    params = {**laws_report.CASES[case], 'servo_law': law, 'scenario_name': name}
+    return laws_report.summarise(params, metrics, qdot, position, target)
+
+
+def test_plan_covers_every_law_scenario_and_case_ideal_first(tmp_path):
+    plan = laws_report.plan(tmp_path)
+    assert len(plan) == len(SERVO_LAWS) * 3 * 2
+    assert len({str(run_dir) for _, run_dir, _ in plan}) == len(plan)
+    cases = [o['actuators'] for _, _, o in plan]
+    assert cases == sorted(cases), 'ideal before limited'
+    for _, _, overrides in plan:
+        law = overrides['servo_law']
+        assert (overrides.get('feedforward_method') == 'hold') == (law in ('ibvs', 'pbvs'))
+        assert ('feedforward_ratio' in overrides) == (law == 'switching')
+        assert overrides['feedback_latency_s'] == (0.067 if overrides['actuators'] ==
+                                                   'limited' else 0.0)
+
+
+def test_summary_of_a_run():
+    r = straight_run('pbvs', 'limited', 'scenario2', 0.0, qdot_peak=2.0)
+    assert (r.law, r.case, r.scenario) == ('pbvs', 'limited', 'scenario2')
+    assert r.peak_joint_speed == 2.0
+    assert r.peak_speed_share == pytest.approx(2.0 / IRB4600.qd_max[2])
+    assert r.converged
+    overshooting = straight_run('paper', 'ideal', 'scenario1', 0.004)
+    assert overshooting.metrics['max_overshoot_m'] == pytest.approx(0.004)
+    assert not overshooting.converged, 'ends 4 mm past the target'
+    assert laws_report.case_of({'actuators': 'limited', 'feedback_latency_s': 0.1}) == \
+        'limited, 0.1 s latency'
+
+
+def test_table_and_figures(tmp_path):
+    runs = [straight_run(law, 'ideal', name, 0.0) for law in ('paper', 'ibvs')
+            for name in laws_report.SCENARIOS]
+    runs.append(straight_run('ibvs', 'limited', 'scenario1', 0.02))
+    lines = laws_report.section(runs, tmp_path, 'laws/')
+    rows = [line for line in lines if line.startswith('| ideal') or line.startswith('| lim')]
+    assert len(rows) == len(runs)
+    assert rows[-1].endswith('| not reached | 20.0 | 1 (0.33) | no |')
+    assert all(row.endswith('| yes |') for row in rows[:-1])
+    for law in ('paper', 'ibvs'):
+        assert (tmp_path / f'law_path_{law}.png').stat().st_size > 0
+        assert f'![{law}](laws/law_path_{law}.png)' in lines
