@@ -1,11 +1,11 @@
 """
 sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
-Lockstep. At step k (sim time t_k, from 0) the node publishes, first, /joint_states (encoder
-angles q - d_q, velocities, the torque of the previous step), so that the joint controller
-works on step k while the rest goes out: /clock, /ibvs/tool_pose and the camera frame due
-at t_k if any (both images and CameraInfo, stamped t_k). Every consumer matches its
-inputs by stamp, so the order changes no result. It then
+Lockstep. At step k (sim time t_k, from 0) the node publishes /clock, /ibvs/tool_pose and
+/joint_states (encoder angles q - d_q, velocities, the torque of the previous step), then
+the camera frame due at t_k if any (both images and CameraInfo, stamped t_k), which it
+renders while the joint controller works on step k. Every consumer matches its inputs by
+stamp, so the order changes no result. It then
 waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
 torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
 sleeps, so any number of nodes can share one executor. While it waits, a steady-clock timer
@@ -285,12 +285,11 @@ class SimNode(Node):
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
         with timing.section('step_messages'):
+            self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
             q, qd = sim.encoders()
             self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
             self._published_at = time.perf_counter()
-            # The controller works on step k from here on, while the rest is published.
-            self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
-            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
         self._frame_step = sim.frame_due() is not None
         if self._frame_step:
             with timing.section('render'):
