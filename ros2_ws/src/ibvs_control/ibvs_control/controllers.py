@@ -52,6 +52,17 @@ def target_pose(position, rotation, tol=1e-3):
     return pose_from(position, nearest_rotation(rot))
 
 
+def check_inputs(p_hat, q_encoder):
+    """Return features p_hat and encoder angles as (6,) arrays; InvalidInputError if not."""
+    p_hat = np.asarray(p_hat, dtype=float)
+    q_encoder = np.asarray(q_encoder, dtype=float)
+    if p_hat.shape != (6,) or not np.all(np.isfinite(p_hat)):
+        raise InvalidInputError('features must be 6 finite numbers')
+    if q_encoder.shape != (6,) or not np.all(np.isfinite(q_encoder)):
+        raise InvalidInputError('encoder angles must be 6 finite numbers')
+    return p_hat, q_encoder
+
+
 def check_reachable(pose, params=IRB4600):
     """Raise ibvs_model.UnreachablePoseError when no IK branch reaches ``pose`` (eq. 43)."""
     ik_solutions(pose, params)
@@ -356,12 +367,7 @@ class AdaptiveFeedback:
         Raises ibvs_model.ModelError (bad features, no triangulation, no IK branch); the
         state is then unchanged and the caller holds the previous q_feedback.
         """
-        p_hat = np.asarray(p_hat, dtype=float)
-        q_encoder = np.asarray(q_encoder, dtype=float)
-        if p_hat.shape != (6,) or not np.all(np.isfinite(p_hat)):
-            raise InvalidInputError('features must be 6 finite numbers')
-        if q_encoder.shape != (6,) or not np.all(np.isfinite(q_encoder)):
-            raise InvalidInputError('encoder angles must be 6 finite numbers')
+        p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         q_est = self.model.inverse(p_hat, q_encoder[5], seed=q_encoder)
         q_lin = q_est if self.linearise_at == 'features' else q_encoder
         dec = decouple(self.model.jacobian(q_lin), self.rcond, self.damping)

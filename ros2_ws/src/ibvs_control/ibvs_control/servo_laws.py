@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from ibvs_model import geometric_jacobian, InvalidInputError
 import numpy as np
 
-from .controllers import AdaptiveFeedback, FeedbackUpdate
+from .controllers import AdaptiveFeedback, check_inputs, FeedbackUpdate
 from .decoupling import decouple
 
 SERVO_LAWS = ('paper', 'ibvs', 'pbvs', 'switching')
@@ -137,16 +137,6 @@ def _target_features(model, pose, p_target=None):
     return model.camera.project(markers).reshape(6)
 
 
-def _check_inputs(p_hat, q_encoder):
-    p_hat = np.asarray(p_hat, dtype=float)
-    q_encoder = np.asarray(q_encoder, dtype=float)
-    if p_hat.shape != (6,) or not np.all(np.isfinite(p_hat)):
-        raise InvalidInputError('features must be 6 finite numbers')
-    if q_encoder.shape != (6,) or not np.all(np.isfinite(q_encoder)):
-        raise InvalidInputError('encoder angles must be 6 finite numbers')
-    return p_hat, q_encoder
-
-
 class ClassicIBVS:
     """
     Classic IBVS, integrated at the camera rate: q_feedback += T qdot, one frame at a time.
@@ -183,7 +173,7 @@ class ClassicIBVS:
 
     def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
         """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
-        p_hat, q_encoder = _check_inputs(p_hat, q_encoder)
+        p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         error = p_hat - self.p_target
         dec = decouple(self.model.jacobian(q_encoder), self.rcond, self.damping)
         norm = float(np.linalg.norm(error))
@@ -284,7 +274,7 @@ class PBVS:
 
     def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
         """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
-        p_hat, q_encoder = _check_inputs(p_hat, q_encoder)
+        p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         error = self.pose_error(p_hat)
         twist = -self.gain.lambda_0 * np.concatenate([error[:3], error[3:]])
         # The frame's twist, held over the camera period, integrated in sub-steps with J
@@ -373,7 +363,7 @@ class Switching:
         if self.switched_at is not None:
             self.last = self.feedback.update(p_hat, q_encoder, qdot_encoder)
             return self.last
-        p_hat, q_encoder = _check_inputs(p_hat, q_encoder)
+        p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         error = self.feedback.p_target - p_hat
         self.last = FeedbackUpdate(self.q_feedback, q_encoder, np.zeros(6), 0, float('inf'),
                                    float(np.linalg.norm(error)), np.zeros(6), False, True)
