@@ -11,6 +11,19 @@ def period_ns(rate_hz):
     return int(round(1e9 / float(rate_hz)))
 
 
+def check_camera_rate(camera_rate_hz, physics_rate_hz):
+    """
+    Raise ValueError unless frames come no faster than physics steps (the one rate rule).
+
+    A frame is rendered at a physics step (:func:`frame_stamp_ns`), so T_cam must be at
+    least one step; it need not be a whole number of steps.
+    """
+    if period_ns(camera_rate_hz) < period_ns(physics_rate_hz):
+        raise ValueError(f'{camera_rate_hz} Hz exceeds physics_rate_hz = {physics_rate_hz} Hz: '
+                         'frames are taken at physics steps; allowed: camera_rate_hz <= '
+                         'physics_rate_hz')
+
+
 def frame_stamp_ns(n, camera_period_ns, step_ns):
     """
     Return the stamp (ns) of camera frame ``n``: the sim time of the step it is rendered from.

@@ -8,6 +8,7 @@ from ibvs_common import contract, conversions
 from ibvs_common.conversions import InputError
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.params import declare, Param, ParameterError
+from ibvs_common.timing import check_camera_rate
 from ibvs_model import default_model, forward_kinematics
 import numpy as np
 import pytest
@@ -320,3 +321,15 @@ def test_a_malformed_clock_is_counted_and_the_node_keeps_its_sim_time(context):
         executor.shutdown()
         node.destroy_node()
         talker.destroy_node()
+
+
+@pytest.mark.parametrize('camera_hz, physics_hz, ok', [
+    (30.0, 1000.0, True), (1000.0, 1000.0, True), (7.0, 100.0, True),
+    (1001.0, 1000.0, False), (120.0, 100.0, False)])
+def test_frames_no_faster_than_physics_steps(camera_hz, physics_hz, ok):
+    """The one rate rule, used by the simulator and the joint controller alike."""
+    if ok:
+        check_camera_rate(camera_hz, physics_hz)
+    else:
+        with pytest.raises(ValueError, match='camera_rate_hz <= physics_rate_hz'):
+            check_camera_rate(camera_hz, physics_hz)

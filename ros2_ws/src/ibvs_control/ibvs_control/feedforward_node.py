@@ -29,7 +29,7 @@ from ibvs_common.conversions import InputError, joint_trajectory, read_joints, r
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (OMEGA_N, PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
+from ibvs_common.shared_params import (PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
                                        TARGET_POSITION, TARGET_ROTATION, TAU_IN)
 from ibvs_common.sim_time import known_now_ns
 from ibvs_common.timing import period_ns
@@ -39,9 +39,9 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import Feedforward
-from .node_params import check_gains, FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, target_from
+from .node_params import FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, target_from
 
-PARAMS = (TAU_IN, OMEGA_N, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
+PARAMS = (TAU_IN, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, STALE_TIMEOUT_S)
 
 
@@ -52,7 +52,6 @@ class FeedforwardNode(Node):
         """Declare and check the parameters, design the filter, create the interfaces."""
         super().__init__('feedforward_node', **kwargs)
         values = declare(self, PARAMS)
-        check_gains(values)
         self.pose = target_from(values)
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.future_ns = int(round(values['stale_timeout_s'] * 1e9))

@@ -25,7 +25,7 @@ camera and noise before the run, as a user teaches a target on the real cell.
 from fractions import Fraction
 import math
 
-from ibvs_common.timing import period_ns
+from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, ModelError,
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
@@ -71,9 +71,10 @@ class Simulator:
                 raise ConfigError(name, f'{rate} Hz: a rate must be finite and > 0')
         self.dt_ns = period_ns(physics_rate_hz)
         self.camera_period_ns = period_ns(camera_rate_hz)
-        if self.camera_period_ns < self.dt_ns:
-            raise ConfigError('camera_rate_hz', f'{camera_rate_hz} Hz exceeds physics_rate_hz '
-                              f'= {physics_rate_hz} Hz: frames are taken at physics steps')
+        try:
+            check_camera_rate(camera_rate_hz, physics_rate_hz)
+        except ValueError as exc:
+            raise ConfigError('camera_rate_hz', str(exc)) from None
         self.frames_exact = self.camera_period_ns % self.dt_ns == 0
         if scenario not in (1, 2, 3):
             raise ConfigError('scenario', f'{scenario!r} is not a paper scenario (1, 2 or 3)')
