@@ -59,6 +59,7 @@ from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
@@ -76,6 +77,8 @@ PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATIO
 HOLDING = {'paper': 'holding (arm slewing)', 'switching': 'feedforward only (before the switch)',
            'ibvs': 'holding (markers not measured)', 'pbvs': 'holding (markers not measured)'}
 
+#: Steady-clock period of the 'waiting' log.
+WAIT_LOG_S = 1.0
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
 
@@ -127,7 +130,38 @@ class AdaptiveFeedbackNode(Node):
         if self.needs_status:
             self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS,
                                      self._on_status, contract.RELIABLE)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._answered_since_log = True
+        self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
         self.get_logger().info(f"servo law '{self.law}'")
+
+    def _missing(self):
+        """Return what the oldest pending frame still waits for (empty: nothing pending)."""
+        if not self._pending:
+            return []
+        t_ns = self._pending[0][0]
+        missing = []
+        if self.feedback is None:
+            inputs = ((contract.LEFT_INFO, self._infos[0]),
+                      (contract.RIGHT_INFO, self._infos[1]),
+                      (contract.STEREO_POSE, self._camera_pose))
+            missing += [topic for topic, msg in inputs if msg is None]
+            if self._taught and self._p_target is None:
+                missing.append(contract.TARGET_FEATURES)
+            if not missing:
+                missing.append('a usable camera model')
+        if self._joints_at(t_ns) is None:
+            missing.append(f'{contract.JOINT_STATES} at or after {t_ns} ns')
+        if self.needs_status and t_ns not in self._measured:
+            missing.append(f'{contract.FEATURE_STATUS} of frame {t_ns} ns')
+        return [f'frame {t_ns} ns waits for ' + ', '.join(missing)] if missing else []
+
+    def _log_waiting(self):
+        missing = self._missing()
+        if missing and not self._answered_since_log:
+            self.get_logger().info('waiting: ' + '; '.join(missing))
+        self.diagnostics.update(waiting_for='; '.join(missing) or 'nothing')
+        self._answered_since_log = False
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_info(self, index, msg):
@@ -245,6 +279,7 @@ class AdaptiveFeedbackNode(Node):
             if joints is None or (self.needs_status and t_ns not in self._measured):
                 return
             self._pending.popleft()
+            self._answered_since_log = True
             measured = self._measured.pop(t_ns, True)
             for old in [s for s in self._measured if s < t_ns]:
                 del self._measured[old]

@@ -652,3 +652,20 @@ def test_feedback_rejects_an_unknown_target_features_source(context):
     with pytest.raises(ParameterError, match="'target_features_source'"):
         AdaptiveFeedbackNode(context=context, parameter_overrides=overrides(
             target_features_source='camera'))
+
+
+def test_feedback_says_what_a_pending_frame_waits_for(context):
+    """A frame whose camera model or joint state has not come is named, never silent."""
+    node = AdaptiveFeedbackNode(context=context)
+    try:
+        assert node._missing() == []
+        node._on_features(features_msg(np.arange(6.0), 0))
+        (line,) = node._missing()
+        assert line.startswith('frame 0 ns waits for ')
+        for topic in (contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE,
+                      contract.JOINT_STATES):
+            assert topic in line
+        node._log_waiting()  # the timer's tick: publishes it on /diagnostics too
+        assert node.diagnostics.values['waiting_for'] == line
+    finally:
+        node.destroy_node()

@@ -99,6 +99,11 @@ PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo im
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
+MIN_CAMERA_INFO_SUBSCRIBERS = Param(
+    'min_camera_info_subscribers', 1, 'with publish_images, the start waits until each '
+    'camera_info topic has this many subscribers (every node that builds its camera model '
+    'from the first frame: a CameraInfo published before its reader is matched is lost)',
+    '-', low=1, high=1000)
 MIN_TOOL_POSE_SUBSCRIBERS = Param(
     'min_tool_pose_subscribers', 0, 'the start waits until /ibvs/tool_pose has this many '
     'subscribers (a recorder whose metrics start at step 0)', '-', low=0, high=1000)
@@ -128,7 +133,8 @@ FOCAL_LENGTH_ERROR = Param(
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
           CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
           RENDER_MARKER_SUPERSAMPLING, RENDER_PARALLEL_LENSES, MOUNT_HEIGHT_M, PUBLISH_IMAGES,
-          MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, IMAGE_NOISE_STDDEV,
+          MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
+          IMAGE_NOISE_STDDEV,
           FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
           CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR, TARGET_FEATURES_SOURCE, TARGET_POSITION,
           TARGET_ROTATION)
@@ -157,6 +163,7 @@ class SimNode(Node):
         self._publish_images = values['publish_images']
         self._min_joint_subscribers = values['min_joint_state_subscribers']
         self._min_tool_subscribers = values['min_tool_pose_subscribers']
+        self._min_info_subscribers = values['min_camera_info_subscribers']
         teach = values['target_features_source'] == 'taught'
         if teach and not self._publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
@@ -260,6 +267,11 @@ class SimNode(Node):
         for pub in self._pub_images:
             if pub.get_subscription_count() < 1:
                 missing.append(f'a subscriber on {pub.topic_name}')
+        for pub in self._pub_infos:
+            have = pub.get_subscription_count()
+            if have < self._min_info_subscribers:
+                missing.append(f'{self._min_info_subscribers - have} more subscriber(s) on '
+                               f'{pub.topic_name}')
         return missing
 
     def _try_start(self):
