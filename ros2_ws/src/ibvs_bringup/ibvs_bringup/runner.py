@@ -315,8 +315,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                 tool = watcher.count_subscribers(contract.TOOL_POSE)
                 # The feature and feedback nodes build their camera model from the first
                 # CameraInfo: one lost before its reader was matched stalled runs at t = 0.
-                infos = max(1, min(watcher.count_subscribers(topic)
-                                   for topic in (contract.LEFT_INFO, contract.RIGHT_INFO)))
+                infos = min(watcher.count_subscribers(topic)
+                            for topic in (contract.LEFT_INFO, contract.RIGHT_INFO))
                 extra = ('-p', f'min_joint_state_subscribers:={subscribers}',
                          '-p', f'min_tool_pose_subscribers:={tool}',
                          '-p', f'min_camera_info_subscribers:={infos}')

@@ -100,10 +100,10 @@ MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
 MIN_CAMERA_INFO_SUBSCRIBERS = Param(
-    'min_camera_info_subscribers', 1, 'with publish_images, the start waits until each '
+    'min_camera_info_subscribers', 0, 'with publish_images, the start waits until each '
     'camera_info topic has this many subscribers (every node that builds its camera model '
     'from the first frame: a CameraInfo published before its reader is matched is lost)',
-    '-', low=1, high=1000)
+    '-', low=0, high=1000)
 MIN_TOOL_POSE_SUBSCRIBERS = Param(
     'min_tool_pose_subscribers', 0, 'the start waits until /ibvs/tool_pose has this many '
     'subscribers (a recorder whose metrics start at step 0)', '-', low=0, high=1000)
