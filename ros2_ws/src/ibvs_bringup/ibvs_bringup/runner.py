@@ -308,18 +308,16 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             extra = ()
             if executable == 'sim_node':
                 _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
-                # The recorder and every node must see step 0: the simulator starts only
-                # when all of today's /joint_states and /ibvs/tool_pose subscribers are
-                # matched with it (a late tool pose match lost the first samples of a run).
-                subscribers = max(1, watcher.count_subscribers(contract.JOINT_STATES))
-                tool = watcher.count_subscribers(contract.TOOL_POSE)
-                # The feature and feedback nodes build their camera model from the first
-                # CameraInfo: one lost before its reader was matched stalled runs at t = 0.
-                infos = min(watcher.count_subscribers(topic)
-                            for topic in (contract.LEFT_INFO, contract.RIGHT_INFO))
-                extra = ('-p', f'min_joint_state_subscribers:={subscribers}',
-                         '-p', f'min_tool_pose_subscribers:={tool}',
-                         '-p', f'min_camera_info_subscribers:={infos}')
+                # Every reader of step 0 must be matched before the simulator publishes it
+                # (volatile topics): a node that misses the first /joint_states or CameraInfo
+                # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
+                # The simulator waits for as many subscribers as the runner sees once each
+                # node's own subscriptions are in the graph, recorder and monitor included.
+                counts = _wait_for_readers(executor, watcher, procs)
+                extra = ('-p', f'min_joint_state_subscribers:={counts[contract.JOINT_STATES]}',
+                         '-p', f'min_tool_pose_subscribers:={counts[contract.TOOL_POSE]}',
+                         '-p', 'min_camera_info_subscribers:='
+                         f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
             procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
         last_print = 0.0
         last_sim_ns, last_advance = -1, time.monotonic()
@@ -378,6 +376,35 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         raise stalled
     metrics = write_results(bag_path, out_dir, wall_duration)
     return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
+
+
+#: The nodes that read each topic of step 0 (docs/design.md §1); the runner's recorder and
+#: monitor subscribe in this process, so they are in the graph from the start.
+STEP0_READERS = {
+    contract.JOINT_STATES: ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
+                            'joint_controller_node'),
+    contract.LEFT_INFO: ('feature_node', 'adaptive_feedback_node'),
+    contract.RIGHT_INFO: ('feature_node', 'adaptive_feedback_node'),
+    contract.TOOL_POSE: (),
+}
+
+
+def _wait_for_readers(executor, node, procs, timeout_s=60.0):
+    """Spin until each node of STEP0_READERS subscribes its topic; return subscriber counts."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        executor.spin_once(timeout_sec=0.05)
+        for p in procs:
+            if p.poll() is not None:
+                raise NodeDied(p.name, p.poll(), p.log_path)
+        infos = {topic: node.get_subscriptions_info_by_topic(topic) for topic in STEP0_READERS}
+        missing = [f'{name} on {topic}' for topic, names in STEP0_READERS.items()
+                   for name in names if name not in {i.node_name for i in infos[topic]}]
+        if not missing:
+            return {topic: max(1, len(found)) for topic, found in infos.items()}
+        if time.monotonic() > deadline:
+            raise TimeoutError(f'subscriptions not in the graph after {timeout_s:.0f} s: '
+                               + ', '.join(missing))
 
 
 def _wait_for_nodes(executor, node, names, procs, timeout_s=60.0):
