@@ -1,8 +1,9 @@
 """
 sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
-Lockstep. At step k (sim time t_k, from 0) the node publishes /clock, /ibvs/tool_pose and
-/joint_states (encoder angles q - d_q, velocities, the torque of the previous step), then
+Lockstep. At step k (sim time t_k, from 0) the node publishes /clock (on the steps due at
+``clock_rate_hz``, 100 Hz: sim time for the nodes' clocks, as gazebo_ros publishes it at a
+set rate; no result depends on it), /ibvs/tool_pose and /joint_states (encoder angles q - d_q, velocities, the torque of the previous step), then
 the camera frame due at t_k if any (both images and CameraInfo, stamped t_k), which it
 renders while the joint controller works on step k. Every consumer matches its inputs by
 stamp, so the order changes no result. It then
@@ -51,6 +52,7 @@ from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
                                        PHYSICS_RATE_HZ, SCENARIO, TARGET_FEATURES_SOURCE,
                                        TARGET_POSITION, TARGET_ROTATION)
+from ibvs_common.timing import period_ns
 from ibvs_model import paper
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -96,6 +98,13 @@ PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo im
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
 
+CLOCK_RATE_HZ = Param(
+    'clock_rate_hz', 100.0, 'rate of /clock, the sim time of every node\'s clock: published at '
+    'the first physics step at or after each multiple of its period, at most once a step (a '
+    'rate at or above physics_rate_hz: every step). The lockstep goes by message stamps, not '
+    'by /clock, so the rate changes no result, only the cost: each /clock wakes every node',
+    'Hz', low=0.0, high=10000.0, low_open=True)
+
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
     'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
@@ -133,6 +142,7 @@ FOCAL_LENGTH_ERROR = Param(
 PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
           CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
           RENDER_MARKER_SUPERSAMPLING, RENDER_PARALLEL_LENSES, MOUNT_HEIGHT_M, PUBLISH_IMAGES,
+          CLOCK_RATE_HZ,
           MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
           IMAGE_NOISE_STDDEV,
           FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
@@ -164,6 +174,9 @@ class SimNode(Node):
         self._min_joint_subscribers = values['min_joint_state_subscribers']
         self._min_tool_subscribers = values['min_tool_pose_subscribers']
         self._min_info_subscribers = values['min_camera_info_subscribers']
+        self._clock_period_ns = period_ns(values['clock_rate_hz'])
+        self._next_clock_ns = 0
+        self.last_clock_ns = None
         teach = values['target_features_source'] == 'taught'
         if teach and not self._publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
@@ -297,7 +310,10 @@ class SimNode(Node):
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
         with timing.section('step_messages'):
-            self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+            if t_ns >= self._next_clock_ns:
+                self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+                self.last_clock_ns = t_ns
+                self._next_clock_ns = (t_ns // self._clock_period_ns + 1) * self._clock_period_ns
             self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
             q, qd = sim.encoders()
             self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))

@@ -89,7 +89,7 @@ class StandIn(Node):
         self.answer = False
         self.unanswered = 0
         spin_until(executor, lambda: self.unanswered >= 1 and self.last_stamp() == sim.sim.t_ns
-                   and self.rec['clock'] and self.rec['clock'][-1] == sim.sim.t_ns)
+                   and self.rec['clock'] and self.rec['clock'][-1] == sim.last_clock_ns)
 
     def last_stamp(self):
         joints = self.rec['joints']
@@ -136,9 +136,10 @@ def test_lockstep_rates_and_stamps(graph):
     spin_until(executor, lambda: rec['tool']
                and stamp_ns(rec['tool'][-1].header.stamp) == sim.sim.t_ns)
     t_end = stand_in.last_stamp()
-    # Physics rate: one /clock, /joint_states and tool pose per step, every step, in order.
+    # Physics rate: one /joint_states and tool pose per step, every step, in order; /clock
+    # at clock_rate_hz (default 100 Hz: every tenth step).
     expected = list(range(0, t_end + 1, period))
-    assert rec['clock'] == expected
+    assert rec['clock'] == expected[::10]
     assert [stamp_ns(m.header.stamp) for m in rec['joints']] == expected
     assert [stamp_ns(m.header.stamp) for m in rec['tool']] == expected
     # One step per command: every /joint_states but the last was answered, once.
@@ -168,17 +169,28 @@ def test_lockstep_rates_and_stamps(graph):
                        atol=1e-7)
 
 
+def test_clock_at_its_rate_on_the_step_grid(graph):
+    """/clock: the first step at or after each multiple of 1 / clock_rate_hz, once a step."""
+    for rate, expected in ((300.0, [0, 4, 7, 10, 14, 17, 20]),
+                           (5000.0, list(range(0, 21)))):
+        sim, stand_in, executor = graph(publish_images=False, clock_rate_hz=rate)
+        spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 20_000_000)
+        stand_in.stop_and_settle(executor, sim)
+        got = [t for t in stand_in.rec['clock'] if t <= 20_000_000]
+        assert got == [ms * 1_000_000 for ms in expected], rate
+
+
 def test_one_step_per_command_only_with_the_current_stamp(graph):
     sim, stand_in, executor = graph(publish_images=False)
     spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 5_000_000)
     stand_in.stop_and_settle(executor, sim)
     k = sim.sim.k
     t = sim.sim.t_ns
-    stuck = len(stand_in.rec['clock'])
+    stuck = len(stand_in.rec['joints'])
     # No command: no step, however long we spin (here 20 spins).
     for _ in range(20):
         executor.spin_once(timeout_sec=0.01)
-    assert sim.sim.k == k and len(stand_in.rec['clock']) == stuck
+    assert sim.sim.k == k and len(stand_in.rec['joints']) == stuck
     # Older and newer stamps are rejected and do not step.
     zeros = np.zeros(6)
     for stamp, reason in ((t - 1_000_000, 'stale stamp'), (t + 1_000_000, 'early stamp')):
