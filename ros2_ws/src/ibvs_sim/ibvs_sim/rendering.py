@@ -78,6 +78,27 @@ def projection_matrix(intrinsics, near=NEAR_M, far=FAR_M, renderer='egl'):
     ])
 
 
+def ground_obj(half_size_m):
+    """
+    Return a Wavefront OBJ of the ground: one square of ``half_size_m`` each side, facing up.
+
+    One-sided on purpose. The EGL plugin draws the back faces of every body into its shadow
+    map (2048 x 2048 texels, drawn again for every image, whatever the image's size); a
+    ground box's underside covered all of it, which cost 9 ms of each EGL call on llvmpipe
+    (measured) and put the box's own top in its shadow. A square seen from above only is
+    never drawn there: the ground takes the light as the rest of the scene does, and the
+    robot casts its shadow on it.
+    """
+    h = float(half_size_m)
+    if not (math.isfinite(h) and h > 0.0):
+        raise ValueError(f'half_size_m must be > 0, got {half_size_m!r}')
+    corners = ((-h, -h), (h, -h), (h, h), (-h, h))  # counter-clockwise seen from +z
+    lines = ['# The ground square: ibvs_sim.rendering.ground_obj.']
+    lines += [f'v {x:.6f} {y:.6f} 0.0' for x, y in corners]
+    lines += ['vn 0.0 0.0 1.0', 'f 1//1 2//1 3//1', 'f 1//1 3//1 4//1']
+    return '\n'.join(lines) + '\n'
+
+
 def tiles(intrinsics, max_width=EGL_WINDOW[0], max_height=EGL_WINDOW[1]):
     """
     Return the tiles of an image no larger than ``max_width`` x ``max_height``.

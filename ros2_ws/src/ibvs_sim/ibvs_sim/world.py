@@ -14,8 +14,10 @@ fixed step h = 1 / physics_rate_hz.
 Rendering: the pure geometry (OpenGL matrices of the pinhole lenses, tiles of the EGL window,
 supersampling, the windows around the fiducials) is :mod:`ibvs_sim.rendering`; this module
 makes the PyBullet calls. The EGL plugin (OpenGL without a display) is used where it loads,
-TinyRenderer otherwise. Lighting is mostly ambient, without specular highlights or shadows,
-so that a marker keeps its hue all over its disc.
+TinyRenderer otherwise. Lighting is mostly ambient, without specular highlights, so that a
+marker keeps its hue all over its disc. TinyRenderer draws no shadows (``shadow`` 0); the EGL
+plugin ignores that flag and always shades with its shadow map, so there the robot casts a
+shadow on the ground (a one-sided square: :func:`ibvs_sim.rendering.ground_obj`).
 """
 
 import math
@@ -33,12 +35,13 @@ import pybullet
 from .lens_worker import LensWorker
 from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
                         DEFAULT_SUPERSAMPLING, EGL_WINDOW, FAR_M, focus_windows, gl_matrix,
+                        ground_obj,
                         lens_poses, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M,
                         projection_matrix, render_windows, supersampled, tiles, view_matrix,
                         window_intrinsics)
 
-#: Ground plane: a thin box, this grey, this many metres each side of {O}, its top
-#: ``mount_height_m`` below the robot's base plane z = 0 of {O}.
+#: Ground plane: a square facing up (:func:`ibvs_sim.rendering.ground_obj`), this grey, this
+#: many metres each side of {O}, ``mount_height_m`` below the robot's base plane z = 0 of {O}.
 GROUND_RGBA = (0.55, 0.55, 0.55, 1.0)
 GROUND_HALF_SIZE_M = 6.0
 #: The robot stands on a riser (a box under its base, this half size and colour) whose top is
@@ -124,10 +127,18 @@ class World:
         return func(*args, physicsClientId=self._client, **kwargs)
 
     def _setup(self, with_tool):
+        floor = -self.mount_height_m
         with tempfile.TemporaryDirectory(prefix='ibvs_sim_') as tmp:
             path = write_urdf(Path(tmp) / 'irb4600.urdf', self.params, with_tool)
             self.body = self._call(pybullet.loadURDF, str(path), useFixedBase=True,
                                    flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+            ground = Path(tmp) / 'ground.obj'
+            ground.write_text(ground_obj(GROUND_HALF_SIZE_M))
+            shape = self._call(pybullet.createVisualShape, pybullet.GEOM_MESH,
+                               fileName=str(ground), rgbaColor=GROUND_RGBA,
+                               specularColor=[0.0, 0.0, 0.0])
+            self.ground = self._call(pybullet.createMultiBody, baseMass=0.0,
+                                     baseVisualShapeIndex=shape, basePosition=(0.0, 0.0, floor))
         self.links = {}
         joints = {}
         for j in range(self._call(pybullet.getNumJoints, self.body)):
@@ -146,9 +157,6 @@ class World:
             # The hardware renderer's default specular highlight would whiten the markers.
             self._call(pybullet.changeVisualShape, self.body, link,
                        specularColor=[0.0, 0.0, 0.0])
-        floor = -self.mount_height_m
-        self.ground = self._box((GROUND_HALF_SIZE_M, GROUND_HALF_SIZE_M, 0.005), floor - 0.005,
-                                GROUND_RGBA)
         self.riser = (self._box((*RISER_HALF_SIZE_M, self.mount_height_m / 2.0), floor / 2.0,
                                 RISER_RGBA) if self.mount_height_m > 0.0 else None)
         if self.renderer == 'egl':
