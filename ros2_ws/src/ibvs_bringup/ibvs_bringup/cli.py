@@ -25,7 +25,7 @@ import time
 
 from ibvs_control.servo_laws import feedforward_overrides
 
-from . import runner, scenario, study_spec
+from . import domains, runner, scenario, study_spec
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
                 'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',
@@ -55,6 +55,9 @@ def cmd_run(args):
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
                                      record_images=args.images, stall_s=args.stall_s)
+    except domains.DomainBusy as exc:
+        print(f'run not started: {exc}', file=sys.stderr)
+        return 2
     except runner.NodeDied as exc:
         print(f'run failed: {exc}', file=sys.stderr)
         return 3

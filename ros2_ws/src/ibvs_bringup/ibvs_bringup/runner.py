@@ -40,7 +40,7 @@ import rclpy
 from rosgraph_msgs.msg import Clock
 import yaml
 
-from . import analysis, plots, scenario
+from . import analysis, domains, plots, scenario
 from .recorder import Recorder
 
 #: The graph of docs/design.md §1, in start order: the simulator last, so that every
@@ -265,9 +265,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
     0.1 mm and 0.01 deg of the target for that long (sim time). Raises
     :class:`scenario.ScenarioError` for a configuration that cannot make progress (before
-    starting anything), :class:`NodeDied` if a node exits, and :class:`RunStalled` if sim
-    time does not advance for ``stall_s`` of wall time (or the simulator has not taken its
-    first step ``start_timeout_s`` after it was launched).
+    starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
+    (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
+    :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
+    simulator has not taken its first step ``start_timeout_s`` after it was launched).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
@@ -286,6 +287,12 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         shutil.rmtree(bag_path)
     target = analysis.target_from_params(params)
 
+    # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
+    domain, domain_lock = domains.claim()
+    saved_domain = os.environ.get('ROS_DOMAIN_ID')
+    os.environ['ROS_DOMAIN_ID'] = str(domain)
+    if saved_domain is None and domain != 0:
+        progress(f'  ROS_DOMAIN_ID {domain}: lower domains are used by other runs')
     dds.configure()  # before rclpy.init here, and inherited by the node processes
     context = rclpy.context.Context()
     rclpy.init(context=context)
@@ -370,6 +377,12 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         recorder.destroy_node()
         watcher.destroy_node()
         rclpy.shutdown(context=context)
+        if domain_lock is not None:
+            domain_lock.close()
+        if saved_domain is None:
+            del os.environ['ROS_DOMAIN_ID']
+        else:
+            os.environ['ROS_DOMAIN_ID'] = saved_domain
     if died:
         raise died
     if stalled:

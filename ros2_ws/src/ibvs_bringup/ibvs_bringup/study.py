@@ -2,11 +2,12 @@
 Studies on Ray: every run of one or more study specs as a Ray task, cached, with a table.
 
 Each run is ``ibvs run`` in a subprocess of a Ray worker, isolated from the others by its
-own ``ROS_DOMAIN_ID`` (from a pool, :func:`lock_domain`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=
-LOCALHOST`` and its own output directory. A run declares ``num_cpus=CPUS_PER_RUN`` to Ray:
-the lockstep passes one message at a time through the graph's five processes, so they take
-turns and one run keeps at most about one core busy (each record's ``cpu_s`` says how much
-it used), and Ray runs as many at once as the machine (or the cluster) has cores.
+own ``ROS_DOMAIN_ID`` (from a pool: :mod:`ibvs_bringup.domains`),
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and its own output directory. A run declares
+``num_cpus=CPUS_PER_RUN`` to Ray: the lockstep passes one message at a time through the
+graph's five processes, so they take turns and one run keeps at most about one core busy
+(each record's ``cpu_s`` says how much it used), and Ray runs as many at once as the machine
+(or the cluster) has cores.
 
 Without ``address`` a local Ray is started for the study (its temporary directory under
 /tmp, removed afterwards) and shut down at the end; with ``address`` the runs go to an
@@ -22,7 +23,6 @@ records of the runs already finished.
 """
 
 import csv
-import fcntl
 import hashlib
 import importlib.util
 import json
@@ -45,6 +45,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import scenario, study_spec  # noqa: E402
+from .domains import HELD_ENV, lock_domain  # noqa: E402
 from .runner import _die_with_parent, STALL_S  # noqa: E402
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
@@ -107,7 +108,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s)
     Run ``ibvs run`` once in a subprocess on its own ROS domain; return what came of it.
 
     The domain is the first of ``domains`` (low, high) that no other run on this machine
-    holds (:func:`lock_domain`).
+    holds (:func:`ibvs_bringup.domains.lock_domain`).
 
     The body of the Ray task. Cancelled (KeyboardInterrupt from ``ray.cancel``), it sends
     SIGINT to the run, which stops its nodes cleanly, and waits for it.
@@ -124,6 +125,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s)
     for name, value in overrides.items():
         cmd += ['-p', f'{name}:={json.dumps(value)}']
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
+               **{HELD_ENV: str(domain)},
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     start = time.monotonic()
     cpu_start = _children_cpu_s()
@@ -164,30 +166,6 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s)
 def _children_cpu_s():
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     return usage.ru_utime + usage.ru_stime
-
-
-def lock_domain(low, high, poll_s=0.5):
-    """
-    Return ``(domain, lock)``: a ROS_DOMAIN_ID in [low, high] held until ``lock.close()``.
-
-    One ``flock`` per ID in a directory under the system's temporary directory, so that no
-    two runs on one machine share a domain, whichever study or Ray session they belong to,
-    and a run that dies releases its ID with its process. (Not a Ray actor: a task that
-    waits on ``ray.get`` gives its CPU back to Ray, which then starts one run too many.)
-    Waits while every ID is taken.
-    """
-    directory = Path(tempfile.gettempdir()) / 'ibvs-ros-domains'
-    directory.mkdir(exist_ok=True)
-    while True:
-        for domain in range(low, high + 1):
-            lock = open(directory / f'{domain}.lock', 'w')
-            try:
-                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                lock.close()
-                continue
-            return domain, lock
-        time.sleep(poll_s)
 
 
 class Progress:

@@ -94,7 +94,7 @@ def test_installed_study_specs_are_valid():
 
 
 def test_domain_locks_are_exclusive_and_released():
-    from ibvs_bringup.study import lock_domain
+    from ibvs_bringup.domains import lock_domain
     first, lock1 = lock_domain(195, 196)
     second, lock2 = lock_domain(195, 196)
     assert first != second and {first, second} == {195, 196}
@@ -103,3 +103,23 @@ def test_domain_locks_are_exclusive_and_released():
     assert again == first
     lock2.close()
     lock3.close()
+
+
+def test_a_run_claims_a_free_domain_or_refuses_a_busy_one():
+    """Two runs never share a domain: unset takes the next free, a busy explicit one stops."""
+    import pytest
+    from ibvs_bringup.domains import claim, DomainBusy, HELD_ENV
+    first, lock1 = claim({}, pool=(197, 198))
+    second, lock2 = claim({}, pool=(197, 198))
+    assert (first, second) == (197, 198)
+    with pytest.raises(DomainBusy, match='every ROS domain'):
+        claim({}, pool=(197, 198))
+    with pytest.raises(DomainBusy, match='ROS_DOMAIN_ID=197 is used by another run'):
+        claim({'ROS_DOMAIN_ID': '197'})
+    # A study's run: the parent holds the lock and says so.
+    assert claim({'ROS_DOMAIN_ID': '197', HELD_ENV: '197'}) == (197, None)
+    lock1.close()
+    again, lock3 = claim({'ROS_DOMAIN_ID': '197'})
+    assert again == 197
+    for lock in (lock2, lock3):
+        lock.close()

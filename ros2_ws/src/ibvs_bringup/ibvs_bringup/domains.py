@@ -1,0 +1,84 @@
+"""
+ROS domains of the runs on one machine: no two runs share one.
+
+Two graphs on one ROS domain hear each other: each recorder would record both simulators and
+each controller would answer both. Every run therefore holds an exclusive ``flock`` on its
+domain's file in a directory under the system's temporary directory, whoever started it
+(``ibvs run``, a report, a study, a Ray worker); a run that dies releases its domain with
+its process.
+
+- ``ROS_DOMAIN_ID`` set: the run takes that domain, or stops with :class:`DomainBusy` if
+  another run holds it.
+- Not set: the run takes the first free domain from 0 on, so that a lone run is on domain 0,
+  where the ``ros2`` CLI looks by default.
+- A study holds the domains of its runs itself and says so in ``IBVS_DOMAIN_HELD``.
+"""
+
+import fcntl
+import os
+from pathlib import Path
+import tempfile
+import time
+
+#: Directory of the lock files, one per domain ID.
+LOCK_DIR = Path(tempfile.gettempdir()) / 'ibvs-ros-domains'
+#: Environment variable by which a parent that holds the lock of ROS_DOMAIN_ID says so.
+HELD_ENV = 'IBVS_DOMAIN_HELD'
+#: Domains a run without ROS_DOMAIN_ID may take (inclusive; Fast DDS ports allow 0-232).
+FREE_POOL = (0, 100)
+
+
+class DomainBusy(RuntimeError):
+    """The domain a run was told to use is held by another run."""
+
+
+def try_lock(domain):
+    """Return an open file that holds ``domain``'s lock, or None if another process holds it."""
+    LOCK_DIR.mkdir(exist_ok=True)
+    lock = open(LOCK_DIR / f'{int(domain)}.lock', 'w')
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.close()
+        return None
+    return lock
+
+
+def lock_domain(low, high, poll_s=0.5):
+    """
+    Return ``(domain, lock)``: the first free ROS_DOMAIN_ID in [low, high], held until closed.
+
+    Waits while every ID is taken (a study's pool: its runs wait for a free domain).
+    """
+    while True:
+        for domain in range(low, high + 1):
+            lock = try_lock(domain)
+            if lock is not None:
+                return domain, lock
+        time.sleep(poll_s)
+
+
+def claim(environ=os.environ, pool=FREE_POOL):
+    """
+    Return ``(domain, lock)`` for a run started with ``environ`` (module docstring).
+
+    ``lock`` is None when the parent holds the domain (``IBVS_DOMAIN_HELD``); close it when
+    the run ends. Raises :class:`DomainBusy` when ROS_DOMAIN_ID names a domain another run
+    holds, or when every domain of ``pool`` is held.
+    """
+    text = environ.get('ROS_DOMAIN_ID', '').strip()
+    if text:
+        domain = int(text)
+        if environ.get(HELD_ENV, '').strip() == text:
+            return domain, None
+        lock = try_lock(domain)
+        if lock is None:
+            raise DomainBusy(f'ROS_DOMAIN_ID={domain} is used by another run on this machine '
+                             f'(lock {LOCK_DIR / f"{domain}.lock"}); choose another ID, or '
+                             'unset ROS_DOMAIN_ID to take the first free one')
+        return domain, lock
+    for domain in range(pool[0], pool[1] + 1):
+        lock = try_lock(domain)
+        if lock is not None:
+            return domain, lock
+    raise DomainBusy(f'every ROS domain from {pool[0]} to {pool[1]} is used by another run')
