@@ -3,14 +3,14 @@ sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md
 
 Lockstep. At step k (sim time t_k, from 0) the node publishes /clock (on the steps due at
 ``clock_rate_hz``, 100 Hz: sim time for the nodes' clocks, as gazebo_ros publishes it at a
-set rate; no result depends on it), /ibvs/tool_pose and /joint_states (encoder angles q - d_q, velocities, the torque of the previous step), then
-the camera frame due at t_k if any (both images and CameraInfo, stamped t_k), which it
-renders while the joint controller works on step k. Every consumer matches its inputs by
-stamp, so the order changes no result. It then
-waits for /joint_effort_commands stamped t_k; that message (and only that one) applies its
-torques for one step and moves to k + 1, inside the subscription callback: nothing spins or
-sleeps, so any number of nodes can share one executor. While it waits, a steady-clock timer
-logs once a second what it waits for.
+set rate; no result depends on it), /ibvs/tool_pose and /joint_states (encoder angles
+q - d_q, velocities, the torque of the previous step), then the camera frame due at t_k if
+any (both images and CameraInfo, stamped t_k), which it renders while the joint controller
+works on step k. Every consumer matches its inputs by stamp, so the order changes no result.
+It then waits for /joint_effort_commands stamped t_k; that message (and only that one)
+applies its torques for one step and moves to k + 1, inside the subscription callback:
+nothing spins or sleeps, so any number of nodes can share one executor. While it waits, a
+steady-clock timer logs once a second what it waits for.
 
 Start. Step 0 is published once somebody will answer and listen: /joint_effort_commands
 has a publisher, /joint_states a subscriber and, with publish_images, both image topics a
@@ -99,7 +99,7 @@ PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo im
                        'source)', '-')
 
 CLOCK_RATE_HZ = Param(
-    'clock_rate_hz', 100.0, 'rate of /clock, the sim time of every node\'s clock: published at '
+    'clock_rate_hz', 100.0, "rate of /clock, the sim time of every node's clock: published at "
     'the first physics step at or after each multiple of its period, at most once a step (a '
     'rate at or above physics_rate_hz: every step). The lockstep goes by message stamps, not '
     'by /clock, so the rate changes no result, only the cost: each /clock wakes every node',
