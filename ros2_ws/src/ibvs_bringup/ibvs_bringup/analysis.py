@@ -150,6 +150,12 @@ def _stamp(header):
     return header.stamp.sec + header.stamp.nanosec * 1e-9
 
 
+def _before(end_ns, stamps, values):
+    """Return (stamps, values) of the samples stamped (s) before ``end_ns``."""
+    keep = [i for i, x in enumerate(stamps) if round(x * 1e9) < end_ns]
+    return [stamps[i] for i in keep], [values[i] for i in keep]
+
+
 def load_run(bag_path):
     """Read a run's bag: tool poses, features, feature modes, camera and parameters."""
     bag_path = Path(bag_path)
@@ -180,6 +186,15 @@ def load_run(bag_path):
                 infos.setdefault(conn.topic, msg)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
+    # A run of duration D covers the steps stamped in [0, D): what the simulator did while
+    # the runner was stopping it is left out, so that the metrics do not depend on when it
+    # stopped (older bags have no duration_s and are taken whole).
+    limit = run_info.get('duration_s')
+    if limit is not None:
+        end_ns = round(float(limit) * 1e9)
+        t, poses = _before(end_ns, t, poses)
+        ft, feats = _before(end_ns, ft, feats)
+        mt, modes = _before(end_ns, mt, modes)
     if len(t) < 2:
         raise ValueError(f'{bag_path}: fewer than two {contract.TOOL_POSE} messages')
     order = np.argsort(t, kind='stable')

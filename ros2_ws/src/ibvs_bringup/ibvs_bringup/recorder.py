@@ -147,6 +147,8 @@ class Recorder(Node):
         self._qos = {}
         self._topic_subs = {}
         self.clock_ns = 0
+        #: The newest serialized message of each topic (read by the runner's Monitor).
+        self.latest = {}
         #: Wall time spent writing messages (ibvs_common.profiling), for ``make bench``.
         self.timing = Stopwatch()
         self.counts = {}
@@ -202,6 +204,7 @@ class Recorder(Node):
                     self.clock_ns = clock.sec * 1_000_000_000 + clock.nanosec
                     self.timing.reached(self.clock_ns)
             self._writer.write(self._connection(topic), self.clock_ns, data)
+            self.latest[topic] = data
         self.counts[topic] += 1
 
     def close(self):

@@ -32,12 +32,13 @@ from ament_index_python.packages import get_package_prefix
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, dds
-from ibvs_common.conversions import pose_matrix, stamp_ns
+from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np
 import rclpy
-from rosgraph_msgs.msg import Clock
+from rclpy.serialization import deserialize_message
+from rclpy.task import Future
 import yaml
 
 from . import analysis, domains, plots, scenario
@@ -62,6 +63,8 @@ STALL_S = 60.0
 #: Default wall time from the last node's launch to the simulator's first step (s):
 #: start-up (PyBullet, EGL, discovery) takes seconds, more on a loaded machine.
 START_TIMEOUT_S = 120.0
+#: Wall time between two looks of the runner at the run (progress, stall, end, node exits).
+POLL_S = 0.02
 #: What the stall report says of a node that reported no wait: busy, frozen, or a node that
 #: does not report its waits.
 SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
@@ -196,24 +199,44 @@ class RunResult:
 
 
 class Monitor:
-    """Sim time and tool pose of the running graph, for progress and convergence."""
+    """
+    Sim time and tool pose of the running graph, for progress, convergence and stalls.
 
-    def __init__(self, node, target):
-        """Subscribe to /clock and /ibvs/tool_pose on ``node``."""
+    Read from what the recorder (same process) receives: no subscription of its own to the
+    per-step topics, so the graph does not deliver each step twice to this process, and the
+    newest tool pose is decoded only when :meth:`poll` is called (every ``POLL_S`` of wall
+    time), not at each step.
+    """
+
+    def __init__(self, node, recorder, target):
+        """Follow ``recorder``'s /clock and /ibvs/tool_pose; /diagnostics on ``node``."""
         self.target = target
+        self._recorder = recorder
+        self._pose_raw = None
         self.sim_ns = 0
         self.error_m = float('nan')
         self.axis_deg = float('nan')
         self.within_since_ns = None
-        #: Wall time (time.monotonic) at which the first /clock arrived: the run's start.
+        #: Wall time (time.monotonic) at which the first /clock was seen: the run's start.
         self.started_wall = None
-        node.create_subscription(Clock, contract.CLOCK, self._on_clock, contract.RELIABLE)
-        node.create_subscription(PoseStamped, contract.TOOL_POSE, self._on_pose,
-                                 contract.RELIABLE)
         #: Latest /diagnostics status values of each node, by node name.
         self.diagnostics = {}
         node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diagnostics,
                                  10)
+
+    def poll(self):
+        """Take the newest sim time and tool pose the recorder has received."""
+        recorder = self._recorder
+        if self.started_wall is None and recorder.counts.get(contract.CLOCK):
+            self.started_wall = time.monotonic()
+        self.sim_ns = max(self.sim_ns, recorder.clock_ns)
+        raw = recorder.latest.get(contract.TOOL_POSE)
+        if raw is not None and raw is not self._pose_raw:
+            self._pose_raw = raw
+            tf = pose_matrix(deserialize_message(raw, PoseStamped).pose)
+            self.error_m = float(np.linalg.norm(tf[:3, 3] - self.target[:3, 3]))
+            self.axis_deg = float(analysis.axis_angle_deg(tf[None, :3, :3],
+                                                          self.target[:3, :3])[0])
 
     def _on_diagnostics(self, msg):
         for status in msg.status:
@@ -233,16 +256,6 @@ class Monitor:
                      if k.startswith('waiting') and v not in ('', '-1')]
             out[p.name] = '; '.join(said) or SILENT
         return out
-
-    def _on_clock(self, msg):
-        if self.started_wall is None:
-            self.started_wall = time.monotonic()
-        self.sim_ns = max(self.sim_ns, stamp_ns(msg.clock))
-
-    def _on_pose(self, msg):
-        tf = pose_matrix(msg.pose)
-        self.error_m = float(np.linalg.norm(tf[:3, 3] - self.target[:3, 3]))
-        self.axis_deg = float(analysis.axis_angle_deg(tf[None, :3, :3], self.target[:3, :3])[0])
 
     def update_convergence(self, pos_tol_m, axis_tol_deg):
         """Track since when the tool has been within tolerance; return that duration (s)."""
@@ -301,7 +314,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                         custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
     watcher = rclpy.create_node('ibvs_run_monitor', context=context,
                                 parameter_overrides=[])
-    monitor = Monitor(watcher, target)
+    monitor = Monitor(watcher, recorder, target)
     executor.add_node(recorder)
     executor.add_node(watcher)
     procs = []
@@ -328,8 +341,11 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
         last_print = 0.0
         last_sim_ns, last_advance = -1, time.monotonic()
+        never = Future()
         while True:
-            executor.spin_once(timeout_sec=0.05)
+            # Every callback due in the next POLL_S, then one look at the run.
+            executor.spin_until_future_complete(never, timeout_sec=POLL_S)
+            monitor.poll()
             for p in procs:
                 code = p.poll()
                 if code is not None:
@@ -370,7 +386,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     finally:
         codes = {p.name: p.stop() for p in reversed(procs)}
         recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
-            'wall_duration_s': wall_duration,
+            'duration_s': duration_s, 'wall_duration_s': wall_duration,
             'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
         recorder.close()
         executor.shutdown()
