@@ -241,7 +241,7 @@ def test_feedback_answers_each_frame_like_the_pure_controller(context):
         # features first: the node must wait for the camera model and the joint states
         for n, t in enumerate(frames):
             h.publish(contract.FEATURES, features_msg(model.features(q_target + d_q), t))
-        h.spin_until(lambda: len(node._pending) == 4, 'features buffered')
+        h.spin_until(lambda: len(node._lockstep.frames) == 4, 'features buffered')
         left, right, pose = camera_messages(model)
         h.publish(contract.LEFT_INFO, left)
         h.publish(contract.RIGHT_INFO, right)
@@ -300,7 +300,8 @@ def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context
             h.publish(contract.FEATURES, features_msg(model.features(q), t))
         for t in (0, 34 * MS, 67 * MS):
             h.publish(contract.JOINT_STATES, joint_state(t, q, np.zeros(6)))
-        h.spin_until(lambda: len(node._pending) == 3 and len(node._stamps) == 3, 'inputs')
+        h.spin_until(lambda: len(node._lockstep.frames) == 3
+                     and len(node._lockstep.joints) == 3, 'inputs')
         out = h.received[contract.Q_FEEDBACK]
         assert out == [], 'a frame waits for its /ibvs/feature_status'
         for t, measured in zip(frames, (True, False, True)):
