@@ -17,7 +17,8 @@ Determinism (docs/design.md §4). The encoder joints of frame t_f are those of t
 /joint_states stamped at or after t_f (the simulator renders frame n from the first physics
 step at or after n * T_cam and publishes that step's joint state with it), kept in a short
 history by stamp. A frame waits until the camera model and that joint state have arrived;
-frames are processed in stamp order.
+frames are processed in stamp order (the rule: :class:`ibvs_common.sync.FrameLockstep`, plain
+Python, tested without rclpy).
 
 Every frame is answered by one /ibvs/q_feedback stamped t_f, so that the joint controller,
 which waits for it, never stalls: a frame that cannot be used (NaN or wrong number of
@@ -42,9 +43,6 @@ stamp ('reason' 'measured': the detector found both markers in both images). 'pa
 does not subscribe to it and runs exactly as before.
 """
 
-import bisect
-from collections import deque
-
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
@@ -56,6 +54,7 @@ from ibvs_common.params import declare
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
                                        TARGET_FEATURES_SOURCE, TARGET_POSITION,
                                        TARGET_ROTATION, TAU_IN, ZETA)
+from ibvs_common.sync import FrameLockstep
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
@@ -94,7 +93,6 @@ class AdaptiveFeedbackNode(Node):
         self.gain = check_servo_law(values)
         self.law = values['servo_law']
         self.needs_status = self.law != 'paper'
-        self._measured = {}
         self.pose = target_from(values)
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.timeout_ns = int(round(values['stale_timeout_s'] * 1e9))
@@ -103,10 +101,10 @@ class AdaptiveFeedbackNode(Node):
         self._camera_pose = None
         self._taught = values['target_features_source'] == 'taught'
         self._p_target = None
-        self._stamps = deque(maxlen=HISTORY)
-        self._joints = deque(maxlen=HISTORY)
-        self._pending = deque()
-        self.last_answered_ns = None
+        self._lockstep = FrameLockstep(HISTORY, self.needs_status,
+                                       joints_name=contract.JOINT_STATES,
+                                       status_name=contract.FEATURE_STATUS,
+                                       full_note='waiting for the camera model')
         self.last_fresh_ns = None
         self.first_joint_ns = None
         self.frozen = False
@@ -137,9 +135,9 @@ class AdaptiveFeedbackNode(Node):
 
     def _missing(self):
         """Return what the oldest pending frame still waits for (empty: nothing pending)."""
-        if not self._pending:
+        t_ns = self._lockstep.frames.first_ns
+        if t_ns is None:
             return []
-        t_ns = self._pending[0][0]
         missing = []
         if self.feedback is None:
             inputs = ((contract.LEFT_INFO, self._infos[0]),
@@ -150,10 +148,7 @@ class AdaptiveFeedbackNode(Node):
                 missing.append(contract.TARGET_FEATURES)
             if not missing:
                 missing.append('a usable camera model')
-        if self._joints_at(t_ns) is None:
-            missing.append(f'{contract.JOINT_STATES} at or after {t_ns} ns')
-        if self.needs_status and t_ns not in self._measured:
-            missing.append(f'{contract.FEATURE_STATUS} of frame {t_ns} ns')
+        missing += self._lockstep.waiting_for(t_ns)
         return [f'frame {t_ns} ns waits for ' + ', '.join(missing)] if missing else []
 
     def _log_waiting(self):
@@ -224,12 +219,10 @@ class AdaptiveFeedbackNode(Node):
         except InputError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
             return
-        if self._stamps and t_ns <= self._stamps[-1]:
-            self.diagnostics.reject(contract.JOINT_STATES, 'stale stamp',
-                                    f'{t_ns} ns after {self._stamps[-1]} ns')
+        rejection = self._lockstep.offer_joints(t_ns, (q, qd))
+        if rejection is not None:
+            self.diagnostics.reject(contract.JOINT_STATES, *rejection)
             return
-        self._stamps.append(t_ns)
-        self._joints.append((q, qd))
         if self.first_joint_ns is None:
             self.first_joint_ns = t_ns
         self._watch_timeout(t_ns)
@@ -237,57 +230,40 @@ class AdaptiveFeedbackNode(Node):
 
     def _on_features(self, msg):
         t_ns = stamp_ns(msg.header.stamp)
-        newest = self._pending[-1][0] if self._pending else self.last_answered_ns
-        if newest is not None and t_ns <= newest:
-            self.diagnostics.reject(contract.FEATURES, 'stale stamp',
-                                    f'{t_ns} ns, not after {newest} ns')
-            return
-        if len(self._pending) >= HISTORY:
-            self.diagnostics.reject(contract.FEATURES, 'buffer full',
-                                    f'{t_ns} ns dropped: waiting for the camera model')
-            return
         try:
             features = read_features(msg)
         except InputError as exc:
-            features = exc
-        self._pending.append((t_ns, features))
+            features = exc  # answered with the held q_feedback, in its turn
+        rejection = self._lockstep.offer_frame(t_ns, features)
+        if rejection is not None:
+            self.diagnostics.reject(contract.FEATURES, *rejection)
+            return
         self._drain()
 
     def _on_status(self, msg):
         """Keep whether the frame of this /ibvs/feature_status stamp was measured."""
         t_ns = stamp_ns(msg.header.stamp)
-        if self.last_answered_ns is not None and t_ns <= self.last_answered_ns:
+        measured = any(kv.key == 'reason' and kv.value == 'measured'
+                       for status in msg.status for kv in status.values)
+        rejection = self._lockstep.offer_status(t_ns, measured)
+        if rejection is not None:
+            self.diagnostics.reject(contract.FEATURE_STATUS, *rejection)
             return
-        if len(self._measured) >= HISTORY:
-            self.diagnostics.reject(contract.FEATURE_STATUS, 'buffer full', f'{t_ns} ns')
-            return
-        self._measured[t_ns] = any(kv.key == 'reason' and kv.value == 'measured'
-                                   for status in msg.status for kv in status.values)
         self._drain()
 
     # -- processing ------------------------------------------------------------------------
-    def _joints_at(self, t_ns):
-        """Return (q, qdot) of the first joint state at or after ``t_ns``, else None."""
-        i = bisect.bisect_left(self._stamps, t_ns)
-        return self._joints[i] if i < len(self._stamps) else None
-
     def _drain(self):
         """Answer the pending frames in order, as far as their inputs have arrived."""
-        while self._pending and self.feedback is not None:
-            t_ns, features = self._pending[0]
-            joints = self._joints_at(t_ns)
-            if joints is None or (self.needs_status and t_ns not in self._measured):
+        while self.feedback is not None:
+            ready = self._lockstep.pop_ready()
+            if ready is None:
                 return
-            self._pending.popleft()
             self._answered_since_log = True
-            measured = self._measured.pop(t_ns, True)
-            for old in [s for s in self._measured if s < t_ns]:
-                del self._measured[old]
-            self._answer(t_ns, features, joints, measured)
+            self._answer(*ready)
 
     def _answer(self, t_ns, features, joints, measured=True):
         source = contract.FEATURES
-        now_ns = self._stamps[-1]
+        now_ns = self._lockstep.joints.newest
         if isinstance(features, InputError):
             self.diagnostics.reject(source, features.reason,
                                     f'{features.detail}; q_feedback held')
@@ -306,7 +282,6 @@ class AdaptiveFeedbackNode(Node):
                                         f'{exc}; q_feedback held')
             else:
                 self._fresh(t_ns, update)
-        self.last_answered_ns = t_ns
         self.diagnostics.timing.reached(t_ns)
         self.frames += 1
         self._pub.publish(joint_state(t_ns, position=self.feedback.q_feedback))

@@ -10,14 +10,16 @@ feedforward and the adaptive feedback run as in the nodes, with the same timing 
 nanosecond stamps, physics step
 k at k * dt, camera frame n due at n * camera_period, taken at the first physics step at or
 after it and stamped with that step's time, and its q_feedback acting from ``latency``
-after the frame.
+after the frame. Which q_feedback acts at a step is decided by the joint controller's own
+lockstep, :class:`ibvs_common.sync.FeedbackLockstep`.
 
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
 
 from dataclasses import dataclass
 
-from ibvs_common.timing import feedback_frame_ns, period_ns
+from ibvs_common.sync import FeedbackLockstep
+from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
@@ -52,6 +54,12 @@ class LoopResult:
     def final_image_error(self):
         """Return the image error (px) of F(true angles) at the end of the run."""
         return float(np.linalg.norm(self.model.features(self.q_true[-1]) - self.p_target))
+
+
+def _accepted(rejection):
+    """Raise if the lockstep refused an input: the loop feeds it every one in order."""
+    if rejection is not None:
+        raise RuntimeError(f'lockstep refused an input: {rejection.reason} ({rejection.detail})')
 
 
 def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=30.0,
@@ -116,7 +124,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
     frames_t, frames_p, frames_measured = [], [], []
-    feedback_by_stamp = {}
+    # The joint controller's rule: q_feedback = 0 until the first frame acts.
+    lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
     next_frame = 0
     rejected = 0
     for k in range(steps):
@@ -126,21 +135,21 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
             measured = bool(np.all(plant.in_view(q_now)))
             p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
                 else model.features(q)
-            try:  # as the simulator stamps it: the time of this step
-                feedback_by_stamp[t_ns] = fb.update(p_hat, q, qd, measured=measured,
-                                                    t=t_ns * 1e-9).q_feedback
+            try:
+                q_feedback = fb.update(p_hat, q, qd, measured=measured,
+                                       t=t_ns * 1e-9).q_feedback
             except ModelError:
                 # As the node: a frame F^-1 cannot use is rejected, q_feedback held.
-                feedback_by_stamp[t_ns] = fb.q_feedback
+                q_feedback = fb.q_feedback
                 rejected += 1
+            # as the simulator stamps it: the time of this step
+            _accepted(lockstep.offer_feedback(t_ns, q_feedback))
             frames_t.append(t_ns * 1e-9)
             frames_p.append(p_hat)
             frames_measured.append(measured)
             next_frame += 1
-        stamp = feedback_frame_ns(t_ns, cam_ns, latency_ns, dt_ns)
-        q_fb = np.zeros(6) if stamp is None else feedback_by_stamp[stamp]
-        for old in [s for s in feedback_by_stamp if stamp is not None and s < stamp]:
-            del feedback_by_stamp[old]
+        _accepted(lockstep.offer_state(t_ns, None))
+        _, _, q_fb = lockstep.pop_ready()  # every frame has its q_feedback: never waits
         q_ff = ff.step()
         rec['q'][k], rec['q_ff'][k], rec['q_fb'][k] = q, q_ff, q_fb
         acc = joint.step(q_ff + q_fb, q, qd)

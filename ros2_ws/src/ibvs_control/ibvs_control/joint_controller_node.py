@@ -19,7 +19,9 @@ q_feedback of the latest frame before it that was not lost, as a real controller
 last output until a new frame comes. A joint state whose inputs have not all arrived is
 buffered and answered as soon as they have, in stamp order; nothing is answered early or
 twice, so a run is the same however the executor interleaves the callbacks. While it waits
-it logs once a second (steady clock) what for.
+it logs once a second (steady clock) what for. These rules are
+:class:`ibvs_common.sync.FeedbackLockstep` (plain Python, tested without rclpy); the node
+reads the messages, keeps the feedforward and answers.
 
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
 (wrong length, NaN, missing or unknown joint names: values are mapped by name; a trajectory
@@ -38,8 +40,6 @@ message. A rejected q_feedback is not stored, so a good one with the same stamp 
 and the loop goes on as if the bad one had never come.
 """
 
-from collections import deque
-
 from ibvs_common import contract
 from ibvs_common.conversions import (check_finite, InputError, joint_state, read_joints,
                                      read_stamp, read_trajectory)
@@ -49,7 +49,8 @@ from ibvs_common.params import declare, ParameterError
 from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S,
                                        PHYSICS_RATE_HZ, STALE_TIMEOUT_S, TAU_IN)
 from ibvs_common.sim_time import known_now_ns
-from ibvs_common.timing import check_camera_rate, feedback_frame_ns, period_ns
+from ibvs_common.sync import FeedbackLockstep
+from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import IRB4600
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -96,12 +97,12 @@ class JointControllerNode(Node):
                               IRB4600.qd_max, self.torque_limits,
                               speed_margin=values['speed_margin'],
                               acceleration_margin=values['acceleration_margin'])
-        self._states = deque()
+        # Before the first frame acts, q_feedback = 0; a lost frame holds the last one.
+        self._lockstep = FeedbackLockstep(
+            self.camera_ns, self.latency_ns, self.dt_ns, max_buffer=MAX_BUFFER,
+            future_ns=self.future_ns, initial=np.zeros(6), feedback_name=contract.Q_FEEDBACK,
+            lost_name=contract.FRAME_LOST)
         self._trajectory = None
-        self._fb = {}
-        self._lost = set()
-        self._held = np.zeros(6)
-        self.last_answered_ns = None
         self.commands = 0
         self.frames_lost = 0
         self.diagnostics = Diagnostics(self, 'joint controller')
@@ -139,19 +140,10 @@ class JointControllerNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        newest = self._states[-1][0] if self._states else self.last_answered_ns
-        if newest is not None and t_ns <= newest:
-            self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns, not after {newest} ns')
+        rejection = self._lockstep.offer_state(t_ns, (q, qd), known_now_ns(self))
+        if rejection is not None:
+            self.diagnostics.reject(source, *rejection)
             return
-        known = [t for t in (self.last_answered_ns, known_now_ns(self)) if t is not None]
-        if known and t_ns > max(known) + self.future_ns:
-            self.diagnostics.reject(source, 'stamp in the future',
-                                    f'{t_ns} ns, more than stale_timeout_s after {max(known)} ns')
-            return
-        if len(self._states) >= MAX_BUFFER:
-            self.diagnostics.reject(source, 'buffer full', f'{t_ns} ns dropped')
-            return
-        self._states.append((t_ns, q, qd))
         self._drain()
 
     def _on_trajectory(self, msg):
@@ -167,10 +159,6 @@ class JointControllerNode(Node):
 
     def _on_feedback(self, msg):
         source = contract.Q_FEEDBACK
-        # The oldest frame still needed: the one acting at the last answered step.
-        needed = (None if self.last_answered_ns is None else
-                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns,
-                                    self.dt_ns))
         try:
             t_ns = read_stamp(msg.header.stamp)
             q = read_joints(msg)
@@ -182,17 +170,10 @@ class JointControllerNode(Node):
             self.diagnostics.reject(source, 'out of range',
                                     f'{q.tolist()} rad: a joint beyond its whole travel')
             return
-        if needed is not None and t_ns < needed:
-            self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
+        rejection = self._lockstep.offer_feedback(t_ns, q)
+        if rejection is not None:
+            self.diagnostics.reject(source, *rejection)
             return
-        if t_ns in self._lost:
-            self.diagnostics.reject(source, 'frame was lost', f'{t_ns} ns')
-            return
-        if t_ns in self._fb or len(self._fb) >= MAX_BUFFER:
-            self.diagnostics.reject(source, 'duplicate stamp' if t_ns in self._fb
-                                    else 'buffer full', f'{t_ns} ns')
-            return
-        self._fb[t_ns] = q
         self._drain()
 
     def _on_frame_lost(self, msg):
@@ -202,18 +183,10 @@ class JointControllerNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        needed = (None if self.last_answered_ns is None else
-                  feedback_frame_ns(self.last_answered_ns, self.camera_ns, self.latency_ns,
-                                    self.dt_ns))
-        if needed is not None and t_ns < needed:
-            self.diagnostics.reject(source, 'stale stamp', f'{t_ns} ns is no longer needed')
+        rejection = self._lockstep.offer_lost(t_ns)
+        if rejection is not None:
+            self.diagnostics.reject(source, *rejection)
             return
-        if t_ns in self._lost or t_ns in self._fb or len(self._lost) >= MAX_BUFFER:
-            reason = ('duplicate stamp' if t_ns in self._lost else 'frame has a q_feedback'
-                      if t_ns in self._fb else 'buffer full')
-            self.diagnostics.reject(source, reason, f'{t_ns} ns')
-            return
-        self._lost.add(t_ns)
         self.frames_lost += 1
         self.diagnostics.update(frames_lost=self.frames_lost)
         self._drain()
@@ -230,25 +203,16 @@ class JointControllerNode(Node):
         missing = []
         if self._trajectory is None:
             missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
-        frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns, self.dt_ns)
-        if frame is not None and frame not in self._fb and frame not in self._lost:
-            missing.append(f'{contract.Q_FEEDBACK} of frame {frame} ns (or its '
-                           f'{contract.FRAME_LOST})')
-        return missing
+        return missing + self._lockstep.waiting_for(t_ns)
 
     def _drain(self):
         """Answer the buffered joint states in order, as far as their inputs are here."""
-        while self._states and not self._missing(self._states[0][0]):
-            t_ns, q, qd = self._states.popleft()
-            frame = feedback_frame_ns(t_ns, self.camera_ns, self.latency_ns, self.dt_ns)
-            if frame is not None and frame in self._fb:
-                self._held = self._fb[frame]
-            # Before the first frame: zero; a lost frame: the last one's, held.
-            self._answer(t_ns, q, qd, self.q_feedforward(t_ns) + self._held)
-            if frame is not None:
-                for stamp in [s for s in self._fb if s < frame]:
-                    del self._fb[stamp]
-                self._lost = {s for s in self._lost if s >= frame}
+        while self._trajectory is not None:
+            ready = self._lockstep.pop_ready()
+            if ready is None:
+                return
+            t_ns, (q, qd), q_feedback = ready
+            self._answer(t_ns, q, qd, self.q_feedforward(t_ns) + q_feedback)
 
     def _answer(self, t_ns, q, qd, q_ref):
         with self.diagnostics.timing.section('joint_loop'):
@@ -257,15 +221,14 @@ class JointControllerNode(Node):
             torque = self.loop.step(q_ref, q, qd, mass, bias)
         self.diagnostics.timing.reached(t_ns)
         self._pub.publish(joint_state(t_ns, effort=torque))
-        self.last_answered_ns = t_ns
         self.commands += 1
         self._progress = True
         self.diagnostics.update(commands=self.commands, last_answered_ns=t_ns,
                                 saturated_joints=int(np.count_nonzero(self.loop.saturated)))
 
     def _log_waiting(self):
-        if self._states and not self._progress:
-            t_ns = self._states[0][0]
+        t_ns = self._lockstep.states.first_ns
+        if t_ns is not None and not self._progress:
             self.get_logger().info(f'waiting to answer /joint_states {t_ns} ns for '
                                    + ', '.join(self._missing(t_ns)))
         self._progress = False

@@ -9,7 +9,7 @@ import subprocess
 import sys
 
 from ibvs_common import contract
-from ibvs_control.closed_loop import feedback_frame_ns, simulate
+from ibvs_control.closed_loop import FeedbackLockstep, simulate
 from ibvs_model import forward_kinematics, IRB4600, paper, pose_error
 import numpy as np
 import pytest
@@ -112,7 +112,8 @@ def test_timing_rule_is_the_contract_s():
         latency = int(rng.integers(0, 10**8))
         step = int(rng.integers(1, period + 1))
         t = int(rng.integers(0, 10**10))
-        assert feedback_frame_ns(t, period, latency, step) == \
+        # the frame whose q_feedback the model-only loop applies at t
+        assert FeedbackLockstep(period, latency, step).frame_at(t) == \
             contract.feedback_frame_ns(t, period, latency, step)
 
 

@@ -241,7 +241,7 @@ def test_feedback_answers_each_frame_like_the_pure_controller(context):
         # features first: the node must wait for the camera model and the joint states
         for n, t in enumerate(frames):
             h.publish(contract.FEATURES, features_msg(model.features(q_target + d_q), t))
-        h.spin_until(lambda: len(node._pending) == 4, 'features buffered')
+        h.spin_until(lambda: len(node._lockstep.frames) == 4, 'features buffered')
         left, right, pose = camera_messages(model)
         h.publish(contract.LEFT_INFO, left)
         h.publish(contract.RIGHT_INFO, right)
@@ -300,7 +300,8 @@ def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context
             h.publish(contract.FEATURES, features_msg(model.features(q), t))
         for t in (0, 34 * MS, 67 * MS):
             h.publish(contract.JOINT_STATES, joint_state(t, q, np.zeros(6)))
-        h.spin_until(lambda: len(node._pending) == 3 and len(node._stamps) == 3, 'inputs')
+        h.spin_until(lambda: len(node._lockstep.frames) == 3
+                     and len(node._lockstep.joints) == 3, 'inputs')
         out = h.received[contract.Q_FEEDBACK]
         assert out == [], 'a frame waits for its /ibvs/feature_status'
         for t, measured in zip(frames, (True, False, True)):
@@ -402,7 +403,7 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
-        h.spin_until(lambda: len(node._states) == 1, 'joint state buffered')
+        h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state buffered')
         assert node._missing(0)[0].startswith('the feedforward trajectory')
         # q0 at t = 0, then q0 + 0.01, held after its last point (2 ms)
         h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0, q0 + 0.01, q0 + 0.01]))
@@ -454,7 +455,7 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
         h.publish(contract.JOINT_STATES, joint_state(20 * MS, q0, np.zeros(6)))
-        h.spin_until(lambda: len(node._states) == 1, 'joint state at 20 ms buffered')
+        h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state at 20 ms buffered')
         assert node._missing(20 * MS) == [
             f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
@@ -516,7 +517,7 @@ def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_on
         for k in (1, 2, 30):  # good states (frame 0's q_feedback acts until 33.3 ms)
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 4, 'answers after the bad ones')
-        assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node._states
+        assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node._lockstep.states
     finally:
         h.close()
 
@@ -551,7 +552,8 @@ def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dyna
         # the joint's whole travel is the bound: J4 and J6 turn +-400 deg
         assert node.diagnostics.rejected_total == len(bad)
         h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.r_[np.zeros(5), 13.9]))
-        h.spin_until(lambda: CAMERA_NS in node._fb, 'a large but possible J6 correction')
+        h.spin_until(lambda: CAMERA_NS in node._lockstep.feedback,
+                     'a large but possible J6 correction')
     finally:
         h.close()
 
@@ -628,7 +630,7 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         # frame 1 (due at 33.33 ms, stamped 34 ms) is lost: at 34 ms the controller would wait
         # for its q_feedback
         h.publish(contract.JOINT_STATES, joint_state(34 * MS, q0, np.zeros(6)))
-        h.spin_until(lambda: len(node._states) == 1, 'joint state at 34 ms buffered')
+        h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state at 34 ms buffered')
         assert node.commands == 1
         lost_pub.publish(Header(stamp=joint_state(34 * MS, q0).header.stamp))
         h.spin_until(lambda: len(out) == 2, 'answer at 34 ms')

@@ -26,6 +26,8 @@ published (bad encoding, size that disagrees with CameraInfo, left and right sta
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
 newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
 frame the camera lost (/stereo/frame_lost) brings no images: nothing is published for it.
+The pairing, matching and dropping rules are :class:`ibvs_common.sync.StereoPairer` (plain
+Python, tested without rclpy); the node decodes, detects, publishes and counts.
 
 Taught target. The stereo pair of the tool at the target pose
 (/stereo/teach/{left,right}/image_raw, latched, published by the simulator before the run
@@ -36,7 +38,6 @@ not found is reported (ERROR log and /diagnostics) and nothing is published: the
 feedback then keeps waiting for its target.
 """
 
-import bisect
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -47,6 +48,7 @@ from ibvs_common.conversions import (camera_from_msgs, features_msg, InputError,
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
+from ibvs_common.sync import Drop, Ready, Rejection, StereoPairer
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
@@ -74,17 +76,6 @@ PARAMS = (
 _SIDES = ('left', 'right')
 
 
-class _Frame:
-    """Both images of one stamp as they arrive; ``rejected`` once one image was refused."""
-
-    __slots__ = ('images', 'encodings', 'rejected')
-
-    def __init__(self):
-        self.images = {}
-        self.encodings = {}
-        self.rejected = False
-
-
 class FeatureNode(Node):
     """Publish p_I for every stereo frame: measured, estimated from q_T, or blended."""
 
@@ -93,18 +84,11 @@ class FeatureNode(Node):
         super().__init__('feature_node', **kwargs)
         p = declare(self, PARAMS)
         self._config = DetectorConfig.from_parameters(p)
-        self._stale_ns = int(round(p['stale_timeout_s'] * 1e9))
-        self._history_ns = int(round(p['joint_history_s'] * 1e9))
-        self._window_ns = int(round(1e9 / p['physics_rate_hz']))
         self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
-
-        self._frames = {}
-        self._joint_stamps = []
-        self._joints = {}
-        self._bad_joints = {}
-        self._newest_image = {'left': -1, 'right': -1}
-        self._newest_ns = -1
-        self._last_published_ns = -1
+        self._stereo = StereoPairer(stale_ns=int(round(p['stale_timeout_s'] * 1e9)),
+                                    window_ns=int(round(1e9 / p['physics_rate_hz'])),
+                                    history_ns=int(round(p['joint_history_s'] * 1e9)),
+                                    sides=_SIDES)
         self._infos = {}
         self._pose = None
         self._camera_key = None
@@ -144,33 +128,16 @@ class FeatureNode(Node):
 
     # --- inputs ----------------------------------------------------------------------
 
-    def _seen(self, t_ns):
-        self._newest_ns = max(self._newest_ns, t_ns)
-
     def _on_image(self, side, msg):
         t_ns = stamp_ns(msg.header.stamp)
-        self._seen(t_ns)
-        self._newest_image[side] = max(self._newest_image[side], t_ns)
         try:
-            array, encoding = image_array(msg)
-            if t_ns <= self._last_published_ns:
-                raise InputError('out of order', f'stamp {t_ns} ns is not after the last '
-                                 f'published frame {self._last_published_ns} ns')
-            if self._newest_ns - t_ns > self._stale_ns:
-                raise InputError('stale', f'{(self._newest_ns - t_ns) * 1e-9:.3f} s behind '
-                                 'the newest input')
+            image, error = image_array(msg), None
         except InputError as exc:
-            self._diag.reject(f'{side} image', exc.reason, exc.detail)
+            image, error = None, Rejection(exc.reason, exc.detail)
+        rejection = self._stereo.offer_image(side, t_ns, image, error)
+        if rejection is not None:
             # The frame is skipped; its other image, if it comes, is dropped silently.
-            frame = self._frames.setdefault(t_ns, _Frame())
-            frame.rejected = True
-            frame.images.clear()
-            self._try_frames()
-            return
-        frame = self._frames.setdefault(t_ns, _Frame())
-        if not frame.rejected:
-            frame.images[side] = array
-            frame.encodings[side] = encoding
+            self._diag.reject(f'{side} image', *rejection)
         self._try_frames()
 
     def _on_teach(self, side, msg):
@@ -211,29 +178,14 @@ class FeatureNode(Node):
 
     def _on_joints(self, msg):
         t_ns = stamp_ns(msg.header.stamp)
-        self._seen(t_ns)
         try:
             q = read_joints(msg)
         except InputError as exc:
             self._diag.reject('joint_states', exc.reason, exc.detail)
-            self._bad_joints[t_ns] = exc.reason
-            self._prune_joints()
-            self._try_frames()
-            return
-        if t_ns not in self._joints:
-            bisect.insort(self._joint_stamps, t_ns)
-        self._joints[t_ns] = q
-        self._prune_joints()
+            self._stereo.offer_bad_joints(t_ns, exc.reason)
+        else:
+            self._stereo.offer_joints(t_ns, q)
         self._try_frames()
-
-    def _prune_joints(self):
-        oldest = self._newest_ns - self._history_ns
-        cut = bisect.bisect_left(self._joint_stamps, oldest)
-        for t_ns in self._joint_stamps[:cut]:
-            del self._joints[t_ns]
-        del self._joint_stamps[:cut]
-        for t_ns in [t for t in self._bad_joints if t < oldest]:
-            del self._bad_joints[t_ns]
 
     def _on_info(self, side, msg):
         self._infos[side] = msg
@@ -249,29 +201,6 @@ class FeatureNode(Node):
         self._try_frames()
 
     # --- frames ----------------------------------------------------------------------
-
-    def _joint_at(self, t_ns):
-        """
-        Return (q, None) for the frame stamped t_ns, (None, None) to wait, (None, why) to drop.
-
-        The simulator renders frame n from the state of the first physics step at or after
-        n * T_cam, stamps it with that step's time and publishes that step's /joint_states
-        with it (ibvs_sim.simulator): the encoder angles of the image are those of the joint
-        state with the image stamp. A camera that stamps its frames off the physics grid is
-        matched with the first joint state stamped in [t_ns, t_ns + 1 / physics_rate_hz).
-        """
-        i = bisect.bisect_left(self._joint_stamps, t_ns)
-        first = self._joint_stamps[i] if i < len(self._joint_stamps) else None
-        bad = min((s for s in self._bad_joints if s >= t_ns), default=None)
-        if bad is not None and (first is None or bad < first):
-            if bad - t_ns < self._window_ns:
-                return None, f'joint state of the image rejected ({self._bad_joints[bad]})'
-            return None, 'no joint state within one physics step at or after the image stamp'
-        if first is None:
-            return None, None
-        if first - t_ns < self._window_ns:
-            return self._joints[first], None
-        return None, 'no joint state within one physics step at or after the image stamp'
 
     def _camera_ready(self):
         """Build the camera model from CameraInfo and /stereo/pose; return why not, or None."""
@@ -304,63 +233,27 @@ class FeatureNode(Node):
         """Publish every frame that is complete; drop those that can never be."""
         camera_problem = self._camera_ready()
         self._try_teach()
-        for t_ns in sorted(self._frames):
-            frame = self._frames.get(t_ns)
-            if frame is None:
-                continue
-            if frame.rejected:
-                # Already counted when its image was refused; forget it once both came.
-                if all(self._newest_image[s] >= t_ns for s in _SIDES) \
-                        or self._newest_ns - t_ns > self._stale_ns:
-                    del self._frames[t_ns]
-                continue
-            drop = None
-            missing = [s for s in _SIDES if s not in frame.images]
-            for side in missing:
-                if self._newest_image[side] > t_ns:
-                    other = 'right' if side == 'left' else 'left'
-                    drop = ('left/right stamp mismatch',
-                            f'{other} image at {t_ns * 1e-9:.9f} s has no {side} image')
-            q, why = self._joint_at(t_ns)
-            if drop is None and why is not None:
-                drop = ('no joint state', why)
-            if drop is None and self._newest_ns - t_ns > self._stale_ns:
-                waiting = [f'{s} image' for s in missing]
-                if q is None:
-                    waiting.append('joint state')
-                if camera_problem:
-                    waiting.append(camera_problem)
-                drop = ('timed out', f'frame at {t_ns * 1e-9:.9f} s waited for '
-                        + ', '.join(waiting))
-            if drop is not None:
-                del self._frames[t_ns]
-                self._diag.reject('stereo frame', *drop)
-                continue
-            if missing or q is None or camera_problem:
-                waiting = [f'{s} image' for s in missing] + (['joint state'] if q is None else [])
-                self._diag.update(waiting_for=', '.join(waiting + ([camera_problem]
-                                                                   if camera_problem else [])))
-                continue
-            del self._frames[t_ns]
-            for older in [t for t in self._frames if t < t_ns]:
-                del self._frames[older]
-                self._diag.reject('stereo frame', 'superseded',
-                                  f'frame at {older * 1e-9:.9f} s overtaken by a newer one')
-            self._process(t_ns, frame, q)
-        self._diag.update(pending_frames=len(self._frames))
+        for event in self._stereo.poll(camera_problem):
+            if isinstance(event, Drop):
+                self._diag.reject('stereo frame', event.reason, event.detail)
+            elif isinstance(event, Ready):
+                self._process(event.t_ns, event.images, event.joints)
+            else:
+                self._diag.update(waiting_for=', '.join(event.waiting))
+        self._diag.update(pending_frames=len(self._stereo))
 
-    def _process(self, t_ns, frame, q):
+    def _process(self, t_ns, images, q):
+        """Detect, estimate and publish the features of the stereo pair ``images`` at t_ns."""
         started = time.perf_counter()
         k = self._detector.intrinsics
         for side in _SIDES:
-            h, w = frame.images[side].shape[:2]
+            h, w = images[side][0].shape[:2]
             if (w, h) != (k.width, k.height):
                 self._diag.reject(f'{side} image', 'size disagrees with camera_info',
                                   f'{w} x {h}, camera_info says {k.width} x {k.height}')
                 return
-        left, right = frame.images['left'], frame.images['right']
-        encoding = frame.encodings['left']
-        if frame.encodings['right'] != encoding:
+        (left, encoding), (right, right_encoding) = images['left'], images['right']
+        if right_encoding != encoding:
             right = right[:, :, ::-1].copy()
         try:
             estimate = self._model.features(q)
@@ -378,7 +271,7 @@ class FeatureNode(Node):
         output = self._switch.update(t_ns, detection.features, estimate)
         self._pub.publish(features_msg(output, ns_stamp(t_ns)))
         self._publish_status(t_ns, detection)
-        self._last_published_ns = t_ns
+        self._stereo.published(t_ns)
         self._prior = detection.features
         elapsed_ms = (time.perf_counter() - started) * 1e3
         self._record(detection, previous, elapsed_ms)

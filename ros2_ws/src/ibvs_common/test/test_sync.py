@@ -1,0 +1,438 @@
+"""
+The lockstep (ibvs_common.sync) by property, without rclpy.
+
+Order of arrival does not change the answers, memory stays bounded under a flood, a
+missing input is named, and stale or duplicate inputs are rejected with a reason. Plain
+functions without fixtures, so that the first test can run them all in a process where
+rclpy is never imported.
+"""
+
+import importlib.util
+import itertools
+import os
+from pathlib import Path
+import random
+import subprocess
+import sys
+
+from ibvs_common.sync import (Drop, FeedbackLockstep, FrameLockstep, PendingQueue, Ready,
+                              Rejection, StampHistory, StereoPairer, Wait)
+from ibvs_common.timing import feedback_frame_ns, frame_stamp_ns
+
+MS = 1_000_000
+DT = MS                 # 1 kHz physics
+CAM = 33_333_333        # 30 Hz camera: frames stamped 0, 34, 67, 100 ms, ...
+
+
+def test_the_lockstep_tests_run_without_rclpy():
+    """Acceptance (issue 12): sync.py and these tests load and pass with no rclpy imported."""
+    have_rclpy = importlib.util.find_spec('rclpy') is not None
+    code = f"""
+import importlib.util, sys
+spec = importlib.util.spec_from_file_location('test_sync_alone', {str(Path(__file__))!r})
+module = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(module)
+names = [n for n in sorted(vars(module)) if n.startswith('test_')
+         and n != 'test_the_lockstep_tests_run_without_rclpy']
+for name in names:
+    getattr(module, name)()
+assert (importlib.util.find_spec('rclpy') is not None) == {have_rclpy}
+assert 'rclpy' not in sys.modules, 'rclpy was imported'
+print(len(names), 'tests without rclpy')
+"""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert 'tests without rclpy' in done.stdout
+
+
+# -- StampHistory ----------------------------------------------------------------------------
+
+def test_history_finds_the_first_stamp_at_or_after_a_time():
+    history = StampHistory()
+    for t in (0, 33 * MS, 34 * MS, 66 * MS):
+        assert history.add(t, f'q{t}') is None
+    assert history.at_or_after(0) == (0, 'q0')
+    assert history.at_or_after(1) == (33 * MS, f'q{33 * MS}')
+    assert history.at_or_after(34 * MS) == (34 * MS, f'q{34 * MS}')
+    assert history.at_or_after(66 * MS + 1) is None
+    assert history.newest == 66 * MS and 33 * MS in history and MS not in history
+
+
+def test_strict_history_rejects_stale_and_duplicate_stamps():
+    history = StampHistory()
+    history.add(5, 'a')
+    assert history.add(5, 'b') == Rejection('stale stamp', '5 ns after 5 ns')
+    assert history.add(4, 'b') == Rejection('stale stamp', '4 ns after 5 ns')
+    assert len(history) == 1 and history.at_or_after(0) == (5, 'a')
+
+
+def test_loose_history_does_not_depend_on_arrival_order():
+    stamps = [0, 3, 7, 8, 12]
+    contents = set()
+    for order in itertools.permutations(stamps):
+        history = StampHistory(strict=False)
+        for t in order:
+            assert history.add(t, t * 10) is None
+        contents.add(tuple(history.at_or_after(t) for t in range(14)))
+    assert len(contents) == 1
+
+
+def test_history_stays_within_its_count_and_its_horizon():
+    counted = StampHistory(max_len=50)
+    timed = StampHistory(horizon_ns=20 * MS, strict=False)
+    for k in range(5000):
+        counted.add(k * DT, k)
+        timed.add(k * DT, k)
+        timed.prune(k * DT)
+        assert len(counted) <= 50 and len(timed) <= 21
+    assert counted.at_or_after(0) == (4950 * DT, 4950)
+    assert timed.at_or_after(0) == (4979 * DT, 4979)
+
+
+# -- PendingQueue ----------------------------------------------------------------------------
+
+def test_pending_queue_keeps_stamp_order_and_answers_each_once():
+    queue = PendingQueue(3, full_note='waiting for the camera model')
+    assert queue.offer(10, 'a') is None and queue.offer(20, 'b') is None
+    assert queue.offer(20, 'c') == Rejection('stale stamp', '20 ns, not after 20 ns')
+    assert queue.offer(15, 'c') == Rejection('stale stamp', '15 ns, not after 20 ns')
+    assert queue.offer(30, 'c') is None
+    assert queue.offer(40, 'd') == Rejection(
+        'buffer full', '40 ns dropped: waiting for the camera model')
+    assert [queue.pop() for _ in range(3)] == [(10, 'a'), (20, 'b'), (30, 'c')]
+    # once answered, a stamp cannot come back
+    assert queue.offer(30, 'again').reason == 'stale stamp' and len(queue) == 0
+
+
+# -- FeedbackLockstep (joint controller, model-only loop) -----------------------------------
+
+def expected_feedback(t_ns, lost, latency_ns, initial='zero'):
+    """Return the rule in words: the newest frame acting at t not lost, else initial."""
+    value = initial
+    for n in itertools.count():
+        stamp = frame_stamp_ns(n, CAM, DT)
+        if stamp + latency_ns > t_ns:
+            return value
+        if stamp not in lost:
+            value = f'fb{stamp}'
+
+
+def run_feedback(events, latency_ns=0):
+    """Feed ``events`` (kind, stamp) into a lockstep; return its answers and rejections."""
+    lockstep = FeedbackLockstep(CAM, latency_ns, DT, initial='zero')
+    answers, rejections = [], []
+    for kind, t_ns in events:
+        if kind == 'state':
+            rejection = lockstep.offer_state(t_ns, f'q{t_ns}')
+        elif kind == 'feedback':
+            rejection = lockstep.offer_feedback(t_ns, f'fb{t_ns}')
+        else:
+            rejection = lockstep.offer_lost(t_ns)
+        if rejection is not None:
+            rejections.append((kind, t_ns, rejection.reason))
+        while (ready := lockstep.pop_ready()) is not None:
+            answers.append(ready)
+    return answers, rejections, lockstep
+
+
+def merge(rng, *streams):
+    """Interleave the streams at random, each kept in its own order."""
+    streams = [list(s) for s in streams]
+    out = []
+    while any(streams):
+        stream = rng.choice([s for s in streams if s])
+        out.append(stream.pop(0))
+    return out
+
+
+def feedback_world(steps, lost, latency_ns=0):
+    states = [('state', k * DT) for k in range(steps)]
+    frames = [frame_stamp_ns(n, CAM, DT) for n in range(steps * DT // CAM + 1)]
+    frames = [('lost' if t in lost else 'feedback', t) for t in frames if t < steps * DT]
+    return states, frames
+
+
+def test_feedback_answers_do_not_depend_on_arrival_order():
+    rng = random.Random(12)
+    for latency_ns in (0, 20 * MS, 50 * MS):
+        lost = {frame_stamp_ns(2, CAM, DT), frame_stamp_ns(3, CAM, DT)}
+        states, frames = feedback_world(150, lost, latency_ns)
+        expected = [(t, f'q{t}', expected_feedback(t, lost, latency_ns)) for _, t in states]
+        for _ in range(40):
+            shuffled = frames[:]
+            rng.shuffle(shuffled)  # frames in any order, states in stamp order
+            answers, rejections, lockstep = run_feedback(merge(rng, states, shuffled),
+                                                         latency_ns)
+            assert rejections == [] and answers == expected
+            assert not lockstep.states and lockstep.waiting_for() == []
+
+
+def test_feedback_answers_for_every_interleaving_of_a_short_run():
+    states, frames = feedback_world(70, lost={34 * MS})
+    states = [s for s in states if s[1] in (0, MS, 34 * MS, 35 * MS, 67 * MS)]
+    expected = None
+    for order in itertools.permutations(states + frames):
+        if [e for e in order if e[0] == 'state'] != states:
+            continue  # /joint_states come in stamp order (one publisher, reliable)
+        answers, rejections, _ = run_feedback(order)
+        assert rejections == []
+        expected = expected or answers
+        assert answers == expected
+    assert [a[2] for a in expected] == ['fb0', 'fb0', 'fb0', 'fb0', f'fb{67 * MS}']
+
+
+def test_a_state_waits_for_its_frame_and_says_which():
+    lockstep = FeedbackLockstep(CAM, 0, DT, feedback_name='/ibvs/q_feedback',
+                                lost_name='/stereo/frame_lost')
+    assert lockstep.offer_state(34 * MS, 'q') is None
+    assert lockstep.pop_ready() is None
+    assert lockstep.waiting_for() == [
+        f'/ibvs/q_feedback of frame {34 * MS} ns (or its /stereo/frame_lost)']
+    assert lockstep.waiting_for(0) == ['/ibvs/q_feedback of frame 0 ns (or its '
+                                       '/stereo/frame_lost)']
+    assert FeedbackLockstep(CAM, 20 * MS, DT).waiting_for(19 * MS) == []  # none acts yet
+    lockstep.offer_lost(34 * MS)
+    assert lockstep.waiting_for() == [] and lockstep.pop_ready() == (34 * MS, 'q', None)
+
+
+def test_feedback_rejects_stale_duplicate_and_contradicting_inputs():
+    lockstep = FeedbackLockstep(CAM, 0, DT, future_ns=500 * MS)
+    assert lockstep.offer_feedback(0, 'fb0') is None
+    assert lockstep.offer_feedback(0, 'again') == Rejection('duplicate stamp', '0 ns')
+    assert lockstep.offer_lost(0) == Rejection('frame has a q_feedback', '0 ns')
+    assert lockstep.offer_lost(34 * MS) is None
+    assert lockstep.offer_lost(34 * MS) == Rejection('duplicate stamp', f'{34 * MS} ns')
+    assert lockstep.offer_feedback(34 * MS, 'x') == Rejection('frame was lost', f'{34 * MS} ns')
+    lockstep.offer_state(0, 'q0')
+    lockstep.offer_state(67 * MS, 'q67')
+    assert lockstep.offer_state(67 * MS, 'q').reason == 'stale stamp'
+    assert lockstep.pop_ready() == (0, 'q0', 'fb0')
+    assert lockstep.offer_state(68 * MS, 'q', now_ns=None) is None
+    assert lockstep.offer_state(600 * MS, 'q') == Rejection(
+        'stamp in the future', f'{600 * MS} ns, more than stale_timeout_s after 0 ns')
+    assert lockstep.offer_state(600 * MS, 'q', now_ns=200 * MS) is None
+    assert lockstep.offer_feedback(67 * MS, 'fb67') is None
+    assert [lockstep.pop_ready()[0] for _ in range(2)] == [67 * MS, 68 * MS]
+    # frame 0 and the lost frame 1 are no longer needed once frame 2 acts
+    assert lockstep.offer_feedback(0, 'late') == Rejection('stale stamp',
+                                                           '0 ns is no longer needed')
+    assert lockstep.offer_lost(34 * MS).reason == 'stale stamp'
+    assert list(lockstep.feedback) == [67 * MS] and not lockstep.lost
+
+
+def test_feedback_memory_stays_bounded_under_a_flood():
+    lockstep = FeedbackLockstep(CAM, 0, DT, max_buffer=100)
+    reasons = set()
+    for k in range(1, 2000):  # frame 0 never comes: nothing can be answered
+        for rejection in (lockstep.offer_state(k * DT, k),
+                          lockstep.offer_feedback(frame_stamp_ns(k, CAM, DT), k),
+                          lockstep.offer_lost(frame_stamp_ns(k, CAM, DT) + 1)):
+            reasons.add(rejection and rejection.reason)
+        assert max(len(lockstep.states), len(lockstep.feedback), len(lockstep.lost)) <= 100
+        assert lockstep.pop_ready() is None
+    assert reasons == {None, 'buffer full'}
+    assert lockstep.waiting_for() == ['q_feedback of frame 0 ns (or its frame_lost)']
+
+
+def test_feedback_frame_rule_is_the_timing_rule():
+    """pop_ready uses timing.feedback_frame_ns, the rule the simulator stamps by."""
+    lockstep = FeedbackLockstep(CAM, 13 * MS, DT, initial='zero')
+    for n in range(4):
+        lockstep.offer_feedback(frame_stamp_ns(n, CAM, DT), n)
+    for k in range(120):
+        lockstep.offer_state(k * DT, None)
+        frame = feedback_frame_ns(k * DT, CAM, 13 * MS, DT)
+        want = 'zero' if frame is None else [frame_stamp_ns(n, CAM, DT)
+                                             for n in range(4)].index(frame)
+        assert lockstep.pop_ready() == (k * DT, None, want)
+
+
+# -- FrameLockstep (adaptive feedback) -------------------------------------------------------
+
+def frame_world(frames=4):
+    stamps = [frame_stamp_ns(n, CAM, DT) for n in range(frames)]
+    joints = [('joints', t) for t in sorted({0, 33 * MS, *stamps, stamps[-1] + DT})]
+    return ([('frame', t) for t in stamps], joints,
+            [('status', t) for t in stamps])
+
+
+def measured(t_ns):
+    return t_ns // MS % 2 == 0  # frames at 0, 34 and 100 ms measured, 67 ms not
+
+
+def run_frames(events, needs_status):
+    lockstep = FrameLockstep(needs_status=needs_status)
+    answers, rejections = [], []
+    for kind, t_ns in events:
+        if kind == 'frame':
+            rejection = lockstep.offer_frame(t_ns, f'p{t_ns}')
+        elif kind == 'joints':
+            rejection = lockstep.offer_joints(t_ns, f'q{t_ns}')
+        else:
+            rejection = lockstep.offer_status(t_ns, measured(t_ns))
+        if rejection is not None:
+            rejections.append((kind, t_ns, rejection.reason))
+        while (ready := lockstep.pop_ready()) is not None:
+            answers.append(ready)
+    return answers, rejections, lockstep
+
+
+def test_frame_answers_do_not_depend_on_arrival_order():
+    rng = random.Random(4)
+    frames, joints, statuses = frame_world()
+    for needs_status in (False, True):
+        expected = [(t, f'p{t}', f'q{t}', measured(t) if needs_status else True)
+                    for _, t in frames]
+        for _ in range(200):
+            shuffled = statuses[:]
+            rng.shuffle(shuffled)  # statuses in any order, frames and joints in order
+            streams = (frames, joints, shuffled) if needs_status else (frames, joints)
+            answers, rejections, lockstep = run_frames(merge(rng, *streams), needs_status)
+            assert rejections == [] and answers == expected
+            assert lockstep.waiting_for() == []
+
+
+def test_a_frame_waits_for_its_joint_state_and_status_and_says_which():
+    lockstep = FrameLockstep(needs_status=True, joints_name='/joint_states',
+                             status_name='/ibvs/feature_status')
+    assert lockstep.waiting_for() == []
+    lockstep.offer_joints(33 * MS, 'q33')
+    lockstep.offer_frame(34 * MS, 'p')
+    assert lockstep.pop_ready() is None
+    assert lockstep.waiting_for() == [f'/joint_states at or after {34 * MS} ns',
+                                      f'/ibvs/feature_status of frame {34 * MS} ns']
+    lockstep.offer_joints(35 * MS, 'q35')  # off the grid: the first one at or after
+    lockstep.offer_status(34 * MS, False)
+    assert lockstep.pop_ready() == (34 * MS, 'p', 'q35', False)
+    # a status for a frame already answered is dropped without a word
+    assert lockstep.offer_status(34 * MS, True) is None and lockstep.waiting_for() == []
+
+
+def test_frames_reject_stale_inputs_and_stay_bounded():
+    lockstep = FrameLockstep(history=50, needs_status=True, full_note='waiting for the camera')
+    assert lockstep.offer_joints(10, 'a') is None
+    assert lockstep.offer_joints(10, 'b').reason == 'stale stamp'
+    assert lockstep.offer_frame(5, 'p') is None
+    assert lockstep.offer_frame(5, 'p') == Rejection('stale stamp', '5 ns, not after 5 ns')
+    reasons = set()
+    for k in range(1, 500):  # no status ever comes: frames pile up
+        for rejection in (lockstep.offer_joints(10 + k, k), lockstep.offer_frame(5 + k, k),
+                          lockstep.offer_status(10_000 + k, True)):
+            reasons.add(rejection and rejection.reason)
+        assert len(lockstep.joints) <= 50 and len(lockstep.frames) <= 50
+    assert reasons == {None, 'buffer full'}
+    assert lockstep.offer_frame(9999, 'p') == Rejection(
+        'buffer full', '9999 ns dropped: waiting for the camera')
+
+
+# -- StereoPairer (feature node) -------------------------------------------------------------
+
+def stereo_world(frames=5):
+    stamps = [frame_stamp_ns(n, CAM, DT) for n in range(frames)]
+    return ([('left', t) for t in stamps], [('right', t) for t in stamps],
+            [('joints', t) for t in range(0, stamps[-1] + 2 * DT, DT)])
+
+
+def run_stereo(events, blocker=None, stale_ns=500 * MS):
+    pairer = StereoPairer(stale_ns=stale_ns, window_ns=DT, history_ns=2000 * MS)
+    out = []
+    for kind, t_ns in events:
+        if kind == 'joints':
+            pairer.offer_joints(t_ns, f'q{t_ns}')
+            rejection = None
+        elif kind == 'bad joints':
+            pairer.offer_bad_joints(t_ns, 'NaN')
+            rejection = None
+        else:
+            rejection = pairer.offer_image(kind, t_ns, f'{kind}{t_ns}')
+        if rejection is not None:
+            out.append(('rejected', kind, t_ns, rejection.reason))
+        for event in pairer.poll(blocker):
+            if isinstance(event, Ready):
+                pairer.published(event.t_ns)
+                out.append(event)
+            elif isinstance(event, Drop):
+                out.append(event)
+    return out, pairer
+
+
+def test_stereo_frames_do_not_depend_on_arrival_order():
+    rng = random.Random(7)
+    left, right, joints = stereo_world()
+    expected = [Ready(t, {'left': f'left{t}', 'right': f'right{t}'}, f'q{t}')
+                for _, t in left]
+    for _ in range(300):
+        # each stream in its own order (one publisher per topic), interleaved at random
+        out, pairer = run_stereo(merge(rng, left, right, joints))
+        assert out == expected and len(pairer) == 0
+
+
+def test_stereo_frame_alone_in_any_order():
+    joints = [('joints', 33 * MS), ('joints', 34 * MS), ('joints', 35 * MS)]
+    for order in itertools.permutations([('left', 34 * MS), ('right', 34 * MS), *joints]):
+        if [e for e in order if e[0] == 'joints'] != joints:
+            continue  # /joint_states come in stamp order (one publisher, reliable)
+        out, _ = run_stereo(order)
+        assert out == [Ready(34 * MS, {'left': f'left{34 * MS}', 'right': f'right{34 * MS}'},
+                             f'q{34 * MS}')]
+
+
+def test_a_stereo_frame_says_what_it_waits_for_and_times_out_naming_it():
+    pairer = StereoPairer(stale_ns=100 * MS, window_ns=DT, history_ns=2000 * MS)
+    pairer.offer_image('left', 0, 'l0')
+    assert list(pairer.poll('no /stereo/pose yet')) == [
+        Wait(0, ['right image', 'joint state', 'no /stereo/pose yet'])]
+    pairer.offer_joints(0, 'q0')
+    pairer.offer_image('right', 0, 'r0')
+    assert list(pairer.poll('no /stereo/pose yet')) == [Wait(0, ['no /stereo/pose yet'])]
+    pairer.offer_joints(101 * MS, 'q101')
+    assert list(pairer.poll('no /stereo/pose yet')) == [
+        Drop(0, 'timed out', 'frame at 0.000000000 s waited for no /stereo/pose yet')]
+    assert len(pairer) == 0
+
+
+def test_stereo_drops_a_frame_that_can_never_be_complete():
+    out, _ = run_stereo([('left', 0), ('right', 34 * MS), ('joints', 0), ('left', 34 * MS),
+                         ('joints', 34 * MS), ('left', 67 * MS), ('right', 67 * MS),
+                         ('bad joints', 67 * MS), ('left', 100 * MS), ('right', 100 * MS),
+                         ('joints', 102 * MS)])
+    assert out == [
+        Drop(0, 'left/right stamp mismatch', 'left image at 0.000000000 s has no right image'),
+        Ready(34 * MS, {'left': f'left{34 * MS}', 'right': f'right{34 * MS}'}, f'q{34 * MS}'),
+        Drop(67 * MS, 'no joint state', 'joint state of the image rejected (NaN)'),
+        Drop(100 * MS, 'no joint state',
+             'no joint state within one physics step at or after the image stamp')]
+
+
+def test_stereo_rejects_late_and_stale_images():
+    out, _ = run_stereo([('left', 0), ('right', 0), ('joints', 0), ('right', 0),
+                         ('right', 67 * MS), ('right', 700 * MS), ('left', 67 * MS)],
+                        stale_ns=500 * MS)
+    assert out == [
+        Ready(0, {'left': 'left0', 'right': 'right0'}, 'q0'),
+        ('rejected', 'right', 0, 'out of order'),
+        Drop(67 * MS, 'timed out', 'frame at 0.067000000 s waited for left image, '
+             'joint state'),
+        ('rejected', 'left', 67 * MS, 'stale')]
+    pairer = StereoPairer(stale_ns=MS, window_ns=DT, history_ns=MS)
+    assert pairer.offer_image('left', 0, 'x', Rejection('bad encoding', 'bgr16')) == \
+        Rejection('bad encoding', 'bgr16')
+    assert pairer.offer_image('right', 0, 'y') is None  # its pair is dropped silently
+    assert list(pairer.poll()) == [] and len(pairer) == 0
+
+
+def test_stereo_memory_stays_bounded_under_a_flood():
+    pairer = StereoPairer(stale_ns=50 * MS, window_ns=DT, history_ns=100 * MS)
+    for k in range(3000):  # left images only: each frame waits, then times out
+        pairer.offer_image('left', k * MS, k)
+        pairer.offer_joints(k * MS, k)
+        events = list(pairer.poll())
+        assert len(pairer) <= 51
+        assert all(isinstance(e, Wait) or e.reason == 'timed out' for e in events)
+    assert pairer.joints_at(2999 * MS) == (2999, None)
+    assert pairer.joints_at(2899 * MS) == (2899, None)
+    # older ones are forgotten (joint_history_s): the first one left is too late
+    assert pairer.joints_at(2898 * MS) == (
+        None, 'no joint state within one physics step at or after the image stamp')
