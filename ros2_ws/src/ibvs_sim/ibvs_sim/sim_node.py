@@ -50,7 +50,8 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
                                        PHYSICS_RATE_HZ, SCENARIO, TARGET_FEATURES_SOURCE,
-                                       TARGET_POSITION, TARGET_ROTATION)
+                                       target_from_parameters, TARGET_POSITION,
+                                       TARGET_ROTATION)
 from ibvs_model import paper
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -168,11 +169,7 @@ class SimNode(Node):
         if teach and not self._publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')
-        teach_pose = None
-        if teach:
-            teach_pose = np.eye(4)
-            teach_pose[:3, 3] = values['target_position']
-            teach_pose[:3, :3] = np.reshape(values['target_rotation'], (3, 3))
+        teach_pose = target_from_parameters(values) if teach else None
         try:
             self.sim = Simulator(
                 scenario=values['scenario'], disturbance_deg=values['disturbance_deg'],
