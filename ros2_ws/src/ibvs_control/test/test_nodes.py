@@ -306,7 +306,7 @@ def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context
         for t, measured in zip(frames, (True, False, True)):
             h.publish(contract.FEATURE_STATUS, feature_status(t, measured))
         h.spin_until(lambda: len(out) == 3, 'q_feedback')
-        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, damping=0.1)
+        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, svd_damping=0.1)
         for msg, measured in zip(out, (True, False, True)):
             up = ref.update(sent, q, measured=measured)
             np.testing.assert_allclose(read_joints(msg), up.q_feedback, atol=1e-9)

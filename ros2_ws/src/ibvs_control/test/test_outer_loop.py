@@ -40,7 +40,7 @@ def inner_plant_ss(dt):
     return a, b.reshape(-1), c.reshape(-1)
 
 
-def run_outer(c1, references, rcond=1e-6, damping=0.0):
+def run_outer(c1, references, svd_rcond=1e-6, svd_damping=0.0):
     """
     Run the sampled outer loop around C1 T_inner(s) for several reference steps at once.
 
@@ -48,7 +48,7 @@ def run_outer(c1, references, rcond=1e-6, damping=0.0):
     (zero-order hold of q_feedback between frames), with SUBSTEPS outputs per frame.
     Returns (t, y (len(t), 6, m)).
     """
-    dec = decouple(c1, rcond, damping)
+    dec = decouple(c1, svd_rcond, svd_damping)
     m = references.shape[1]
     k = StateSpaceFilter(youla.outer_controller_discrete(TAU, WN, ZETA, CAMERA_DT), 6 * m)
     a, b, c = inner_plant_ss(CAMERA_DT / SUBSTEPS)
@@ -93,8 +93,8 @@ def test_truncated_inverse_is_a_pseudo_inverse(configurations):
     np.testing.assert_allclose(dec.joints(dec.channels(error)), dec.pinv @ error,
                                atol=1e-12 * np.abs(dec.pinv @ error).max())
     assert dec.gain_inv[5] == 0.0
-    damped = decouple(c1, damping=0.5)
-    # damping shrinks every inverted gain: sigma / (sigma^2 + lambda^2) < 1 / sigma
+    damped = decouple(c1, svd_damping=0.5)
+    # svd_damping shrinks every inverted gain: sigma / (sigma^2 + lambda^2) < 1 / sigma
     assert np.linalg.norm(damped.pinv, 2) < np.linalg.norm(dec.pinv, 2)
     assert damped.rank == dec.rank and dec.condition == pytest.approx(dec.s[0] / dec.s[4])
 
@@ -184,5 +184,5 @@ def test_decouple_rejects_bad_input():
     with pytest.raises(ValueError):
         decouple(np.full((6, 6), np.nan))
     with pytest.raises(ValueError):
-        decouple(np.eye(6), rcond=0.0)
+        decouple(np.eye(6), svd_rcond=0.0)
     assert decouple(np.zeros((6, 6))).rank == 0
