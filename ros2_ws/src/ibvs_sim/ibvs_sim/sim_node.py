@@ -131,14 +131,16 @@ FOCAL_LENGTH_ERROR = Param(
     'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
     'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
 
-PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
-          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
-          RENDER_MARKER_SUPERSAMPLING, RENDER_PARALLEL_LENSES, MOUNT_HEIGHT_M, PUBLISH_IMAGES,
-          MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
-          IMAGE_NOISE_STDDEV,
-          FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
-          CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR, TARGET_FEATURES_SOURCE, TARGET_POSITION,
-          TARGET_ROTATION)
+#: The parameters that go to :class:`.simulator.Simulator` as they are, under their names.
+SIMULATOR_PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION,
+                    CAMERA_EYE, CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDER_SUPERSAMPLING,
+                    RENDER_MARKER_SUPERSAMPLING, MOUNT_HEIGHT_M, IMAGE_NOISE_STDDEV,
+                    FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
+                    CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR)
+PARAMS = SIMULATOR_PARAMS + (
+    RENDERER, RENDER_PARALLEL_LENSES, PUBLISH_IMAGES, MIN_JOINT_STATE_SUBSCRIBERS,
+    MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS, TARGET_FEATURES_SOURCE,
+    TARGET_POSITION, TARGET_ROTATION)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -172,22 +174,10 @@ class SimNode(Node):
         teach_pose = target_from_parameters(values) if teach else None
         try:
             self.sim = Simulator(
-                scenario=values['scenario'], disturbance_deg=values['disturbance_deg'],
-                physics_rate_hz=values['physics_rate_hz'],
-                camera_rate_hz=values['camera_rate_hz'], resolution=values['resolution'],
-                camera_eye=values['camera_eye'], camera_look_at=values['camera_look_at'],
-                l2_scale=values['l2_scale'], l4_scale=values['l4_scale'],
                 renderer=values['renderer'] if self._publish_images else 'tiny',
-                supersampling=values['render_supersampling'],
-                marker_supersampling=values['render_marker_supersampling'],
-                mount_height_m=values['mount_height_m'],
-                image_noise_stddev=values['image_noise_stddev'],
-                frame_drop_probability=values['frame_drop_probability'],
-                camera_seed=values['camera_seed'],
-                camera_pose_error_xyz_m=values['camera_pose_error_xyz_m'],
-                camera_pose_error_rpy_deg=values['camera_pose_error_rpy_deg'],
-                focal_length_error=values['focal_length_error'], teach_pose=teach_pose,
-                parallel_lenses=values['render_parallel_lenses'] and self._publish_images)
+                render_parallel_lenses=values['render_parallel_lenses'] and self._publish_images,
+                teach_pose=teach_pose,
+                **{spec.name: values[spec.name] for spec in SIMULATOR_PARAMS})
         except ConfigError as exc:
             raise ParameterError(str(exc)) from None
         log = self.get_logger()
