@@ -139,7 +139,47 @@ def _target_features(model, pose, p_target=None):
     return model.camera.project(markers).reshape(6)
 
 
-class ClassicIBVS:
+class VelocityLaw:
+    """
+    What the velocity laws (:class:`ClassicIBVS`, :class:`PBVS`) share.
+
+    Each frame asks a joint velocity; q_feedback sums the joint corrections (that velocity
+    over the camera period ``dt``) of the measured frames. A frame not measured adds
+    nothing: q_feedback is held (the robot stops). ``svd_rcond`` truncates the SVD of the
+    Jacobian the law inverts (:func:`.decoupling.decouple`).
+    """
+
+    def __init__(self, model, pose, dt, gain, svd_rcond, p_target):
+        """Keep the model, the target pose and p_bar (``p_target`` or F at the pose)."""
+        self.model = model
+        self.pose = np.asarray(pose, dtype=float)
+        self.p_target = _target_features(model, self.pose, p_target)
+        self.dt = float(dt)
+        self.gain = AdaptiveGain() if gain is None else gain
+        self.svd_rcond = svd_rcond
+        self._q_feedback = np.zeros(6)
+        self.last = None
+
+    @property
+    def q_feedback(self):
+        """Return the integrated correction (zeros before the first frame)."""
+        return self._q_feedback.copy()
+
+    def _integrate(self, q_encoder, dec, error_norm, correction, measured):
+        """Add ``correction`` if ``measured``; return the frame's FeedbackUpdate."""
+        if measured:
+            self._q_feedback = self._q_feedback + correction
+        self.last = FeedbackUpdate(self.q_feedback, q_encoder, dec.s, dec.rank, dec.condition,
+                                   error_norm, correction, False, not measured)
+        return self.last
+
+    def reset(self):
+        """Forget the integrated correction."""
+        self._q_feedback = np.zeros(6)
+        self.last = None
+
+
+class ClassicIBVS(VelocityLaw):
     """
     Classic IBVS, integrated at the camera rate: q_feedback += T qdot, one frame at a time.
 
@@ -160,20 +200,8 @@ class ClassicIBVS:
 
         ``p_target``: a taught p_bar (6,) instead (the features measured at the target).
         """
-        self.model = model
-        self.pose = np.asarray(pose, dtype=float)
-        self.p_target = _target_features(model, self.pose, p_target)
-        self.dt = float(dt)
-        self.gain = AdaptiveGain() if gain is None else gain
-        self.svd_rcond = svd_rcond
+        super().__init__(model, pose, dt, gain, svd_rcond, p_target)
         self.svd_damping = svd_damping
-        self._q_feedback = np.zeros(6)
-        self.last = None
-
-    @property
-    def q_feedback(self):
-        """Return the integrated correction (zeros before the first frame)."""
-        return self._q_feedback.copy()
 
     def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
         """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
@@ -182,16 +210,7 @@ class ClassicIBVS:
         dec = decouple(self.model.jacobian(q_encoder), self.svd_rcond, self.svd_damping)
         norm = float(np.linalg.norm(error))
         correction = -self.gain(norm) * self.dt * (dec.pinv @ error)
-        if measured:
-            self._q_feedback = self._q_feedback + correction
-        self.last = FeedbackUpdate(self.q_feedback, q_encoder, dec.s, dec.rank, dec.condition,
-                                   norm, correction, False, not measured)
-        return self.last
-
-    def reset(self):
-        """Forget the integrated correction."""
-        self._q_feedback = np.zeros(6)
-        self.last = None
+        return self._integrate(q_encoder, dec, norm, correction, measured)
 
 
 def tool_from_markers(camera, p_hat):
@@ -223,7 +242,7 @@ def axis_error(axis, axis_target):
     return cross / sin * np.arctan2(sin, float(np.dot(axis, axis_target)))
 
 
-class PBVS:
+class PBVS(VelocityLaw):
     """
     Position-based visual servoing of the flange point and the tool axis, in {O}.
 
@@ -234,10 +253,10 @@ class PBVS:
     v = -lambda e_t and the angular velocity omega = lambda theta u, mapped to joints by
     the robot's geometric Jacobian at the encoder angles, qdot = J(q)^+ [v; omega]
     (SVD truncated at ``svd_rcond``, undamped: ``svd_damping`` is in px/rad, J's units are
-    m/rad and 1), and
-    integrated at the camera rate: the twist of a frame is held over the camera period and
-    integrated in ``substeps`` steps with J updated along the way. The flange then moves on
-    the straight line from where it is to t* (dt/dt = -lambda e_t), whatever the image does.
+    m/rad and 1), and integrated at the camera rate: the twist of a frame is held over the
+    camera period and integrated in ``substeps`` steps with J updated along the way. The
+    flange then moves on the straight line from where it is to t* (dt/dt = -lambda e_t),
+    whatever the image does.
     The gain is constant (``gain.lambda_0``): |e| mixes metres and radians.
     Not measured: q_feedback is held.
     """
@@ -250,26 +269,14 @@ class PBVS:
         ``p_target``: taught features (6,) at the target; the target position and axis are
         then triangulated from them (:func:`tool_from_markers`), as a taught PBVS does.
         """
+        super().__init__(model, pose, dt, gain, svd_rcond, p_target)
         self.substeps = int(substeps)
         self.q_start = None
-        self.model = model
-        self.pose = np.asarray(pose, dtype=float)
-        self.p_target = _target_features(model, self.pose, p_target)
         if p_target is None:
             self.t_target = self.pose[:3, 3].copy()
             self.axis_target = self.pose[:3, 2].copy()
         else:
             self.t_target, self.axis_target = tool_from_markers(model.camera, self.p_target)
-        self.dt = float(dt)
-        self.gain = AdaptiveGain() if gain is None else gain
-        self.svd_rcond = svd_rcond
-        self._q_feedback = np.zeros(6)
-        self.last = None
-
-    @property
-    def q_feedback(self):
-        """Return the integrated correction (zeros before the first frame)."""
-        return self._q_feedback.copy()
 
     def pose_error(self, p_hat):
         """Return e = [t - t*, -theta u] (6,) of the measured features (m, rad)."""
@@ -293,17 +300,8 @@ class PBVS:
             dec = decouple(geometric_jacobian(q_ref + correction, self.model.params),
                            self.svd_rcond)
             correction = correction + self.dt / self.substeps * (dec.pinv @ twist)
-        if measured:
-            self._q_feedback = self._q_feedback + correction
-        self.last = FeedbackUpdate(self.q_feedback, q_encoder, dec.s, dec.rank, dec.condition,
-                                   float(np.linalg.norm(error)), correction, False,
-                                   not measured)
-        return self.last
-
-    def reset(self):
-        """Forget the integrated correction."""
-        self._q_feedback = np.zeros(6)
-        self.last = None
+        return self._integrate(q_encoder, dec, float(np.linalg.norm(error)), correction,
+                               measured)
 
 
 class Switching:

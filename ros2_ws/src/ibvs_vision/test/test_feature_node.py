@@ -18,7 +18,7 @@ from ibvs_common.conversions import (camera_infos, image_msg, joint_state, ns_st
                                      pose_stamped, read_features, stamp_ns)
 from ibvs_common.params import ParameterError
 from ibvs_common.testing import spin_until
-from ibvs_model import fiducial_points, inverse_kinematics, paper
+from ibvs_model import fiducial_points, inverse_kinematics, paper, scene
 from ibvs_vision import synthetic
 from ibvs_vision.feature_node import FeatureNode
 import numpy as np
@@ -222,7 +222,7 @@ def q_apart(vga_model):
         radius = k.fu * 0.025 / vga_model.camera.to_camera(points)[:, 2].min()
         return np.hypot(*(uv[0, [0, 2]] - uv[1, [0, 2]])) / radius
 
-    poses = synthetic.in_view_poses(vga_model, 20, np.random.default_rng(11))
+    poses = scene.in_view_poses(vga_model, 20, np.random.default_rng(11))
     return max(poses, key=separation) - D_Q
 
 
