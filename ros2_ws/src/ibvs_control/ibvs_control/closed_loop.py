@@ -21,7 +21,7 @@ from ibvs_common.timing import feedback_frame_ns, period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
-from .controllers import (ACTUATORS, Feedforward, FEEDBACK_DESIGNS, FEEDFORWARD_METHODS,
+from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
                           FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
                           MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
 from .servo_laws import (feedforward_method_for, feedforward_overrides, make_law,

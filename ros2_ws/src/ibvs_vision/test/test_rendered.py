@@ -19,7 +19,6 @@ from ibvs_model import (fiducial_points, forward_kinematics, ik_position_axis,
                         inverse_kinematics, paper, scene, UnreachablePoseError)
 from ibvs_sim import markers
 from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING
-from ibvs_vision import synthetic
 from ibvs_vision.detector import Reason, StereoDetector
 import numpy as np
 import pytest
