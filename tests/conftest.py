@@ -1,6 +1,9 @@
 """Fixtures of the cross-package tests: the shared ones, the installed workspace, /proc."""
 
 import os
+import subprocess
+import sys
+import time
 
 from ibvs_common.testing import context  # noqa: F401 (the shared fixture)
 import pytest
@@ -67,3 +70,46 @@ class ProcTools:
 def proc_tools():
     """Return the /proc helpers."""
     return ProcTools
+
+
+@pytest.fixture
+def signalled_run(tmp_path, proc_tools):
+    """
+    Return run(args, under_way, sig, timeout_s, settle_s=0): a scenario 1 run that is hurt.
+
+    ``ibvs run scenario1`` (30 s of sim time, more options in ``args``) writes to
+    ``tmp_path``; once ``under_way(path of sim_node's log)`` holds (within 120 s) and
+    ``settle_s`` more seconds have passed, feature_node gets the signal ``sig``. run waits
+    up to ``timeout_s`` for the runner to end, checks that no process of the run is left,
+    and returns (exit code, stdout, stderr).
+    """
+    def run(args, under_way, sig, timeout_s, settle_s=0.0):
+        cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', 'scenario1', '-o',
+               str(tmp_path), '--duration', '30', *args]
+        runner = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  text=True)
+        log = tmp_path / 'logs' / 'sim_node.log'
+        victim = None
+        seen = set()
+        try:
+            deadline = time.monotonic() + 120.0
+            while time.monotonic() < deadline and victim is None:
+                assert runner.poll() is None, runner.communicate()
+                seen.update(proc_tools.descendants(runner.pid))
+                if under_way(log):
+                    time.sleep(settle_s)
+                    victim = next(pid for pid in proc_tools.descendants(runner.pid)
+                                  if 'feature_node' in proc_tools.cmdline(pid))
+                    os.kill(victim, sig)
+                time.sleep(0.2)
+            assert victim is not None, 'the run never got under way'
+            out, err = runner.communicate(timeout=timeout_s)
+        finally:
+            if runner.poll() is None:
+                runner.kill()
+                runner.communicate()
+        seen.update(proc_tools.descendants(runner.pid))
+        leftovers = [pid for pid in seen if proc_tools.alive(pid)]
+        assert not leftovers, [proc_tools.cmdline(p) for p in leftovers]
+        return runner.returncode, out, err
+    return run

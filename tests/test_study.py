@@ -17,6 +17,14 @@ import yaml
 DOMAINS = (170, 199)
 
 
+def grid_spec(directory, name, duration_s, grid):
+    """Write the scenario 1 grid study ``name`` as ``directory``/``name``.yaml; return its path."""
+    path = directory / f'{name}.yaml'
+    path.write_text(yaml.safe_dump({'name': name, 'scenario': 'scenario1',
+                                    'duration_s': duration_s, 'grid': grid}, sort_keys=False))
+    return path
+
+
 def _ray_processes(proc_tools):
     """Return the PIDs of Ray's own daemons (raylet, gcs_server) below this process."""
     return [pid for pid in proc_tools.descendants(os.getpid())
@@ -28,11 +36,8 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
         installed_workspace, tmp_path, proc_tools):
     # omega_n < 1 / tau_in (eq. 36): tau_in = 0.05 s with omega_n = 30 rad/s is refused by
     # the controller nodes at start, the three other grid points run.
-    spec_path = tmp_path / 'grid.yaml'
-    spec_path.write_text(yaml.safe_dump({
-        'name': 'grid', 'scenario': 'scenario1', 'duration_s': 0.3,
-        'grid': {'tau_in': [0.01, 0.05], 'omega_n': [10.0, 30.0]}}, sort_keys=False))
-    spec = study_spec.load(spec_path)
+    spec = study_spec.load(grid_spec(tmp_path, 'grid', 0.3,
+                                     {'tau_in': [0.01, 0.05], 'omega_n': [10.0, 30.0]}))
     out = tmp_path / 'studies'
     records = study.run_studies([spec], out, parallel=2, domains=DOMAINS)['grid']
 
@@ -84,10 +89,7 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
 def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
         installed_workspace, tmp_path, proc_tools):
     """SIGINT to the study's process group, as a terminal's Ctrl-C sends it, mid-run."""
-    spec_path = tmp_path / 'two.yaml'
-    spec_path.write_text(yaml.safe_dump({
-        'name': 'two', 'scenario': 'scenario1', 'duration_s': 0.2,
-        'grid': {'l2_scale': [1.0, 0.9, 0.8]}}, sort_keys=False))
+    spec_path = grid_spec(tmp_path, 'two', 0.2, {'l2_scale': [1.0, 0.9, 0.8]})
     out = tmp_path / 'studies'
     cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'study', str(spec_path), '-o', str(out),
            '--parallel', '1', '--domains', f'{DOMAINS[0]}-{DOMAINS[1]}']

@@ -27,11 +27,11 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
 """
 
 from dataclasses import dataclass, field
-import math
 from pathlib import Path
 
 from ibvs_common import contract, profiling
 from ibvs_common.conversions import camera_from_msgs, pose_matrix
+from ibvs_common.shared_params import target_from_parameters
 import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
@@ -138,14 +138,6 @@ def _relative(value, t):
     return None if value is None else float(value - t[0])
 
 
-def target_from_params(params):
-    """Return the target T_E^O of a run's parameters (NaN where they are missing)."""
-    target = np.eye(4)
-    target[:3, 3] = params.get('target_position', [math.nan] * 3)
-    target[:3, :3] = np.reshape(params.get('target_rotation', [math.nan] * 9), (3, 3))
-    return target
-
-
 def _stamp(header):
     return header.stamp.sec + header.stamp.nanosec * 1e-9
 
@@ -204,7 +196,7 @@ def load_run(bag_path):
         # rosbags messages have the fields of the rclpy ones: the same conversion serves.
         camera = camera_from_msgs(infos[contract.LEFT_INFO], infos[contract.RIGHT_INFO],
                                   cam_pose)
-    target = target_from_params(params)
+    target = target_from_parameters(params)
     feats = np.array([np.ravel(f) for f in feats if len(f) == 2]) if feats else np.zeros((0, 6))
     return RunData(params=params, run_info=run_info, t=np.asarray(t)[order],
                    position=poses[:, :3, 3], rotation=poses[:, :3, :3], target=target,

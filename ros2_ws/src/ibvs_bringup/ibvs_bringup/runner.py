@@ -34,6 +34,7 @@ from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
+from ibvs_common.shared_params import target_from_parameters
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np
 import rclpy
@@ -298,7 +299,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     bag_path = out_dir / 'bag'
     if bag_path.exists():
         shutil.rmtree(bag_path)
-    target = analysis.target_from_params(params)
+    target = target_from_parameters(params)
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
     domain, domain_lock = domains.claim()

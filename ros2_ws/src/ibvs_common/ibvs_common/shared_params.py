@@ -8,7 +8,7 @@ declares only those it uses (undeclared overrides are ignored by rclpy).
 
 from ibvs_model import paper
 
-from .params import Param
+from .params import Param, ParameterError
 
 SCENARIO = Param('scenario', 1, 'paper scenario (section 5.1) giving the start pose', '-',
                  low=1, high=3)
@@ -54,3 +54,21 @@ STALE_TIMEOUT_S = Param('stale_timeout_s', 0.5,
                         '/joint_states stamped further than this ahead of the newest time a '
                         'node knows as from a bad publisher', 's',
                         low=0.0, high=60.0, low_open=True)
+
+
+def target_from_parameters(values):
+    """
+    Return the target T_E^O of the 'target_position' / 'target_rotation' values by name.
+
+    :func:`ibvs_model.paper.target_pose` (a rotation given with few digits is made
+    orthonormal, as the IK target of eq. 43 needs); a parameter missing from ``values``
+    takes its default. Raises ParameterError naming 'target_rotation' when it is not a
+    rotation.
+    """
+    position, rotation = (values.get(spec.name, spec.default)
+                          for spec in (TARGET_POSITION, TARGET_ROTATION))
+    try:
+        return paper.target_pose(position, rotation)
+    except ValueError as exc:
+        raise ParameterError(f"parameter 'target_rotation' = {rotation!r} is invalid: {exc}; "
+                             'allowed: a rotation matrix, row-major') from None

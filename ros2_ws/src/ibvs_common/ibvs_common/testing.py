@@ -7,6 +7,7 @@ runs each package's tests on their own. Importing this module also puts the test
 its own ROS domain, on the loopback interface only (:func:`isolate`).
 
 - :func:`context`: a private, initialised rclpy Context on this process's domain;
+- :func:`executor_of`: executors of nodes in that context, torn down after the test;
 - :func:`domain_id`: that domain, for child processes;
 - :func:`spin_until`: spin an executor until a condition holds (a deadline guards a hang;
   tests wait on conditions, never on wall-clock time);
@@ -63,6 +64,30 @@ def context():
         yield ctx
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture
+def executor_of(context):
+    """
+    Yield make(*nodes): a SingleThreadedExecutor of ``context`` spinning ``nodes``.
+
+    At teardown every executor made is shut down and its nodes destroyed.
+    """
+    from rclpy.executors import SingleThreadedExecutor
+    made = []
+
+    def make(*nodes):
+        executor = SingleThreadedExecutor(context=context)
+        for node in nodes:
+            executor.add_node(node)
+        made.append((executor, nodes))
+        return executor
+
+    yield make
+    for executor, nodes in made:
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
 
 
 def spin_until(executor, condition, deadline_s=DEADLINE_S, what='condition'):

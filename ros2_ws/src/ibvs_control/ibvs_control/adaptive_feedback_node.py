@@ -63,15 +63,17 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
 from .node_params import (check_gains, check_servo_law, FEEDBACK_DESIGN, FEEDFORWARD_METHOD,
-                          HOLD_SPEED, LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, LINEARISE_AT,
-                          MAX_CORRECTION, SERVO_LAW, SVD_DAMPING, SVD_RCOND, SWITCH_SETTLE,
-                          target_from)
+                          HOLD_SPEED_FRACTION, LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, LINEARISE_AT,
+                          MAX_CORRECTION_RAD, SERVO_LAW, SVD_DAMPING, SVD_RCOND,
+                          SWITCH_SETTLE_S, target_from)
 from .servo_laws import make_law
 
+#: The parameters that go to :func:`.servo_laws.make_law` as they are, under their names.
+LAW_PARAMS = (FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION_RAD, HOLD_SPEED_FRACTION,
+              LINEARISE_AT, SWITCH_SETTLE_S)
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
-          STALE_TIMEOUT_S, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION, HOLD_SPEED,
-          LINEARISE_AT, TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0,
-          LAMBDA_INF, LAMBDA_SLOPE, SWITCH_SETTLE)
+          STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0,
+          LAMBDA_INF, LAMBDA_SLOPE) + LAW_PARAMS
 #: What the diagnostics say while a law holds q_feedback on a usable frame.
 HOLDING = {'paper': 'holding (arm slewing)', 'switching': 'feedforward only (before the switch)',
            'ibvs': 'holding (markers not measured)', 'pbvs': 'holding (markers not measured)'}
@@ -192,12 +194,8 @@ class AdaptiveFeedbackNode(Node):
             self.feedback = make_law(
                 self.law, CameraRobotModel(camera, IRB4600), self.pose, self.values['tau_in'],
                 self.values['omega_n'], self.values['zeta'], self.camera_ns * 1e-9,
-                gain=self.gain, settle=self.values['switch_settle_s'],
-                rcond=self.values['svd_rcond'], damping=self.values['svd_damping'],
-                design=self.values['feedback_design'],
-                max_correction=self.values['max_correction_rad'],
-                hold_speed=self.values['hold_speed_fraction'],
-                linearise_at=self.values['linearise_at'], p_target=self._p_target)
+                gain=self.gain, p_target=self._p_target,
+                **{spec.name: self.values[spec.name] for spec in LAW_PARAMS})
         except (InputError, ModelError) as exc:
             # e.g. the target behind the camera: nothing to servo on; keep waiting.
             self.diagnostics.reject('camera model', type(exc).__name__, str(exc))

@@ -9,9 +9,9 @@ feedforward and the adaptive feedback run as in the nodes, with the same timing 
 (ibvs_common.timing.feedback_frame_ns, the contract's own, free of rclpy): integer
 nanosecond stamps, physics step
 k at k * dt, camera frame n due at n * camera_period, taken at the first physics step at or
-after it and stamped with that step's time, and its q_feedback acting from ``latency``
-after the frame. Which q_feedback acts at a step is decided by the joint controller's own
-lockstep, :class:`ibvs_common.sync.FeedbackLockstep`.
+after it and stamped with that step's time, and its q_feedback acting from
+``feedback_latency_s`` after the frame. Which q_feedback acts at a step is decided by the
+joint controller's own lockstep, :class:`ibvs_common.sync.FeedbackLockstep`.
 
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
@@ -23,10 +23,11 @@ from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
-from .controllers import (DAMPING, Feedforward, FEEDFORWARD_RATIO, HOLD_SPEED, JointLoop,
-                          LINEARISE_AT, MAX_CORRECTION, RCOND)
+from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
+                          FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
+                          MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
 from .servo_laws import (feedforward_method_for, feedforward_overrides, make_law,
-                         SWITCH_SETTLE)
+                         SWITCH_SETTLE_S)
 
 
 @dataclass
@@ -63,29 +64,33 @@ def _accepted(rejection):
 
 
 def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=30.0,
-             tau_in=paper.TAU_IN, omega_n=paper.OMEGA_N, zeta=paper.ZETA, latency_s=0.0,
-             disturbance=None, actuators='ideal', model=None, plant_params=None,
-             torque_max=None, estimate_out_of_view=True, feedforward_method='sampled',
-             feedback_design='sampled', rcond=RCOND, damping=DAMPING,
-             max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED, target=None,
-             integration='exact', linearise_at=LINEARISE_AT, servo_law='paper', gain=None,
-             switch_settle=SWITCH_SETTLE, feedforward_ratio=None):
+             tau_in=paper.TAU_IN, omega_n=paper.OMEGA_N, zeta=paper.ZETA,
+             feedback_latency_s=0.0, disturbance=None, actuators=ACTUATORS[0], model=None,
+             plant_params=None, torque_limits=None, estimate_out_of_view=True,
+             feedforward_method=FEEDFORWARD_METHODS[0], feedback_design=FEEDBACK_DESIGNS[0],
+             svd_rcond=SVD_RCOND, svd_damping=SVD_DAMPING,
+             max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
+             target=None, integration='exact', linearise_at=LINEARISE_AT, servo_law='paper',
+             gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
+
+    The arguments named as node parameters (README) mean what those parameters mean.
 
     ``model``: the controllers' F (default :func:`ibvs_model.default_model`);
     ``plant_params``: the true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)``
     for Figure 13). ``disturbance``: d_q (rad), default the scenario's. The start is the
     scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
     features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
-    'limited' actuators with the bare double integrator (M = I, h = 0) take ``torque_max``
-    as the acceleration limits (rad/s^2). ``integration``: 'exact' (zero-order hold of the
-    acceleration over a step: the continuous arm) or 'semi-implicit' (qd += a dt, then
-    q += qd dt: how PyBullet steps the simulated arm; use it to compare with the graph).
+    'limited' actuators with the bare double integrator (M = I, h = 0) take
+    ``torque_limits`` as the acceleration limits (rad/s^2). ``integration``: 'exact'
+    (zero-order hold of the acceleration over a step: the continuous arm) or 'semi-implicit'
+    (qd += a dt, then q += qd dt: how PyBullet steps the simulated arm; use it to compare
+    with the graph).
     ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
     ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; ibvs and pbvs run with the
     feedforward held at q(0) ('hold'), ``gain`` (:class:`.servo_laws.AdaptiveGain`) is
-    theirs, ``switch_settle`` (s) the switching law's. A frame is 'measured' when both
+    theirs, ``switch_settle_s`` the switching law's. A frame is 'measured' when both
     markers are in view of the true robot. ``feedforward_ratio``: T_forward's double pole
     in tau_in, default the law's (:func:`.servo_laws.feedforward_overrides`: 2 for
     switching, else the paper's 0.1).
@@ -100,7 +105,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     cam_ns = period_ns(camera_rate_hz)
     if cam_ns < dt_ns:
         raise ValueError('the camera rate must not exceed the physics rate')
-    latency_ns = int(round(latency_s * 1e9))
+    latency_ns = int(round(feedback_latency_s * 1e9))
     if integration not in ('exact', 'semi-implicit'):
         raise ValueError(f"integration must be 'exact' or 'semi-implicit', got {integration!r}")
     semi_implicit = integration == 'semi-implicit'
@@ -109,17 +114,17 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     q_true0 = inverse_kinematics(paper.scenario_start_pose(scenario), plant.params)
     q = q_true0 - d_q
     qd = np.zeros(6)
-    joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_max)
+    joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_limits)
     if feedforward_ratio is None:
         feedforward_ratio = feedforward_overrides(servo_law).get('feedforward_ratio',
                                                                  FEEDFORWARD_RATIO)
-    ff = Feedforward(pose, tau_in, dt, model.params, ratio=feedforward_ratio,
-                     method=feedforward_method_for(servo_law, feedforward_method))
+    ff = Feedforward(pose, tau_in, dt, model.params, feedforward_ratio=feedforward_ratio,
+                     feedforward_method=feedforward_method_for(servo_law, feedforward_method))
     q_target = ff.start(q)
     fb = make_law(servo_law, model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, gain,
-                  switch_settle, rcond=rcond, damping=damping, design=feedback_design,
-                  max_correction=max_correction, hold_speed=hold_speed,
-                  linearise_at=linearise_at)
+                  switch_settle_s, svd_rcond=svd_rcond, svd_damping=svd_damping,
+                  feedback_design=feedback_design, max_correction_rad=max_correction_rad,
+                  hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}

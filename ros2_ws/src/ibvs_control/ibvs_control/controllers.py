@@ -14,42 +14,35 @@ The ROS nodes and the model-only closed loop (:mod:`.closed_loop`) both use thes
 
 from dataclasses import dataclass
 
+from ibvs_common import shared_params
 from ibvs_model import (forward_kinematics, ik_solutions, InvalidInputError,
-                        inverse_kinematics, IRB4600, nearest_rotation, pose_error, pose_from)
+                        inverse_kinematics, IRB4600, pose_error)
 import numpy as np
 
 from . import youla
-from .decoupling import decouple
+from .decoupling import decouple, SVD_RCOND
 from .filters import StateSpaceFilter
 from .governor import ReferenceGovernor
+from .youla import FEEDFORWARD_RATIO
 
-ACTUATORS = ('ideal', 'limited')
-#: Defaults of the adaptive feedback (:class:`AdaptiveFeedback`), shared with the node.
-RCOND = 1e-6
-DAMPING = 0.1
-MAX_CORRECTION = 0.05
-HOLD_SPEED = 0.2
-#: Where C1 is evaluated (:class:`AdaptiveFeedback`): the encoder angles or F^-1(p_hat).
+#: Each default and set of choices below is also that of the control node parameter of
+#: the same name (:mod:`.node_params`): one definition.
+#: :class:`JointLoop`: the actuators (the shared parameter's choices, the first being the
+#: default) and the 'limited' governor's margins.
+ACTUATORS = shared_params.ACTUATORS.choices
+SPEED_MARGIN = 0.95
+ACCELERATION_MARGIN = 0.5
+#: :class:`Feedforward`: how T_forward is discretised, the first being the default.
+FEEDFORWARD_METHODS = ('sampled', 'tustin', 'zoh', 'hold')
+#: :class:`AdaptiveFeedback`: its tuning (``svd_rcond``: :data:`.decoupling.SVD_RCOND`),
+#: how k is discretised (the first is the default) and where C1 is evaluated (the encoder
+#: angles or F^-1(p_hat)).
+SVD_DAMPING = 0.1
+MAX_CORRECTION_RAD = 0.05
+HOLD_SPEED_FRACTION = 0.2
+FEEDBACK_DESIGNS = ('sampled', 'tustin')
 LINEARISATION_POINTS = ('encoders', 'features')
 LINEARISE_AT = 'encoders'
-
-
-def target_pose(position, rotation, tol=1e-3):
-    """
-    Return the 4x4 target pose from a position (3,) and a rotation (9 row-major or 3x3).
-
-    A rotation printed with few digits (within ``tol`` of orthonormal) is projected onto
-    the nearest rotation; anything further raises ValueError.
-    """
-    position = np.asarray(position, dtype=float).reshape(3)
-    rot = np.asarray(rotation, dtype=float).reshape(3, 3)
-    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rot))):
-        raise ValueError('target pose: not finite')
-    err = np.max(np.abs(rot.T @ rot - np.eye(3)))
-    if err > tol or np.linalg.det(rot) <= 0.0:
-        raise ValueError(f'target rotation is not a rotation matrix (|R^T R - I| = {err:.3g},'
-                         f' det = {np.linalg.det(rot):.3g})')
-    return pose_from(position, nearest_rotation(rot))
 
 
 def check_inputs(p_hat, q_encoder):
@@ -75,32 +68,34 @@ class JointLoop:
     v = G_c,d(q_ref - q) (:func:`.youla.inner_controller_discrete`), then eq. (26)
     u = M(q) v + h(q, qdot): 'ideal' actuators (the paper) apply u as it is.
 
-    'limited' actuators (the IRB 4600 speed limits ``qd_max`` and ``torque_max``):
+    'limited' actuators (the IRB 4600 speed limits ``qd_max`` and ``torque_limits``):
 
     1. q_ref is shaped by a :class:`.governor.ReferenceGovernor` so that the linear loop
        stays out of saturation: speed ``speed_margin`` * qd_max, acceleration
-       ``acceleration_margin`` * max(torque_max - |h|, 0.1 torque_max) / diag(M), i.e. a
+       ``acceleration_margin`` * max(torque_limits - |h|, 0.1 torque_limits) / diag(M), i.e. a
        share of what the torque left after gravity and Coriolis buys on each joint now;
     2. v is clipped so that the joint speed after the step stays within qd_max
-       (|qdot + v dt| <= qd_max), and u is clipped to +-torque_max;
+       (|qdot + v dt| <= qd_max), and u is clipped to +-torque_limits;
     3. anti-windup: the acceleration actually achieved, v_a = M^-1 (u_sat - h), conditions
        the controller state (Hanus, :class:`.filters.StateSpaceFilter`).
     """
 
-    def __init__(self, tau_in, dt, actuators='ideal', qd_max=IRB4600.qd_max,
-                 torque_max=None, speed_margin=0.95, acceleration_margin=0.5):
+    def __init__(self, tau_in, dt, actuators=ACTUATORS[0], qd_max=IRB4600.qd_max,
+                 torque_limits=None, speed_margin=SPEED_MARGIN,
+                 acceleration_margin=ACCELERATION_MARGIN):
         """Design G_c,d at sample time ``dt``; limits are needed in 'limited' mode only."""
         if actuators not in ACTUATORS:
             raise ValueError(f'actuators must be one of {ACTUATORS}, got {actuators!r}')
         self.dt = float(dt)
         self.actuators = actuators
         self.qd_max = np.asarray(qd_max, dtype=float)
-        self.torque_max = None if torque_max is None else np.asarray(torque_max, dtype=float)
+        self.torque_limits = (None if torque_limits is None
+                              else np.asarray(torque_limits, dtype=float))
         self.acceleration_margin = float(acceleration_margin)
         self.governor = None
         if actuators == 'limited':
-            if self.torque_max is None or self.torque_max.shape != (6,) \
-                    or np.any(self.torque_max <= 0.0):
+            if self.torque_limits is None or self.torque_limits.shape != (6,) \
+                    or np.any(self.torque_limits <= 0.0):
                 raise ValueError('limited actuators need 6 positive torque limits')
             if not (0.0 < speed_margin <= 1.0 and 0.0 < acceleration_margin <= 1.0):
                 raise ValueError('speed and acceleration margins must be in (0, 1]')
@@ -134,14 +129,14 @@ class JointLoop:
         qdot = np.asarray(qdot, dtype=float)
         if self.governor.r is None:
             self.governor.reset(q, qdot)
-        spare = np.maximum(self.torque_max - np.abs(bias), 0.1 * self.torque_max)
+        spare = np.maximum(self.torque_limits - np.abs(bias), 0.1 * self.torque_limits)
         self.reference = self.governor.step(
             q_ref, self.acceleration_margin * spare / np.abs(np.diag(mass)))
         error = self.reference - np.asarray(q, dtype=float)
         v = self.filter.output(error)
         v_lim = np.clip(v, (-self.qd_max - qdot) / self.dt, (self.qd_max - qdot) / self.dt)
         u = mass @ v_lim + bias
-        u_sat = np.clip(u, -self.torque_max, self.torque_max)
+        u_sat = np.clip(u, -self.torque_limits, self.torque_limits)
         torque_hit = u_sat != u
         applied = np.linalg.solve(mass, u_sat - bias) if np.any(torque_hit) else v_lim
         self.saturated = torque_hit | (v_lim != v)
@@ -149,9 +144,6 @@ class JointLoop:
         return u_sat
 
 
-#: T_forward's double pole at ``ratio`` tau_in (eq. 44-45): the paper's 0.1, so that
-#: T_d T_forward, the joints' designed response, has a 1 ms double pole.
-FEEDFORWARD_RATIO = 0.1
 #: Longest feedforward trajectory (samples): 60 s at 1 kHz. With the paper's values the
 #: output of T_forward has settled after about 2 s (Feedforward.trajectory).
 MAX_FEEDFORWARD_SAMPLES = 60_000
@@ -170,32 +162,34 @@ class Feedforward:
     filter on q0, so q_ff(0) = q(0) exactly, and every later step on q_target. (Feeding
     the target at t = 0 instead would make q_ff(0) = q0 + D (q_target - q0), D ~ 15 at
     1 kHz: the biproper filter's first answer to a step.)
-    ``ratio``: T_forward's double pole sits at ``ratio`` tau_in (eq. 44-45; the paper's
-    0.1): every joint then follows q(t) = q0 + s(t) (q_target - q0) with s the step
-    response of ((1 - p_f) / (z - p_f))^2 (z + 1) / 2, the same straight line in joint space
-    for any ratio, faster for a smaller one (peak joint speed about 0.37 |q_target - q0| /
-    (ratio tau_in)).
-    ``method``: 'sampled' (default, :func:`.youla.feedforward_discrete`, the inverse of the
-    sampled inner loop) or 'tustin' / 'zoh' (eq. 44 discretised by scipy), or 'hold': no
-    feedforward, q_ff = q(0) at every step (the servo laws whose feedback carries the whole
-    move, :mod:`.servo_laws`); the target is still checked reachable.
+    ``feedforward_ratio``: T_forward's double pole sits at ``feedforward_ratio`` tau_in
+    (eq. 44-45; the paper's 0.1, :data:`.youla.FEEDFORWARD_RATIO`): every joint then
+    follows q(t) = q0 + s(t) (q_target - q0) with s the step response of
+    ((1 - p_f) / (z - p_f))^2 (z + 1) / 2, the same straight line in joint space for any
+    ratio, faster for a smaller one (peak joint speed about 0.37 |q_target - q0| /
+    (feedforward_ratio tau_in)).
+    ``feedforward_method`` (:data:`FEEDFORWARD_METHODS`): 'sampled' (default,
+    :func:`.youla.feedforward_discrete`, the inverse of the sampled inner loop) or 'tustin'
+    / 'zoh' (eq. 44 discretised by scipy), or 'hold': no feedforward, q_ff = q(0) at every
+    step (the servo laws whose feedback carries the whole move, :mod:`.servo_laws`); the
+    target is still checked reachable.
     """
 
-    def __init__(self, pose, tau_in, dt, params=IRB4600, ratio=FEEDFORWARD_RATIO,
-                 method='sampled'):
+    def __init__(self, pose, tau_in, dt, params=IRB4600, feedforward_ratio=FEEDFORWARD_RATIO,
+                 feedforward_method=FEEDFORWARD_METHODS[0]):
         """Check the target is reachable (eq. 43) and design T_forward at ``dt``."""
         self.pose = np.asarray(pose, dtype=float)
         self.params = params
         check_reachable(self.pose, params)
-        self.hold = method == 'hold'
-        if method in ('sampled', 'hold'):
-            design = youla.feedforward_discrete(tau_in, dt, ratio)
-        elif method in ('tustin', 'zoh'):
-            design = youla.feedforward(tau_in, ratio).discretise(
-                dt, 'bilinear' if method == 'tustin' else 'zoh')
+        if feedforward_method not in FEEDFORWARD_METHODS:
+            raise ValueError(f'feedforward_method must be one of {FEEDFORWARD_METHODS}, got '
+                             f'{feedforward_method!r}')
+        self.hold = feedforward_method == 'hold'
+        if feedforward_method in ('sampled', 'hold'):
+            design = youla.feedforward_discrete(tau_in, dt, feedforward_ratio)
         else:
-            raise ValueError(f"method must be 'sampled', 'tustin', 'zoh' or 'hold', got "
-                             f'{method!r}')
+            design = youla.feedforward(tau_in, feedforward_ratio).discretise(
+                dt, 'bilinear' if feedforward_method == 'tustin' else 'zoh')
         self.filter = StateSpaceFilter(design, 6)
         self.q_target = None
         self.q_start = None
@@ -273,7 +267,9 @@ class AdaptiveFeedback:
     dq = C1^+ (p_bar - p_hat) and q_feedback = k_d(z) dq (eq. 38-41 in the form
     G_C = C1^+ k). The dynamic part k acts on dq, after the time-varying C1^+, so the
     integrator holds a joint correction that does not jump when C1 is updated.
-    ``design``: 'sampled' (default, :func:`.youla.outer_controller_discrete`) or 'tustin'.
+    ``svd_rcond`` and ``svd_damping`` go to :func:`.decoupling.decouple`.
+    ``feedback_design``: 'sampled' (default, :func:`.youla.outer_controller_discrete`) or
+    'tustin'.
 
     Linearisation point. The paper evaluates C1 at q~ = F^-1(p_hat) (eq. 42), the angles at
     which the MODEL robot would show the measured features: ``linearise_at='features'``.
@@ -302,7 +298,7 @@ class AdaptiveFeedback:
 
     - trust region: C1 describes F only near the linearisation point. Each decoupled
       channel i (eq. 34) asks for c_i = (u_i . e) / sigma_i rad along v_i; a channel that
-      asks for more than ``max_correction`` is clipped to it, on its own, as each SISO loop
+      asks for more than ``max_correction_rad`` is clipped to it, on its own, as each SISO loop
       of a decoupled design saturates on its own. This matters on the first frame: it sees
       the whole start-to-target error, which the feedforward removes within ~10 ms but which
       a 30 Hz sample would otherwise hold, and integrate, for 33 ms (0.44 m excursion in
@@ -310,14 +306,15 @@ class AdaptiveFeedback:
       channel (sigma_5 ~ 2 px/rad, the tool's tilt) throttle all the others, and the
       Figure 13 sweep creeps (table above).
     - conditional integration (anti-windup): while any encoder joint moves faster than
-      ``hold_speed`` times its speed limit, the arm is still slewing under the
+      ``hold_speed_fraction`` times its speed limit, the arm is still slewing under the
       feedforward and the image error says nothing the feedback should integrate; the
       frame is then not integrated and q_feedback is held. With limited actuators the
       slew takes ~1 s; integrating it overshoots by 0.2 m (model-only loop).
     """
 
-    def __init__(self, model, pose, tau_in, omega_n, zeta, dt, rcond=RCOND, damping=DAMPING,
-                 design='sampled', max_correction=MAX_CORRECTION, hold_speed=HOLD_SPEED,
+    def __init__(self, model, pose, tau_in, omega_n, zeta, dt, svd_rcond=SVD_RCOND,
+                 svd_damping=SVD_DAMPING, feedback_design=FEEDBACK_DESIGNS[0],
+                 max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
                  linearise_at=LINEARISE_AT, p_target=None):
         """
         Set p_bar and design k.
@@ -339,17 +336,18 @@ class AdaptiveFeedback:
             if p_target.shape != (6,) or not np.all(np.isfinite(p_target)):
                 raise ValueError('p_target must be 6 finite values (u_l, u_r, v per marker)')
             self.p_target = p_target
-        if design == 'sampled':
+        if feedback_design not in FEEDBACK_DESIGNS:
+            raise ValueError(f'feedback_design must be one of {FEEDBACK_DESIGNS}, got '
+                             f'{feedback_design!r}')
+        if feedback_design == 'sampled':
             k = youla.outer_controller_discrete(tau_in, omega_n, zeta, dt)
-        elif design == 'tustin':
-            k = youla.outer_controller(tau_in, omega_n, zeta).discretise(dt, 'bilinear')
         else:
-            raise ValueError(f"design must be 'sampled' or 'tustin', got {design!r}")
+            k = youla.outer_controller(tau_in, omega_n, zeta).discretise(dt, 'bilinear')
         self.filter = StateSpaceFilter(k, 6)
-        self.rcond = rcond
-        self.damping = damping
-        self.max_correction = float(max_correction)
-        self.hold_speed = float(hold_speed)
+        self.svd_rcond = svd_rcond
+        self.svd_damping = svd_damping
+        self.max_correction_rad = float(max_correction_rad)
+        self.hold_speed_fraction = float(hold_speed_fraction)
         self.last = None
 
     @property
@@ -370,15 +368,16 @@ class AdaptiveFeedback:
         p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         q_est = self.model.inverse(p_hat, q_encoder[5], seed=q_encoder)
         q_lin = q_est if self.linearise_at == 'features' else q_encoder
-        dec = decouple(self.model.jacobian(q_lin), self.rcond, self.damping)
+        dec = decouple(self.model.jacobian(q_lin), self.svd_rcond, self.svd_damping)
         error = self.p_target - p_hat
         channels = dec.channels(error)
-        clipped = bool(np.any(np.abs(channels) > self.max_correction))
+        clipped = bool(np.any(np.abs(channels) > self.max_correction_rad))
         if clipped:
-            channels = np.clip(channels, -self.max_correction, self.max_correction)
+            channels = np.clip(channels, -self.max_correction_rad, self.max_correction_rad)
         correction = dec.joints(channels)
         held = qdot_encoder is not None and bool(np.any(
-            np.abs(qdot_encoder) > self.hold_speed * np.asarray(self.model.params.qd_max)))
+            np.abs(qdot_encoder) > self.hold_speed_fraction
+            * np.asarray(self.model.params.qd_max)))
         q_fb = self.filter.last_output.copy() if held else self.filter.step(correction)
         self.last = FeedbackUpdate(q_fb.copy(), q_est, dec.s, dec.rank, dec.condition,
                                    float(np.linalg.norm(error)), correction, clipped, held)

@@ -7,11 +7,11 @@ values, U_R = V^T). The controller of eq. (38)-(41) is G_C = U_R^T diag(M_Y/S) U
 
 Unobservable direction (docs/design.md §5): both fiducials lie on the joint-6 axis, so
 joint 6 moves no feature, the sixth singular value of C1 is 0 (numerically ~1e-13 of the
-first) and eq. (37) would divide by it. Only the singular values above ``rcond`` times the
-largest are inverted (truncated SVD: rank 5), so the feedback never moves the
+first) and eq. (37) would divide by it. Only the singular values above ``svd_rcond`` times
+the largest are inverted (truncated SVD: rank 5), so the feedback never moves the
 unobservable direction (V's sixth column, e6): q6 is left to the feedforward and the
 encoder, which is harmless for an axisymmetric screwdriver. An optional Tikhonov
-``damping`` lambda replaces 1/sigma by sigma/(sigma^2 + lambda^2) on the kept values
+``svd_damping`` lambda replaces 1/sigma by sigma/(sigma^2 + lambda^2) on the kept values
 (damped least squares), which bounds the gain near a wrist singularity at the price of a
 slower channel there; the default 0 is the paper's exact inverse.
 """
@@ -19,6 +19,9 @@ slower channel there; the default 0 is the paper's exact inverse.
 from dataclasses import dataclass
 
 import numpy as np
+
+#: Default of ``svd_rcond`` (the adaptive feedback node's parameter of the same name).
+SVD_RCOND = 1e-6
 
 
 @dataclass(frozen=True)
@@ -57,20 +60,22 @@ class Decoupling:
         return self.U[:, :self.rank]
 
 
-def decouple(c1, rcond=1e-6, damping=0.0):
+def decouple(c1, svd_rcond=SVD_RCOND, svd_damping=0.0):
     """
     Return the :class:`Decoupling` of C1 (eq. 34) with the inverse used by eq. (37)-(41).
 
-    Singular values <= ``rcond`` * sigma_1 are treated as zero (not inverted).
+    Singular values <= ``svd_rcond`` * sigma_1 are treated as zero (not inverted);
+    ``svd_damping`` is the Tikhonov lambda (module docstring).
     """
     c1 = np.asarray(c1, dtype=float)
     if c1.ndim != 2 or not np.all(np.isfinite(c1)):
         raise ValueError('C1 must be a finite matrix')
-    if not (0.0 < rcond < 1.0) or damping < 0.0:
-        raise ValueError(f'rcond = {rcond} must be in (0, 1) and damping = {damping} >= 0')
+    if not (0.0 < svd_rcond < 1.0) or svd_damping < 0.0:
+        raise ValueError(f'svd_rcond = {svd_rcond} must be in (0, 1) and svd_damping = '
+                         f'{svd_damping} >= 0')
     u, s, vt = np.linalg.svd(c1)
-    rank = int(np.count_nonzero(s > rcond * s[0])) if s[0] > 0.0 else 0
+    rank = int(np.count_nonzero(s > svd_rcond * s[0])) if s[0] > 0.0 else 0
     inv = np.zeros_like(s)
-    inv[:rank] = s[:rank] / (s[:rank] ** 2 + damping ** 2)
+    inv[:rank] = s[:rank] / (s[:rank] ** 2 + svd_damping ** 2)
     pinv = (vt[:s.size].T * inv) @ u[:, :s.size].T
     return Decoupling(u, s, vt, rank, pinv, inv)

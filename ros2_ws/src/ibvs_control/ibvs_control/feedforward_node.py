@@ -56,8 +56,8 @@ class FeedforwardNode(Node):
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
         self.ff = Feedforward(self.pose, values['tau_in'], self.dt_ns * 1e-9,
-                              ratio=values['feedforward_ratio'],
-                              method=values['feedforward_method'])
+                              feedforward_ratio=values['feedforward_ratio'],
+                              feedforward_method=values['feedforward_method'])
         self.t0_ns = None
         self.diagnostics = Diagnostics(self, 'feedforward')
         self.diagnostics.update(started=False)

@@ -8,16 +8,17 @@ at start (exit code 2, ibvs_common.node_main.run) instead of misbehaving later.
 """
 
 from ibvs_common.params import Param, ParameterError
+from ibvs_common.shared_params import target_from_parameters
 from ibvs_model import IRB4600, ModelError
 
 from . import controllers, servo_laws, youla
 
 FEEDFORWARD_METHOD = Param(
-    'feedforward_method', 'sampled',
+    'feedforward_method', controllers.FEEDFORWARD_METHODS[0],
     "T_forward (eq. 44-45) at the physics rate: 'sampled' (inverse of the sampled inner "
     "loop, no overshoot) or 'tustin' / 'zoh' (eq. 44 discretised by scipy); 'hold': no "
     "feedforward, q(0) held (servo_law 'ibvs' and 'pbvs' need it)", '-',
-    choices=('sampled', 'tustin', 'zoh', 'hold'))
+    choices=controllers.FEEDFORWARD_METHODS)
 FEEDFORWARD_RATIO = Param(
     'feedforward_ratio', controllers.FEEDFORWARD_RATIO,
     "T_forward's double pole at feedforward_ratio * tau_in (eq. 44-45; the paper: 0.1, a "
@@ -42,42 +43,42 @@ LAMBDA_SLOPE = Param('lambda_slope', servo_laws.LAMBDA_SLOPE,
                      "servo_law 'ibvs': ViSP's lambda'(0), how fast the gain falls from "
                      'lambda_0 towards lambda_inf as |p_hat - p_bar| grows; 0: constant '
                      'gain lambda_0', '1/(s px)', low=0.0, high=1000.0)
-SWITCH_SETTLE = Param('switch_settle_s', servo_laws.SWITCH_SETTLE,
-                      "servo_law 'switching': the feedback switches on no earlier than this "
-                      'after the first frame (the feedforward transient), and only on a '
-                      'measured frame with every joint slower than hold_speed_fraction of '
-                      'its limit', 's', low=0.0, high=100.0)
+SWITCH_SETTLE_S = Param('switch_settle_s', servo_laws.SWITCH_SETTLE_S,
+                        "servo_law 'switching': the feedback switches on no earlier than "
+                        'this after the first frame (the feedforward transient), and only on '
+                        'a measured frame with every joint slower than hold_speed_fraction of '
+                        'its limit', 's', low=0.0, high=100.0)
 FEEDBACK_DESIGN = Param(
-    'feedback_design', 'sampled',
+    'feedback_design', controllers.FEEDBACK_DESIGNS[0],
     "outer controller k at the camera period: 'sampled' (eq. 37-41 on the ZOH plant: eq. 36 "
-    "at the frames) or 'tustin' (k(s) discretised)", '-', choices=('sampled', 'tustin'))
-SVD_RCOND = Param('svd_rcond', controllers.RCOND,
+    "at the frames) or 'tustin' (k(s) discretised)", '-', choices=controllers.FEEDBACK_DESIGNS)
+SVD_RCOND = Param('svd_rcond', controllers.SVD_RCOND,
                   'singular values of C1 below svd_rcond * sigma_1 are not inverted', '-',
                   low=0.0, high=0.1, low_open=True)
-SVD_DAMPING = Param('svd_damping', controllers.DAMPING,
+SVD_DAMPING = Param('svd_damping', controllers.SVD_DAMPING,
                     'Tikhonov damping of the inverted singular values of C1 (0: exact)',
                     'px/rad', low=0.0, high=100.0)
-MAX_CORRECTION = Param('max_correction_rad', controllers.MAX_CORRECTION,
-                       'trust region of the linearisation: largest correction one '
-                       'decoupled channel of C1^+ (p_bar - p_hat) integrates per frame', 'rad',
-                       low=0.0, high=10.0, low_open=True)
+MAX_CORRECTION_RAD = Param('max_correction_rad', controllers.MAX_CORRECTION_RAD,
+                           'trust region of the linearisation: largest correction one '
+                           'decoupled channel of C1^+ (p_bar - p_hat) integrates per frame',
+                           'rad', low=0.0, high=10.0, low_open=True)
 LINEARISE_AT = Param('linearise_at', controllers.LINEARISE_AT,
                      "where C1 (eq. 31) is evaluated: 'encoders' (the encoder angles q_T) or "
                      "'features' (q~ = F^-1(p_hat), the paper's eq. 42; less robust to a wrong "
                      'robot model)', '-', choices=controllers.LINEARISATION_POINTS)
-HOLD_SPEED = Param('hold_speed_fraction', controllers.HOLD_SPEED,
-                   'the feedback holds (does not integrate) while an encoder joint moves '
-                   'faster than this fraction of its speed limit', '-',
-                   low=0.0, high=10.0, low_open=True)
+HOLD_SPEED_FRACTION = Param('hold_speed_fraction', controllers.HOLD_SPEED_FRACTION,
+                            'the feedback holds (does not integrate) while an encoder joint '
+                            'moves faster than this fraction of its speed limit', '-',
+                            low=0.0, high=10.0, low_open=True)
 TORQUE_LIMITS = Param('torque_limits', [0.0] * 6,
                       "'limited' actuators: torque limit per joint; 0 takes the URDF's "
                       'joint effort', 'N m', low=0.0, high=1e6, length=6)
-SPEED_MARGIN = Param('speed_margin', 0.95, "'limited' actuators: the governor's speed "
-                     'as a fraction of the IRB 4600 speed limits', '-', low=0.0, high=1.0,
-                     low_open=True)
-ACCELERATION_MARGIN = Param('acceleration_margin', 0.5, "'limited' actuators: share of "
-                            'the torque left after h(q, qdot) that the governor may use', '-',
-                            low=0.0, high=1.0, low_open=True)
+SPEED_MARGIN = Param('speed_margin', controllers.SPEED_MARGIN, "'limited' actuators: the "
+                     "governor's speed as a fraction of the IRB 4600 speed limits", '-',
+                     low=0.0, high=1.0, low_open=True)
+ACCELERATION_MARGIN = Param('acceleration_margin', controllers.ACCELERATION_MARGIN,
+                            "'limited' actuators: share of the torque left after h(q, qdot) "
+                            'that the governor may use', '-', low=0.0, high=1.0, low_open=True)
 
 
 def check_gains(values):
@@ -109,8 +110,8 @@ def check_servo_law(values):
             f"parameter 'feedforward_method' = 'hold' is invalid with servo_law = {law!r}: "
             "that law needs the feedforward; allowed: 'sampled', 'tustin' or 'zoh'")
     try:
-        return servo_laws.AdaptiveGain(values['lambda_0'], values['lambda_inf'],
-                                       values['lambda_slope'])
+        return servo_laws.AdaptiveGain(**{spec.name: values[spec.name]
+                                          for spec in (LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE)})
     except ValueError as exc:
         raise ParameterError(
             f"parameter 'lambda_inf' = {values['lambda_inf']!r} is invalid: {exc}; allowed: "
@@ -121,15 +122,11 @@ def target_from(values, params=IRB4600):
     """
     Return the target pose of 'target_position' / 'target_rotation', checked reachable.
 
-    Raises ParameterError naming 'target_rotation' (not a rotation) or 'target_position'
-    (no IK branch within the joint limits, eq. 43).
+    Built by :func:`ibvs_common.shared_params.target_from_parameters`; raises
+    ParameterError naming 'target_rotation' (not a rotation) or 'target_position' (no IK
+    branch within the joint limits, eq. 43).
     """
-    try:
-        pose = controllers.target_pose(values['target_position'], values['target_rotation'])
-    except ValueError as exc:
-        raise ParameterError(f"parameter 'target_rotation' = {values['target_rotation']!r} "
-                             f'is invalid: {exc}; allowed: a rotation matrix, row-major') \
-            from None
+    pose = target_from_parameters(values)
     try:
         controllers.check_reachable(pose, params)
     except ModelError as exc:

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 from ibvs_model import geometric_jacobian, InvalidInputError
 import numpy as np
 
-from .controllers import AdaptiveFeedback, check_inputs, FeedbackUpdate
-from .decoupling import decouple
+from .controllers import AdaptiveFeedback, check_inputs, FeedbackUpdate, FEEDFORWARD_METHODS
+from .decoupling import decouple, SVD_RCOND
 
 SERVO_LAWS = ('paper', 'ibvs', 'pbvs', 'switching')
 #: Laws whose q_feedforward holds q(0) (feedforward_method 'hold').
@@ -63,7 +63,7 @@ LAMBDA_SLOPE = 0.09
 #: the feedback integrate the feedforward's own transient. (At 1 tau_in, without the
 #: clamp, scenario 3 overshot 9.3 mm; at 3 tau_in the switch waits for the joints to slow
 #: down until 0.23 s and the tool is within 1 mm after 0.55-0.57 s.)
-SWITCH_SETTLE = 0.2
+SWITCH_SETTLE_S = 0.2
 SWITCHING_FEEDFORWARD_RATIO = 2.0
 #: Sub-steps of the PBVS integration over one camera period (:class:`PBVS`).
 SUBSTEPS = 10
@@ -84,11 +84,11 @@ def feedforward_overrides(law):
     return {'feedforward_ratio': SWITCHING_FEEDFORWARD_RATIO} if law == 'switching' else {}
 
 
-def feedforward_method_for(law, method='sampled'):
+def feedforward_method_for(law, feedforward_method=FEEDFORWARD_METHODS[0]):
     """Return the feedforward_method that goes with ``law``: 'hold' for ibvs and pbvs."""
     if law not in SERVO_LAWS:
         raise ValueError(f'servo_law must be one of {SERVO_LAWS}, got {law!r}')
-    return 'hold' if law in WITHOUT_FEEDFORWARD else method
+    return 'hold' if law in WITHOUT_FEEDFORWARD else feedforward_method
 
 
 @dataclass(frozen=True)
@@ -96,10 +96,11 @@ class AdaptiveGain:
     """
     ViSP's adaptive gain (vpAdaptiveGain): lambda(x) = a exp(-b x) + c, x = |e|.
 
-    With lambda_0 = lambda(0), lambda_inf = lambda(inf) and the slope lambda'_0 at 0:
+    With lambda_0 = lambda(0), lambda_inf = lambda(inf) and the slope lambda'_0 =
+    ``lambda_slope`` at 0:
     a = lambda_0 - lambda_inf, b = lambda'_0 / a, c = lambda_inf, i.e.
     lambda(x) = (lambda_0 - lambda_inf) exp(-lambda'_0 x / (lambda_0 - lambda_inf)) + lambda_inf.
-    ``slope`` 0 (the default; lambda_inf is then unused) or lambda_0 = lambda_inf gives the
+    ``lambda_slope`` 0 (lambda_inf is then unused) or lambda_0 = lambda_inf gives the
     constant gain lambda_0 of the classic law
     (Chaumette & Hutchinson, IEEE RAM 2006, eq. 4; Corke, Robotics, Vision and Control, 15.2).
     A large error gets the small gain lambda_inf, a small one the large lambda_0.
@@ -107,23 +108,24 @@ class AdaptiveGain:
 
     lambda_0: float = LAMBDA_0
     lambda_inf: float = LAMBDA_INF
-    slope: float = LAMBDA_SLOPE
+    lambda_slope: float = LAMBDA_SLOPE
 
     def __post_init__(self):
-        """Check lambda_0 > 0, slope >= 0 and, when slope > 0, 0 < lambda_inf <= lambda_0."""
-        if not self.lambda_0 > 0.0 or not self.slope >= 0.0:
+        """Check lambda_0 > 0, lambda_slope >= 0 and, if > 0, 0 < lambda_inf <= lambda_0."""
+        if not self.lambda_0 > 0.0 or not self.lambda_slope >= 0.0:
             raise ValueError(f'adaptive gain needs lambda_0 = {self.lambda_0} > 0 and '
-                             f'slope = {self.slope} >= 0')
-        if self.slope > 0.0 and not 0.0 < self.lambda_inf <= self.lambda_0:
+                             f'lambda_slope = {self.lambda_slope} >= 0')
+        if self.lambda_slope > 0.0 and not 0.0 < self.lambda_inf <= self.lambda_0:
             raise ValueError(f'adaptive gain needs 0 < lambda_inf = {self.lambda_inf} <= '
-                             f'lambda_0 = {self.lambda_0} when the slope {self.slope} > 0')
+                             f'lambda_0 = {self.lambda_0} when lambda_slope = '
+                             f'{self.lambda_slope} > 0')
 
     def __call__(self, error_norm):
         """Return lambda(|e|) (1/s)."""
         a = self.lambda_0 - self.lambda_inf
-        if a <= 0.0 or self.slope == 0.0:
+        if a <= 0.0 or self.lambda_slope == 0.0:
             return float(self.lambda_0)
-        return float(a * np.exp(-self.slope * float(error_norm) / a) + self.lambda_inf)
+        return float(a * np.exp(-self.lambda_slope * float(error_norm) / a) + self.lambda_inf)
 
 
 def _target_features(model, pose, p_target=None):
@@ -137,32 +139,24 @@ def _target_features(model, pose, p_target=None):
     return model.camera.project(markers).reshape(6)
 
 
-class ClassicIBVS:
+class VelocityLaw:
     """
-    Classic IBVS, integrated at the camera rate: q_feedback += T qdot, one frame at a time.
+    What the velocity laws (:class:`ClassicIBVS`, :class:`PBVS`) share.
 
-    qdot = -lambda(|e|) C1^+ e, e = p_hat - p_bar (ViSP vpServo::computeControlLaw with the
-    eye-to-hand task L_s J_robot; Chaumette & Hutchinson 2006, eq. 4; Corke, Robotics,
-    Vision and Control, eq. 15.11). Here L_s J_robot is our stereo C1 = dF/dq (eq. 31) at
-    the encoder angles: both cameras' image Jacobians of both markers times the robot's
-    point Jacobians; its truncated/damped pseudo-inverse (:func:`.decoupling.decouple`,
-    rank 5) leaves q6 alone. For small errors e decays as exp(-lambda t). No trust region:
-    the law is the textbook one. Not measured: q_feedback is held (the robot stops).
+    Each frame asks a joint velocity; q_feedback sums the joint corrections (that velocity
+    over the camera period ``dt``) of the measured frames. A frame not measured adds
+    nothing: q_feedback is held (the robot stops). ``svd_rcond`` truncates the SVD of the
+    Jacobian the law inverts (:func:`.decoupling.decouple`).
     """
 
-    def __init__(self, model, pose, dt, gain=None, rcond=1e-6, damping=0.0, p_target=None):
-        """
-        Project the target markers (p_bar = F(q_target), eq. 30); ``dt`` the camera period.
-
-        ``p_target``: a taught p_bar (6,) instead (the features measured at the target).
-        """
+    def __init__(self, model, pose, dt, gain, svd_rcond, p_target):
+        """Keep the model, the target pose and p_bar (``p_target`` or F at the pose)."""
         self.model = model
         self.pose = np.asarray(pose, dtype=float)
         self.p_target = _target_features(model, self.pose, p_target)
         self.dt = float(dt)
         self.gain = AdaptiveGain() if gain is None else gain
-        self.rcond = rcond
-        self.damping = damping
+        self.svd_rcond = svd_rcond
         self._q_feedback = np.zeros(6)
         self.last = None
 
@@ -171,23 +165,52 @@ class ClassicIBVS:
         """Return the integrated correction (zeros before the first frame)."""
         return self._q_feedback.copy()
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
-        """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
-        p_hat, q_encoder = check_inputs(p_hat, q_encoder)
-        error = p_hat - self.p_target
-        dec = decouple(self.model.jacobian(q_encoder), self.rcond, self.damping)
-        norm = float(np.linalg.norm(error))
-        correction = -self.gain(norm) * self.dt * (dec.pinv @ error)
+    def _integrate(self, q_encoder, dec, error_norm, correction, measured):
+        """Add ``correction`` if ``measured``; return the frame's FeedbackUpdate."""
         if measured:
             self._q_feedback = self._q_feedback + correction
         self.last = FeedbackUpdate(self.q_feedback, q_encoder, dec.s, dec.rank, dec.condition,
-                                   norm, correction, False, not measured)
+                                   error_norm, correction, False, not measured)
         return self.last
 
     def reset(self):
         """Forget the integrated correction."""
         self._q_feedback = np.zeros(6)
         self.last = None
+
+
+class ClassicIBVS(VelocityLaw):
+    """
+    Classic IBVS, integrated at the camera rate: q_feedback += T qdot, one frame at a time.
+
+    qdot = -lambda(|e|) C1^+ e, e = p_hat - p_bar (ViSP vpServo::computeControlLaw with the
+    eye-to-hand task L_s J_robot; Chaumette & Hutchinson 2006, eq. 4; Corke, Robotics,
+    Vision and Control, eq. 15.11). Here L_s J_robot is our stereo C1 = dF/dq (eq. 31) at
+    the encoder angles: both cameras' image Jacobians of both markers times the robot's
+    point Jacobians; its truncated/damped pseudo-inverse (:func:`.decoupling.decouple` with
+    ``svd_rcond`` and ``svd_damping``, rank 5) leaves q6 alone. For small errors e decays
+    as exp(-lambda t). No trust region: the law is the textbook one. Not measured:
+    q_feedback is held (the robot stops).
+    """
+
+    def __init__(self, model, pose, dt, gain=None, svd_rcond=SVD_RCOND, svd_damping=0.0,
+                 p_target=None):
+        """
+        Project the target markers (p_bar = F(q_target), eq. 30); ``dt`` the camera period.
+
+        ``p_target``: a taught p_bar (6,) instead (the features measured at the target).
+        """
+        super().__init__(model, pose, dt, gain, svd_rcond, p_target)
+        self.svd_damping = svd_damping
+
+    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
+        """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
+        p_hat, q_encoder = check_inputs(p_hat, q_encoder)
+        error = p_hat - self.p_target
+        dec = decouple(self.model.jacobian(q_encoder), self.svd_rcond, self.svd_damping)
+        norm = float(np.linalg.norm(error))
+        correction = -self.gain(norm) * self.dt * (dec.pinv @ error)
+        return self._integrate(q_encoder, dec, norm, correction, measured)
 
 
 def tool_from_markers(camera, p_hat):
@@ -219,7 +242,7 @@ def axis_error(axis, axis_target):
     return cross / sin * np.arctan2(sin, float(np.dot(axis, axis_target)))
 
 
-class PBVS:
+class PBVS(VelocityLaw):
     """
     Position-based visual servoing of the flange point and the tool axis, in {O}.
 
@@ -229,15 +252,16 @@ class PBVS:
     reference; Corke, Robotics, Vision and Control, eq. 15.3) asks the flange velocity
     v = -lambda e_t and the angular velocity omega = lambda theta u, mapped to joints by
     the robot's geometric Jacobian at the encoder angles, qdot = J(q)^+ [v; omega]
-    (truncated SVD, undamped: C1's damping is in px/rad, J's units are m/rad and 1), and
-    integrated at the camera rate: the twist of a frame is held over the camera period and
-    integrated in ``substeps`` steps with J updated along the way. The flange then moves on
-    the straight line from where it is to t* (dt/dt = -lambda e_t), whatever the image does.
+    (SVD truncated at ``svd_rcond``, undamped: ``svd_damping`` is in px/rad, J's units are
+    m/rad and 1), and integrated at the camera rate: the twist of a frame is held over the
+    camera period and integrated in ``substeps`` steps with J updated along the way. The
+    flange then moves on the straight line from where it is to t* (dt/dt = -lambda e_t),
+    whatever the image does.
     The gain is constant (``gain.lambda_0``): |e| mixes metres and radians.
     Not measured: q_feedback is held.
     """
 
-    def __init__(self, model, pose, dt, gain=None, rcond=1e-6, substeps=SUBSTEPS,
+    def __init__(self, model, pose, dt, gain=None, svd_rcond=SVD_RCOND, substeps=SUBSTEPS,
                  p_target=None):
         """
         Keep the target flange position and axis; ``dt`` the camera period.
@@ -245,26 +269,14 @@ class PBVS:
         ``p_target``: taught features (6,) at the target; the target position and axis are
         then triangulated from them (:func:`tool_from_markers`), as a taught PBVS does.
         """
+        super().__init__(model, pose, dt, gain, svd_rcond, p_target)
         self.substeps = int(substeps)
         self.q_start = None
-        self.model = model
-        self.pose = np.asarray(pose, dtype=float)
-        self.p_target = _target_features(model, self.pose, p_target)
         if p_target is None:
             self.t_target = self.pose[:3, 3].copy()
             self.axis_target = self.pose[:3, 2].copy()
         else:
             self.t_target, self.axis_target = tool_from_markers(model.camera, self.p_target)
-        self.dt = float(dt)
-        self.gain = AdaptiveGain() if gain is None else gain
-        self.rcond = rcond
-        self._q_feedback = np.zeros(6)
-        self.last = None
-
-    @property
-    def q_feedback(self):
-        """Return the integrated correction (zeros before the first frame)."""
-        return self._q_feedback.copy()
 
     def pose_error(self, p_hat):
         """Return e = [t - t*, -theta u] (6,) of the measured features (m, rad)."""
@@ -286,19 +298,10 @@ class PBVS:
         correction = np.zeros(6)
         for _ in range(self.substeps):
             dec = decouple(geometric_jacobian(q_ref + correction, self.model.params),
-                           self.rcond)
+                           self.svd_rcond)
             correction = correction + self.dt / self.substeps * (dec.pinv @ twist)
-        if measured:
-            self._q_feedback = self._q_feedback + correction
-        self.last = FeedbackUpdate(self.q_feedback, q_encoder, dec.s, dec.rank, dec.condition,
-                                   float(np.linalg.norm(error)), correction, False,
-                                   not measured)
-        return self.last
-
-    def reset(self):
-        """Forget the integrated correction."""
-        self._q_feedback = np.zeros(6)
-        self.last = None
+        return self._integrate(q_encoder, dec, float(np.linalg.norm(error)), correction,
+                               measured)
 
 
 class Switching:
@@ -307,10 +310,10 @@ class Switching:
 
     Until the switch q_feedback = 0, so q_ref = q_feedforward (eq. 43-45) exactly. The
     switch comes at the first frame that (1) is measured (both markers found by the
-    detector, not estimated by eq. 46), (2) is at least ``settle`` seconds after the first
+    detector, not estimated by eq. 46), (2) is at least ``switch_settle_s`` after the first
     frame (the feedforward's transient: with ideal actuators and the switching law's
     ``feedforward_ratio`` 2 the arm is within 1 mm of q_target's pose after ~0.2 s) and
-    (3) sees every encoder joint slower than ``hold_speed`` times its speed limit (with
+    (3) sees every encoder joint slower than ``hold_speed_fraction`` times its speed limit (with
     limited actuators the slew takes ~1 s). From that frame on the
     :class:`.controllers.AdaptiveFeedback` of the paper runs, its integrator starting at
     rest: q_feedback starts at k_d's direct feedthrough D times the first correction (D =
@@ -322,15 +325,15 @@ class Switching:
     :func:`feedforward_overrides`), slow enough for the simulated arm to follow.
     """
 
-    def __init__(self, feedback, settle=SWITCH_SETTLE):
-        """Wrap an :class:`.controllers.AdaptiveFeedback`; ``settle`` in seconds."""
+    def __init__(self, feedback, switch_settle_s=SWITCH_SETTLE_S):
+        """Wrap an :class:`.controllers.AdaptiveFeedback`; ``switch_settle_s`` in seconds."""
         if not isinstance(feedback, AdaptiveFeedback):
             raise TypeError('feedback must be an AdaptiveFeedback')
-        if settle < 0.0:
-            raise ValueError(f'settle = {settle} s must be >= 0')
+        if switch_settle_s < 0.0:
+            raise ValueError(f'switch_settle_s = {switch_settle_s} s must be >= 0')
         self.feedback = feedback
         self.p_target = feedback.p_target
-        self.settle = float(settle)
+        self.switch_settle_s = float(switch_settle_s)
         self.t0 = None
         self.switched_at = None
         self.last = None
@@ -342,9 +345,9 @@ class Switching:
 
     def ready(self, t, qdot_encoder, measured):
         """Return True when the frame at ``t`` (s) may switch the feedback on."""
-        if not measured or t - self.t0 < self.settle:
+        if not measured or t - self.t0 < self.switch_settle_s:
             return False
-        limit = self.feedback.hold_speed * np.asarray(self.feedback.model.params.qd_max)
+        limit = self.feedback.hold_speed_fraction * np.asarray(self.feedback.model.params.qd_max)
         return qdot_encoder is None or bool(np.all(np.abs(qdot_encoder) <= limit))
 
     def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
@@ -377,23 +380,25 @@ class Switching:
         self.last = None
 
 
-def make_law(law, model, pose, tau_in, omega_n, zeta, dt, gain=None, settle=SWITCH_SETTLE,
-             **feedback_options):
+#: The options of :func:`make_law` that each law without feedforward takes.
+LAW_OPTIONS = {'ibvs': ('svd_rcond', 'svd_damping', 'p_target'),
+               'pbvs': ('svd_rcond', 'p_target')}
+
+
+def make_law(law, model, pose, tau_in, omega_n, zeta, dt, gain=None,
+             switch_settle_s=SWITCH_SETTLE_S, **feedback_options):
     """
     Return the servo law ``law`` (one of :data:`SERVO_LAWS`) at camera period ``dt``.
 
     ``feedback_options`` go to :class:`.controllers.AdaptiveFeedback` (paper, switching);
-    ibvs takes its ``rcond``, ``damping`` and ``p_target`` only, pbvs its ``rcond`` and
-    ``p_target`` (a taught p_bar, see each class).
+    ibvs and pbvs take those of :data:`LAW_OPTIONS` only (``p_target``: a taught p_bar,
+    see each class), the others keep their defaults.
     """
     if law not in SERVO_LAWS:
         raise ValueError(f'servo_law must be one of {SERVO_LAWS}, got {law!r}')
     if law in WITHOUT_FEEDFORWARD:
-        rcond = feedback_options.get('rcond', 1e-6)
-        p_target = feedback_options.get('p_target')
-        if law == 'pbvs':
-            return PBVS(model, pose, dt, gain, rcond=rcond, p_target=p_target)
-        return ClassicIBVS(model, pose, dt, gain, rcond=rcond,
-                           damping=feedback_options.get('damping', 0.0), p_target=p_target)
+        options = {name: feedback_options[name] for name in LAW_OPTIONS[law]
+                   if name in feedback_options}
+        return (PBVS if law == 'pbvs' else ClassicIBVS)(model, pose, dt, gain, **options)
     feedback = AdaptiveFeedback(model, pose, tau_in, omega_n, zeta, dt, **feedback_options)
-    return feedback if law == 'paper' else Switching(feedback, settle)
+    return feedback if law == 'paper' else Switching(feedback, switch_settle_s)

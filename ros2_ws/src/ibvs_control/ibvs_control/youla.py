@@ -6,6 +6,9 @@ what P forces on it), then Y = T / P and the controller G = Y / (1 - T) (eq. 38-
 one channel). For the double integrator of the inner loop (eq. 27), T must also satisfy
 T(0) = 1 and T'(0) = 0 so that G cancels no unstable pole of P.
 
+Every design takes the inner-loop time constant as ``tau_in`` (the node parameter); the
+formulas write it tau, as the paper does.
+
 Continuous designs (the paper, with the errata of docs/design.md §5):
 
 - inner loop, eq. (28) corrected: G_c = (3 tau s + 1) / (tau^3 s + 3 tau^2) around 1/s^2
@@ -44,6 +47,10 @@ import numpy as np
 
 from .transfer_function import TransferFunction
 
+#: T_forward's double pole at ``feedforward_ratio`` tau_in (eq. 44-45): the paper's 0.1, so
+#: that T_d T_forward, the joints' designed response, has a 1 ms double pole.
+FEEDFORWARD_RATIO = 0.1
+
 
 def check_bandwidth_rule(tau_in, omega_n):
     """
@@ -75,19 +82,19 @@ def double_integrator():
     return TransferFunction([1.0], [1.0, 0.0, 0.0])
 
 
-def inner_closed_loop(tau):
+def inner_closed_loop(tau_in):
     """Return T_inner = (3 tau s + 1) / (tau s + 1)^3, eq. (29)."""
-    return TransferFunction([3.0 * tau, 1.0], np.poly([-1.0 / tau] * 3) * tau ** 3)
+    return TransferFunction([3.0 * tau_in, 1.0], np.poly([-1.0 / tau_in] * 3) * tau_in ** 3)
 
 
-def inner_controller(tau):
+def inner_controller(tau_in):
     """Return G_c = (3 tau s + 1) / (tau^3 s + 3 tau^2): eq. (28) fixed (docs/design.md §5)."""
-    return TransferFunction([3.0 * tau, 1.0], [tau ** 3, 3.0 * tau ** 2])
+    return TransferFunction([3.0 * tau_in, 1.0], [tau_in ** 3, 3.0 * tau_in ** 2])
 
 
-def inner_controller_printed(tau):
+def inner_controller_printed(tau_in):
     """Return eq. (28) as printed, (3 tau^2 s + 1) / (tau^3 s + 3 tau^2): unstable loop."""
-    return TransferFunction([3.0 * tau ** 2, 1.0], [tau ** 3, 3.0 * tau ** 2])
+    return TransferFunction([3.0 * tau_in ** 2, 1.0], [tau_in ** 3, 3.0 * tau_in ** 2])
 
 
 def butterworth(omega_n, zeta):
@@ -95,52 +102,53 @@ def butterworth(omega_n, zeta):
     return TransferFunction([omega_n ** 2], [1.0, 2.0 * zeta * omega_n, omega_n ** 2])
 
 
-def outer_plant_channel(tau, gain=1.0):
+def outer_plant_channel(tau_in, gain=1.0):
     """Return M_p(i, i) = gain(i) (3 tau s + 1) / (tau s + 1)^3, eq. (35)."""
-    return gain * inner_closed_loop(tau)
+    return gain * inner_closed_loop(tau_in)
 
 
-def outer_youla_channel(tau, omega_n, zeta, gain=1.0):
+def outer_youla_channel(tau_in, omega_n, zeta, gain=1.0):
     """Return M_Y(i, i) = M_T / M_p(i, i), eq. (37)."""
-    return butterworth(omega_n, zeta) / outer_plant_channel(tau, gain)
+    return butterworth(omega_n, zeta) / outer_plant_channel(tau_in, gain)
 
 
-def outer_channel_design(tau, omega_n, zeta, gain=1.0):
+def outer_channel_design(tau_in, omega_n, zeta, gain=1.0):
     """
     Return (M_Y, T_y, S_y, G_C) of one decoupled channel by eq. (37), (39), (40), (41).
 
     G_C = M_Y / (1 - M_p M_Y), with common roots cancelled: it equals k(s) / gain
     (:func:`outer_controller`).
     """
-    m_y = outer_youla_channel(tau, omega_n, zeta, gain)
-    t_y = (outer_plant_channel(tau, gain) * m_y).minreal(1e-4)
+    m_y = outer_youla_channel(tau_in, omega_n, zeta, gain)
+    t_y = (outer_plant_channel(tau_in, gain) * m_y).minreal(1e-4)
     s_y = 1.0 - t_y
     g_c = (m_y / s_y).minreal(1e-4)
     return m_y, t_y, s_y, g_c
 
 
-def outer_controller(tau, omega_n, zeta):
+def outer_controller(tau_in, omega_n, zeta):
     """
     Return k(s) = wn^2 (tau s + 1)^3 / ((3 tau s + 1) s (s + 2 zeta wn)) (docs/design.md §5).
 
     G_C = C1^+ k(s) (eq. 38-41 with C1 = U_L diag(gain) U_R): an integrator (zero
     steady-state image error) and the inverse of the inner loop eq. (29).
     """
-    num = omega_n ** 2 * np.poly([-1.0 / tau] * 3) * tau ** 3
-    den = np.polymul([3.0 * tau, 1.0], [1.0, 2.0 * zeta * omega_n, 0.0])
+    num = omega_n ** 2 * np.poly([-1.0 / tau_in] * 3) * tau_in ** 3
+    den = np.polymul([3.0 * tau_in, 1.0], [1.0, 2.0 * zeta * omega_n, 0.0])
     return TransferFunction(num, den)
 
 
-def feedforward(tau, ratio=0.1):
+def feedforward(tau_in, feedforward_ratio=FEEDFORWARD_RATIO):
     """
     Return T_forward = (tau s + 1)^3 / ((3 tau s + 1)(tau_f s + 1)^2), eq. (44).
 
-    tau_f = ratio * tau, eq. (45) (ratio = 0.1). Biproper with high-frequency gain
-    tau^3 / (3 tau tau_f^2) ~ 33: a step asks ~33 times the step at first (docs/design.md §5).
+    tau_f = feedforward_ratio * tau, eq. (45) (the paper: 0.1). Biproper with high-frequency
+    gain tau^3 / (3 tau tau_f^2) ~ 33: a step asks ~33 times the step at first
+    (docs/design.md §5).
     """
-    tau_f = ratio * tau
-    num = np.poly([-1.0 / tau] * 3) * tau ** 3
-    den = np.polymul([3.0 * tau, 1.0], np.poly([-1.0 / tau_f] * 2) * tau_f ** 2)
+    tau_f = feedforward_ratio * tau_in
+    num = np.poly([-1.0 / tau_in] * 3) * tau_in ** 3
+    den = np.polymul([3.0 * tau_in, 1.0], np.poly([-1.0 / tau_f] * 2) * tau_f ** 2)
     return TransferFunction(num, den)
 
 
@@ -151,11 +159,11 @@ def double_integrator_discrete(dt):
     return TransferFunction([dt * dt / 2.0, dt * dt / 2.0], [1.0, -2.0, 1.0], dt)
 
 
-def _inner_discrete_coefficients(tau, dt):
+def _inner_discrete_coefficients(tau_in, dt):
     """Return (p, z0, K, c) of the sampled inner design (module docstring)."""
-    if not (tau > 0.0 and dt > 0.0):
-        raise ValueError(f'tau = {tau} and dt = {dt} must be > 0')
-    p = math.exp(-dt / tau)
+    if not (tau_in > 0.0 and dt > 0.0):
+        raise ValueError(f'tau_in = {tau_in} and dt = {dt} must be > 0')
+    p = math.exp(-dt / tau_in)
     # d/dz ln T_d at z = 1: 1/2 + 1/(1 - z0) - 3/(1 - p) = 0.
     z0 = 1.0 - 1.0 / (3.0 / (1.0 - p) - 0.5)
     gain = (1.0 - p) ** 3 / (2.0 * (1.0 - z0))
@@ -167,24 +175,24 @@ def _inner_discrete_coefficients(tau, dt):
     return p, z0, gain, -quotient[1]
 
 
-def inner_closed_loop_discrete(tau, dt):
+def inner_closed_loop_discrete(tau_in, dt):
     """Return T_d = K (z + 1)(z - z0) / (z - p)^3, the sampled eq. (29)."""
-    p, z0, gain, _ = _inner_discrete_coefficients(tau, dt)
+    p, z0, gain, _ = _inner_discrete_coefficients(tau_in, dt)
     return TransferFunction(gain * np.polymul([1.0, 1.0], [1.0, -z0]), np.poly([p] * 3), dt)
 
 
-def inner_controller_discrete(tau, dt):
+def inner_controller_discrete(tau_in, dt):
     """
     Return the sampled eq. (28): G_c,d = (2 K / dt^2) (z - z0) / (z - c).
 
     The Youla controller T_d / (P_d (1 - T_d)) of the ZOH double integrator P_d for the
     closed loop :func:`inner_closed_loop_discrete`, written in closed form.
     """
-    _, z0, gain, c = _inner_discrete_coefficients(tau, dt)
+    _, z0, gain, c = _inner_discrete_coefficients(tau_in, dt)
     return TransferFunction(2.0 * gain / dt ** 2 * np.array([1.0, -z0]), [1.0, -c], dt)
 
 
-def outer_controller_discrete(tau, omega_n, zeta, dt):
+def outer_controller_discrete(tau_in, omega_n, zeta, dt):
     """
     Return k_d(z) = M_T,d / (P_d (1 - M_T,d)): eq. (37)-(41) on the sampled plant.
 
@@ -192,25 +200,25 @@ def outer_controller_discrete(tau, omega_n, zeta, dt):
     closed loop of each observable channel has the step response of eq. (36) at the
     frames. Raises ValueError when P_d has a zero outside the unit circle (k_d unstable).
     """
-    plant = inner_closed_loop(tau).discretise(dt, 'zoh')
+    plant = inner_closed_loop(tau_in).discretise(dt, 'zoh')
     target = butterworth(omega_n, zeta).discretise(dt, 'zoh')
     zeros = plant.zeros()
     if zeros.size and np.max(np.abs(zeros)) >= 1.0:
         raise ValueError(f'sampled outer plant has a zero outside the unit circle '
-                         f'({zeros}): tau_in = {tau} s, dt = {dt} s')
+                         f'({zeros}): tau_in = {tau_in} s, dt = {dt} s')
     num = np.polymul(target.num, plant.den)
     den = np.polymul(plant.num, np.polysub(target.den, target.num))
     return TransferFunction(num, den, dt)
 
 
-def feedforward_discrete(tau, dt, ratio=0.1):
+def feedforward_discrete(tau_in, dt, feedforward_ratio=FEEDFORWARD_RATIO):
     """
     Return T_forward,d = (z + 1) / (2 T_d(z)) ((1 - p_f) / (z - p_f))^2, eq. (44)-(45).
 
-    p_f = exp(-dt / (ratio tau)). Unit DC gain; T_d T_forward,d has no overshoot.
+    p_f = exp(-dt / (feedforward_ratio tau)). Unit DC gain; T_d T_forward,d has no overshoot.
     """
-    p, z0, gain, _ = _inner_discrete_coefficients(tau, dt)
-    p_f = math.exp(-dt / (ratio * tau))
+    p, z0, gain, _ = _inner_discrete_coefficients(tau_in, dt)
+    p_f = math.exp(-dt / (feedforward_ratio * tau_in))
     num = np.poly([p] * 3) * (1.0 - p_f) ** 2 / (2.0 * gain)
     den = np.polymul([1.0, -z0], np.poly([p_f] * 2))
     return TransferFunction(num, den, dt)

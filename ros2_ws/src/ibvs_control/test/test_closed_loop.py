@@ -62,14 +62,14 @@ def test_scenarios_starting_out_of_view_converge(scenario):
 
 
 def test_limited_actuators_converge_within_the_speed_limits():
-    r = simulate(scenario=1, duration_s=3.0, actuators='limited', torque_max=[30.0] * 6)
+    r = simulate(scenario=1, duration_s=3.0, actuators='limited', torque_limits=[30.0] * 6)
     speeds = np.abs(np.diff(r.q, axis=0)) / np.diff(r.t)[:, None]
     assert np.all(speeds <= np.array(IRB4600.qd_max) + 1e-6)
     assert r.final_image_error() < 0.01
 
 
 def test_latency_and_model_error_still_converge():
-    r = simulate(scenario=1, duration_s=3.0, latency_s=0.02)
+    r = simulate(scenario=1, duration_s=3.0, feedback_latency_s=0.02)
     assert r.final_image_error() < 0.01
     # Figure 13: a longer true link L2 than the model (controllers keep the nominal F)
     r = simulate(scenario=1, duration_s=3.0, plant_params=IRB4600.scaled(1.05, 1.0))

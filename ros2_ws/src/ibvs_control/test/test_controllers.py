@@ -2,7 +2,7 @@
 
 from ibvs_control import youla
 from ibvs_control.controllers import (AdaptiveFeedback, check_reachable, Feedforward,
-                                      JointLoop, target_pose)
+                                      JointLoop)
 from ibvs_control.decoupling import decouple
 from ibvs_control.filters import StateSpaceFilter
 from ibvs_control.governor import ReferenceGovernor
@@ -162,15 +162,15 @@ def test_feedforward_starts_at_rest_and_reaches_the_target():
 
 def test_unreachable_target_is_refused():
     with pytest.raises(UnreachablePoseError):
-        Feedforward(target_pose([3.0, 0.0, 0.3], paper.TARGET_ROTATION), TAU, DT)
+        Feedforward(paper.target_pose([3.0, 0.0, 0.3], paper.TARGET_ROTATION), TAU, DT)
     with pytest.raises(UnreachablePoseError):
-        check_reachable(target_pose([0.0, 0.0, -2.5], paper.TARGET_ROTATION))
+        check_reachable(paper.target_pose([0.0, 0.0, -2.5], paper.TARGET_ROTATION))
     with pytest.raises(ValueError, match='rotation'):
-        target_pose([-1.0, 0.2, 0.3], np.ones(9))
+        paper.target_pose([-1.0, 0.2, 0.3], np.ones(9))
 
 
 def test_target_rotation_printed_with_four_digits_is_accepted():
-    pose = target_pose(paper.SCENARIO1_POSITION, paper.SCENARIO1_ROTATION_PRINTED)
+    pose = paper.target_pose(paper.SCENARIO1_POSITION, paper.SCENARIO1_ROTATION_PRINTED)
     np.testing.assert_allclose(pose[:3, :3].T @ pose[:3, :3], np.eye(3), atol=1e-12)
 
 
@@ -219,13 +219,13 @@ def test_feedback_removes_a_joint_offset(feedback_setup):
 def test_trust_region_clips_each_channel_alone_and_hold(feedback_setup):
     model, _, q_target = feedback_setup
     q_far = inverse_kinematics(paper.scenario_start_pose(1))
-    free = make_feedback(feedback_setup, max_correction=np.inf)
+    free = make_feedback(feedback_setup, max_correction_rad=np.inf)
     up_free = free.update(model.features(q_far), q_far)
     assert not up_free.clipped
-    dec = decouple(model.jacobian(q_far), free.rcond, free.damping)
+    dec = decouple(model.jacobian(q_far), free.svd_rcond, free.svd_damping)
     wanted = dec.channels(free.p_target - model.features(q_far))
     assert np.sum(np.abs(wanted) > 0.05) >= 1 and np.sum(np.abs(wanted) <= 0.05) >= 1
-    fb = make_feedback(feedback_setup, max_correction=0.05)
+    fb = make_feedback(feedback_setup, max_correction_rad=0.05)
     up = fb.update(model.features(q_far), q_far)
     assert up.clipped
     got = dec.Vt @ up.correction
@@ -234,7 +234,7 @@ def test_trust_region_clips_each_channel_alone_and_hold(feedback_setup):
     np.testing.assert_allclose(got[small], wanted[small], atol=1e-12)
     np.testing.assert_allclose(np.abs(got[~small]), 0.05, rtol=1e-12)
     np.testing.assert_array_equal(np.sign(got[~small]), np.sign(wanted[~small]))
-    held = make_feedback(feedback_setup, hold_speed=0.2)
+    held = make_feedback(feedback_setup, hold_speed_fraction=0.2)
     up = held.update(model.features(q_far), q_far, qdot_encoder=np.full(6, 2.0))
     assert up.held and np.all(up.q_feedback == 0.0) and held.filter.steps == 0
     up = held.update(model.features(q_far), q_far, qdot_encoder=np.zeros(6))
@@ -255,8 +255,8 @@ def test_linearisation_point_encoders_or_features(feedback_setup):
     np.testing.assert_allclose(a, b, atol=1e-9)
     # encoders that read other angles than F^-1(p_hat): the two linearisations differ
     q_enc = q_target + np.radians([5.0, 5.0, -5.0, 10.0, 10.0, 0.0])
-    pinv_enc = decouple(model.jacobian(q_enc), at_encoders.rcond, at_encoders.damping).pinv
-    c = make_feedback(feedback_setup, max_correction=np.inf).update(p_hat, q_enc)
+    pinv_enc = decouple(model.jacobian(q_enc), at_encoders.svd_rcond, at_encoders.svd_damping).pinv
+    c = make_feedback(feedback_setup, max_correction_rad=np.inf).update(p_hat, q_enc)
     np.testing.assert_allclose(c.correction, pinv_enc @ (at_encoders.p_target - p_hat),
                                atol=1e-12)
     np.testing.assert_allclose(c.q_estimate, q_target + d, atol=1e-8)

@@ -7,6 +7,8 @@ against a hang), never on wall-clock time.
 """
 
 
+from contextlib import contextmanager
+
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
@@ -33,6 +35,8 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
+#: The true joint angles of the scenario 1 start (IK with seed 0, as the simulator).
+Q0 = inverse_kinematics(paper.scenario_start_pose(1))
 CAMERA_NS = 33_333_333
 DEADLINE_S = 20.0
 
@@ -96,9 +100,9 @@ def stamps(msgs):
 
 # -- feedforward_node -----------------------------------------------------------------------
 
-def feedforward_rows(q0, count):
+def feedforward_rows(Q0, count):
     ref = Feedforward(paper.target_pose(), 0.01, 1e-3)
-    ref.start(q0)
+    ref.start(Q0)
     return np.array([ref.step() for _ in range(count)])
 
 
@@ -111,23 +115,22 @@ def test_feedforward_publishes_its_whole_trajectory_once(context):
     h = Harness(context, node)
     try:
         h.wait_matched([contract.JOINT_STATES])
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
         for t in (0, MS, 2 * MS):
             # later encoder values do not matter: the branch and rest state come from the first
-            h.publish(contract.JOINT_STATES, joint_state(t, q0 + 0.01 * (t > 0), np.zeros(6)))
+            h.publish(contract.JOINT_STATES, joint_state(t, Q0 + 0.01 * (t > 0), np.zeros(6)))
         out = h.received[contract.FEEDFORWARD_TRAJECTORY]
         h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
         start_ns, rows = read_trajectory(out[0], MS)
         assert start_ns == 0
         # exactly what the filter gives step by step, until it has settled (then held)
-        expected = feedforward_rows(q0, len(rows) + 500)
+        expected = feedforward_rows(Q0, len(rows) + 500)
         np.testing.assert_array_equal(rows, expected[:len(rows)])
         np.testing.assert_allclose(expected[len(rows):], np.tile(rows[-1], (500, 1)), rtol=0,
                                    atol=1e-14)
-        np.testing.assert_allclose(rows[0], q0, atol=1e-12)
+        np.testing.assert_allclose(rows[0], Q0, atol=1e-12)
         np.testing.assert_allclose(rows[-1], node.ff.q_target, atol=1e-9)
         # the node has left the lockstep: no second trajectory, no /joint_states reader
-        h.publish(contract.JOINT_STATES, joint_state(3 * MS, q0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(3 * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: h.pub[contract.JOINT_STATES].get_subscription_count() == 0,
                      'the feedforward to unsubscribe')
         assert len(out) == 1
@@ -140,10 +143,9 @@ def test_feedforward_rejects_bad_joint_states_and_starts_on_the_first_good_one(c
     h = Harness(context, node)
     try:
         h.wait_matched([contract.JOINT_STATES])
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
         for msg in (joint_state(3 * MS, [0.0] * 5, np.zeros(5)),
                     joint_state(4 * MS, [np.nan] + [0.0] * 5, np.zeros(6)),
-                    joint_state(5 * MS, q0, np.zeros(6))):
+                    joint_state(5 * MS, Q0, np.zeros(6))):
             h.publish(contract.JOINT_STATES, msg)
         out = h.received[contract.FEEDFORWARD_TRAJECTORY]
         h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
@@ -176,15 +178,14 @@ def test_feedforward_ignores_a_first_joint_state_from_the_future_or_with_a_bad_s
         h.wait_matched([contract.JOINT_STATES, contract.CLOCK])
         h.publish(contract.CLOCK, Clock(clock=Time(sec=0, nanosec=MS)))
         h.spin_until(lambda: node.get_clock().now().nanoseconds == MS, 'sim time 1 ms')
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
         for stamp in (Time(sec=1_000_000), Time(sec=0, nanosec=4_000_000_000),
                       Time(sec=-5, nanosec=MS)):
-            h.publish(contract.JOINT_STATES, joint_state(stamp, q0, np.zeros(6)))
+            h.publish(contract.JOINT_STATES, joint_state(stamp, Q0, np.zeros(6)))
         h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
         assert node.diagnostics.rejections == {
             '/joint_states: stamp in the future': 1, '/joint_states: malformed stamp': 1,
             '/joint_states: negative time': 1}
-        h.publish(contract.JOINT_STATES, joint_state(MS, q0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(MS, Q0, np.zeros(6)))
         out = h.received[contract.FEEDFORWARD_TRAJECTORY]
         h.spin_until(lambda: len(out) == 1, 'the feedforward trajectory')
         assert read_trajectory(out[0], MS)[0] == MS
@@ -307,7 +308,7 @@ def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context
         for t, measured in zip(frames, (True, False, True)):
             h.publish(contract.FEATURE_STATUS, feature_status(t, measured))
         h.spin_until(lambda: len(out) == 3, 'q_feedback')
-        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, damping=0.1)
+        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, svd_damping=0.1)
         for msg, measured in zip(out, (True, False, True)):
             up = ref.update(sent, q, measured=measured)
             np.testing.assert_allclose(read_joints(msg), up.q_feedback, atol=1e-9)
@@ -381,13 +382,22 @@ def test_feedback_holds_on_bad_and_stale_features_and_freezes(context):
 
 # -- joint_controller_node ------------------------------------------------------------------
 
+@contextmanager
 def controller_harness(context, **params):
-    """Return a joint controller and a harness whose publishers it has matched."""
+    """
+    Yield a joint controller, a harness whose publishers it has matched, and its commands.
+
+    The commands are the list of /joint_effort_commands the harness receives; the harness
+    is closed on the way out.
+    """
     node = JointControllerNode(context=context, parameter_overrides=overrides(**params))
     h = Harness(context, node)
-    h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
-                    contract.Q_FEEDBACK])
-    return node, h
+    try:
+        h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
+                        contract.Q_FEEDBACK])
+        yield node, h, h.received[contract.EFFORT_COMMANDS]
+    finally:
+        h.close()
 
 
 @pytest.fixture(scope='module')
@@ -398,15 +408,12 @@ def dynamics():
 
 
 def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, dynamics):
-    node, h = controller_harness(context)
-    try:
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
-        out = h.received[contract.EFFORT_COMMANDS]
-        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+    with controller_harness(context) as (node, h, out):
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
         h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state buffered')
         assert node._missing(0)[0].startswith('the feedforward trajectory')
-        # q0 at t = 0, then q0 + 0.01, held after its last point (2 ms)
-        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0, q0 + 0.01, q0 + 0.01]))
+        # Q0 at t = 0, then Q0 + 0.01, held after its last point (2 ms)
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0, Q0 + 0.01, Q0 + 0.01]))
         h.spin_until(lambda: node._trajectory is not None, 'the trajectory')
         # frame 0 acts at t = 0 (latency 0): still waiting for its q_feedback
         assert node.commands == 0 and node._missing(0) == [
@@ -416,30 +423,28 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
         assert stamps(out) == [0]
         # at rest on its reference: u = h(q, 0), gravity compensation
         np.testing.assert_allclose(read_joints(out[0], 'effort'),
-                                   dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
+                                   dynamics.bias(Q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
         # next steps: frame 0's q_feedback still applies until frame 1 (due at 33.33 ms,
         # rendered from and stamped with the step at 34 ms)
         q_fb = np.full(6, 0.001)
         h.publish(contract.Q_FEEDBACK, joint_state(34 * MS, q_fb))
         loop = JointLoop(0.01, 1e-3)
-        loop.step(q0, q0, np.zeros(6))
+        loop.step(Q0, Q0, np.zeros(6))
         for k in (1, 2):
-            q, qd = q0 + 1e-4 * k, np.full(6, 0.01 * k)
+            q, qd = Q0 + 1e-4 * k, np.full(6, 0.01 * k)
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q, qd))
             h.spin_until(lambda: len(out) == k + 1, f'effort command {k}')
-            expected = loop.step(q0 + 0.01, q, qd, dynamics.mass_matrix(q),
+            expected = loop.step(Q0 + 0.01, q, qd, dynamics.mass_matrix(q),
                                  dynamics.bias(q, qd))
             np.testing.assert_allclose(read_joints(out[k], 'effort'), expected, rtol=1e-9)
         # t = 34 ms: frame 1 applies
-        q = q0
+        q = Q0
         h.publish(contract.JOINT_STATES, joint_state(34 * MS, q, np.zeros(6)))
         h.spin_until(lambda: len(out) == 4, 'effort command at 34 ms')
-        expected = loop.step(q0 + 0.01 + q_fb, q, np.zeros(6), dynamics.mass_matrix(q),
+        expected = loop.step(Q0 + 0.01 + q_fb, q, np.zeros(6), dynamics.mass_matrix(q),
                              dynamics.bias(q, np.zeros(6)))
         np.testing.assert_allclose(read_joints(out[3], 'effort'), expected, rtol=1e-9)
         assert stamps(out) == [0, MS, 2 * MS, 34 * MS]
-    finally:
-        h.close()
 
 
 def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
@@ -448,13 +453,12 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
     h = Harness(context, node)
     try:
         h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY])
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
-        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0]))
         for k in (0, 19):
-            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
-        h.publish(contract.JOINT_STATES, joint_state(20 * MS, q0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(20 * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state at 20 ms buffered')
         assert node._missing(20 * MS) == [
             f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
@@ -466,24 +470,21 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
 
 
 def test_joint_controller_rejects_bad_input(context):
-    node, h = controller_harness(context)
-    try:
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
+    with controller_harness(context) as (node, h, out):
         h.publish(contract.JOINT_STATES, joint_state(0, [np.nan] * 6, np.zeros(6)))
-        h.publish(contract.JOINT_STATES, joint_state(0, q0, [0.0] * 3))
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, [0.0] * 3))
         h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [[0.0] * 7]))
         h.publish(contract.Q_FEEDBACK, joint_state(0, [np.inf] * 6))
         h.spin_until(lambda: node.diagnostics.rejected_total == 4, 'rejections')
-        wrong_period = joint_trajectory(0, 2 * MS, [q0, q0])
+        wrong_period = joint_trajectory(0, 2 * MS, [Q0, Q0])
         h.publish(contract.FEEDFORWARD_TRAJECTORY, wrong_period)
         h.spin_until(lambda: node.diagnostics.rejected_total == 5, 'wrong sample period')
-        out = h.received[contract.EFFORT_COMMANDS]
-        for topic, msg in ((contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0])),
+        for topic, msg in ((contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0])),
                            (contract.Q_FEEDBACK, joint_state(0, np.zeros(6))),
-                           (contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))):
+                           (contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))):
             h.publish(topic, msg)
         h.spin_until(lambda: len(out) == 1, 'answer')
-        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))  # answered already
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))  # answered already
         h.spin_until(lambda: node.diagnostics.rejected_total == 6, 'stale rejection')
         assert len(out) == 1
         assert node.diagnostics.rejections['/joint_states: stale stamp'] == 1
@@ -493,43 +494,33 @@ def test_joint_controller_rejects_bad_input(context):
             '/ibvs/feedforward_trajectory: wrong sample times'] == 1
         assert node.diagnostics.rejections['/joint_states: non-finite position'] == 1
         assert node.diagnostics.rejections['/joint_states: wrong velocity length'] == 1
-    finally:
-        h.close()
 
 
 def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_ones(context):
     """A far-future /joint_states used to sit in the buffer; every good one after was stale."""
-    node, h = controller_harness(context, use_sim_time=True)
-    try:
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
-        out = h.received[contract.EFFORT_COMMANDS]
-        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+    with controller_harness(context, use_sim_time=True) as (node, h, out):
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0]))
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
-        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'answer at 0')
         # no /clock here: the bound is the last answered stamp (0) + stale_timeout_s
         for stamp in (Time(sec=1_000_000), Time(sec=0, nanosec=600 * MS),
                       Time(sec=0, nanosec=4_000_000_000)):
-            h.publish(contract.JOINT_STATES, joint_state(stamp, q0, np.zeros(6)))
+            h.publish(contract.JOINT_STATES, joint_state(stamp, Q0, np.zeros(6)))
         h.spin_until(lambda: node.diagnostics.rejected_total == 3, 'rejections')
         assert node.diagnostics.rejections == {
             '/joint_states: stamp in the future': 2, '/joint_states: malformed stamp': 1}
         for k in (1, 2, 30):  # good states (frame 0's q_feedback acts until 33.3 ms)
-            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 4, 'answers after the bad ones')
         assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node._lockstep.states
-    finally:
-        h.close()
 
 
 def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dynamics):
     """q_feedback: six finite positions by name, within the joint travel; finite or no rest."""
-    node, h = controller_harness(context)
-    try:
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
-        out = h.received[contract.EFFORT_COMMANDS]
-        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
-        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+    with controller_harness(context) as (node, h, out):
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0]))
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
         unnamed = joint_state(0, np.zeros(6))
         unnamed.name = []
         bad = [joint_state(0, np.full(6, 1e308)),
@@ -548,14 +539,12 @@ def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dyna
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6), velocity=np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'answer')
         np.testing.assert_allclose(read_joints(out[0], 'effort'),
-                                   dynamics.bias(q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
+                                   dynamics.bias(Q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
         # the joint's whole travel is the bound: J4 and J6 turn +-400 deg
         assert node.diagnostics.rejected_total == len(bad)
         h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.r_[np.zeros(5), 13.9]))
         h.spin_until(lambda: CAMERA_NS in node._lockstep.feedback,
                      'a large but possible J6 correction')
-    finally:
-        h.close()
 
 
 def test_limited_joint_controller_clips_torque(context, dynamics):
@@ -567,12 +556,11 @@ def test_limited_joint_controller_clips_torque(context, dynamics):
         assert node.torque_limits[0] == 50.0
         h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
                         contract.Q_FEEDBACK])
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
-        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0 + 1.0]))
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0 + 1.0]))
         for k in range(3):
-            h.publish(contract.JOINT_STATES, joint_state(k * MS, q0, np.zeros(6)))
+            h.publish(contract.JOINT_STATES, joint_state(k * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answers')
         efforts = np.array([read_joints(m, 'effort') for m in out])
         assert np.all(np.abs(efforts) <= node.torque_limits + 1e-9)
@@ -620,25 +608,24 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
                         contract.Q_FEEDBACK])
         h.spin_until(lambda: lost_pub.get_subscription_count() > 0, 'discovery')
-        q0 = inverse_kinematics(paper.scenario_start_pose(1))
         out = h.received[contract.EFFORT_COMMANDS]
-        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [q0]))
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0]))
         q_fb = np.full(6, 0.002)
         h.publish(contract.Q_FEEDBACK, joint_state(0, q_fb))
-        h.publish(contract.JOINT_STATES, joint_state(0, q0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'answer at 0')
         # frame 1 (due at 33.33 ms, stamped 34 ms) is lost: at 34 ms the controller would wait
         # for its q_feedback
-        h.publish(contract.JOINT_STATES, joint_state(34 * MS, q0, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(34 * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state at 34 ms buffered')
         assert node.commands == 1
-        lost_pub.publish(Header(stamp=joint_state(34 * MS, q0).header.stamp))
+        lost_pub.publish(Header(stamp=joint_state(34 * MS, Q0).header.stamp))
         h.spin_until(lambda: len(out) == 2, 'answer at 34 ms')
         # ... and it holds frame 0's q_feedback
         loop = JointLoop(0.01, 1e-3)
-        mass, bias = dynamics.mass_matrix(q0), dynamics.bias(q0, np.zeros(6))
-        loop.step(q0 + q_fb, q0, np.zeros(6), mass, bias)
-        expected = loop.step(q0 + q_fb, q0, np.zeros(6), mass, bias)
+        mass, bias = dynamics.mass_matrix(Q0), dynamics.bias(Q0, np.zeros(6))
+        loop.step(Q0 + q_fb, Q0, np.zeros(6), mass, bias)
+        expected = loop.step(Q0 + q_fb, Q0, np.zeros(6), mass, bias)
         np.testing.assert_allclose(read_joints(out[1], 'effort'), expected, rtol=1e-9)
         assert node.frames_lost == 1
         # a q_feedback for the lost frame is rejected, frame 2 applies again

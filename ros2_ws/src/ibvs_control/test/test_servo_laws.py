@@ -47,7 +47,7 @@ def test_adaptive_gain_is_visps():
     assert gain(1e3) == pytest.approx(0.4)
     h = 1e-7
     assert (gain(h) - gain(0.0)) / h == pytest.approx(-30.0, rel=1e-5)
-    assert AdaptiveGain(3.0, 1.0, 0.0)(123.0) == 3.0, 'slope 0: the constant lambda_0'
+    assert AdaptiveGain(3.0, 1.0, 0.0)(123.0) == 3.0, 'lambda_slope 0: the constant lambda_0'
     with pytest.raises(ValueError):
         AdaptiveGain(1.0, 2.0, 5.0)
     with pytest.raises(ValueError):
@@ -56,7 +56,7 @@ def test_adaptive_gain_is_visps():
 
 def test_hold_feedforward_stays_at_the_initial_joints():
     q0 = inverse_kinematics(paper.scenario_start_pose(1))
-    ff = Feedforward(paper.target_pose(), paper.TAU_IN, 1e-3, method='hold')
+    ff = Feedforward(paper.target_pose(), paper.TAU_IN, 1e-3, feedforward_method='hold')
     ff.start(q0)
     for _ in range(50):
         np.testing.assert_array_equal(ff.step(), q0)
@@ -190,7 +190,7 @@ def test_switching_is_bumpless(scenario):
     moving = np.nonzero(np.any(r.q_feedback != 0.0, axis=1))[0]
     assert moving.size, 'the feedback switched on'
     k = moving[0]
-    assert r.t[k] >= servo_laws.SWITCH_SETTLE
+    assert r.t[k] >= servo_laws.SWITCH_SETTLE_S
     # before the switch the reference is the feedforward's alone
     assert np.all(r.q_feedback[:k] == 0.0)
     # at the switch the feedback adds to q_ref = q_ff + q_fb no more than at a later frame
@@ -218,7 +218,7 @@ def test_switching_waits_for_measured_features_and_for_the_settle_time():
     model = default_model()
     pose = paper.target_pose()
     law = make_law('switching', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30,
-                   settle=0.1)
+                   switch_settle_s=0.1)
     assert isinstance(law, Switching)
     q = inverse_kinematics(pose) + np.radians([0.3, 0.0, 0.0, 0.0, 0.0, 0.0])
     p = model.features(q)

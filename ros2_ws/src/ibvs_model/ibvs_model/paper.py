@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from ._validate import nearest_rotation
+from .errors import InvalidInputError
 from .robot import pose_from
 
 #: Target pose (section 5.1): P = [-1, 0.2, 0.3] m, tool pointing down.
@@ -39,9 +40,30 @@ CAMERA_EYE = (0.3, -1.6, 1.2)
 CAMERA_LOOK_AT = (0.3, 0.2, 0.5)
 
 
-def target_pose():
-    """Return the target T_E^O of section 5.1."""
-    return pose_from(TARGET_POSITION, TARGET_ROTATION)
+#: Largest |R^T R - I| of a target rotation given with few digits (:func:`target_pose`).
+TARGET_ROTATION_TOL = 1e-3
+
+
+def target_pose(position=TARGET_POSITION, rotation=TARGET_ROTATION, tol=TARGET_ROTATION_TOL):
+    """
+    Return the target T_E^O (4x4) of a flange position (3,) and rotation (9 row-major or 3x3).
+
+    The one builder of the target pose, the IK target of eq. (43): by default the paper's
+    (section 5.1); the control nodes, the simulator's taught target and the run analysis
+    build theirs from the ``target_position`` / ``target_rotation`` parameters with it. A
+    rotation given with few digits (within ``tol`` of orthonormal, det > 0) is projected
+    onto the nearest rotation (:func:`nearest_rotation`); anything further, or a value that
+    is not finite, raises :class:`InvalidInputError` (a ValueError).
+    """
+    position = np.asarray(position, dtype=float).reshape(3)
+    rot = np.asarray(rotation, dtype=float).reshape(3, 3)
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rot))):
+        raise InvalidInputError('target pose: not finite')
+    err = np.max(np.abs(rot.T @ rot - np.eye(3)))
+    if err > tol or np.linalg.det(rot) <= 0.0:
+        raise InvalidInputError(f'target rotation is not a rotation matrix (|R^T R - I| = '
+                                f'{err:.3g}, det = {np.linalg.det(rot):.3g})')
+    return pose_from(position, nearest_rotation(rot))
 
 
 def scenario_start_pose(scenario):

@@ -6,10 +6,58 @@ Spheres project to circles from every viewpoint (discs do not). A radius of 25 m
 about 8.5 px at the target (2.0 m from the camera at HD720, f_u ~ 685 px), enough for the
 Hough transform. Two saturated, distinct colours tell marker 1 (P1, flange centre) from
 marker 2 (P2, L_tool / 2 along the tool); the robot and the scene avoid both hues.
+:func:`in_view_poses` draws random tool poses with both markers wholly in view, for the
+tests and benches of the renderer and the detector.
 """
+
+import math
+
+import numpy as np
+
+from .errors import UnreachablePoseError
+from .robot import fiducial_points, ik_position_axis
 
 #: Radius of each spherical fiducial, m.
 MARKER_RADIUS_M = 0.025
 
 #: RGB colours (0-255) of marker 1 (P1) and marker 2 (P2): red and blue.
 MARKER_RGB = ((220, 30, 30), (30, 70, 220))
+
+
+def in_view_poses(model, count, rng, min_depth_m=1.0, max_tilt_deg=35.0):
+    """
+    Return ``count`` random joint angles with both markers wholly in both images of F's camera.
+
+    The flange is drawn in front of the arm (x in [-1.2, 1.4], y in [-0.3, 0.35], z in
+    [0.25, 1.2] m, at least 0.6 m from the base axis) with the tool pointing down within
+    ``max_tilt_deg`` (the task's attitude) and any roll; each marker at least
+    ``min_depth_m`` deep, its disc (stretched off-axis) inside both images and clear of
+    the other marker's.
+    """
+    camera = model.camera
+    k = camera.intrinsics
+    poses = []
+    while len(poses) < count:
+        pos = rng.uniform([-1.2, -0.3, 0.25], [1.4, 0.35, 1.2])
+        tilt = math.radians(rng.uniform(0.0, max_tilt_deg))
+        azimuth = rng.uniform(0.0, 2.0 * math.pi)
+        axis = [math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth),
+                -math.cos(tilt)]
+        if math.hypot(pos[0], pos[1]) < 0.6:
+            continue
+        try:
+            q = ik_position_axis(pos, axis, rng.uniform(-math.pi, math.pi), model.params)
+        except UnreachablePoseError:
+            continue
+        points = fiducial_points(q, model.params)
+        depth = camera.to_camera(points)[:, 2]
+        if depth.min() < min_depth_m:
+            continue
+        radius_px = k.fu * MARKER_RADIUS_M / depth.min()
+        if not np.all(camera.in_view(points, margin_px=1.5 * radius_px + 3.0)):
+            continue
+        uv = camera.project(points)
+        if math.hypot(*(uv[0, [0, 2]] - uv[1, [0, 2]])) < 2.0 * radius_px + 3.0:
+            continue
+        poses.append(q)
+    return poses

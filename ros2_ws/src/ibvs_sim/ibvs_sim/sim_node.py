@@ -51,7 +51,8 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
                                        PHYSICS_RATE_HZ, SCENARIO, TARGET_FEATURES_SOURCE,
-                                       TARGET_POSITION, TARGET_ROTATION)
+                                       target_from_parameters, TARGET_POSITION,
+                                       TARGET_ROTATION)
 from ibvs_common.timing import period_ns
 from ibvs_model import paper
 import numpy as np
@@ -139,15 +140,16 @@ FOCAL_LENGTH_ERROR = Param(
     'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
     'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
 
-PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION, CAMERA_EYE,
-          CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDERER, RENDER_SUPERSAMPLING,
-          RENDER_MARKER_SUPERSAMPLING, RENDER_PARALLEL_LENSES, MOUNT_HEIGHT_M, PUBLISH_IMAGES,
-          CLOCK_RATE_HZ,
-          MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
-          IMAGE_NOISE_STDDEV,
-          FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
-          CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR, TARGET_FEATURES_SOURCE, TARGET_POSITION,
-          TARGET_ROTATION)
+#: The parameters that go to :class:`.simulator.Simulator` as they are, under their names.
+SIMULATOR_PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION,
+                    CAMERA_EYE, CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDER_SUPERSAMPLING,
+                    RENDER_MARKER_SUPERSAMPLING, MOUNT_HEIGHT_M, IMAGE_NOISE_STDDEV,
+                    FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
+                    CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR)
+PARAMS = SIMULATOR_PARAMS + (
+    RENDERER, RENDER_PARALLEL_LENSES, PUBLISH_IMAGES, CLOCK_RATE_HZ,
+    MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
+    TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -181,29 +183,13 @@ class SimNode(Node):
         if teach and not self._publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')
-        teach_pose = None
-        if teach:
-            teach_pose = np.eye(4)
-            teach_pose[:3, 3] = values['target_position']
-            teach_pose[:3, :3] = np.reshape(values['target_rotation'], (3, 3))
+        teach_pose = target_from_parameters(values) if teach else None
         try:
             self.sim = Simulator(
-                scenario=values['scenario'], disturbance_deg=values['disturbance_deg'],
-                physics_rate_hz=values['physics_rate_hz'],
-                camera_rate_hz=values['camera_rate_hz'], resolution=values['resolution'],
-                camera_eye=values['camera_eye'], camera_look_at=values['camera_look_at'],
-                l2_scale=values['l2_scale'], l4_scale=values['l4_scale'],
                 renderer=values['renderer'] if self._publish_images else 'tiny',
-                supersampling=values['render_supersampling'],
-                marker_supersampling=values['render_marker_supersampling'],
-                mount_height_m=values['mount_height_m'],
-                image_noise_stddev=values['image_noise_stddev'],
-                frame_drop_probability=values['frame_drop_probability'],
-                camera_seed=values['camera_seed'],
-                camera_pose_error_xyz_m=values['camera_pose_error_xyz_m'],
-                camera_pose_error_rpy_deg=values['camera_pose_error_rpy_deg'],
-                focal_length_error=values['focal_length_error'], teach_pose=teach_pose,
-                parallel_lenses=values['render_parallel_lenses'] and self._publish_images)
+                render_parallel_lenses=values['render_parallel_lenses'] and self._publish_images,
+                teach_pose=teach_pose,
+                **{spec.name: values[spec.name] for spec in SIMULATOR_PARAMS})
         except ConfigError as exc:
             raise ParameterError(str(exc)) from None
         log = self.get_logger()

@@ -34,7 +34,8 @@ from .camera_effects import (calibrated_intrinsics, calibrated_pose, CameraEffec
                              EffectError)
 from .lens_worker import LensWorkerError
 from .world import (check_mount_height, DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M,
-                    MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, RendererError, World)
+                    DEFAULT_SUPERSAMPLING, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING,
+                    RendererError, World)
 
 
 class ConfigError(ValueError):
@@ -51,19 +52,20 @@ class Simulator:
     The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
 
     Raises :class:`ConfigError` at construction for a configuration it cannot run: rates,
-    scenario, unreachable start pose, camera pose, renderer. ``parallel_lenses`` renders the
-    right lens in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
+    scenario, unreachable start pose, camera pose, renderer. The arguments are the sim_node
+    parameters of the same names (README); ``render_parallel_lenses`` renders the right lens
+    in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
     """
 
     def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
                  camera_rate_hz=30.0, resolution='HD720', camera_eye=paper.CAMERA_EYE,
                  camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
-                 renderer='auto', supersampling=1,
-                 marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING,
+                 renderer='auto', render_supersampling=DEFAULT_SUPERSAMPLING,
+                 render_marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING,
                  mount_height_m=DEFAULT_MOUNT_HEIGHT_M, image_noise_stddev=0.0,
                  frame_drop_probability=0.0, camera_seed=0, camera_pose_error_xyz_m=(0.0,) * 3,
                  camera_pose_error_rpy_deg=(0.0,) * 3, focal_length_error=1.0, teach_pose=None,
-                 parallel_lenses=False):
+                 render_parallel_lenses=False):
         """Check the configuration, solve the start pose and build the PyBullet world."""
         for name, rate in (('physics_rate_hz', physics_rate_hz),
                            ('camera_rate_hz', camera_rate_hz)):
@@ -113,23 +115,25 @@ class Simulator:
                                 camera_pose_error_rpy_deg))
         except EffectError as exc:
             raise ConfigError(exc.param, str(exc)) from None
-        if supersampling not in range(1, MAX_SUPERSAMPLING + 1):
-            raise ConfigError('render_supersampling', f'{supersampling!r}: samples per pixel '
-                              f'along each axis must be an int in [1, {MAX_SUPERSAMPLING}]')
-        self.supersampling = supersampling
-        if marker_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
+        if render_supersampling not in range(1, MAX_SUPERSAMPLING + 1):
+            raise ConfigError('render_supersampling', f'{render_supersampling!r}: samples per '
+                              f'pixel along each axis must be an int in '
+                              f'[1, {MAX_SUPERSAMPLING}]')
+        self.render_supersampling = render_supersampling
+        if render_marker_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
             raise ConfigError('render_marker_supersampling',
-                              f'{marker_supersampling!r}: samples per pixel along each axis '
-                              f'around the markers must be an int in '
+                              f'{render_marker_supersampling!r}: samples per pixel along '
+                              f'each axis around the markers must be an int in '
                               f'[1, {MAX_FOCUS_SUPERSAMPLING}]')
-        self.marker_supersampling = marker_supersampling
+        self.render_marker_supersampling = render_marker_supersampling
         try:
             mount_height_m = check_mount_height(mount_height_m)
         except ValueError as exc:
             raise ConfigError('mount_height_m', str(exc)) from None
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer,
-                               mount_height_m=mount_height_m, lens_worker=parallel_lenses)
+                               mount_height_m=mount_height_m,
+                               lens_worker=render_parallel_lenses)
         except RendererError as exc:
             raise ConfigError('renderer', str(exc)) from None
         except LensWorkerError as exc:
@@ -196,9 +200,9 @@ class Simulator:
 
     def _render(self):
         """Return the stereo pair of the current state: true camera, image noise added."""
-        images = self.world.render_stereo(self.camera, self.supersampling,
+        images = self.world.render_stereo(self.camera, self.render_supersampling,
                                           self.world.marker_spheres(),
-                                          self.marker_supersampling)
+                                          self.render_marker_supersampling)
         return self.effects.noisy(images)
 
     def hold_torque(self):

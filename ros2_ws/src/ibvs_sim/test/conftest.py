@@ -2,7 +2,7 @@
 
 import gc
 
-from ibvs_common.testing import camera, context, domain_id, world  # noqa: F401
+from ibvs_common.testing import camera, context, domain_id, executor_of, world  # noqa: F401
 import pytest
 
 

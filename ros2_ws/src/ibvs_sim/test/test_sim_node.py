@@ -21,7 +21,6 @@ from ibvs_sim.sim_node import SimNode
 from ibvs_sim.world import World
 import numpy as np
 import pytest
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -101,26 +100,16 @@ def _overrides(**values):
 
 
 @pytest.fixture
-def graph(context):
-    """Yield a function that builds (sim, stand-in, executor) with parameter overrides."""
-    made = []
-
+def graph(context, executor_of):
+    """Return a function that builds (sim, stand-in, executor) with parameter overrides."""
     def build(**params):
         params.setdefault('resolution', 'VGA')
         params.setdefault('disturbance_deg', [0.0] * 6)
         sim = SimNode(context=context, parameter_overrides=_overrides(**params))
         stand_in = StandIn(context)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(sim)
-        executor.add_node(stand_in)
-        made.append((executor, sim, stand_in))
-        return sim, stand_in, executor
+        return sim, stand_in, executor_of(sim, stand_in)
 
-    yield build
-    for executor, sim, stand_in in made:
-        executor.shutdown()
-        sim.destroy_node()
-        stand_in.destroy_node()
+    return build
 
 
 def test_lockstep_rates_and_stamps(graph):

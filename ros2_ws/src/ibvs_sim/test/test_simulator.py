@@ -104,7 +104,7 @@ def test_step_checks_the_torque(sim):
     ({'resolution': 'QVGA'}, 'resolution'),
     ({'disturbance_deg': (0.0,) * 5}, 'disturbance_deg'),
     ({'mount_height_m': -0.5}, 'mount_height_m'),
-    ({'marker_supersampling': 0}, 'render_marker_supersampling'),
+    ({'render_marker_supersampling': 0}, 'render_marker_supersampling'),
 ])
 def test_bad_configuration_names_the_parameter(kwargs, param):
     with pytest.raises(ConfigError) as info:

@@ -6,8 +6,8 @@ between assertions (module fixtures): 30 poses at HD720 with the default rendere
 the other one, and the paper's scenario starts and target.
 """
 
-from ibvs_model import (fiducial_points, ik_position_axis, inverse_kinematics, look_at, paper,
-                        StereoCamera, StereoIntrinsics, UnreachablePoseError)
+from ibvs_model import (CameraRobotModel, fiducial_points, inverse_kinematics, IRB4600, look_at,
+                        paper, scene, StereoCamera, StereoIntrinsics)
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
 from ibvs_sim.rendering import (box_downsample, focus_windows, lens_poses, projection_matrix,
@@ -91,39 +91,9 @@ def test_sphere_image_centre_properties(camera):
 
 
 def _in_view_poses(camera, count, seed):
-    """
-    Random tool poses in front of the arm with both markers in both images.
-
-    Flange within x in [-1.2, 1.4], y in [-0.3, 0.35], z in [0.25, 1.2] m, at least 0.6 m
-    from the base axis, tool pointing down within 35 deg (the task's attitude); each marker
-    at least 1 m from the camera, its disc wholly inside both images and clear of the other.
-    """
-    k = camera.intrinsics
-    rng = np.random.default_rng(seed)
-    poses = []
-    while len(poses) < count:
-        pos = rng.uniform([-1.2, -0.3, 0.25], [1.4, 0.35, 1.2])
-        tilt, azimuth = np.radians(rng.uniform(0.0, 35.0)), rng.uniform(0.0, 2.0 * np.pi)
-        axis = [np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), -np.cos(tilt)]
-        q6 = rng.uniform(-np.pi, np.pi)
-        if np.hypot(pos[0], pos[1]) < 0.6:
-            continue
-        try:
-            q = ik_position_axis(pos, axis, q6)
-        except UnreachablePoseError:
-            continue
-        points = fiducial_points(q)
-        depth = camera.to_camera(points)[:, 2]
-        if depth.min() < 1.0:
-            continue
-        radius_px = k.fu * MARKER_RADIUS_M / depth.min()
-        if not np.all(camera.in_view(points, margin_px=radius_px + 3.0)):
-            continue
-        uv = camera.project(points)
-        if np.hypot(*(uv[0, [0, 2]] - uv[1, [0, 2]])) < 2.0 * radius_px + 3.0:
-            continue
-        poses.append(q)
-    return poses
+    """Return ``count`` random in-view poses of the paper's robot (:func:`scene.in_view_poses`)."""
+    return scene.in_view_poses(CameraRobotModel(camera, IRB4600), count,
+                               np.random.default_rng(seed))
 
 
 def _measure(world, camera, q):

@@ -19,7 +19,7 @@ import time
 import cv2
 from ibvs_common.bench import print_timing
 from ibvs_model import (CameraRobotModel, fiducial_points, inverse_kinematics, IRB4600,
-                        look_at, paper, StereoCamera, StereoIntrinsics)
+                        look_at, paper, scene, StereoCamera, StereoIntrinsics)
 import numpy as np
 
 from . import synthetic
@@ -73,7 +73,7 @@ def run(report):
             model = _model(resolution)
             detector = StereoDetector(model.camera.intrinsics)
             rng = np.random.default_rng(1)
-            poses = synthetic.in_view_poses(model, count, rng)
+            poses = scene.in_view_poses(model, count, rng)
             frames, empty = _rendered(model, poses)
             if frames is not None:
                 renderer = empty[1]

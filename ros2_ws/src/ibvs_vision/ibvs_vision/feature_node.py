@@ -38,6 +38,7 @@ not found is reported (ERROR log and /diagnostics) and nothing is published: the
 feedback then keeps waiting for its target.
 """
 
+from functools import partial
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -109,18 +110,16 @@ class FeatureNode(Node):
                                                  contract.LATCHED)
         self._status_pub = self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
                                                  contract.RELIABLE)
-        self.create_subscription(Image, contract.LEFT_IMAGE,
-                                 lambda m: self._on_image('left', m), contract.IMAGES)
-        self.create_subscription(Image, contract.RIGHT_IMAGE,
-                                 lambda m: self._on_image('right', m), contract.IMAGES)
-        self.create_subscription(Image, contract.TEACH_LEFT_IMAGE,
-                                 lambda m: self._on_teach('left', m), contract.LATCHED)
-        self.create_subscription(Image, contract.TEACH_RIGHT_IMAGE,
-                                 lambda m: self._on_teach('right', m), contract.LATCHED)
-        self.create_subscription(CameraInfo, contract.LEFT_INFO,
-                                 lambda m: self._on_info('left', m), contract.RELIABLE)
-        self.create_subscription(CameraInfo, contract.RIGHT_INFO,
-                                 lambda m: self._on_info('right', m), contract.RELIABLE)
+        # Each of a lens's inputs, left then right, in this order.
+        for msg_type, topics, on_message, qos in (
+                (Image, (contract.LEFT_IMAGE, contract.RIGHT_IMAGE), self._on_image,
+                 contract.IMAGES),
+                (Image, (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE), self._on_teach,
+                 contract.LATCHED),
+                (CameraInfo, (contract.LEFT_INFO, contract.RIGHT_INFO), self._on_info,
+                 contract.RELIABLE)):
+            for side, topic in zip(('left', 'right'), topics):
+                self.create_subscription(msg_type, topic, partial(on_message, side), qos)
         self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
                                  contract.LATCHED)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,

@@ -13,7 +13,6 @@ sphere centres, so the detector is judged against eq. (21)-(22) itself.
 import math
 
 import cv2
-from ibvs_model import fiducial_points, ik_position_axis, UnreachablePoseError
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 import numpy as np
 
@@ -145,45 +144,6 @@ def render_stereo(camera, markers_O, rng=None, clutter=25, noise_sigma=2.0, supe
             img += rng.normal(0.0, noise_sigma, img.shape).astype(np.float32)
         images.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
     return images[0], images[1]
-
-
-def in_view_poses(model, count, rng, min_depth_m=1.0, max_tilt_deg=35.0):
-    """
-    Return ``count`` random joint angles with both markers wholly in both images of F's camera.
-
-    The flange is drawn in front of the arm (x in [-1.2, 1.4], y in [-0.3, 0.35], z in
-    [0.25, 1.2] m, at least 0.6 m from the base axis) with the tool pointing down within
-    ``max_tilt_deg`` (the task's attitude) and any roll; each marker at least
-    ``min_depth_m`` deep, its disc (stretched off-axis) inside both images and clear of
-    the other marker's.
-    """
-    camera = model.camera
-    k = camera.intrinsics
-    poses = []
-    while len(poses) < count:
-        pos = rng.uniform([-1.2, -0.3, 0.25], [1.4, 0.35, 1.2])
-        tilt = math.radians(rng.uniform(0.0, max_tilt_deg))
-        azimuth = rng.uniform(0.0, 2.0 * math.pi)
-        axis = [math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth),
-                -math.cos(tilt)]
-        if math.hypot(pos[0], pos[1]) < 0.6:
-            continue
-        try:
-            q = ik_position_axis(pos, axis, rng.uniform(-math.pi, math.pi), model.params)
-        except UnreachablePoseError:
-            continue
-        points = fiducial_points(q, model.params)
-        depth = camera.to_camera(points)[:, 2]
-        if depth.min() < min_depth_m:
-            continue
-        radius_px = k.fu * MARKER_RADIUS_M / depth.min()
-        if not np.all(camera.in_view(points, margin_px=1.5 * radius_px + 3.0)):
-            continue
-        uv = camera.project(points)
-        if math.hypot(*(uv[0, [0, 2]] - uv[1, [0, 2]])) < 2.0 * radius_px + 3.0:
-            continue
-        poses.append(q)
-    return poses
 
 
 def disc_occluder(camera, centre_O, margin_px=1.0, rgb=(128, 128, 128)):

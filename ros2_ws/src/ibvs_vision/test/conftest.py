@@ -1,6 +1,6 @@
 """Fixtures of the ibvs_vision tests: the shared ones (ibvs_common.testing) and model F."""
 
-from ibvs_common.testing import context, default_camera, world  # noqa: F401
+from ibvs_common.testing import context, default_camera, executor_of, world  # noqa: F401
 from ibvs_model import CameraRobotModel, IRB4600
 import pytest
 

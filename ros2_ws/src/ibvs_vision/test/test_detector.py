@@ -8,7 +8,7 @@ formula against the exact silhouette, linearity of the colour channel, agreement
 search paths), then accuracy.
 """
 
-from ibvs_model import fiducial_points
+from ibvs_model import fiducial_points, scene
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 from ibvs_vision import synthetic
 from ibvs_vision.detector import (centre_to_silhouette, colour_scores, DetectorConfig, Reason,
@@ -76,7 +76,7 @@ def test_colour_channels_are_linear_and_hue_selective():
 def _frames(model, count, seed, clutter=25):
     rng = np.random.default_rng(seed)
     out = []
-    for q in synthetic.in_view_poses(model, count, rng):
+    for q in scene.in_view_poses(model, count, rng):
         points = fiducial_points(q)
         out.append((model.camera.project(points).reshape(6),
                     synthetic.render_stereo(model.camera, points, rng, clutter=clutter)))

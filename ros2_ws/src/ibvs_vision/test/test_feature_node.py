@@ -18,12 +18,11 @@ from ibvs_common.conversions import (camera_infos, image_msg, joint_state, ns_st
                                      pose_stamped, read_features, stamp_ns)
 from ibvs_common.params import ParameterError
 from ibvs_common.testing import spin_until
-from ibvs_model import fiducial_points, inverse_kinematics, paper
+from ibvs_model import fiducial_points, inverse_kinematics, paper, scene
 from ibvs_vision import synthetic
 from ibvs_vision.feature_node import FeatureNode
 import numpy as np
 import pytest
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -117,30 +116,21 @@ def latest_diag(driver, executor, condition):
 
 
 @pytest.fixture
-def rig(context, vga_model):
-    """Yield (node, driver, executor), the node with ``overrides`` (a function of kwargs)."""
-    made = []
-
+def rig(context, vga_model, executor_of):
+    """Return build(**params): (node, driver, executor), the node with those overrides."""
     def build(**params):
         params.setdefault('use_sim_time', True)
         node = FeatureNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in params.items()])
         driver = Driver(context, vga_model.camera)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        executor.add_node(driver)
-        made.append((executor, node, driver))
+        executor = executor_of(node, driver)
         # Wait until the node hears the driver on every topic before the first frame.
         spin_until(executor, lambda: all(
             p.get_subscription_count() >= 1 for p in driver.pub.values()))
         driver.publish_pose()
         return node, driver, executor
 
-    yield build
-    for executor, node, driver in made:
-        executor.shutdown()
-        node.destroy_node()
-        driver.destroy_node()
+    return build
 
 
 @pytest.fixture(scope='module')
@@ -232,7 +222,7 @@ def q_apart(vga_model):
         radius = k.fu * 0.025 / vga_model.camera.to_camera(points)[:, 2].min()
         return np.hypot(*(uv[0, [0, 2]] - uv[1, [0, 2]])) / radius
 
-    poses = synthetic.in_view_poses(vga_model, 20, np.random.default_rng(11))
+    poses = scene.in_view_poses(vga_model, 20, np.random.default_rng(11))
     return max(poses, key=separation) - D_Q
 
 

@@ -16,10 +16,9 @@ once per module.
 """
 
 from ibvs_model import (fiducial_points, forward_kinematics, ik_position_axis,
-                        inverse_kinematics, paper, UnreachablePoseError)
+                        inverse_kinematics, paper, scene, UnreachablePoseError)
 from ibvs_sim import markers
 from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING
-from ibvs_vision import synthetic
 from ibvs_vision.detector import Reason, StereoDetector
 import numpy as np
 import pytest
@@ -39,7 +38,7 @@ def _no_marker_pixels(left, right):
 def in_view_frames(world, hd_model):
     rng = np.random.default_rng(2024)
     return [(q, _render(world, hd_model.camera, q))
-            for q in synthetic.in_view_poses(hd_model, 50, rng)]
+            for q in scene.in_view_poses(hd_model, 50, rng)]
 
 
 @pytest.fixture(scope='module')
