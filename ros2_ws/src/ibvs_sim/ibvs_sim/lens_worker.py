@@ -13,7 +13,10 @@ stays deterministic; :func:`ibvs_sim.world.World.render_stereo` draws the same p
 (tested to the bit).
 
 The worker dies with the simulator: it asks Linux for SIGKILL when its parent exits, and it
-ends on a closed pipe, on ``close`` and on SIGINT.
+ends on a closed pipe and on ``close``. It ignores SIGINT: Ctrl-C in a terminal, or the
+runner stopping the simulator, signals the whole process group, and a worker that died
+mid-frame would make the simulator fail its last render (exit code 1) instead of stopping
+cleanly; the simulator stops and closes it.
 """
 
 import ctypes
@@ -47,7 +50,7 @@ def _die_with_parent():
 def _serve(conn):
     """Worker side: build the World it is sent, then answer render requests until told to stop."""
     _die_with_parent()
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the simulator ends it (module docstring)
     from .world import World  # in the child only: the parent imported it already
     try:
         world = World(**conn.recv())

@@ -56,3 +56,16 @@ def test_close_ends_the_worker_process(camera):
     world.render_stereo(camera)
     world.close()
     assert process.poll() is not None
+
+
+def test_sigint_is_left_to_the_simulator(parallel_world, camera):
+    """Ctrl-C signals the whole process group: the worker keeps serving until it is closed."""
+    import signal
+    import time
+    world = parallel_world
+    process = world._lens_worker._process
+    process.send_signal(signal.SIGINT)
+    time.sleep(0.5)
+    assert process.poll() is None
+    left, right = world.render_stereo(camera)
+    assert left.shape == right.shape
