@@ -119,22 +119,29 @@ def expected_feedback(t_ns, lost, latency_ns, initial='zero'):
             value = f'fb{stamp}'
 
 
-def run_feedback(events, latency_ns=0):
-    """Feed ``events`` (kind, stamp) into a lockstep; return its answers and rejections."""
-    lockstep = FeedbackLockstep(CAM, latency_ns, DT, initial='zero')
+def feed(lockstep, events, offers):
+    """
+    Feed ``events`` (kind, stamp) to ``lockstep`` through ``offers[kind](t_ns)``.
+
+    Return (answers popped after each event, rejections as (kind, stamp, reason), lockstep).
+    """
     answers, rejections = [], []
     for kind, t_ns in events:
-        if kind == 'state':
-            rejection = lockstep.offer_state(t_ns, f'q{t_ns}')
-        elif kind == 'feedback':
-            rejection = lockstep.offer_feedback(t_ns, f'fb{t_ns}')
-        else:
-            rejection = lockstep.offer_lost(t_ns)
+        rejection = offers[kind](t_ns)
         if rejection is not None:
             rejections.append((kind, t_ns, rejection.reason))
         while (ready := lockstep.pop_ready()) is not None:
             answers.append(ready)
     return answers, rejections, lockstep
+
+
+def run_feedback(events, latency_ns=0):
+    """Feed ``events`` (kind, stamp) into a lockstep; return its answers and rejections."""
+    lockstep = FeedbackLockstep(CAM, latency_ns, DT, initial='zero')
+    return feed(lockstep, events, {
+        'state': lambda t: lockstep.offer_state(t, f'q{t}'),
+        'feedback': lambda t: lockstep.offer_feedback(t, f'fb{t}'),
+        'lost': lockstep.offer_lost})
 
 
 def merge(rng, *streams):
@@ -264,19 +271,10 @@ def measured(t_ns):
 
 def run_frames(events, needs_status):
     lockstep = FrameLockstep(needs_status=needs_status)
-    answers, rejections = [], []
-    for kind, t_ns in events:
-        if kind == 'frame':
-            rejection = lockstep.offer_frame(t_ns, f'p{t_ns}')
-        elif kind == 'joints':
-            rejection = lockstep.offer_joints(t_ns, f'q{t_ns}')
-        else:
-            rejection = lockstep.offer_status(t_ns, measured(t_ns))
-        if rejection is not None:
-            rejections.append((kind, t_ns, rejection.reason))
-        while (ready := lockstep.pop_ready()) is not None:
-            answers.append(ready)
-    return answers, rejections, lockstep
+    return feed(lockstep, events, {
+        'frame': lambda t: lockstep.offer_frame(t, f'p{t}'),
+        'joints': lambda t: lockstep.offer_joints(t, f'q{t}'),
+        'status': lambda t: lockstep.offer_status(t, measured(t))})
 
 
 def test_frame_answers_do_not_depend_on_arrival_order():
