@@ -28,11 +28,12 @@ BREAKDOWN = (
     ('sim_node', 'render', 'rendering (both lenses)'),
     ('sim_node', 'image_messages', 'image messages: build and publish'),
     ('sim_node', 'physics', 'physics steps'),
-    ('sim_node', 'step_messages', 'per-step messages: build and publish'),
+    ('sim_node', 'tool_pose', 'tool pose (evaluation only): build, publish'),
+    ('sim_node', 'step_messages', 'per-step messages (/clock, /joint_states): build, publish'),
     ('feature_node', 'detection', 'detection (Hough, stereo)'),
     ('adaptive_feedback_node', 'feedback_update', 'feedback update (F^-1, C1, SVD)'),
     ('joint_controller_node', 'joint_loop', 'joint loop (M, h, G_c)'),
-    ('sim_node', 'lockstep_round_trip', 'lockstep round trips (steps without a frame)'),
+    ('sim_node', 'lockstep_round_trip', 'lockstep round trips (/joint_states out, command in)'),
     ('recorder', 'recording', 'recording (another process, off the lockstep)'),
 )
 
@@ -111,9 +112,9 @@ def graph_breakdown(resolution, duration_s, out_dir):
         rows.append({'node': node, 'section': section, 'what': label,
                      'wall_s_per_sim_s': per_sim_s, 'per_pass_ms': per_pass_ms,
                      'passes': count, 'sim_time_s': covered})
-        print(f'  {label:48s} {per_sim_s:7.3f} s per sim s   {per_pass_ms:8.3f} ms x {count}')
+        print(f'  {label:58s} {per_sim_s:7.3f} s per sim s   {per_pass_ms:8.3f} ms x {count}')
     per_sim = wall_s / sim_s
-    print(f'  {"wall time per simulated second (total)":48s} {per_sim:7.3f} s '
+    print(f'  {"wall time per simulated second (total)":58s} {per_sim:7.3f} s '
           f'(real-time factor {sim_s / wall_s:.3f}; {sim_s:.3f} s sim in {wall_s:.1f} s)')
     return {'resolution': resolution, 'sim_duration_s': sim_s, 'wall_duration_s': wall_s,
             'wall_s_per_sim_s': per_sim, 'real_time_factor': sim_s / wall_s,

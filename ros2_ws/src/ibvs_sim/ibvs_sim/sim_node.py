@@ -3,8 +3,8 @@ sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md
 
 Lockstep. At step k (sim time t_k, from 0) the node publishes /clock (on the steps due at
 ``clock_rate_hz``, 100 Hz: sim time for the nodes' clocks, as gazebo_ros publishes it at a
-set rate; no result depends on it), /joint_states (encoder angles q - d_q, velocities, the
-torque of the previous step) and /ibvs/tool_pose, then the camera frame due at t_k if
+set rate; no result depends on it), /ibvs/tool_pose and /joint_states (encoder angles
+q - d_q, velocities, the torque of the previous step), then the camera frame due at t_k if
 any (both images and CameraInfo, stamped t_k), which it renders while the joint controller
 works on step k. Every consumer matches its inputs by stamp, so the order changes no result.
 It then waits for /joint_effort_commands stamped t_k; that message (and only that one)
@@ -295,6 +295,8 @@ class SimNode(Node):
         sim = self.sim
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
+        with timing.section('tool_pose'):
+            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
         with timing.section('step_messages'):
             if t_ns >= self._next_clock_ns:
                 self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
@@ -302,8 +304,6 @@ class SimNode(Node):
                 self._next_clock_ns = (t_ns // self._clock_period_ns + 1) * self._clock_period_ns
             q, qd = sim.encoders()
             self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
-            # After /joint_states, so that the joint controller works on the step meanwhile.
-            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
             self._published_at = time.perf_counter()
         self._frame_step = sim.frame_due() is not None
         if self._frame_step:
