@@ -14,6 +14,7 @@ its process.
 - A study holds the domains of its runs itself and says so in ``IBVS_DOMAIN_HELD``.
 """
 
+from contextlib import contextmanager
 import fcntl
 import os
 from pathlib import Path
@@ -82,3 +83,26 @@ def claim(environ=os.environ, pool=FREE_POOL):
         if lock is not None:
             return domain, lock
     raise DomainBusy(f'every ROS domain from {pool[0]} to {pool[1]} is used by another run')
+
+
+@contextmanager
+def held(environ=os.environ, pool=FREE_POOL):
+    """
+    Hold a run's domain (:func:`claim`) with ``ROS_DOMAIN_ID`` set to it in ``environ``.
+
+    Yields ``(domain, chosen)``, ``chosen`` True when ROS_DOMAIN_ID was not set and the
+    domain is the first free one. On leaving, however that happens, the lock is released and
+    ``environ`` is as it was, so that a process can run one graph after another.
+    """
+    saved = environ.get('ROS_DOMAIN_ID')
+    domain, lock = claim(environ, pool)
+    environ['ROS_DOMAIN_ID'] = str(domain)
+    try:
+        yield domain, not (saved or '').strip()
+    finally:
+        if lock is not None:
+            lock.close()
+        if saved is None:
+            del environ['ROS_DOMAIN_ID']
+        else:
+            environ['ROS_DOMAIN_ID'] = saved

@@ -302,104 +302,97 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     target = target_from_parameters(params)
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
-    domain, domain_lock = domains.claim()
-    saved_domain = os.environ.get('ROS_DOMAIN_ID')
-    os.environ['ROS_DOMAIN_ID'] = str(domain)
-    if saved_domain is None and domain != 0:
-        progress(f'  ROS_DOMAIN_ID {domain}: lower domains are used by other runs')
-    dds.configure()  # before rclpy.init here, and inherited by the node processes
-    context = rclpy.context.Context()
-    rclpy.init(context=context)
-    executor = make_executor(context)
-    recorder = Recorder(bag_path, include_images=record_images, context=context,
-                        custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
-    watcher = rclpy.create_node('ibvs_run_monitor', context=context,
-                                parameter_overrides=[])
-    monitor = Monitor(watcher, recorder, target)
-    executor.add_node(recorder)
-    executor.add_node(watcher)
-    procs = []
-    converged = False
-    died = None
-    stalled = None
-    wall_duration = None
-    wall_start = time.monotonic()
-    try:
-        for package, executable in NODES:
-            extra = ()
-            if executable == 'sim_node':
-                _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
-                # Every reader of step 0 must be matched before the simulator publishes it
-                # (volatile topics): a node that misses the first /joint_states or CameraInfo
-                # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
-                # The simulator waits for as many subscribers as the runner sees once each
-                # node's own subscriptions are in the graph, recorder and monitor included.
-                counts = _wait_for_readers(executor, watcher, procs)
-                extra = ('-p', f'min_joint_state_subscribers:={counts[contract.JOINT_STATES]}',
-                         '-p', f'min_tool_pose_subscribers:={counts[contract.TOOL_POSE]}',
-                         '-p', 'min_camera_info_subscribers:='
-                         f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
-            procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
-        last_print = 0.0
-        last_sim_ns, last_advance = -1, time.monotonic()
-        never = Future()
-        while True:
-            # Every callback due in the next POLL_S, then one look at the run.
-            executor.spin_until_future_complete(never, timeout_sec=POLL_S)
-            monitor.poll()
-            for p in procs:
-                code = p.poll()
-                if code is not None:
-                    died = NodeDied(p.name, code, p.log_path)
+    with domains.held() as (domain, chosen):
+        if chosen and domain != 0:
+            progress(f'  ROS_DOMAIN_ID {domain}: lower domains are used by other runs')
+        dds.configure()  # before rclpy.init here, and inherited by the node processes
+        context = rclpy.context.Context()
+        rclpy.init(context=context)
+        executor = make_executor(context)
+        recorder = Recorder(bag_path, include_images=record_images, context=context,
+                            custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
+        watcher = rclpy.create_node('ibvs_run_monitor', context=context,
+                                    parameter_overrides=[])
+        monitor = Monitor(watcher, recorder, target)
+        executor.add_node(recorder)
+        executor.add_node(watcher)
+        procs = []
+        converged = False
+        died = None
+        stalled = None
+        wall_duration = None
+        wall_start = time.monotonic()
+        try:
+            for package, executable in NODES:
+                extra = ()
+                if executable == 'sim_node':
+                    _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
+                    # Every reader of step 0 must be matched before the simulator publishes it
+                    # (volatile topics): a node that misses the first /joint_states or CameraInfo
+                    # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
+                    # The simulator waits for as many subscribers as the runner sees once each
+                    # node's own subscriptions are in the graph, recorder and monitor included.
+                    counts = _wait_for_readers(executor, watcher, procs)
+                    extra = ('-p', f'min_joint_state_subscribers:={counts[contract.JOINT_STATES]}',
+                             '-p', f'min_tool_pose_subscribers:={counts[contract.TOOL_POSE]}',
+                             '-p', 'min_camera_info_subscribers:='
+                             f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
+                procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
+            last_print = 0.0
+            last_sim_ns, last_advance = -1, time.monotonic()
+            never = Future()
+            while True:
+                # Every callback due in the next POLL_S, then one look at the run.
+                executor.spin_until_future_complete(never, timeout_sec=POLL_S)
+                monitor.poll()
+                for p in procs:
+                    code = p.poll()
+                    if code is not None:
+                        died = NodeDied(p.name, code, p.log_path)
+                        break
+                if died:
                     break
-            if died:
-                break
-            sim_s = monitor.sim_ns * 1e-9
-            now = time.monotonic()
-            if now - last_print >= 2.0:
-                last_print = now
-                rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
-                progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
-                         f'  position error {monitor.error_m * 1e3:9.3f} mm'
-                         f'  axis error {monitor.axis_deg:7.3f} deg  RTF {rtf:5.3f}')
-            if converge_hold_s is not None and \
-                    monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
-                converged = True
-                break
-            if sim_s >= duration_s:
-                converged = monitor.error_m <= 1e-3
-                break
-            if now - wall_start > wall_timeout_s:
-                progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim {sim_s:.3f} s')
-                break
-            if monitor.sim_ns > last_sim_ns and monitor.started_wall is not None:
-                last_sim_ns, last_advance = monitor.sim_ns, now
-            limit = stall_s if monitor.started_wall is not None else start_timeout_s
-            if now - last_advance > limit:
-                window_start = time.time() - min(limit, 3.0)
-                what = (f'no sim-time progress for {limit:.0f} s of wall time'
-                        if monitor.started_wall is not None
-                        else f'the simulator took no step within {limit:.0f} s of its launch')
-                stalled = RunStalled(what, sim_s, monitor.waits(procs, window_start))
-                break
-        # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
-        wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
-    finally:
-        codes = {p.name: p.stop() for p in reversed(procs)}
-        recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
-            'duration_s': duration_s, 'wall_duration_s': wall_duration,
-            'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
-        recorder.close()
-        executor.shutdown()
-        recorder.destroy_node()
-        watcher.destroy_node()
-        rclpy.shutdown(context=context)
-        if domain_lock is not None:
-            domain_lock.close()
-        if saved_domain is None:
-            del os.environ['ROS_DOMAIN_ID']
-        else:
-            os.environ['ROS_DOMAIN_ID'] = saved_domain
+                sim_s = monitor.sim_ns * 1e-9
+                now = time.monotonic()
+                if now - last_print >= 2.0:
+                    last_print = now
+                    rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
+                    progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
+                             f'  position error {monitor.error_m * 1e3:9.3f} mm'
+                             f'  axis error {monitor.axis_deg:7.3f} deg  RTF {rtf:5.3f}')
+                if converge_hold_s is not None and \
+                        monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
+                    converged = True
+                    break
+                if sim_s >= duration_s:
+                    converged = monitor.error_m <= 1e-3
+                    break
+                if now - wall_start > wall_timeout_s:
+                    progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim '
+                             f'{sim_s:.3f} s')
+                    break
+                if monitor.sim_ns > last_sim_ns and monitor.started_wall is not None:
+                    last_sim_ns, last_advance = monitor.sim_ns, now
+                limit = stall_s if monitor.started_wall is not None else start_timeout_s
+                if now - last_advance > limit:
+                    window_start = time.time() - min(limit, 3.0)
+                    what = (f'no sim-time progress for {limit:.0f} s of wall time'
+                            if monitor.started_wall is not None
+                            else f'the simulator took no step within {limit:.0f} s of its launch')
+                    stalled = RunStalled(what, sim_s, monitor.waits(procs, window_start))
+                    break
+            # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
+            wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
+        finally:
+            codes = {p.name: p.stop() for p in reversed(procs)}
+            recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
+                'duration_s': duration_s, 'wall_duration_s': wall_duration,
+                'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
+            recorder.close()
+            executor.shutdown()
+            recorder.destroy_node()
+            watcher.destroy_node()
+            rclpy.shutdown(context=context)
     if died:
         raise died
     if stalled:

@@ -123,3 +123,16 @@ def test_a_run_claims_a_free_domain_or_refuses_a_busy_one():
     assert again == 197
     for lock in (lock2, lock3):
         lock.close()
+
+
+def test_a_held_domain_is_released_and_the_environment_restored_even_on_error():
+    import pytest
+    from ibvs_bringup.domains import held
+    environ = {}
+    with pytest.raises(RuntimeError):
+        with held(environ, pool=(196, 196)) as (domain, chosen):
+            assert (domain, chosen) == (196, True) and environ['ROS_DOMAIN_ID'] == '196'
+            raise RuntimeError('a node failed to start')
+    assert environ == {}
+    with held(environ, pool=(196, 196)) as (domain, _):  # free again
+        assert domain == 196
