@@ -50,6 +50,7 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sync import Drop, Ready, Rejection, StereoPairer
+from ibvs_common.timing import period_ns
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
@@ -87,7 +88,7 @@ class FeatureNode(Node):
         self._config = DetectorConfig.from_parameters(p)
         self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
         self._stereo = StereoPairer(stale_ns=int(round(p['stale_timeout_s'] * 1e9)),
-                                    window_ns=int(round(1e9 / p['physics_rate_hz'])),
+                                    window_ns=period_ns(p['physics_rate_hz']),
                                     history_ns=int(round(p['joint_history_s'] * 1e9)),
                                     sides=_SIDES)
         self._infos = {}
