@@ -4,12 +4,11 @@ The whole graph in one process, on one rclpy executor: the paper's scenario 1 en
 The five nodes of docs/design.md §1 are built with the scenario 1 parameters (as
 ``--params-file`` would give them) and share a SingleThreadedExecutor; the simulator advances
 only as the controllers answer, so the run is the same however slow this machine is. The
-true tool pose on /ibvs/tool_pose must reach the target.
+true tool pose on /ibvs/tool_path must reach the target.
 """
 
 import math
 
-from geometry_msgs.msg import PoseStamped
 from ibvs_bringup import scenario
 from ibvs_common import contract
 from ibvs_common.conversions import pose_matrix, stamp_ns
@@ -18,6 +17,7 @@ from ibvs_control.feedforward_node import FeedforwardNode
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_sim.sim_node import SimNode
 from ibvs_vision.feature_node import FeatureNode
+from nav_msgs.msg import Path
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -53,8 +53,9 @@ def test_scenario1_through_the_graph_reaches_the_target(context):
             executor.add_node(node)
         poses = []
         nodes[0].create_subscription(
-            PoseStamped, contract.TOOL_POSE,
-            lambda m: poses.append((stamp_ns(m.header.stamp), pose_matrix(m.pose))),
+            Path, contract.TOOL_PATH,
+            lambda m: poses.extend((stamp_ns(p.header.stamp), pose_matrix(p.pose))
+                                   for p in m.poses),
             contract.RELIABLE)
         # No wall-clock deadline on the run itself: it is bounded by sim time, and a stall
         # (no sim progress for a long time) fails instead of hanging.
@@ -81,4 +82,4 @@ def test_scenario1_through_the_graph_reaches_the_target(context):
     assert axis_error <= AXIS_TOLERANCE_DEG, f'final tool-axis error {axis_error:.4f} deg'
     # Stamps of the true pose advance by one physics step each: lockstep, no skipped step.
     stamps = np.array([s for s, _ in poses])
-    assert np.all(np.diff(stamps) == 1_000_000), 'one /ibvs/tool_pose per 1 ms physics step'
+    assert np.all(np.diff(stamps) == 1_000_000), 'one tool pose per 1 ms physics step'

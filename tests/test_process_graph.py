@@ -30,7 +30,8 @@ EXPECTED = {
     '/ibvs/feedforward_trajectory': ('trajectory_msgs/msg/JointTrajectory', 1, 1),
     '/ibvs/q_feedback': ('sensor_msgs/msg/JointState', 1, 1),
     '/joint_effort_commands': ('sensor_msgs/msg/JointState', 1, 1),
-    '/ibvs/tool_pose': ('geometry_msgs/msg/PoseStamped', 1, 0),
+    '/ibvs/tool_path': ('nav_msgs/msg/Path', 1, 0),
+    '/stereo/joint_states': ('sensor_msgs/msg/JointState', 1, 0),
     '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 5, 0),
 }
 #: Who must read what (subscriber counts of at least these).

@@ -159,14 +159,15 @@ def load_run(bag_path):
     infos, cam_pose = {}, None
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
-        wanted = {contract.TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
+        wanted = {contract.TOOL_PATH, contract.FEATURES, contract.FEATURE_STATUS,
                   contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE}
         conns = [c for c in reader.connections if c.topic in wanted]
         for conn, _, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic == contract.TOOL_POSE:
-                t.append(_stamp(msg.header))
-                poses.append(pose_matrix(msg.pose))
+            if conn.topic == contract.TOOL_PATH:
+                for pose in msg.poses:
+                    t.append(_stamp(pose.header))
+                    poses.append(pose_matrix(pose.pose))
             elif conn.topic == contract.FEATURES:
                 ft.append(_stamp(msg.header))
                 feats.append([[p.x, p.y, p.z] for p in msg.polygon.points])
@@ -188,7 +189,7 @@ def load_run(bag_path):
         ft, feats = _before(end_ns, ft, feats)
         mt, modes = _before(end_ns, mt, modes)
     if len(t) < 2:
-        raise ValueError(f'{bag_path}: fewer than two {contract.TOOL_POSE} messages')
+        raise ValueError(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH}')
     order = np.argsort(t, kind='stable')
     poses = np.array(poses)[order]
     camera = None

@@ -28,7 +28,7 @@ BREAKDOWN = (
     ('sim_node', 'render', 'rendering (both lenses)'),
     ('sim_node', 'image_messages', 'image messages: build and publish'),
     ('sim_node', 'physics', 'physics steps'),
-    ('sim_node', 'tool_pose', 'tool pose (evaluation only): build, publish'),
+    ('sim_node', 'tool_path', 'tool poses (evaluation only): FK, batch, publish'),
     ('sim_node', 'step_messages', 'per-step messages (/clock, /joint_states): build, publish'),
     ('feature_node', 'detection', 'detection (Hough, stereo)'),
     ('adaptive_feedback_node', 'feedback_update', 'feedback update (F^-1, C1, SVD)'),

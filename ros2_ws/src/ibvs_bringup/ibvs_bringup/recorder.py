@@ -42,6 +42,7 @@ ROS_DISTRO = 'jazzy'
 KNOWN_TOPICS = {
     contract.CLOCK: 'rosgraph_msgs/msg/Clock',
     contract.JOINT_STATES: 'sensor_msgs/msg/JointState',
+    contract.FRAME_JOINT_STATES: 'sensor_msgs/msg/JointState',
     contract.LEFT_INFO: 'sensor_msgs/msg/CameraInfo',
     contract.RIGHT_INFO: 'sensor_msgs/msg/CameraInfo',
     contract.LEFT_IMAGE: 'sensor_msgs/msg/Image',
@@ -52,7 +53,7 @@ KNOWN_TOPICS = {
     contract.FEEDFORWARD_TRAJECTORY: 'trajectory_msgs/msg/JointTrajectory',
     contract.Q_FEEDBACK: 'sensor_msgs/msg/JointState',
     contract.EFFORT_COMMANDS: 'sensor_msgs/msg/JointState',
-    contract.TOOL_POSE: 'geometry_msgs/msg/PoseStamped',
+    contract.TOOL_PATH: 'nav_msgs/msg/Path',
     contract.DIAGNOSTICS: 'diagnostic_msgs/msg/DiagnosticArray',
 }
 IMAGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}

@@ -30,12 +30,12 @@ import time
 
 from ament_index_python.packages import get_package_prefix
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
+from nav_msgs.msg import Path as PathMsg
 import numpy as np
 import rclpy
 from rclpy.serialization import deserialize_message
@@ -54,6 +54,13 @@ NODES = (
     ('ibvs_control', 'joint_controller_node'),
     ('ibvs_sim', 'sim_node'),
 )
+#: Remappings per node. The feature and feedback nodes need the joint state of each frame's
+#: stamp only: from /stereo/joint_states they get those (30 a second) instead of being woken
+#: by every physics step's /joint_states (1000 a second), which the lockstep would wait for.
+REMAPS = {
+    'feature_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
+    'adaptive_feedback_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
+}
 
 
 #: Default wall time without sim-time progress after which a run is declared stalled (s).
@@ -210,7 +217,7 @@ class Monitor:
     """
 
     def __init__(self, node, recorder, target):
-        """Follow ``recorder``'s /clock and /ibvs/tool_pose; /diagnostics on ``node``."""
+        """Follow ``recorder``'s /clock and /ibvs/tool_path; /diagnostics on ``node``."""
         self.target = target
         self._recorder = recorder
         self._pose_raw = None
@@ -231,10 +238,11 @@ class Monitor:
         if self.started_wall is None and recorder.counts.get(contract.CLOCK):
             self.started_wall = time.monotonic()
         self.sim_ns = max(self.sim_ns, recorder.clock_ns)
-        raw = recorder.latest.get(contract.TOOL_POSE)
-        if raw is not None and raw is not self._pose_raw:
+        raw = recorder.latest.get(contract.TOOL_PATH)
+        path = None if raw is None or raw is self._pose_raw else deserialize_message(raw, PathMsg)
+        if path is not None and path.poses:
             self._pose_raw = raw
-            tf = pose_matrix(deserialize_message(raw, PoseStamped).pose)
+            tf = pose_matrix(path.poses[-1].pose)
             self.error_m = float(np.linalg.norm(tf[:3, 3] - self.target[:3, 3]))
             self.axis_deg = float(analysis.axis_angle_deg(tf[None, :3, :3],
                                                           self.target[:3, :3])[0])
@@ -324,7 +332,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         wall_start = time.monotonic()
         try:
             for package, executable in NODES:
-                extra = ()
+                extra = tuple(arg for source, target in REMAPS.get(executable, {}).items()
+                              for arg in ('-r', f'{source}:={target}'))
                 if executable == 'sim_node':
                     _wait_for_nodes(executor, watcher, [e for _, e in NODES[:-1]], procs)
                     # Every reader of step 0 must be matched before the simulator publishes it
@@ -334,7 +343,9 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                     # node's own subscriptions are in the graph, recorder and monitor included.
                     counts = _wait_for_readers(executor, watcher, procs)
                     extra = ('-p', f'min_joint_state_subscribers:={counts[contract.JOINT_STATES]}',
-                             '-p', f'min_tool_pose_subscribers:={counts[contract.TOOL_POSE]}',
+                             '-p', 'min_frame_joint_state_subscribers:='
+                             f'{counts[contract.FRAME_JOINT_STATES]}',
+                             '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
                              '-p', 'min_camera_info_subscribers:='
                              f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
                 procs.append(NodeProcess(package, executable, params_file, log_dir, extra))
@@ -404,11 +415,11 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
 #: The nodes that read each topic of step 0 (docs/design.md §1); the runner's recorder and
 #: monitor subscribe in this process, so they are in the graph from the start.
 STEP0_READERS = {
-    contract.JOINT_STATES: ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
-                            'joint_controller_node'),
+    contract.JOINT_STATES: ('feedforward_node', 'joint_controller_node'),
+    contract.FRAME_JOINT_STATES: ('feature_node', 'adaptive_feedback_node'),
     contract.LEFT_INFO: ('feature_node', 'adaptive_feedback_node'),
     contract.RIGHT_INFO: ('feature_node', 'adaptive_feedback_node'),
-    contract.TOOL_POSE: (),
+    contract.TOOL_PATH: (),
 }
 
 

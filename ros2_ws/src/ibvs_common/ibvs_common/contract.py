@@ -13,6 +13,12 @@ JOINT_NAMES = tuple(f'joint_{i}' for i in range(1, 7))
 
 CLOCK = '/clock'
 JOINT_STATES = '/joint_states'
+#: The /joint_states message of each camera frame's step, stamped with the frame's stamp: the
+#: joint state the frame's consumers need (the encoder angles the image was taken at), one
+#: per frame instead of one per physics step. The runner remaps the feature and feedback
+#: nodes' /joint_states to it; on a real cell, where nobody publishes it, they take
+#: /joint_states and pick the state of each frame's stamp themselves.
+FRAME_JOINT_STATES = '/stereo/joint_states'
 LEFT_IMAGE = '/stereo/left/image_raw'
 RIGHT_IMAGE = '/stereo/right/image_raw'
 LEFT_INFO = '/stereo/left/camera_info'
@@ -35,7 +41,10 @@ FEATURES = '/ibvs/features'
 FEEDFORWARD_TRAJECTORY = '/ibvs/feedforward_trajectory'
 Q_FEEDBACK = '/ibvs/q_feedback'
 EFFORT_COMMANDS = '/joint_effort_commands'
-TOOL_POSE = '/ibvs/tool_pose'
+#: Evaluation only (nav_msgs/Path in base_link): the true flange pose of every physics step,
+#: published in batches just before each /clock, so that when /clock says T every pose
+#: stamped before T is out. One pose message per step cost the lockstep 0.3 ms a step.
+TOOL_PATH = '/ibvs/tool_path'
 #: Per stereo frame, stamped with the image stamp: one DiagnosticStatus whose values say
 #: mode (measured / estimated / blending), the reason and the blend weight.
 FEATURE_STATUS = '/ibvs/feature_status'

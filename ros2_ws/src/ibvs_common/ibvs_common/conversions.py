@@ -8,9 +8,11 @@ Readers raise :class:`InputError` with a short reason (used as the rejection rea
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
 from ibvs_model import StereoCamera, StereoIntrinsics
+from nav_msgs.msg import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
@@ -177,15 +179,23 @@ def pose_matrix(pose):
     return tf
 
 
+def matrix_poses(tfs):
+    """Return 4x4 homogeneous transforms (N, 4, 4) as geometry_msgs/Pose, one quaternion call."""
+    tfs = np.asarray(tfs, dtype=float).reshape(-1, 4, 4)
+    quats = Rotation.from_matrix(tfs[:, :3, :3]).as_quat()
+    poses = []
+    for tf, (x, y, z, w) in zip(tfs, quats):
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in tf[:3, 3])
+        pose.orientation.x, pose.orientation.y = float(x), float(y)
+        pose.orientation.z, pose.orientation.w = float(z), float(w)
+        poses.append(pose)
+    return poses
+
+
 def matrix_pose(tf):
     """Return a 4x4 homogeneous transform as a geometry_msgs/Pose."""
-    tf = np.asarray(tf, dtype=float)
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in tf[:3, 3])
-    x, y, z, w = Rotation.from_matrix(tf[:3, :3]).as_quat()
-    pose.orientation.x, pose.orientation.y = float(x), float(y)
-    pose.orientation.z, pose.orientation.w = float(z), float(w)
-    return pose
+    return matrix_poses(tf)[0]
 
 
 def pose_stamped(tf, stamp, frame_id=contract.BASE_FRAME):
@@ -194,6 +204,19 @@ def pose_stamped(tf, stamp, frame_id=contract.BASE_FRAME):
     msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
     msg.header.frame_id = frame_id
     msg.pose = matrix_pose(tf)
+    return msg
+
+
+def path_msg(stamped_poses, frame_id=contract.BASE_FRAME):
+    """Return (stamp ns, 4x4 transform) pairs as a nav_msgs/Path stamped with the last one."""
+    msg = Path()
+    msg.header.frame_id = frame_id
+    stamps = [t_ns for t_ns, _ in stamped_poses]
+    poses = matrix_poses([tf for _, tf in stamped_poses]) if stamps else []
+    msg.poses = [PoseStamped(header=Header(stamp=ns_stamp(t_ns), frame_id=frame_id), pose=pose)
+                 for t_ns, pose in zip(stamps, poses)]
+    if msg.poses:
+        msg.header.stamp = msg.poses[-1].header.stamp
     return msg
 
 

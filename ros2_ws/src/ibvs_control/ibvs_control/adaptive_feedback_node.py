@@ -103,10 +103,6 @@ class AdaptiveFeedbackNode(Node):
         self._camera_pose = None
         self._taught = values['target_features_source'] == 'taught'
         self._p_target = None
-        self._lockstep = FrameLockstep(HISTORY, self.needs_status,
-                                       joints_name=contract.JOINT_STATES,
-                                       status_name=contract.FEATURE_STATUS,
-                                       full_note='waiting for the camera model')
         self.last_fresh_ns = None
         self.first_joint_ns = None
         self.frozen = False
@@ -120,8 +116,14 @@ class AdaptiveFeedbackNode(Node):
                                  lambda m: self._on_info(1, m), contract.IMAGES)
         self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
                                  contract.LATCHED)
-        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joint_state,
-                                 contract.RELIABLE)
+        # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
+        joints = self.create_subscription(JointState, contract.JOINT_STATES,
+                                          self._on_joint_state, contract.RELIABLE)
+        self._joints_topic = joints.topic_name
+        self._lockstep = FrameLockstep(HISTORY, self.needs_status,
+                                       joints_name=joints.topic_name,
+                                       status_name=contract.FEATURE_STATUS,
+                                       full_note='waiting for the camera model')
         self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
                                  contract.RELIABLE)
         if self._taught:
@@ -215,11 +217,11 @@ class AdaptiveFeedbackNode(Node):
             q = read_joints(msg)
             qd = read_joints(msg, 'velocity')
         except InputError as exc:
-            self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
+            self.diagnostics.reject(self._joints_topic, exc.reason, exc.detail)
             return
         rejection = self._lockstep.offer_joints(t_ns, (q, qd))
         if rejection is not None:
-            self.diagnostics.reject(contract.JOINT_STATES, *rejection)
+            self.diagnostics.reject(self._joints_topic, *rejection)
             return
         if self.first_joint_ns is None:
             self.first_joint_ns = t_ns

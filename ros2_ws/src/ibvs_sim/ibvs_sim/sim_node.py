@@ -1,19 +1,23 @@
 """
 sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
-Lockstep. At step k (sim time t_k, from 0) the node publishes /clock (on the steps due at
-``clock_rate_hz``, 100 Hz: sim time for the nodes' clocks, as gazebo_ros publishes it at a
-set rate; no result depends on it), /ibvs/tool_pose and /joint_states (encoder angles
-q - d_q, velocities, the torque of the previous step), then the camera frame due at t_k if
-any (both images and CameraInfo, stamped t_k), which it renders while the joint controller
-works on step k. Every consumer matches its inputs by stamp, so the order changes no result.
+Lockstep. At step k (sim time t_k, from 0) the node publishes, in this order: when /clock is
+due (``clock_rate_hz``, 100 Hz: the first step at or after each multiple of its period; sim
+time for the nodes' clocks, as gazebo_ros publishes it at a set rate; no result depends on
+it), first /ibvs/tool_path with the true flange poses of the steps since the last one, then
+/clock, so that when /clock says T every tool pose stamped before T is out; /joint_states
+(encoder angles q - d_q, velocities, the torque of the previous step); on a camera frame's
+step, the same joint state on /stereo/joint_states, then the frame (both images and
+CameraInfo, stamped t_k), which it renders while the joint controller works on step k.
+Every consumer matches its inputs by stamp, so the order changes no result.
 It then waits for /joint_effort_commands stamped t_k; that message (and only that one)
 applies its torques for one step and moves to k + 1, inside the subscription callback:
 nothing spins or sleeps, so any number of nodes can share one executor. While it waits, a
 steady-clock timer logs once a second what it waits for.
 
 Start. Step 0 is published once somebody will answer and listen: /joint_effort_commands
-has a publisher, /joint_states a subscriber and, with publish_images, both image topics a
+has a publisher, /joint_states a subscriber (and /stereo/joint_states and /ibvs/tool_path
+as many as the runner says) and, with publish_images, both image topics a
 subscriber (so that no lockstep message is published before its reader is matched). Until
 then it logs once a second what is missing.
 
@@ -45,7 +49,7 @@ import time
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
-                                     ns_stamp, pose_stamped, read_joints, stamp_ns)
+                                     ns_stamp, path_msg, pose_stamped, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
@@ -55,6 +59,7 @@ from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE
                                        TARGET_ROTATION)
 from ibvs_common.timing import period_ns
 from ibvs_model import paper
+from nav_msgs.msg import Path
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -114,8 +119,12 @@ MIN_CAMERA_INFO_SUBSCRIBERS = Param(
     'camera_info topic has this many subscribers (every node that builds its camera model '
     'from the first frame: a CameraInfo published before its reader is matched is lost)',
     '-', low=0, high=1000)
-MIN_TOOL_POSE_SUBSCRIBERS = Param(
-    'min_tool_pose_subscribers', 0, 'the start waits until /ibvs/tool_pose has this many '
+MIN_FRAME_JOINT_STATE_SUBSCRIBERS = Param(
+    'min_frame_joint_state_subscribers', 0, 'the start waits until /stereo/joint_states has '
+    'this many subscribers (the nodes that take the joint state of each frame from it)', '-',
+    low=0, high=1000)
+MIN_TOOL_PATH_SUBSCRIBERS = Param(
+    'min_tool_path_subscribers', 0, 'the start waits until /ibvs/tool_path has this many '
     'subscribers (a recorder whose metrics start at step 0)', '-', low=0, high=1000)
 
 IMAGE_NOISE_STDDEV = Param(
@@ -148,7 +157,8 @@ SIMULATOR_PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, 
                     CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR)
 PARAMS = SIMULATOR_PARAMS + (
     RENDERER, RENDER_PARALLEL_LENSES, PUBLISH_IMAGES, CLOCK_RATE_HZ,
-    MIN_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_POSE_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
+    MIN_JOINT_STATE_SUBSCRIBERS, MIN_FRAME_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_PATH_SUBSCRIBERS,
+    MIN_CAMERA_INFO_SUBSCRIBERS,
     TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION)
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
@@ -174,7 +184,8 @@ class SimNode(Node):
         values = declare(self, PARAMS)
         self._publish_images = values['publish_images']
         self._min_joint_subscribers = values['min_joint_state_subscribers']
-        self._min_tool_subscribers = values['min_tool_pose_subscribers']
+        self._min_frame_joint_subscribers = values['min_frame_joint_state_subscribers']
+        self._min_tool_subscribers = values['min_tool_path_subscribers']
         self._min_info_subscribers = values['min_camera_info_subscribers']
         self._clock_period_ns = period_ns(values['clock_rate_hz'])
         self._next_clock_ns = 0
@@ -208,8 +219,11 @@ class SimNode(Node):
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
         self._pub_joints = self.create_publisher(JointState, contract.JOINT_STATES,
                                                  contract.RELIABLE)
-        self._pub_tool = self.create_publisher(PoseStamped, contract.TOOL_POSE,
-                                               contract.RELIABLE)
+        self._pub_frame_joints = self.create_publisher(JointState, contract.FRAME_JOINT_STATES,
+                                                       contract.RELIABLE)
+        self._pub_tool = self.create_publisher(Path, contract.TOOL_PATH, contract.RELIABLE)
+        #: The (stamp ns, T_E^O) of the steps since the last /ibvs/tool_path.
+        self._tool_poses = []
         self._pub_images = self._pub_infos = ()
         if self._publish_images:
             self._pub_images = tuple(self.create_publisher(Image, topic, contract.IMAGES)
@@ -259,10 +273,11 @@ class SimNode(Node):
         if have < self._min_joint_subscribers:
             missing.append(f'{self._min_joint_subscribers - have} more subscriber(s) on '
                            f'{contract.JOINT_STATES}')
-        have = self._pub_tool.get_subscription_count()
-        if have < self._min_tool_subscribers:
-            missing.append(f'{self._min_tool_subscribers - have} more subscriber(s) on '
-                           f'{contract.TOOL_POSE}')
+        for pub, wanted in ((self._pub_frame_joints, self._min_frame_joint_subscribers),
+                            (self._pub_tool, self._min_tool_subscribers)):
+            have = pub.get_subscription_count()
+            if have < wanted:
+                missing.append(f'{wanted - have} more subscriber(s) on {pub.topic_name}')
         for pub in self._pub_images:
             if pub.get_subscription_count() < 1:
                 missing.append(f'a subscriber on {pub.topic_name}')
@@ -295,17 +310,24 @@ class SimNode(Node):
         sim = self.sim
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
-        with timing.section('tool_pose'):
-            self._pub_tool.publish(pose_stamped(sim.tool_pose(), t_ns))
+        clock_due = t_ns >= self._next_clock_ns
+        with timing.section('tool_path'):
+            if clock_due and self._tool_poses:
+                self._pub_tool.publish(path_msg(self._tool_poses))
+                self._tool_poses = []
+            self._tool_poses.append((t_ns, sim.tool_pose()))
+        self._frame_step = sim.frame_due() is not None
         with timing.section('step_messages'):
-            if t_ns >= self._next_clock_ns:
+            if clock_due:
                 self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
                 self.last_clock_ns = t_ns
                 self._next_clock_ns = (t_ns // self._clock_period_ns + 1) * self._clock_period_ns
             q, qd = sim.encoders()
-            self._pub_joints.publish(joint_state(t_ns, q, qd, sim.last_torque))
+            joints = joint_state(t_ns, q, qd, sim.last_torque)
+            self._pub_joints.publish(joints)
             self._published_at = time.perf_counter()
-        self._frame_step = sim.frame_due() is not None
+            if self._frame_step:
+                self._pub_frame_joints.publish(joints)
         if self._frame_step:
             with timing.section('render'):
                 stamp, images, lost = sim.take_frame(render=self._publish_images)

@@ -19,6 +19,7 @@ from ibvs_common.testing import spin_until
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.world import World
+from nav_msgs.msg import Path
 import numpy as np
 import pytest
 from rclpy.node import Node
@@ -44,7 +45,8 @@ class StandIn(Node):
         self.sent = 0
         self.unanswered = 0
         self.rec = {name: [] for name in ('clock', 'joints', 'left', 'right', 'left_info',
-                                          'right_info', 'tool', 'pose', 'diagnostics')}
+                                          'right_info', 'tool', 'frame_joints', 'pose',
+                                          'diagnostics')}
         self.pub = self.create_publisher(JointState, contract.EFFORT_COMMANDS,
                                          contract.RELIABLE)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
@@ -58,8 +60,11 @@ class StandIn(Node):
                                      ('right_info', CameraInfo, contract.RIGHT_INFO)):
             self.create_subscription(msg_type, topic, lambda m, k=key: self.rec[k].append(m),
                                      contract.IMAGES)
-        self.create_subscription(PoseStamped, contract.TOOL_POSE,
-                                 lambda m: self.rec['tool'].append(m), contract.RELIABLE)
+        self.create_subscription(Path, contract.TOOL_PATH,
+                                 lambda m: self.rec['tool'].extend(m.poses), contract.RELIABLE)
+        self.create_subscription(JointState, contract.FRAME_JOINT_STATES,
+                                 lambda m: self.rec['frame_joints'].append(m),
+                                 contract.RELIABLE)
         self.create_subscription(PoseStamped, contract.STEREO_POSE,
                                  lambda m: self.rec['pose'].append(m), contract.LATCHED)
         self.create_subscription(DiagnosticArray, contract.DIAGNOSTICS,
@@ -122,23 +127,29 @@ def test_lockstep_rates_and_stamps(graph):
                and len(stand_in.rec['right_info']) >= 7 and stand_in.rec['pose'])
     stand_in.stop_and_settle(executor, sim)
     rec = stand_in.rec
-    spin_until(executor, lambda: rec['tool']
-               and stamp_ns(rec['tool'][-1].header.stamp) == sim.sim.t_ns)
     t_end = stand_in.last_stamp()
-    # Physics rate: one /joint_states and tool pose per step, every step, in order; /clock
-    # at clock_rate_hz (default 100 Hz: every tenth step).
+    # Physics rate: one /joint_states per step, every step, in order; /clock at
+    # clock_rate_hz (default 100 Hz: every tenth step); the tool poses of every step, in
+    # batches: when /clock says T, every pose stamped before T has been published.
     expected = list(range(0, t_end + 1, period))
     assert rec['clock'] == expected[::10]
     assert [stamp_ns(m.header.stamp) for m in rec['joints']] == expected
-    assert [stamp_ns(m.header.stamp) for m in rec['tool']] == expected
+    spin_until(executor, lambda: rec['tool']
+               and stamp_ns(rec['tool'][-1].header.stamp) == rec['clock'][-1] - period)
+    assert [stamp_ns(m.header.stamp) for m in rec['tool']] == list(
+        range(0, rec['clock'][-1], period))
     # One step per command: every /joint_states but the last was answered, once.
     assert stand_in.sent == len(expected) - 1 and sim.sim.k == len(expected) - 1
     # Camera rate: frame n due at n * T_cam, stamped with the step it is rendered from (the
     # first at or after), in both images and both CameraInfo.
     frames = [-(-n * frame // period) * period for n in range(t_end // frame + 1)]
     assert frames[:4] == [0, 34_000_000, 67_000_000, 100_000_000]
-    for key in ('left', 'right', 'left_info', 'right_info'):
+    for key in ('left', 'right', 'left_info', 'right_info', 'frame_joints'):
         assert [stamp_ns(m.header.stamp) for m in rec[key]] == frames, key
+    # The joint state of each frame is that step's /joint_states.
+    by_stamp = {stamp_ns(m.header.stamp): m for m in rec['joints']}
+    for m in rec['frame_joints']:
+        assert m == by_stamp[stamp_ns(m.header.stamp)]
     k = StereoIntrinsics.zed2('VGA')
     for image, frame_id in ((rec['left'][0], contract.LEFT_CAMERA_FRAME),
                             (rec['right'][0], contract.RIGHT_CAMERA_FRAME)):
@@ -317,16 +328,18 @@ def test_waiting_is_logged_once_a_second(domain_id):
         assert proc.wait(timeout=30) == 0
 
 
-def test_the_start_waits_for_the_tool_pose_subscribers_it_is_told_of(graph):
-    # The stand-in subscribes /ibvs/tool_pose once; ask for one more, then add it.
-    sim, stand_in, executor = graph(publish_images=False, min_tool_pose_subscribers=2)
+@pytest.mark.parametrize('param, topic, msg_type', [
+    ('min_tool_path_subscribers', contract.TOOL_PATH, Path),
+    ('min_frame_joint_state_subscribers', contract.FRAME_JOINT_STATES, JointState)])
+def test_the_start_waits_for_the_subscribers_it_is_told_of(graph, param, topic, msg_type):
+    # The stand-in subscribes the topic once; ask for one more, then add it.
+    sim, stand_in, executor = graph(publish_images=False, **{param: 2})
     deadline = time.monotonic() + 3.0
     while time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
     assert not sim.started
-    assert sim._missing() == [f'1 more subscriber(s) on {contract.TOOL_POSE}']
-    stand_in.create_subscription(PoseStamped, contract.TOOL_POSE, lambda m: None,
-                                 contract.RELIABLE)
+    assert sim._missing() == [f'1 more subscriber(s) on {topic}']
+    stand_in.create_subscription(msg_type, topic, lambda m: None, contract.RELIABLE)
     spin_until(executor, lambda: sim.started)
     spin_until(executor, lambda: stand_in.rec['tool'])
     assert stamp_ns(stand_in.rec['tool'][0].header.stamp) == 0
