@@ -148,6 +148,10 @@ def _before(end_ns, stamps, values):
     return [stamps[i] for i in keep], [values[i] for i in keep]
 
 
+#: The tool poses of bags recorded before /ibvs/tool_path: one PoseStamped a step.
+OLD_TOOL_POSE = '/ibvs/tool_pose'
+
+
 def load_run(bag_path):
     """Read a run's bag: tool poses, features, feature modes, camera and parameters."""
     bag_path = Path(bag_path)
@@ -159,7 +163,7 @@ def load_run(bag_path):
     infos, cam_pose = {}, None
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
-        wanted = {contract.TOOL_PATH, contract.FEATURES, contract.FEATURE_STATUS,
+        wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
                   contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE}
         conns = [c for c in reader.connections if c.topic in wanted]
         for conn, _, raw in reader.messages(connections=conns):
@@ -168,6 +172,9 @@ def load_run(bag_path):
                 for pose in msg.poses:
                     t.append(_stamp(pose.header))
                     poses.append(pose_matrix(pose.pose))
+            elif conn.topic == OLD_TOOL_POSE:
+                t.append(_stamp(msg.header))
+                poses.append(pose_matrix(msg.pose))
             elif conn.topic == contract.FEATURES:
                 ft.append(_stamp(msg.header))
                 feats.append([[p.x, p.y, p.z] for p in msg.polygon.points])
