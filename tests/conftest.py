@@ -88,7 +88,7 @@ def signalled_run(tmp_path, proc_tools):
                str(tmp_path), '--duration', '30', *args]
         runner = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                   text=True)
-        log = tmp_path / 'logs' / 'sim_node.log'
+        log = tmp_path / 'logs' / 'lockstep.log'  # the simulator's process
         victim = None
         seen = set()
         try:

@@ -13,7 +13,7 @@ def test_runner_refuses_a_graph_without_images(installed_workspace, tmp_path):
         capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     assert 'publish_images' in proc.stderr and '/ibvs/q_feedback' in proc.stderr
-    assert not (tmp_path / 'logs' / 'sim_node.log').exists()  # nothing was started
+    assert not (tmp_path / 'logs' / 'lockstep.log').exists()  # nothing was started
 
 
 def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run):

@@ -103,7 +103,7 @@ def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
             assert proc.poll() is None, proc.communicate()
             seen.update(proc_tools.descendants(proc.pid))
             finished = list(out.glob('two/runs/*/run.json'))
-            running = [p for p in out.glob('two/runs/*/logs/sim_node.log')
+            running = [p for p in out.glob('two/runs/*/logs/lockstep.log')
                        if not (p.parents[1] / 'run.json').exists()]
             if finished and running:
                 time.sleep(1.0)

@@ -26,6 +26,7 @@ setup(
     entry_points={
         'console_scripts': [
             'ibvs = ibvs_bringup.cli:main',
+            'compose = ibvs_bringup.compose:main',
         ],
     },
 )

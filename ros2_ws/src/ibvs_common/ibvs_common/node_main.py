@@ -70,15 +70,19 @@ def make_executor(context):
     return EventsExecutor(context=context)
 
 
-def spin_until_stopped(node, stop, poll_s=STOP_POLL_S):
-    """Spin ``node`` until ``stop`` is set or its context is shut down by someone else."""
-    executor = make_executor(node.context)
-    executor.add_node(node)
+def spin_until_stopped(nodes, stop, poll_s=STOP_POLL_S):
+    """Spin ``nodes`` (one node or several of one context) until ``stop`` or shutdown."""
+    nodes = list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
+    context = nodes[0].context
+    executor = make_executor(context)
+    for node in nodes:
+        executor.add_node(node)
     try:
-        while node.context.ok() and not stop.is_set():
+        while context.ok() and not stop.is_set():
             executor.spin_once(timeout_sec=poll_s)
     finally:
-        executor.remove_node(node)
+        for node in nodes:
+            executor.remove_node(node)
         executor.shutdown(timeout_sec=0.0)
 
 
@@ -86,26 +90,33 @@ def run(node_class, args=None, name=None):
     """
     Init rclpy, build ``node_class()``, spin until SIGINT/SIGTERM, then clean up.
 
-    A :class:`ParameterError` at start is logged as fatal and ends the process with exit
-    code 2, so that a runner can tell a bad configuration from a crash. A stop signal ends
-    it with exit code 0 once the running callback has returned (see :class:`StopRequest`).
+    ``node_class`` may also be a sequence of node classes: they are built in that order and
+    spin in one executor, in one process (:mod:`ibvs_bringup.compose`), as a component
+    container holds several nodes; a message between two of them then does not leave the
+    process. A :class:`ParameterError` at start is logged as fatal and ends the process with
+    exit code 2, so that a runner can tell a bad configuration from a crash. A stop signal
+    ends it with exit code 0 once the running callback has returned (see
+    :class:`StopRequest`).
     """
+    classes = list(node_class) if isinstance(node_class, (list, tuple)) else [node_class]
     stop = StopRequest()
     stop.install()
     dds.configure()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
+    nodes = []
     code = 0
+    building = classes[0]
     try:
-        node = node_class()
-        spin_until_stopped(node, stop)
+        for building in classes:
+            nodes.append(building())
+        spin_until_stopped(nodes, stop)
     except ParameterError as exc:
-        rclpy.logging.get_logger(name or node_class.__name__).fatal(str(exc))
+        rclpy.logging.get_logger(name or building.__name__).fatal(str(exc))
         code = 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if node is not None:
+        for node in reversed(nodes):
             node.destroy_node()
         rclpy.try_shutdown()
         stop.restore()
