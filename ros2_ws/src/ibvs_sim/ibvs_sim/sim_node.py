@@ -2,11 +2,11 @@
 sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md §3 and §4.
 
 Lockstep. At step k (sim time t_k, from 0) the node publishes, in this order: when /clock is
-due (``clock_rate_hz``, 100 Hz: the first step at or after each multiple of its period; sim
-time for the nodes' clocks, as gazebo_ros publishes it at a set rate; no result depends on
-it), first /ibvs/tool_path with the true flange poses of the steps since the last one, then
-/clock, so that when /clock says T every tool pose stamped before T is out; /joint_states
-(encoder angles q - d_q, velocities, the torque of the previous step); on a camera frame's
+due (``clock_rate_hz``, 10 Hz: the first step at or after each multiple of its period; sim
+time for the nodes' clocks, at gazebo_ros's default rate; no result depends on it), first
+/ibvs/tool_path with the true flange poses of the steps since the last one, then /clock,
+so that when /clock says T every tool pose stamped before T is out; /joint_states (encoder
+angles q - d_q, velocities, the torque of the previous step); on a camera frame's
 step, the same joint state on /stereo/joint_states, then the frame (both images and
 CameraInfo, stamped t_k), which it renders while the joint controller works on step k.
 Every consumer matches its inputs by stamp, so the order changes no result.
@@ -105,9 +105,10 @@ PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo im
                        'source)', '-')
 
 CLOCK_RATE_HZ = Param(
-    'clock_rate_hz', 100.0, "rate of /clock, the sim time of every node's clock: published at "
-    'the first physics step at or after each multiple of its period, at most once a step (a '
-    'rate at or above physics_rate_hz: every step). The lockstep goes by message stamps, not '
+    'clock_rate_hz', 10.0, "rate of /clock, the sim time of every node's clock (10 Hz, as "
+    'gazebo_ros publishes it by default): published at the first physics step at or after '
+    'each multiple of its period, at most once a step (a rate at or above physics_rate_hz: '
+    'every step). The lockstep goes by message stamps, not '
     'by /clock, so the rate changes no result, only the cost: each /clock wakes every node',
     'Hz', low=0.0, high=10000.0, low_open=True)
 
