@@ -41,6 +41,7 @@ feedback then keeps waiting for its target.
 from functools import partial
 import time
 
+import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, shared_params
@@ -76,6 +77,11 @@ PARAMS = (
 )
 
 _SIDES = ('left', 'right')
+#: OpenCV threads of this process. The detector's work is small (windows around the markers,
+#: one pair at a time) and OpenCV's thread pool costs more than it shares out: a tracked VGA
+#: pair took 1.8 ms with one thread and 3.2 ms with two (ibvs_vision.bench, two cores), and
+#: the other core is the simulator's. The results are the same.
+OPENCV_THREADS = 1
 
 
 class FeatureNode(Node):
@@ -85,6 +91,7 @@ class FeatureNode(Node):
         """Declare and check the parameters, then create the subscriptions and publishers."""
         super().__init__('feature_node', **kwargs)
         p = declare(self, PARAMS)
+        cv2.setNumThreads(OPENCV_THREADS)
         self._config = DetectorConfig.from_parameters(p)
         self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
         self._stereo = StereoPairer(stale_ns=int(round(p['stale_timeout_s'] * 1e9)),
