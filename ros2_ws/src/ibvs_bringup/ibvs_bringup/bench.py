@@ -36,6 +36,10 @@ BREAKDOWN = (
     ('sim_node', 'lockstep_round_trip', 'lockstep round trips (/joint_states out, command in)'),
     ('recorder', 'recording', 'recording (another process, off the lockstep)'),
 )
+#: The speed targets on this repository's 2-core machine (issue 11): wall time per simulated
+#: second of scenario 1 by resolution, and the lockstep round trip per physics step.
+WALL_PER_SIM_S_TARGET = {'HD720': 5.0, 'VGA': 2.0}
+ROUND_TRIP_MS_TARGET = 0.5
 
 
 class Table:
@@ -116,10 +120,25 @@ def graph_breakdown(resolution, duration_s, out_dir):
     per_sim = wall_s / sim_s
     print(f'  {"wall time per simulated second (total)":58s} {per_sim:7.3f} s '
           f'(real-time factor {sim_s / wall_s:.3f}; {sim_s:.3f} s sim in {wall_s:.1f} s)')
+    targets = {}
+    limit = WALL_PER_SIM_S_TARGET.get(resolution)
+    if limit is not None:
+        targets['wall_s_per_sim_s'] = _target(f'wall time per simulated second at {resolution}',
+                                              per_sim, limit, 's')
+    trip = next(r['per_pass_ms'] for r in rows if r['section'] == 'lockstep_round_trip')
+    targets['round_trip_ms'] = _target('lockstep round trip', trip, ROUND_TRIP_MS_TARGET, 'ms')
     return {'resolution': resolution, 'sim_duration_s': sim_s, 'wall_duration_s': wall_s,
             'wall_s_per_sim_s': per_sim, 'real_time_factor': sim_s / wall_s,
             'final_position_error_m': result.metrics.get('final_position_error_m'),
-            'breakdown': rows}
+            'breakdown': rows, 'targets': targets}
+
+
+def _target(what, value, limit, unit):
+    """Print whether ``value`` is within ``limit``; return both and the verdict."""
+    met = bool(value <= limit)
+    print(f'  target: {what} at most {limit:g} {unit}: {value:.3f} {unit}, '
+          f'{"met" if met else "NOT met"}')
+    return {'value': value, 'limit': limit, 'met': met}
 
 
 if __name__ == '__main__':
