@@ -34,8 +34,7 @@ def _start(args, tmp_path, name):
     params_file = scenario.write_parameters(scenario.load_parameters('scenario1'),
                                             tmp_path / 'params.yaml')
     spec = runner.ProcessSpec('ibvs_bringup', 'compose', tuple(args), tuple(args), name)
-    return runner.NodeProcess(spec.package, spec.executable, params_file, tmp_path,
-                              ('-p', 'publish_images:=false'), spec)
+    return spec.start(params_file, tmp_path, ('-p', 'publish_images:=false'))
 
 
 def test_composed_nodes_share_a_process_and_stop_on_sigint(context, installed_workspace,

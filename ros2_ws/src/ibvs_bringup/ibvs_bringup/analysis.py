@@ -168,13 +168,10 @@ def load_run(bag_path):
         conns = [c for c in reader.connections if c.topic in wanted]
         for conn, _, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic == contract.TOOL_PATH:
-                for pose in msg.poses:
+            if conn.topic in (contract.TOOL_PATH, OLD_TOOL_POSE):
+                for pose in (msg.poses if conn.topic == contract.TOOL_PATH else [msg]):
                     t.append(_stamp(pose.header))
                     poses.append(pose_matrix(pose.pose))
-            elif conn.topic == OLD_TOOL_POSE:
-                t.append(_stamp(msg.header))
-                poses.append(pose_matrix(msg.pose))
             elif conn.topic == contract.FEATURES:
                 ft.append(_stamp(msg.header))
                 feats.append([[p.x, p.y, p.z] for p in msg.polygon.points])

@@ -82,6 +82,11 @@ class ProcessSpec:
         if not self.name:
             object.__setattr__(self, 'name', self.executable)
 
+    def start(self, params_file, log_dir, extra_args=()):
+        """Start this process (:class:`NodeProcess`) with the run's parameters file."""
+        return NodeProcess(self.package, self.executable, params_file, log_dir, extra_args,
+                           self)
+
 
 #: The processes of a run, in start order: the simulator last, so that every subscriber is
 #: up before the first /joint_states. The joint controller runs in the simulator's process
@@ -286,10 +291,12 @@ class Monitor:
             self.started_wall = time.monotonic()
         self.sim_ns = max(self.sim_ns, recorder.clock_ns)
         raw = recorder.latest.get(contract.TOOL_PATH)
-        path = None if raw is None or raw is self._pose_raw else deserialize_message(raw, PathMsg)
-        if path is not None and path.poses:
-            self._pose_raw = raw
-            tf = pose_matrix(path.poses[-1].pose)
+        if raw is None or raw is self._pose_raw:
+            return
+        self._pose_raw = raw
+        poses = deserialize_message(raw, PathMsg).poses
+        if poses:
+            tf = pose_matrix(poses[-1].pose)
             self.error_m = float(np.linalg.norm(tf[:3, 3] - self.target[:3, 3]))
             self.axis_deg = float(analysis.axis_angle_deg(tf[None, :3, :3],
                                                           self.target[:3, :3])[0])
@@ -382,25 +389,25 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         try:
             for spec in PROCESSES:
                 extra = tuple(arg for node in spec.nodes
-                              for source, target in REMAPS.get(node, {}).items()
-                              for arg in ('-r', f'{source}:={target}'))
+                              for topic, remapped in REMAPS.get(node, {}).items()
+                              for arg in ('-r', f'{topic}:={remapped}'))
                 if 'sim_node' in spec.nodes:
-                    earlier = [n for s in PROCESSES[:-1] for n in s.nodes]
-                    _wait_for_nodes(executor, watcher, earlier, procs)
+                    _wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes],
+                                    procs)
                     # Every reader of step 0 must be matched before the simulator publishes it
                     # (volatile topics): a node that misses the first /joint_states or CameraInfo
                     # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
                     # The simulator waits for as many subscribers as the runner sees once each
                     # node's own subscriptions are in the graph, recorder and monitor included.
                     counts = _wait_for_readers(executor, watcher, procs, spec.nodes)
-                    extra = ('-p', f'min_joint_state_subscribers:={counts[contract.JOINT_STATES]}',
-                             '-p', 'min_frame_joint_state_subscribers:='
-                             f'{counts[contract.FRAME_JOINT_STATES]}',
-                             '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
-                             '-p', 'min_camera_info_subscribers:='
-                             f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
-                procs.append(NodeProcess(spec.package, spec.executable, params_file, log_dir,
-                                         extra, spec))
+                    extra += ('-p', 'min_joint_state_subscribers:='
+                              f'{counts[contract.JOINT_STATES]}',
+                              '-p', 'min_frame_joint_state_subscribers:='
+                              f'{counts[contract.FRAME_JOINT_STATES]}',
+                              '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
+                              '-p', 'min_camera_info_subscribers:='
+                              f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
+                procs.append(spec.start(params_file, log_dir, extra))
             last_print = 0.0
             last_sim_ns, last_advance = -1, time.monotonic()
             never = Future()

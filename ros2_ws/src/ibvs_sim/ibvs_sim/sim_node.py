@@ -108,8 +108,9 @@ CLOCK_RATE_HZ = Param(
     'clock_rate_hz', 10.0, "rate of /clock, the sim time of every node's clock (10 Hz, as "
     'gazebo_ros publishes it by default): published at the first physics step at or after '
     'each multiple of its period, at most once a step (a rate at or above physics_rate_hz: '
-    'every step). The lockstep goes by message stamps, not '
-    'by /clock, so the rate changes no result, only the cost: each /clock wakes every node',
+    'every step); the true tool poses go out in one /ibvs/tool_path just before each. The '
+    'lockstep goes by message stamps, not by /clock, so the rate changes no result, only the '
+    'cost: each /clock wakes every node',
     'Hz', low=0.0, high=10000.0, low_open=True)
 
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
@@ -270,11 +271,8 @@ class SimNode(Node):
         missing = []
         if self._sub.get_publisher_count() < 1:
             missing.append(f'a publisher on {contract.EFFORT_COMMANDS}')
-        have = self._pub_joints.get_subscription_count()
-        if have < self._min_joint_subscribers:
-            missing.append(f'{self._min_joint_subscribers - have} more subscriber(s) on '
-                           f'{contract.JOINT_STATES}')
-        for pub, wanted in ((self._pub_frame_joints, self._min_frame_joint_subscribers),
+        for pub, wanted in ((self._pub_joints, self._min_joint_subscribers),
+                            (self._pub_frame_joints, self._min_frame_joint_subscribers),
                             (self._pub_tool, self._min_tool_subscribers)):
             have = pub.get_subscription_count()
             if have < wanted:
