@@ -38,9 +38,12 @@ import yaml  # noqa: E402
 from . import analysis  # noqa: E402
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
-#: Actuator cases: name -> parameter overrides.
+#: Actuator cases: name -> parameter overrides. With 0.067 s latency the velocity laws'
+#: lambda_0 is halved to 6 / s (ignored by the others): the loop then holds about 0.13 s of
+#: delay (latency, camera period, inner loop), and at 12 / s (lambda times delay ~ 1.6) the
+#: model-only loop oscillates and diverges from scenario 1; at 6 / s it converges.
 CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
-         'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067}}
+         'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
 #: Converged: at the end within this far (m) and this angle (deg) of the target.
 CONVERGED_M = 1e-3
 CONVERGED_DEG = 0.5
@@ -110,7 +113,7 @@ def case_of(params):
 def summarise(params, metrics, qdot, position, target, qd_max=IRB4600.qd_max):
     """Return the :class:`LawRun` of a run's parameters, metrics, joint speeds and path."""
     speed = np.abs(np.asarray(qdot, dtype=float))
-    return LawRun(law=params.get('servo_law', 'paper'), case=case_of(params),
+    return LawRun(law=params.get('servo_law', SERVO_LAWS[0]), case=case_of(params),
                   scenario=str(params.get('scenario_name', metrics.get('scenario'))),
                   metrics=metrics, peak_joint_speed=float(speed.max(initial=0.0)),
                   peak_speed_share=float((speed / np.asarray(qd_max)).max(initial=0.0)),

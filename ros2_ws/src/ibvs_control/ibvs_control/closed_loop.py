@@ -26,8 +26,8 @@ import numpy as np
 from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
                           FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
                           MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
-from .servo_laws import (feedforward_method_for, feedforward_overrides, make_law,
-                         SWITCH_SETTLE_S)
+from .servo_laws import (FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, law_class,
+                         SWITCH_SETTLE_S, WINDUP_HORIZON_S)
 
 
 @dataclass
@@ -71,7 +71,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              svd_rcond=SVD_RCOND, svd_damping=SVD_DAMPING,
              max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
              target=None, integration='exact', linearise_at=LINEARISE_AT, servo_law='paper',
-             gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None):
+             gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None,
+             feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
+             joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -88,13 +90,15 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     (qd += a dt, then q += qd dt: how PyBullet steps the simulated arm; use it to compare
     with the graph).
     ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
-    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; ibvs and pbvs run with the
-    feedforward held at q(0) ('hold'), ``gain`` (:class:`.servo_laws.AdaptiveGain`) is
-    theirs, ``switch_settle_s`` the switching law's. A frame is 'measured' when both
-    markers are in view of the true robot. ``feedforward_ratio``: T_forward's double pole
-    in tau_in, default the law's (:func:`.servo_laws.feedforward_overrides`: 2 for
+    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; the law's class says its
+    feedforward (ibvs and pbvs: held at q(0), 'hold'); ``gain``
+    (:class:`.servo_laws.AdaptiveGain`), ``feature_fallback``, ``windup_horizon_s`` and
+    ``joint_limit_margin_rad`` are theirs, ``switch_settle_s`` the switching law's. A frame
+    is 'measured' when both markers are in view of the true robot. ``feedforward_ratio``:
+    T_forward's double pole in tau_in, default the law's (its ``feedforward``: 2 for
     switching, else the paper's 0.1).
     """
+    law = law_class(servo_law)
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera, model.params if plant_params is None
                              else plant_params)
@@ -116,15 +120,17 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     qd = np.zeros(6)
     joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_limits)
     if feedforward_ratio is None:
-        feedforward_ratio = feedforward_overrides(servo_law).get('feedforward_ratio',
-                                                                 FEEDFORWARD_RATIO)
+        feedforward_ratio = law.feedforward.get('feedforward_ratio', FEEDFORWARD_RATIO)
     ff = Feedforward(pose, tau_in, dt, model.params, feedforward_ratio=feedforward_ratio,
-                     feedforward_method=feedforward_method_for(servo_law, feedforward_method))
+                     feedforward_method=law.feedforward_method(feedforward_method))
     q_target = ff.start(q)
-    fb = make_law(servo_law, model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, gain,
-                  switch_settle_s, svd_rcond=svd_rcond, svd_damping=svd_damping,
-                  feedback_design=feedback_design, max_correction_rad=max_correction_rad,
-                  hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at)
+    fb = law.create(model, pose, cam_ns * 1e-9, tau_in=tau_in, omega_n=omega_n, zeta=zeta,
+                    gain=gain, switch_settle_s=switch_settle_s, svd_rcond=svd_rcond,
+                    svd_damping=svd_damping, feedback_design=feedback_design,
+                    max_correction_rad=max_correction_rad,
+                    hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at,
+                    feature_fallback=feature_fallback, windup_horizon_s=windup_horizon_s,
+                    joint_limit_margin_rad=joint_limit_margin_rad)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
