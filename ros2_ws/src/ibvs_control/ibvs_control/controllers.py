@@ -274,8 +274,9 @@ class AdaptiveFeedback:
     Per frame: the linearisation point (``linearise_at``, below), C1 = J there (eq. 31), its
     SVD (eq. 34, :func:`.decoupling.decouple`), the joint-space correction
     dq = -C1^+ e = C1^+ (p_bar - p_hat) (e = p_hat - p_bar, :func:`feature_error`) and
-    q_feedback = k_d(z) dq (eq. 38-41 in the form G_C = C1^+ k). The dynamic part k acts on dq, after the time-varying C1^+, so the
-    integrator holds a joint correction that does not jump when C1 is updated.
+    q_feedback = k_d(z) dq (eq. 38-41 in the form G_C = C1^+ k). The dynamic part k acts on
+    dq, after the time-varying C1^+, so the integrator holds a joint correction that does
+    not jump when C1 is updated.
     ``svd_rcond`` and ``svd_damping`` go to :func:`.decoupling.decouple`.
     ``feedback_design``: 'sampled' (default, :func:`.youla.outer_controller_discrete`) or
     'tustin'.

@@ -89,7 +89,7 @@ class ServoLaw:
     def feedforward_problem(cls, method):
         """Return why ``method`` does not go with this law, or None if it does."""
         if cls.without_feedforward and method != 'hold':
-            return f"that law has no feedforward; allowed: 'hold' (ibvs run sets it for you)"
+            return "that law has no feedforward; allowed: 'hold' (ibvs run sets it for you)"
         if not cls.without_feedforward and method == 'hold':
             return "that law needs the feedforward; allowed: 'sampled', 'tustin' or 'zoh'"
         return None

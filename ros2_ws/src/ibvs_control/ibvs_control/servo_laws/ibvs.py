@@ -2,9 +2,9 @@
 
 import numpy as np
 
+from .base import FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw, WINDUP_HORIZON_S
 from ..controllers import check_inputs, feature_error
 from ..decoupling import decouple, SVD_RCOND
-from .base import FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw, WINDUP_HORIZON_S
 
 
 class ClassicIBVS(VelocityLaw):

@@ -1,7 +1,7 @@
 """The paper's law as a servo law: the adaptive Youla feedback of section 4.2 (no ROS)."""
 
-from ..controllers import AdaptiveFeedback
 from .base import ServoLaw
+from ..controllers import AdaptiveFeedback
 
 
 class Paper(AdaptiveFeedback, ServoLaw):

@@ -3,9 +3,9 @@
 from ibvs_model import geometric_jacobian, InvalidInputError
 import numpy as np
 
+from .base import FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw, WINDUP_HORIZON_S
 from ..controllers import check_inputs
 from ..decoupling import decouple, SVD_RCOND
-from .base import FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw, WINDUP_HORIZON_S
 
 #: Sub-steps of the PBVS integration over one camera period (:class:`PBVS`).
 SUBSTEPS = 10

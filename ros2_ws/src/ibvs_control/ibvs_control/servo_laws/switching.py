@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from ..controllers import AdaptiveFeedback, check_inputs, feature_error, FeedbackUpdate
 from .base import ServoLaw
 from .paper import Paper
+from ..controllers import AdaptiveFeedback, check_inputs, feature_error, FeedbackUpdate
 
 #: The switching law's wait (s) and T_forward double pole, in tau_in (``feedforward_ratio``;
 #: the paper: 0.1). Before the switch the feedforward alone moves the arm, and the paper's
