@@ -73,7 +73,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              target=None, integration='exact', linearise_at=LINEARISE_AT, servo_law='paper',
              gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None,
              feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
-             joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD):
+             joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD, plant_camera=None,
+             target_features_source='model'):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -81,7 +82,11 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
 
     ``model``: the controllers' F (default :func:`ibvs_model.default_model`);
     ``plant_params``: the true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)``
-    for Figure 13). ``disturbance``: d_q (rad), default the scenario's. The start is the
+    for Figure 13); ``plant_camera``: the true camera, which makes the features (default
+    the model's; another one is a calibration error). ``target_features_source``: 'model'
+    (p_bar = the model's F at the target, eq. 30) or 'taught' (p_bar = the true features
+    of the true robot at the target, as the feature node measures them on the teach
+    pair). ``disturbance``: d_q (rad), default the scenario's. The start is the
     scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
     features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
     'limited' actuators with the bare double integrator (M = I, h = 0) take
@@ -100,8 +105,11 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     """
     law = law_class(servo_law)
     model = default_model() if model is None else model
-    plant = CameraRobotModel(model.camera, model.params if plant_params is None
-                             else plant_params)
+    plant = CameraRobotModel(model.camera if plant_camera is None else plant_camera,
+                             model.params if plant_params is None else plant_params)
+    if target_features_source not in ('model', 'taught'):
+        raise ValueError("target_features_source must be 'model' or 'taught', got "
+                         f'{target_features_source!r}')
     d_q = paper.scenario_disturbance(scenario) if disturbance is None \
         else np.asarray(disturbance, dtype=float)
     pose = paper.target_pose() if target is None else np.asarray(target, dtype=float)
@@ -130,7 +138,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
                     max_correction_rad=max_correction_rad,
                     hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at,
                     feature_fallback=feature_fallback, windup_horizon_s=windup_horizon_s,
-                    joint_limit_margin_rad=joint_limit_margin_rad)
+                    joint_limit_margin_rad=joint_limit_margin_rad,
+                    p_target=plant.features(inverse_kinematics(pose, plant.params, seed=q_target))
+                    if target_features_source == 'taught' else None)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
