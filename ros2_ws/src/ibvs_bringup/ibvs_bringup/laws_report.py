@@ -82,6 +82,36 @@ def plan(out_dir, laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
             for case in cases for law in laws for name in scenarios]
 
 
+#: Sim time of a law study's run, per case (s): the velocity laws need about 1.5 s to
+#: 1 mm with ideal actuators and up to 3 s with limited ones (graph, this release).
+DURATIONS_S = {'ideal': 3.0, 'limited': 5.0}
+#: Study names: ``laws_<case>_<scenario>``.
+STUDY_PREFIX = 'laws'
+
+
+def specs(laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
+    """
+    Return the law comparison as studies (:class:`.study_spec.Spec`), one per case and scenario.
+
+    Each study's grid is one point per law (its overrides, :func:`overrides_for`), so the
+    runs go to Ray with the report's other studies (:func:`.study.run_studies`).
+    """
+    from .study_spec import Spec
+    return [Spec(name=f'{STUDY_PREFIX}_{case}_{name}', scenario=name,
+                 duration_s=DURATIONS_S[case],
+                 grid=tuple({k: [v] for k, v in overrides_for(law, case).items()}
+                            for law in laws),
+                 description=f'each servo law on {name}, {case} actuators')
+            for case in cases for name in scenarios]
+
+
+def read_records(records):
+    """Return the :class:`LawRun` of the law studies' records (``run_studies``'s answer)."""
+    runs = [read_run(record['run_dir']) for name, rs in records.items()
+            if name.startswith(STUDY_PREFIX + '_') for record in rs if record['status'] == 'ok']
+    return _ordered(runs)
+
+
 def run_all(out_dir, progress=print, **selection):
     """Run :func:`plan` one run at a time (``runner.run_scenario``); return :func:`read_all`."""
     from . import runner
@@ -129,15 +159,20 @@ def read_run(run_dir):
     if (run_dir / 'params.yaml').exists():
         loaded = yaml.safe_load((run_dir / 'params.yaml').read_text()) or {}
         params = {**loaded.get('/**', {}).get('ros__parameters', {}), **params}
-    params.setdefault('scenario_name', run_dir.name)
+    params.setdefault('scenario_name', f"scenario{params['scenario']}" if 'scenario' in params
+                      else run_dir.name)
     return summarise(params, metrics, joint_speeds(run_dir / 'bag'), data.position,
                      data.target)
 
 
 def read_all(out_dir):
     """Return the :class:`LawRun` of every run folder (one with a ``bag``) under out_dir."""
-    runs = [read_run(bag.parent) for bag in sorted(Path(out_dir).rglob('bag'))
-            if (bag / 'metadata.yaml').exists()]
+    return _ordered([read_run(bag.parent) for bag in sorted(Path(out_dir).rglob('bag'))
+                     if (bag / 'metadata.yaml').exists()])
+
+
+def _ordered(runs):
+    """Return ``runs`` by case (ideal first), scenario and law (registry order)."""
     order = {law: i for i, law in enumerate(SERVO_LAWS)}
     return sorted(runs, key=lambda r: (list(CASES).index(r.case) if r.case in CASES else 9,
                                        r.scenario, order.get(r.law, 9)))
