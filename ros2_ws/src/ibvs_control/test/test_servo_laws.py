@@ -269,3 +269,58 @@ def test_parameters_of_the_laws_are_checked_at_start():
     with pytest.raises(ParameterError, match="'lambda_inf' = 20.0"):
         check_servo_law(dict(values, lambda_inf=20.0))
     assert check_servo_law(dict(values, lambda_inf=20.0, lambda_slope=0.0))(1e3) == 12.0
+
+
+def test_guard_keeps_the_reference_within_reach_and_inside_the_joint_limits():
+    q = np.zeros(6)
+    lead = np.asarray(IRB4600.qd_max) * 0.1
+    ref, cut = servo_laws.guard_reference(q + 10.0, q, IRB4600, 0.1, 0.05)
+    assert cut
+    np.testing.assert_allclose(ref, q + lead)
+    near = np.asarray(IRB4600.q_max) - 0.01
+    ref, cut = servo_laws.guard_reference(near + 0.2, near, IRB4600, 0.1, 0.05)
+    np.testing.assert_allclose(ref, np.asarray(IRB4600.q_max) - 0.05)
+    ref, cut = servo_laws.guard_reference(q + 0.01, q, IRB4600, 0.1, 0.05)
+    assert not cut and np.all(ref == q + 0.01)
+
+
+@pytest.mark.parametrize('law', [ClassicIBVS, PBVS])
+def test_velocity_laws_do_not_wind_up_past_what_the_arm_can_follow(law):
+    """A frame far from the target with a huge gain: q_ref = q(0) + q_feedback stays in reach."""
+    model = default_model()
+    pose = paper.target_pose()
+    servo = law(model, pose, 1 / 30, AdaptiveGain(500.0, 500.0, 0.0), windup_horizon_s=0.1)
+    q = inverse_kinematics(paper.scenario_start_pose(1))
+    for _ in range(5):  # the arm does not move: the reference must not run away
+        update = servo.update(model.features(q), q)
+    lead = np.asarray(model.params.qd_max) * 0.1
+    assert update.clipped
+    assert np.all(np.abs(servo.q_feedback) <= lead + 1e-12)
+    assert law.needs_measured({'feature_fallback': 'hold'})
+    assert not law.needs_measured({'feature_fallback': 'estimate'})
+
+
+def test_the_registry_is_the_one_place_that_knows_the_laws():
+    assert servo_laws.SERVO_LAWS == tuple(law.name for law in servo_laws.LAWS)
+    assert servo_laws.SERVO_LAWS[0] == 'paper', 'the default first'
+    assert len(set(servo_laws.SERVO_LAWS)) == len(servo_laws.LAWS)
+    for law in servo_laws.LAWS:
+        assert issubclass(law, servo_laws.ServoLaw)
+        assert servo_laws.law_class(law.name) is law
+        assert law.feedforward_problem(law.feedforward_method('sampled')) is None
+        assert law.feedforward_problem('hold' if not law.without_feedforward else 'zoh')
+    with pytest.raises(ValueError, match="servo_law must be one of .* got 'nope'"):
+        servo_laws.law_class('nope')
+    # every law is made from the same settings, each taking what it declares
+    model = default_model()
+    settings = dict(tau_in=paper.TAU_IN, omega_n=paper.OMEGA_N, zeta=paper.ZETA,
+                    svd_rcond=1e-6, svd_damping=0.1, feature_fallback='estimate')
+    q = inverse_kinematics(paper.target_pose()) + np.radians([0.3, 0.0, 0.2, 0.0, 0.1, 0.0])
+    for name in servo_laws.SERVO_LAWS:
+        law = make_law(name, model, paper.target_pose(), 1 / 30, **settings)
+        assert isinstance(law, servo_laws.law_class(name))
+        update = law.update(model.features(q), q, np.zeros(6), measured=True, t=0.0)
+        # e = s - s*, one sign for all: the same error norm whatever the law
+        if name != 'pbvs':
+            assert update.error_norm == pytest.approx(
+                np.linalg.norm(model.features(q) - law.p_target))
