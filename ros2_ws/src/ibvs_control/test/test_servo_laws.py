@@ -313,8 +313,8 @@ def test_the_registry_is_the_one_place_that_knows_the_laws():
         servo_laws.law_class('nope')
     # every law is made from the same settings, each taking what it declares
     model = default_model()
-    settings = dict(tau_in=paper.TAU_IN, omega_n=paper.OMEGA_N, zeta=paper.ZETA,
-                    svd_rcond=1e-6, svd_damping=0.1, feature_fallback='estimate')
+    settings = {'tau_in': paper.TAU_IN, 'omega_n': paper.OMEGA_N, 'zeta': paper.ZETA,
+                'svd_rcond': 1e-6, 'svd_damping': 0.1, 'feature_fallback': 'estimate'}
     q = inverse_kinematics(paper.target_pose()) + np.radians([0.3, 0.0, 0.2, 0.0, 0.1, 0.0])
     for name in servo_laws.SERVO_LAWS:
         law = make_law(name, model, paper.target_pose(), 1 / 30, **settings)
