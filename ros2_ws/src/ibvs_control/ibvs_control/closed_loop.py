@@ -26,7 +26,7 @@ import numpy as np
 from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
                           FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
                           MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
-from .servo_laws import (FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, law_class,
+from .servo_laws import (FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, law_class, SERVO_LAWS,
                          SWITCH_SETTLE_S, WINDUP_HORIZON_S)
 
 
@@ -70,8 +70,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              feedforward_method=FEEDFORWARD_METHODS[0], feedback_design=FEEDBACK_DESIGNS[0],
              svd_rcond=SVD_RCOND, svd_damping=SVD_DAMPING,
              max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
-             target=None, integration='exact', linearise_at=LINEARISE_AT, servo_law='paper',
-             gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None,
+             target=None, integration='exact', linearise_at=LINEARISE_AT,
+             servo_law=SERVO_LAWS[0], gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None,
              feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
              joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD, plant_camera=None,
              target_features_source='model'):
