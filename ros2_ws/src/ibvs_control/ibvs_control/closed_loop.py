@@ -71,7 +71,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              svd_rcond=SVD_RCOND, svd_damping=SVD_DAMPING,
              max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
              target=None, integration='exact', linearise_at=LINEARISE_AT,
-             servo_law=SERVO_LAWS[0], gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None,
+             servo_law=SERVO_LAWS[0], gain=None, switch_settle_s=SWITCH_SETTLE_S,
+             feedforward_ratio=None,
              feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
              joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD, plant_camera=None,
              target_features_source='model'):
