@@ -4,8 +4,9 @@ Servo laws side by side: each law on scenarios 1-3, two actuator cases, a table 
 The runs (:func:`plan`): every law of :data:`ibvs_control.servo_laws.SERVO_LAWS` on
 scenarios 1-3, with the paper's ideal actuators and with the IRB 4600's limited actuators
 plus 0.067 s between a camera frame and the command it causes (:data:`CASES`). Each run is an
-ordinary ``ibvs run`` (``ibvs_bringup.runner.run_scenario``) into its own folder; this module
-only reads the folders back (:func:`read_run`), so the runs may come from any scheduler.
+ordinary ``ibvs run`` into its own folder, as studies on Ray with the report's others
+(:func:`specs`) or one at a time (:func:`run_all`); this module only reads the folders back
+(:func:`read_run`), so the runs may come from any scheduler.
 
 Per run (:class:`LawRun`, the metrics of :mod:`.analysis` plus the joint speeds of the bag):
 final position and tool-axis error, time to 1 mm (after which the tool stays within 1 mm),
@@ -234,7 +235,8 @@ def section(runs, out_dir, figure_prefix=''):
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ['## Servo laws side by side', '',
              f'Ideal actuators (the paper), and limited actuators with '
-             f"{CASES['limited']['feedback_latency_s']} s latency. Converged: within "
+             f"{CASES['limited']['feedback_latency_s']} s latency (there lambda_0 "
+             f"{CASES['limited']['lambda_0']:g} / s for ibvs and pbvs). Converged: within "
              f'{CONVERGED_M * 1e3:g} mm and {CONVERGED_DEG:g} deg at the end, and within 1 mm '
              'from the time to 1 mm on.', '']
     lines += table(runs) + ['']

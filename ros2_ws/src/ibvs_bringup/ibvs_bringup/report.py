@@ -188,6 +188,12 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
     if laws:
         runs = laws_report.read_records(records)
         lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
+        from ibvs_control import calibration_sweep
+        lines += ['### Calibration error (model-only loop, scenario 1)', '',
+                  calibration_sweep.__doc__.strip().split('\n\n')[1].replace('\n', ' '), '',
+                  'Final position / tool-axis error of the true flange after '
+                  f'{calibration_sweep.DURATION_S:g} s:', '']
+        lines += calibration_sweep.table(calibration_sweep.sweep()) + ['']
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path
