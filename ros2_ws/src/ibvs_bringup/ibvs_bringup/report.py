@@ -194,6 +194,11 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
                   'Final position / tool-axis error of the true flange after '
                   f'{calibration_sweep.DURATION_S:g} s:', '']
         lines += calibration_sweep.table(calibration_sweep.sweep()) + ['']
+        lines += ['### Feature noise (model-only loop, scenario 1)', '',
+                  'Gaussian noise on every measured feature (px, a stand-in for the '
+                  "detector's error, not rendered image noise); RMS position / tool-axis "
+                  f'error over the last {calibration_sweep.TAIL_S:g} s:', '']
+        lines += calibration_sweep.noise_table(calibration_sweep.noise_sweep()) + ['']
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path

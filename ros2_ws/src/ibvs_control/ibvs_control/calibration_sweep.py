@@ -11,7 +11,9 @@ or taught (measured by the true camera with the true robot at the target). The r
 run: the true flange's final position error and tool-axis error, and the time after which
 it stays within 1 mm.
 
-``python -m ibvs_control.calibration_sweep`` prints the markdown table.
+The noise sweep (:func:`noise_sweep`): Gaussian noise on the measured features, the RMS
+error over the last second. ``python -m ibvs_control.calibration_sweep`` prints both
+markdown tables.
 """
 
 import argparse
@@ -77,6 +79,45 @@ def run_one(law, target, position_error_m=0.0, focal_error=0.0, duration_s=DURAT
                     float(error[-1]), float(np.degrees(np.arccos(cos))), t_1mm)
 
 
+#: Feature noise of the noise sweep (px, standard deviation per value and frame).
+NOISE_PX = (0.0, 0.1, 0.3, 1.0)
+#: The noise sweep's error is the RMS over this last part of the run (s).
+TAIL_S = 1.0
+
+
+def noise_sweep(laws=SERVO_LAWS, noise_px=NOISE_PX, duration_s=DURATION_S, seed=0):
+    """
+    Return {(law, noise): (RMS position error, RMS axis error)} over the last TAIL_S.
+
+    Model-only loop from scenario 1, Gaussian noise of ``noise_px`` on every measured
+    feature (``closed_loop.simulate(feature_noise_px=...)``), the same seed for every law.
+    """
+    pose = paper.target_pose()
+    out = {}
+    for law in laws:
+        for sigma in noise_px:
+            r = simulate(1, duration_s, servo_law=law, feature_noise_px=sigma, seed=seed)
+            tail = r.t >= r.t[-1] - TAIL_S
+            flange = np.array([forward_kinematics(q, r.model.params) for q in r.q_true[tail]])
+            position = np.linalg.norm(flange[:, :3, 3] - pose[:3, 3], axis=1)
+            axis = np.degrees(np.arccos(np.clip(flange[:, :3, 2] @ pose[:3, 2], -1.0, 1.0)))
+            out[law, sigma] = (float(np.sqrt(np.mean(position ** 2))),
+                               float(np.sqrt(np.mean(axis ** 2))))
+    return out
+
+
+def noise_table(results):
+    """Return the markdown lines of :func:`noise_sweep`: one row per law."""
+    noise = sorted({sigma for _, sigma in results})
+    lines = ['| law | ' + ' | '.join(f'noise {sigma:g} px' for sigma in noise) + ' |',
+             '|---|' + '---|' * len(noise)]
+    for law in dict.fromkeys(law for law, _ in results):
+        lines.append(f'| {law} | ' + ' | '.join(
+            f'{1e3 * results[law, sigma][0]:.2f} mm / {results[law, sigma][1]:.2f} deg'
+            for sigma in noise) + ' |')
+    return lines
+
+
 def settings():
     """Return the (position error, focal error) of every sweep point: one error at a time."""
     return ([(d, 0.0) for d in POSITION_ERRORS_M] + [(0.0, f) for f in FOCAL_ERRORS])
@@ -115,6 +156,8 @@ def main(argv=None):
     parser.add_argument('--duration', type=float, default=DURATION_S, help='sim time, s')
     args = parser.parse_args(argv)
     print('\n'.join(table(sweep(duration_s=args.duration))))
+    print()
+    print('\n'.join(noise_table(noise_sweep(duration_s=args.duration))))
     return 0
 
 

@@ -75,7 +75,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              feedforward_ratio=None,
              feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
              joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD, plant_camera=None,
-             target_features_source='model'):
+             target_features_source='model', feature_noise_px=0.0, seed=0):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -87,7 +87,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     the model's; another one is a calibration error). ``target_features_source``: 'model'
     (p_bar = the model's F at the target, eq. 30) or 'taught' (p_bar = the true features
     of the true robot at the target, as the feature node measures them on the teach
-    pair). ``disturbance``: d_q (rad), default the scenario's. The start is the
+    pair). ``feature_noise_px``: the standard deviation of Gaussian noise added to each
+    measured feature (px, independent per value and frame; ``numpy.random.default_rng(seed)``),
+    a stand-in for the detector's error, not rendered image noise. ``disturbance``: d_q (rad), default the scenario's. The start is the
     scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
     features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
     'limited' actuators with the bare double integrator (M = I, h = 0) take
@@ -148,6 +150,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     frames_t, frames_p, frames_measured = [], [], []
     # The joint controller's rule: q_feedback = 0 until the first frame acts.
     lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
+    rng = np.random.default_rng(seed)
     next_frame = 0
     rejected = 0
     for k in range(steps):
@@ -157,6 +160,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
             measured = bool(np.all(plant.in_view(q_now)))
             p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
                 else model.features(q)
+            if measured and feature_noise_px > 0.0:
+                p_hat = p_hat + rng.normal(0.0, feature_noise_px, 6)
             try:
                 q_feedback = fb.update(p_hat, q, qd, measured=measured,
                                        t=t_ns * 1e-9).q_feedback

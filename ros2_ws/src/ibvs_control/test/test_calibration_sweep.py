@@ -1,7 +1,7 @@
 """The calibration sweep's camera and its textbook result: a taught target cancels the error."""
 
-from ibvs_control.calibration_sweep import (calibrated_camera, POSITION_ERROR_DIRECTION,
-                                            run_one, table)
+from ibvs_control.calibration_sweep import (calibrated_camera, noise_sweep, noise_table,
+                                            POSITION_ERROR_DIRECTION, run_one, table)
 from ibvs_model import default_model
 import numpy as np
 import pytest
@@ -25,3 +25,10 @@ def test_ibvs_with_a_taught_target_cancels_the_camera_error_and_a_model_target_d
     assert taught.final_position_error_m < 1e-4
     lines = table([model, taught])
     assert len(lines) == 4 and '5.00 mm' in lines[2]
+
+
+def test_feature_noise_moves_the_tool_and_more_noise_moves_it_more():
+    results = noise_sweep(laws=('ibvs',), noise_px=(0.0, 0.1, 0.3), duration_s=3.0)
+    quiet, some, more = (results['ibvs', s][0] for s in (0.0, 0.1, 0.3))
+    assert quiet < 1e-4 < some < more
+    assert noise_table(results)[2].startswith('| ibvs | ')
