@@ -88,8 +88,9 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     (p_bar = the model's F at the target, eq. 30) or 'taught' (p_bar = the true features
     of the true robot at the target, as the feature node measures them on the teach
     pair). ``feature_noise_px``: the standard deviation of Gaussian noise added to each
-    measured feature (px, independent per value and frame; ``numpy.random.default_rng(seed)``),
-    a stand-in for the detector's error, not rendered image noise. ``disturbance``: d_q (rad), default the scenario's. The start is the
+    measured feature (px, independent per value and frame;
+    ``numpy.random.default_rng(seed)``), a stand-in for the detector's error, not rendered
+    image noise. ``disturbance``: d_q (rad), default the scenario's. The start is the
     scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
     features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
     'limited' actuators with the bare double integrator (M = I, h = 0) take
