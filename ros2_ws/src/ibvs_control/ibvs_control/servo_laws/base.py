@@ -160,11 +160,11 @@ def guard_reference(q_ref, q_encoder, params, windup_horizon_s=WINDUP_HORIZON_S,
        3.5): q_ref within q_T +- qd_max * ``windup_horizon_s`` of the encoder angles, i.e.
        never further ahead of the arm than its speed limits cover in that time.
     2. Joint limits: q_ref within [q_min + margin, q_max - margin]
-       (``joint_limit_margin_rad``), the clamp that Corke's toolbox and ViSP's
-       vpRobot::setPosition apply, rather than ViSP's avoidance task
-       (vpServo::secondaryTaskJointLimitAvoidance, Marey & Chaumette, ICRA 2008), which
-       acts in the null space of the task: here the 5-dof image task leaves one, the tool
-       roll, that no joint limit in the way can use.
+       (``joint_limit_margin_rad``): a clamp, the simpler of the two textbook options. The
+       other, ViSP's avoidance term (vpServo::secondaryTaskJointLimitAvoidance, Marey &
+       Chaumette, IROS 2010), adds a secondary task through a projection operator of the
+       main task; it is not implemented here. A clamped joint can stall the law (README,
+       "Servo laws").
     """
     q_ref = np.asarray(q_ref, dtype=float)
     lead = np.asarray(params.qd_max, dtype=float) * windup_horizon_s
