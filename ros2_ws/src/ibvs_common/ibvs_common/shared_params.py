@@ -72,3 +72,32 @@ def target_from_parameters(values):
     except ValueError as exc:
         raise ParameterError(f"parameter 'target_rotation' = {rotation!r} is invalid: {exc}; "
                              'allowed: a rotation matrix, row-major') from None
+
+
+# -- a real cell: position interface and free-running time (docs/design.md §4) --------------
+COMMAND_INTERFACE = Param(
+    'command_interface', 'effort', "how the joint controller drives the arm: 'effort' (the "
+    'paper: computed torque at physics_rate_hz on /joint_effort_commands, in lockstep) or '
+    "'position' (joint position references at command_rate_hz for a ros2_control position "
+    "controller, the arm's own drive closing the loop; needs lockstep false)", '-',
+    choices=('effort', 'position'))
+POSITION_COMMAND_TYPE = Param(
+    'position_command_type', 'forward_command', "with command_interface 'position': "
+    "'forward_command' (std_msgs/Float64MultiArray for ros2_controllers' "
+    "forward_command_controller on /forward_position_controller/commands) or "
+    "'joint_trajectory' (trajectory_msgs/JointTrajectory for a joint_trajectory_controller "
+    'on /joint_trajectory_controller/joint_trajectory)', '-',
+    choices=('forward_command', 'joint_trajectory'))
+COMMAND_RATE_HZ = Param(
+    'command_rate_hz', 250.0, "with command_interface 'position': the rate of the position "
+    "references (ABB EGM: 250 Hz); free-running, the simulator's /clock runs at least this "
+    'fast, so that sim-time timers fire at it', 'Hz', low=1.0, high=1000.0)
+JOINTS = Param(
+    'joints', ['joint_1', 'joint_2', 'joint_3', 'joint_4', 'joint_5', 'joint_6'],
+    "the position controller's joints parameter: the order of the values in each command "
+    "(ros2_control's forward_command_controller takes them in exactly this order); each "
+    'of joint_1 ... joint_6 once', '-', length=6)
+LOCKSTEP = Param(
+    'lockstep', True, 'true (the paper\'s reproduction): the simulator steps only when the '
+    'effort command of each step has come; false: it runs on its own at real_time_factor, '
+    'as a real cell does, and nobody waits for anybody', '-')
