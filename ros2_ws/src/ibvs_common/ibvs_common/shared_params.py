@@ -101,3 +101,21 @@ LOCKSTEP = Param(
     'lockstep', True, 'true (the paper\'s reproduction): the simulator steps only when the '
     'effort command of each step has come; false: it runs on its own at real_time_factor, '
     'as a real cell does, and nobody waits for anybody', '-')
+
+
+def check_command_interface(values):
+    """
+    Refuse a command interface and time mode that do not go together (ParameterError).
+
+    'effort' runs in lockstep only (the computed-torque loop answers every physics step);
+    'position' is free-running only (the drive waits for nobody).
+    """
+    interface, lockstep = values['command_interface'], values['lockstep']
+    if interface == 'position' and lockstep:
+        raise ParameterError("parameter 'lockstep' = True is invalid with command_interface "
+                             "'position': the arm's drive waits for nobody; allowed: false "
+                             "(or command_interface 'effort')")
+    if interface == 'effort' and not lockstep:
+        raise ParameterError("parameter 'lockstep' = False is invalid with command_interface "
+                             "'effort': the computed-torque loop runs in lockstep only; "
+                             "allowed: true (or command_interface 'position')")

@@ -64,7 +64,8 @@ from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_s
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
-from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, COMMAND_INTERFACE,
+from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_interface,
+                                       COMMAND_INTERFACE,
                                        COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
                                        PHYSICS_RATE_HZ, POSITION_COMMAND_TYPE,
                                        STALE_TIMEOUT_S, TAU_IN)
@@ -103,16 +104,12 @@ class JointControllerNode(Node):
         """Declare and check the parameters, load the dynamics model, create interfaces."""
         super().__init__('joint_controller_node', **kwargs)
         values = declare(self, PARAMS)
+        check_command_interface(values)
         self.command_interface = values['command_interface']
         self.dynamics = None
         if self.command_interface == 'position':
             self._setup_position(values)
             return
-        if not values['lockstep']:
-            raise ParameterError("parameter 'lockstep' = False is invalid with "
-                                 "command_interface 'effort': the computed-torque loop runs "
-                                 "in lockstep only; free-running needs command_interface "
-                                 "'position'")
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.latency_ns = int(round(values['feedback_latency_s'] * 1e9))
@@ -159,11 +156,6 @@ class JointControllerNode(Node):
 
     def _setup_position(self, values):
         """Position interface (module docstring): shaper, publishers, command timer."""
-        if values['lockstep']:
-            raise ParameterError("parameter 'command_interface' = 'position' is invalid with "
-                                 "lockstep true: the arm's drive does not wait for anybody; "
-                                 'set lockstep false (free-running), or command_interface '
-                                 "'effort'")
         try:
             self._order = joint_permutation(values['joints'], contract.JOINT_NAMES)
         except ValueError as exc:
@@ -249,8 +241,11 @@ class JointControllerNode(Node):
         now_ns = self.get_clock().now().nanoseconds
         if not self.shaper.started:
             self.shaper.start(self._measured[1])
+            self._last_command_ns = now_ns - self.command_period_ns
         q_feedback, first_frame_ns = self._hold.use()
-        q_command = self.shaper.step(self.q_feedforward(now_ns) + q_feedback)
+        q_command = self.shaper.step(self.q_feedforward(now_ns) + q_feedback,
+                                     1e-9 * (now_ns - self._last_command_ns))
+        self._last_command_ns = now_ns
         values = [float(v) for v in q_command[self._order]]
         if self._pub.msg_type is Float64MultiArray:
             self._pub.publish(Float64MultiArray(data=values))

@@ -10,6 +10,7 @@ which command is the first to use a frame (the latency measurement), is
 :class:`FeedbackHold`.
 """
 
+from ibvs_model import IRB4600
 from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, SPEED_LIMITS
 import numpy as np
 
@@ -39,18 +40,28 @@ class PositionShaper:
     bang-bang law on the braking curve) at the command period, with the IRB 4600's speed
     limits times ``speed_margin`` and the acceleration limits of :mod:`ibvs_model.drive`:
     a reference the drive can follow without saturating, so that its own loop stays
-    linear. A small correction (the feedback's) passes almost unchanged.
+    linear. A small correction (the feedback's) passes almost unchanged. The target is
+    first clipped to the joint ranges less ``range_margin`` (the drive refuses a reference
+    beyond a joint's range; the margin covers the encoders' offset d_q).
+
+    Each :meth:`step` advances by the time since the last one (``dt``), not by a nominal
+    period: free-running, a command timer on sim time can skip a tick when /clock jumps,
+    and the reference must keep the pace of the arm, not of the ticks.
     """
 
     def __init__(self, command_rate_hz, speed_limits=SPEED_LIMITS,
-                 acceleration_limits=ACCELERATION_LIMITS, speed_margin=1.0):
-        """Sample at ``command_rate_hz``; limits (6,) rad/s and rad/s^2, margin in (0, 1]."""
+                 acceleration_limits=ACCELERATION_LIMITS, speed_margin=1.0,
+                 position_limits=(IRB4600.q_min, IRB4600.q_max), range_margin=0.02):
+        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2 and rad."""
         if not (np.isfinite(command_rate_hz) and command_rate_hz > 0.0):
             raise ValueError(f'command_rate_hz must be > 0, got {command_rate_hz}')
         if not (0.0 < speed_margin <= 1.0):
             raise ValueError(f'speed_margin must be in (0, 1], got {speed_margin}')
         v_max, a_max = check_limits(speed_limits, acceleration_limits)
-        self.governor = ReferenceGovernor(1.0 / command_rate_hz, speed_margin * v_max, a_max)
+        self.period = 1.0 / command_rate_hz
+        self.governor = ReferenceGovernor(self.period, speed_margin * v_max, a_max)
+        self.low = np.asarray(position_limits[0], dtype=float) + range_margin
+        self.high = np.asarray(position_limits[1], dtype=float) - range_margin
 
     @property
     def started(self):
@@ -61,11 +72,20 @@ class PositionShaper:
         """Start from the measured joints ``q`` (6,), at rest."""
         self.governor.reset(q)
 
-    def step(self, q_ref):
-        """Advance one command period toward ``q_ref`` (6,); return the reference to send."""
+    def step(self, q_ref, dt=None):
+        """
+        Advance ``dt`` seconds (default one nominal period) toward ``q_ref`` (6,).
+
+        Returns the reference to send. ``dt`` is clipped to [0, 25 periods]: a long pause
+        (the command timer starved) does not turn into one jump.
+        """
         if not self.started:
             raise RuntimeError('start() the shaper from the measured joints first')
-        return self.governor.step(q_ref)
+        dt = self.period if dt is None else min(max(float(dt), 0.0), 25.0 * self.period)
+        if dt == 0.0:
+            return self.governor.r.copy()
+        self.governor.dt = dt
+        return self.governor.step(np.clip(q_ref, self.low, self.high))
 
 
 class FeedbackHold:
