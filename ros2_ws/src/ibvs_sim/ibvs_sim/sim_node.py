@@ -532,7 +532,7 @@ class SimNode(Node):
                 self.get_logger().warn(message)
                 self.diagnostics.set_level(DiagnosticStatus.WARN, message)
             elif not self._stale:
-                self.diagnostics.set_level(DiagnosticStatus.OK, '')
+                self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
 
     def _free_step(self):
         """One physics step of the position drive, then the next step's outputs."""
@@ -566,7 +566,7 @@ class SimNode(Node):
         if self._stale:
             self._stale = False
             self.get_logger().info('position references again: tracking')
-            self.diagnostics.set_level(DiagnosticStatus.OK, '')
+            self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
         self.diagnostics.update(command='tracking', commands=self.commands)
 
     def _on_position_command(self, msg):
