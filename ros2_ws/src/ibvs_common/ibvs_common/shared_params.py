@@ -119,3 +119,33 @@ def check_command_interface(values):
         raise ParameterError("parameter 'lockstep' = False is invalid with command_interface "
                              "'effort': the computed-torque loop runs in lockstep only; "
                              "allowed: true (or command_interface 'position')")
+
+
+CAMERA_POSE = Param(
+    'camera_pose', [0.0] * 7, 'the stereo camera frame {C} (midway between the lenses, x '
+    'right, y down, z forward) in the robot base frame, as x, y, z, qx, qy, qz, qw: a '
+    'hand-eye calibration\'s result, used instead of /stereo/pose; all zeros: take '
+    '/stereo/pose', 'm, -', low=-20.0, high=20.0, length=7)
+
+
+def camera_pose_from(values):
+    """
+    Return the 'camera_pose' parameter as a 4x4 T_C^O, or None when it is all zeros.
+
+    Raises ParameterError naming it when its quaternion is not of unit length (within 1e-6).
+    """
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    pose = np.asarray(values.get(CAMERA_POSE.name, CAMERA_POSE.default), dtype=float)
+    if not pose.any():
+        return None
+    if abs(np.linalg.norm(pose[3:]) - 1.0) > 1e-6:
+        raise ParameterError(f"parameter 'camera_pose' = {pose.tolist()!r} is invalid: the "
+                             f'quaternion (qx, qy, qz, qw) has length '
+                             f'{np.linalg.norm(pose[3:]):.6g}, not 1; allowed: '
+                             f'{CAMERA_POSE.allowed()}')
+    tf = np.eye(4)
+    tf[:3, :3] = Rotation.from_quat(pose[3:]).as_matrix()
+    tf[:3, 3] = pose[:3]
+    return tf
