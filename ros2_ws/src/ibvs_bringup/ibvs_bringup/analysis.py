@@ -153,8 +153,10 @@ def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_dur
 
 def free_running_metrics(latency, rtf_held):
     """
-    Return the free-running metrics (module docstring) of (command ns, frame ns) pairs and
-    the simulator's real_time_factor_held reports; {} without latency records.
+    Return the free-running metrics (module docstring); {} without latency records.
+
+    ``latency``: (command ns, frame ns) pairs; ``rtf_held``: the simulator's
+    real_time_factor_held reports.
     """
     latency = np.asarray(latency, dtype=np.int64).reshape(-1, 2)
     if latency.size == 0:

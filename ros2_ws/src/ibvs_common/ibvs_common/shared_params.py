@@ -84,7 +84,7 @@ COMMAND_INTERFACE = Param(
 POSITION_COMMAND_TYPE = Param(
     'position_command_type', 'forward_command', "with command_interface 'position': "
     "'forward_command' (std_msgs/Float64MultiArray for ros2_controllers' "
-    "forward_command_controller on /forward_position_controller/commands) or "
+    'forward_command_controller on /forward_position_controller/commands) or '
     "'joint_trajectory' (trajectory_msgs/JointTrajectory for a joint_trajectory_controller "
     'on /joint_trajectory_controller/joint_trajectory)', '-',
     choices=('forward_command', 'joint_trajectory'))
@@ -98,7 +98,7 @@ JOINTS = Param(
     "(ros2_control's forward_command_controller takes them in exactly this order); each "
     'of joint_1 ... joint_6 once', '-', length=6)
 LOCKSTEP = Param(
-    'lockstep', True, 'true (the paper\'s reproduction): the simulator steps only when the '
+    'lockstep', True, "true (the paper's reproduction): the simulator steps only when the "
     'effort command of each step has come; false: it runs on its own at real_time_factor, '
     'as a real cell does, and nobody waits for anybody', '-')
 
@@ -124,7 +124,7 @@ def check_command_interface(values):
 CAMERA_POSE = Param(
     'camera_pose', [0.0] * 7, 'the stereo camera frame {C} (midway between the lenses, x '
     'right, y down, z forward) in the robot base frame, as x, y, z, qx, qy, qz, qw: a '
-    'hand-eye calibration\'s result, used instead of /stereo/pose; all zeros: take '
+    "hand-eye calibration's result, used instead of /stereo/pose; all zeros: take "
     '/stereo/pose', 'm, -', low=-20.0, high=20.0, length=7)
 
 

@@ -57,8 +57,8 @@ message. A rejected q_feedback is not stored, so a good one with the same stamp 
 and the loop goes on as if the bad one had never come.
 """
 
-from ibvs_common import contract
 from builtin_interfaces.msg import Duration
+from ibvs_common import contract
 from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
                                      read_joints, read_stamp, read_trajectory)
 from ibvs_common.diagnostics import Diagnostics

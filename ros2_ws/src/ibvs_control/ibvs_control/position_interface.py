@@ -19,12 +19,12 @@ from .governor import ReferenceGovernor
 
 def joint_permutation(joints, names):
     """
-    Return the indices i such that ``values[i]`` lists ``values`` (in ``names`` order) in
-    the order of ``joints``.
+    Return the indices that reorder values given in ``names`` order into ``joints`` order.
 
-    ``joints`` is the ros2_control controller's ``joints`` parameter: forward_command_
-    controller takes Float64MultiArray data in exactly that order. Raises ValueError unless
-    ``joints`` names each of ``names`` once.
+    ``values[joint_permutation(joints, names)]`` lists them as ``joints`` does. ``joints``
+    is the ros2_control controller's ``joints`` parameter: forward_command_controller takes
+    Float64MultiArray data in exactly that order. Raises ValueError unless ``joints`` names
+    each of ``names`` once.
     """
     joints, names = list(joints), list(names)
     if sorted(joints) != sorted(names) or len(set(joints)) != len(joints):

@@ -29,8 +29,8 @@ PERMUTATION = [1, 0, 2, 3, 5, 4]
 
 
 def build(context, **params):
-    values = dict(command_interface='position', lockstep=False, joints=ORDER,
-                  use_sim_time=True)
+    values = {'command_interface': 'position', 'lockstep': False, 'joints': ORDER,
+              'use_sim_time': True}
     values.update(params)
     node = JointControllerNode(context=context, parameter_overrides=[
         Parameter(k, value=v) for k, v in values.items()])
@@ -126,7 +126,7 @@ def test_joint_trajectory_controller_gets_one_point_by_joint_name(context):
     ({'command_interface': 'effort'}, 'lockstep'),
 ])
 def test_bad_configurations_are_refused_naming_the_parameter(context, params, name):
-    values = dict(command_interface='position', lockstep=False)
+    values = {'command_interface': 'position', 'lockstep': False}
     values.update(params)
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):
         JointControllerNode(context=context, parameter_overrides=[

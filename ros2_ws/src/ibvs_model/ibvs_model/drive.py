@@ -1,4 +1,4 @@
-"""
+r"""
 The IRB 4600's position interface as ABB's Externally Guided Motion (EGM) presents it (no ROS).
 
 One place for the numbers that both sides of a position-controlled cell use: the joint
@@ -14,7 +14,7 @@ PositionShaper`) and the simulator's drive model tracks the reference with them
   affect the actual robot position is usually around 20 ms". A large arm (IRB 4600) is
   taken at the upper end: a pure dead time of 20 ms.
 - ``EGM_BANDWIDTH_HZ`` = 20: the bandwidth of the position loop seen through EGM. EGM's
-  RAPID instructions (EGMActJoint) take a low-pass filter bandwidth (``\\LpFilter``, Hz)
+  RAPID instructions (EGMActJoint) take a low-pass filter bandwidth (``\LpFilter``, Hz)
   applied to the references; 20 Hz is the value of ABB's examples and the order of a large
   arm's position-loop bandwidth. An assumption to measure on the cell (README "On a real
   cell"): a step of 1 deg on one joint through EGM, time constant = 1 / (2 pi f).

@@ -68,6 +68,7 @@ its position. Each rejection is logged and counted on /diagnostics.
 
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
@@ -82,7 +83,6 @@ from ibvs_common.shared_params import (CAMERA_RATE_HZ, check_command_interface,
                                        TARGET_FEATURES_SOURCE, target_from_parameters,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.timing import period_ns
-from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_model import IRB4600, paper
 from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
 from nav_msgs.msg import Path
@@ -186,8 +186,8 @@ REAL_TIME_FACTOR = Param(
     'other test suites running); when it cannot be held the node says so',
     '-', low=0.0, high=10.0, low_open=True)
 COMMAND_TIMEOUT_S = Param(
-    'command_timeout_s', 0.1, "free-running: a position reference older than this (sim time) "
-    'is stale: the drive stops and holds the arm', 's', low=0.0, high=10.0, low_open=True)
+    'command_timeout_s', 0.1, 'free-running: a position reference older than this (sim '
+    'time) is stale: the drive stops and holds the arm', 's', low=0.0, high=10.0, low_open=True)
 DRIVE_BANDWIDTH_HZ = Param(
     'drive_bandwidth_hz', EGM_BANDWIDTH_HZ, "position drive model: bandwidth of the drive's "
     'position loop (ibvs_model.drive: EGM)', 'Hz', low=0.0, high=80.0, low_open=True)
@@ -344,7 +344,7 @@ class SimNode(Node):
         self._wait_timer = self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
 
     def _setup_position(self, values):
-        """The position drive and its command subscription (module docstring)."""
+        """Create the position drive and its command subscription (module docstring)."""
         self._joints = list(values['joints'])
         if sorted(self._joints) != sorted(contract.JOINT_NAMES) or \
                 len(set(self._joints)) != 6:
@@ -505,7 +505,6 @@ class SimNode(Node):
         self._progress_since_log = True
         self._publish_step()
 
-
     # -- free-running, position drive ----------------------------------------------------
     def _run(self):
         """Advance the physics to where real_time_factor puts sim time now (module docs)."""
@@ -570,7 +569,7 @@ class SimNode(Node):
         self.diagnostics.update(command='tracking', commands=self.commands)
 
     def _on_position_command(self, msg):
-        """A forward_command_controller command: values in the order of ``joints``."""
+        """Take a forward_command_controller command: values in the order of ``joints``."""
         source = self._sub.topic_name
         values = np.asarray(msg.data, dtype=float)
         if values.shape != (6,):
@@ -583,7 +582,7 @@ class SimNode(Node):
         self._take_reference(values[self._to_contract], source)
 
     def _on_trajectory_command(self, msg):
-        """A joint_trajectory_controller command: the last point, mapped by joint name."""
+        """Take a joint_trajectory_controller command: the last point, mapped by name."""
         source = self._sub.topic_name
         names = list(msg.joint_names)
         if sorted(names) != sorted(contract.JOINT_NAMES) or len(set(names)) != 6:

@@ -211,9 +211,9 @@ class Simulator:
 
     def move_to(self, q, qd):
         """
-        Set the true joints to ``q`` with speed ``qd`` (the position drive's output,
-        :class:`.position_servo.PositionServo`) as the state of the next step; then k += 1.
+        Set the true joints to ``q`` with speed ``qd`` as the next step's state; k += 1.
 
+        ``q``, ``qd``: the position drive's output (:class:`.position_servo.PositionServo`).
         No torque is modelled: ``last_torque`` becomes None.
         """
         q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)

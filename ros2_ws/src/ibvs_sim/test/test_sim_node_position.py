@@ -49,10 +49,11 @@ class Commander(Node):
 @pytest.fixture
 def cell(context, executor_of):
     def build(images=False, **params):
-        values = dict(resolution='VGA', disturbance_deg=[0.0] * 6, renderer='tiny',
-                      publish_images=images, render_parallel_lenses=False,
-                      command_interface='position', lockstep=False, real_time_factor=1.0,
-                      joints=REVERSED, render_supersampling=1, render_marker_supersampling=1)
+        values = {'resolution': 'VGA', 'disturbance_deg': [0.0] * 6, 'renderer': 'tiny',
+                  'publish_images': images, 'render_parallel_lenses': False,
+                  'command_interface': 'position', 'lockstep': False,
+                  'real_time_factor': 1.0, 'joints': REVERSED, 'render_supersampling': 1,
+                  'render_marker_supersampling': 1}
         values.update(params)
         sim = SimNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in values.items()])
@@ -123,8 +124,8 @@ def test_zed_wrapper_topics_publish_what_the_wrapper_publishes(cell):
     ({'joints': REVERSED[:5] + ['joint_6']}, 'joints'),
 ])
 def test_bad_configurations_are_refused_naming_the_parameter(context, params, name):
-    values = dict(command_interface='position', lockstep=False, publish_images=False,
-                  renderer='tiny', resolution='VGA')
+    values = {'command_interface': 'position', 'lockstep': False, 'publish_images': False,
+              'renderer': 'tiny', 'resolution': 'VGA'}
     values.update(params)
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):
         SimNode(context=context, parameter_overrides=[
