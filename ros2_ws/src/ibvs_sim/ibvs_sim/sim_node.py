@@ -423,6 +423,10 @@ class SimNode(Node):
         if not self._lockstep:
             if not self.started:
                 self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
+            elif self._command_ns is None:
+                self.get_logger().info(f'no position reference yet on {self._sub.topic_name}: '
+                                       f'holding the arm at its start (t = '
+                                       f'{self.sim.t_ns * 1e-9:.3f} s)')
             return
         if not self.started:
             self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
