@@ -16,6 +16,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 REVERSED = [f'joint_{i}' for i in range(6, 0, -1)]
 
@@ -116,6 +117,28 @@ def test_zed_wrapper_topics_publish_what_the_wrapper_publishes(cell):
     assert right_info.p[3] == pytest.approx(-k.fu * k.baseline)
     # frames stamped with their exposure: the physics step they were rendered from
     assert (left.header.stamp.sec * 10 ** 9 + left.header.stamp.nanosec) % sim.sim.dt_ns == 0
+
+
+def test_joint_trajectory_commands_are_mapped_by_name_and_bad_names_refused(cell):
+    sim, cmd, executor = cell(position_command_type='joint_trajectory', command_timeout_s=10.0)
+    pub = cmd.create_publisher(JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                               contract.RELIABLE)
+    spin_until(executor, lambda: len(cmd.joints) > 5 and pub.get_subscription_count(),
+               what='free-running /joint_states')
+    q0 = sim.sim.q_start
+    target = q0.copy()
+    target[2] -= 0.03  # joint_3
+
+    def send(names, values):
+        pub.publish(JointTrajectory(joint_names=names, points=[
+            JointTrajectoryPoint(positions=[float(v) for v in values])]))
+
+    scrambled = ['joint_3', 'joint_5', 'joint_1', 'joint_6', 'joint_2', 'joint_4']
+    send(scrambled[:5] + ['joint_3'], target[[2, 4, 0, 5, 1, 3]])  # joint_3 twice
+    send(scrambled, target[[2, 4, 0, 5, 1, 3]])  # another order: mapped by name
+    spin_until(executor, lambda: abs(sim.servo.q[2] - target[2]) < 1e-5, what='joint_3')
+    np.testing.assert_allclose(np.delete(sim.servo.q, 2), np.delete(q0, 2), atol=1e-12)
+    assert sim.diagnostics.rejections[f'{contract.TRAJECTORY_COMMANDS}: bad joint names'] == 1
 
 
 @pytest.mark.parametrize('params, name', [
