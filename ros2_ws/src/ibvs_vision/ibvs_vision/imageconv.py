@@ -15,9 +15,9 @@ from .detector import ENCODINGS
 
 #: Encodings read besides the detector's own (rgb8, bgr8): channels per pixel, and the
 #: detector encoding their first three channels become. bgra8 is what zed-ros2-wrapper
-#: publishes (its alpha is dropped); mono8 is spread over three equal channels, on which
-#: the detector's colour test finds no marker: a monochrome camera gives estimated
-#: features only (feature_status says so).
+#: publishes (its alpha is dropped); mono8 is spread over three equal channels (the
+#: detector finds the markers by colour, so a monochrome camera is not expected to give
+#: measured features; feature_status says which mode each frame had).
 CONVERTED = {'bgra8': (4, 'bgr8'), 'mono8': (1, 'rgb8')}
 
 
