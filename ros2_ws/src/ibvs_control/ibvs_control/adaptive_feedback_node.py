@@ -47,12 +47,13 @@ markers in both images). The others do not subscribe to it.
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, read_features,
-                                     read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, pose_stamped,
+                                     read_features, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
+from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
+                                       OMEGA_N, STALE_TIMEOUT_S,
                                        TARGET_FEATURES_SOURCE, TARGET_POSITION,
                                        TARGET_ROTATION, TAU_IN, ZETA)
 from ibvs_common.sync import FrameLockstep
@@ -77,7 +78,7 @@ LAW_PARAMS = (FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION_RAD, HOLD_
               JOINT_LIMIT_MARGIN_RAD)
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0,
-          LAMBDA_INF, LAMBDA_SLOPE) + LAW_PARAMS
+          LAMBDA_INF, LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
 
 #: Steady-clock period of the 'waiting' log.
 WAIT_LOG_S = 1.0
@@ -115,8 +116,12 @@ class AdaptiveFeedbackNode(Node):
                                  lambda m: self._on_info(0, m), contract.IMAGES)
         self.create_subscription(CameraInfo, contract.RIGHT_INFO,
                                  lambda m: self._on_info(1, m), contract.IMAGES)
-        self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                 contract.LATCHED)
+        calibrated = camera_pose_from(values)
+        if calibrated is None:
+            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                     contract.LATCHED)
+        else:  # a hand-eye calibration's result, as a parameter
+            self._camera_pose = pose_stamped(calibrated, 0)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
         joints = self.create_subscription(JointState, contract.JOINT_STATES,
                                           self._on_joint_state, contract.RELIABLE)
