@@ -28,6 +28,8 @@ Determinism: one context, fixed geometry, no blending or multisampling; llvmpipe
 the same triangles to the same pixels every time (tested to the bit).
 """
 
+import contextlib
+import ctypes
 from dataclasses import dataclass
 import math
 
@@ -78,6 +80,48 @@ void main() {
 
 class GLRendererError(RuntimeError):
     """No OpenGL context can be created here, or the scene cannot be drawn."""
+
+
+class _CurrentEGL:
+    """
+    Restore the EGL context, surfaces and display that were current on entry, on exit.
+
+    Another EGL user of the process (PyBullet's EGL plugin) makes its context current once,
+    with its own pbuffer surface, and expects it to stay so. moderngl makes a new standalone
+    context current and leaves it so, and its own ``with ctx`` restores the previous context
+    without its surfaces; either way the plugin then draws into nothing (measured: black
+    images). Every use of our context is wrapped in this, and after it the previous state,
+    or no context at all, is current again.
+    """
+
+    _EGL_DRAW, _EGL_READ = 0x3059, 0x305A
+
+    def __init__(self):
+        """Bind the EGL entry points (libEGL.so.1, the library glcontext loads too)."""
+        egl = ctypes.CDLL('libEGL.so.1')
+        for name in ('eglGetCurrentDisplay', 'eglGetCurrentContext', 'eglGetCurrentSurface'):
+            getattr(egl, name).restype = ctypes.c_void_p
+        egl.eglGetCurrentSurface.argtypes = [ctypes.c_int]
+        egl.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+        self._egl = egl
+        self._saved = []
+
+    def save(self):
+        """Remember what is current now."""
+        egl = self._egl
+        self._saved.append((egl.eglGetCurrentDisplay(), egl.eglGetCurrentSurface(self._EGL_DRAW),
+                            egl.eglGetCurrentSurface(self._EGL_READ),
+                            egl.eglGetCurrentContext()))
+
+    def restore(self):
+        """Make current again what :meth:`save` found; release ours if it found nothing."""
+        display, draw, read, context = self._saved.pop()
+        if display:
+            self._egl.eglMakeCurrent(display, draw, read, context)
+        else:
+            ours = self._egl.eglGetCurrentDisplay()
+            if ours:
+                self._egl.eglMakeCurrent(ours, None, None, None)
 
 
 @dataclass(frozen=True)
@@ -209,14 +253,22 @@ class GLRenderer:
         self.parts = parts
         self.near, self.far = float(near), float(far)
         try:
+            self._current = _CurrentEGL()
+        except OSError as exc:
+            raise GLRendererError(f'no libEGL here: {exc}') from None
+        self._current.save()
+        try:
             self._ctx = moderngl.create_context(standalone=True, backend='egl', require=330)
         except Exception as exc:  # glcontext raises plain Exceptions
+            self._current.restore()
             raise GLRendererError(f'no standalone EGL OpenGL 3.3 context: {exc}') from None
         self._moderngl = moderngl
-        with self._ctx:
-            self._upload(shapes, parts)
         self._fbo = None
         self._fbo_size = (0, 0)
+        try:
+            self._upload(shapes, parts)
+        finally:
+            self._current.restore()
 
     def _upload(self, shapes, parts):
         """Compile the shaders and upload the triangles into one vertex buffer."""
@@ -248,6 +300,16 @@ class GLRenderer:
                              'in_colour', 'in_part')], index_buffer=self._ibo,
             index_element_size=4)
 
+    @contextlib.contextmanager
+    def _use(self):
+        """Make our context current in the block, and what was current before after it."""
+        self._current.save()
+        self._ctx.__enter__()
+        try:
+            yield
+        finally:
+            self._current.restore()
+
     def _framebuffer(self, width, height):
         """Return a framebuffer at least ``width`` x ``height``, grown as needed."""
         if width > self._fbo_size[0] or height > self._fbo_size[1]:
@@ -273,7 +335,7 @@ class GLRenderer:
             raise GLRendererError(f'part_poses must be ({self.parts}, 4, 4), got {poses.shape}')
         flip = np.diag([1.0, -1.0, 1.0, 1.0])  # window row j = image row j (module docstring)
         mvp = flip @ np.asarray(projection, dtype=float) @ np.asarray(view, dtype=float) @ poses
-        with self._ctx:  # current on this thread (another context may have been)
+        with self._use():
             # GLSL matrices are column-major: the transposes, row by row.
             self._program['mvp'].write(np.ascontiguousarray(mvp.transpose(0, 2, 1),
                                                             dtype='f4'))
@@ -293,12 +355,14 @@ class GLRenderer:
     def close(self):
         """Release the context (idempotent)."""
         if self._ctx is not None:
-            with self._ctx:
+            with self._use():
                 self._vao.release()
                 self._vbo.release()
                 self._ibo.release()
                 self._program.release()
                 if self._fbo is not None:
                     self._fbo.release()
+            self._current.save()
             self._ctx.release()
+            self._current.restore()
             self._ctx = None

@@ -100,7 +100,8 @@ MOUNT_HEIGHT_M = Param(
 RENDER_PARALLEL_LENSES = Param(
     'render_parallel_lenses', True, 'render the right lens in a second process while this one '
     'renders the left (ibvs_sim.lens_worker): the same images in about half the wall time on '
-    'two cores; false: both lenses in this process', '-')
+    "two cores; false: both lenses in this process; renderer 'opengl' always draws both "
+    'lenses in this process, in one context (faster)', '-')
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')

@@ -102,7 +102,7 @@ class World:
 
     ``lens_worker``: render the right lens in a second process (:mod:`ibvs_sim.lens_worker`)
     while this one renders the left, so that a stereo pair takes about one lens's time on
-    two cores; the images are the same. Both processes then draw with one llvmpipe thread
+    two cores; the images are the same. Not with 'opengl' (both lenses in one context). Both processes then draw with one llvmpipe thread
     each (``LP_NUM_THREADS=1`` unless the environment sets it): two renderers that each
     spread over every core fight for them (measured on two cores: 44.5 ms instead of 47-48
     ms a VGA pair).
@@ -122,6 +122,10 @@ class World:
         self._plugin = None
         self._gl = None
         self._lens_worker = None
+        # 'opengl' draws both lenses in one context: faster than two processes on two cores
+        # (measured: 64 against 64-78 ms a VGA pair, 121-135 against 184-186 ms at HD720,
+        # loaded machine), as llvmpipe's own threads already use both.
+        lens_worker = lens_worker and renderer != 'opengl'
         if lens_worker:  # before the EGL plugin loads here; the worker inherits it
             os.environ.setdefault(LLVMPIPE_THREADS, '1')
         try:
