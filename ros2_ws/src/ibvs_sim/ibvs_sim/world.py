@@ -102,10 +102,10 @@ class World:
 
     ``lens_worker``: render the right lens in a second process (:mod:`ibvs_sim.lens_worker`)
     while this one renders the left, so that a stereo pair takes about one lens's time on
-    two cores; the images are the same. Not with 'opengl' (both lenses in one context). Both processes then draw with one llvmpipe thread
+    two cores; the images are the same. Both processes then draw with one llvmpipe thread
     each (``LP_NUM_THREADS=1`` unless the environment sets it): two renderers that each
     spread over every core fight for them (measured on two cores: 44.5 ms instead of 47-48
-    ms a VGA pair).
+    ms a VGA pair). Not with 'opengl', which draws both lenses in one context.
     """
 
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',

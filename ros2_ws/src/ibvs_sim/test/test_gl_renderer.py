@@ -26,7 +26,7 @@ SAMPLES = 8
 
 @pytest.fixture(scope='module')
 def sphere_renderer():
-    """A GLRenderer of marker 1's sphere alone (part 0); skip where OpenGL is missing."""
+    """Return a GLRenderer of marker 1's sphere alone (part 0); skip without OpenGL."""
     positions, normals = obj_triangles(icosphere_obj(), [MARKER_RADIUS_M] * 3)
     rgb = tuple(c / 255.0 for c in MARKER_RGB[0])
     try:
