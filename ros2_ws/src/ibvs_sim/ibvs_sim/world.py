@@ -59,6 +59,13 @@ LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
          'lightDistance': 10.0, 'shadow': 0, 'lightAmbientCoeff': 0.75,
          'lightDiffuseCoeff': 0.35, 'lightSpecularCoeff': 0.0}
 RENDERERS = ('auto', 'egl', 'tiny', 'opengl')
+#: PyBullet's renderers draw a URDF cylinder as the convex hull of a 32-gon prism with a
+#: collision margin of 1 mm (bullet3 EGLRendererVisualShapeConverter: setMargin(0.001)),
+#: i.e. 1 mm thicker and longer at each end than the URDF says; renderer 'opengl' draws the
+#: same, so that the thin rods across the markers (the quill, 2.5 mm, and the shaft, 2 mm)
+#: cut the notches the detector was made for (measured at the target pose: without it the
+#: detected vertical separation of the markers is 0.02 px off, 0.16 deg of tool axis).
+PYBULLET_CYLINDER_MARGIN_M = 0.001
 #: Mesa's variable for the number of llvmpipe rendering threads (see World, lens_worker).
 LLVMPIPE_THREADS = 'LP_NUM_THREADS'
 #: The World that holds the process's EGL plugin, if any (one at a time: see World).
@@ -205,8 +212,9 @@ class World:
                 link, kind, dims, mesh, xyz, quat, rgba = data[1:8]
                 if kind == pybullet.GEOM_BOX:
                     tris = box_triangles(np.asarray(dims) / 2.0)
-                elif kind == pybullet.GEOM_CYLINDER:
-                    tris = cylinder_triangles(dims[1], dims[0])  # (length, radius)
+                elif kind == pybullet.GEOM_CYLINDER:  # dims: (length, radius)
+                    tris = cylinder_triangles(dims[1] + PYBULLET_CYLINDER_MARGIN_M,
+                                              dims[0] + 2.0 * PYBULLET_CYLINDER_MARGIN_M)
                 elif kind == pybullet.GEOM_MESH:
                     tris = obj_triangles(Path(mesh.decode()).read_text(), dims)
                 else:
