@@ -15,9 +15,12 @@ image. The camera is :mod:`ibvs_sim.rendering`'s: the projection of
 pixel (i, j) of the window at (i + 1/2, j + 1/2), samples image pixel (i, j) exactly at
 u = i, v = j, the pixel convention of :mod:`ibvs_model.camera` (eq. 16-22). OpenGL's window
 rows run bottom-up; the projection's y is negated so that window row j is image row v = j
-and the read-back needs no flip (the winding of the triangles then appears reversed, which
-matters to nothing here: no face is culled). Depth test on the depth buffer between the
-clipping planes of that projection.
+and the read-back needs no flip; the flip reverses the winding on screen, so the front
+faces (counter-clockwise seen from outside, :class:`Shape`) are the clockwise ones there,
+and the back faces are culled (every shape is closed but the one-sided ground, seen from
+above only: measured 28 instead of 34 ms a pass at HD720, loaded machine; 2 pixels of
+921600 change, where two solids of a link overlap and the depth test had a tie). Depth test
+on the depth buffer between the clipping planes of that projection.
 
 Lighting: that of PyBullet's EGL plugin (bullet3's useShadowMapInstancing shaders) without
 its shadows: a directional light along ``LIGHT_DIRECTION``, intensity
@@ -345,7 +348,8 @@ class GLRenderer:
             fbo.use()
             viewport = (0, 0, int(width), int(height))
             fbo.viewport = viewport
-            self._ctx.enable_only(self._moderngl.DEPTH_TEST)
+            self._ctx.front_face = 'cw'  # counter-clockwise in {O}, y flipped (docstring)
+            self._ctx.enable_only(self._moderngl.DEPTH_TEST | self._moderngl.CULL_FACE)
             fbo.clear(*BACKGROUND_RGB, 1.0, depth=1.0, viewport=viewport)
             self._vao.render(self._moderngl.TRIANGLES)
             image = np.empty((int(height), int(width), 3), dtype=np.uint8)
