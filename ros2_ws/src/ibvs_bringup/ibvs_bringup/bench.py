@@ -57,7 +57,8 @@ FEATURE_ERROR_PX_TARGET = 0.05
 SHORT_RUN_S = 0.3
 SHORT_RUN_WALL_S_TARGET = 9.5 / 2.0
 #: Floors of the graph's parts (ms a pass): the lockstep round trip of this layout in one
-#: process (issue 24: 0.06-0.09 ms); rendering: the same pair rendered alone (ibvs_sim.bench).
+#: process (issue 24: 0.06-0.09 ms); rendering: the same pair rendered alone (ibvs_sim.bench,
+#: pinned to one core, so on two idle cores the graph's render can come in under it).
 ROUND_TRIP_FLOOR_MS = 0.09
 
 

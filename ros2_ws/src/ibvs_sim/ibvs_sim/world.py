@@ -15,8 +15,9 @@ Rendering: the pure geometry (OpenGL matrices of the pinhole lenses, tiles of th
 supersampling, the windows around the fiducials) is :mod:`ibvs_sim.rendering`; this module
 makes the PyBullet calls. The EGL plugin (OpenGL without a display) is used where it loads,
 TinyRenderer otherwise; with renderer 'opengl', our own renderer (:mod:`.gl_renderer`)
-draws PyBullet's visual shapes at PyBullet's link poses, without shadows. Lighting is mostly ambient, without specular highlights, so that a
-marker keeps its hue all over its disc. TinyRenderer draws no shadows (``shadow`` 0); the EGL
+draws PyBullet's visual shapes at PyBullet's link poses, without shadows. Lighting is
+mostly ambient, without specular highlights, so that a marker keeps its hue all over its
+disc. TinyRenderer draws no shadows (``shadow`` 0); the EGL
 plugin ignores that flag and always shades with its shadow map, so there the robot casts a
 shadow on the ground (a one-sided square: :func:`ibvs_sim.rendering.ground_obj`).
 """
