@@ -23,7 +23,8 @@ above only: measured 28 instead of 34 ms a pass at HD720, loaded machine; 2 pixe
 on the depth buffer between the clipping planes of that projection.
 
 Lighting: that of PyBullet's EGL plugin (bullet3's useShadowMapInstancing shaders) without
-its shadows: a directional light along ``LIGHT_DIRECTION``, intensity
+its shadows: a directional light towards ``light_direction`` (the simulator's, as it gives
+PyBullet: :data:`ibvs_sim.world.LIGHT`), intensity
 i = 1/2 + 1/2 clamp(n . l, -1, 1), times 0.7 on faces turned away from the light, and the
 colour rgb (1/2 + i/2); no specular highlight. The robot casts no shadow on the ground.
 
@@ -38,8 +39,6 @@ import math
 
 import numpy as np
 
-#: Direction towards the light in {O}: PyBullet's (the simulator's LIGHT['lightDirection']).
-LIGHT_DIRECTION = (0.3, -1.0, 2.0)
 #: Background colour: PyBullet's EGL plugin's (measured: 178, 178, 204 of 255).
 BACKGROUND_RGB = (0.7, 0.7, 0.8)
 #: Facets of a cylinder's side: a chord deviates 0.1 % of the radius from the circle.
@@ -240,11 +239,12 @@ class GLRenderer:
     Draw fixed :class:`Shape` s moved by their parts' poses on a standalone EGL context.
 
     ``shapes``: the scene; parts are numbered 0 .. P - 1 (P <= MAX_PARTS). ``near``, ``far``:
-    the clipping planes of :func:`ibvs_sim.rendering.projection_matrix`. Raises
+    the clipping planes of :func:`ibvs_sim.rendering.projection_matrix`;
+    ``light_direction``: towards the light, in {O}. Raises
     :class:`GLRendererError` when no OpenGL 3.3 context can be created.
     """
 
-    def __init__(self, shapes, near, far):
+    def __init__(self, shapes, near, far, light_direction):
         """Create the context, compile the shaders, upload the triangles (module docstring)."""
         try:
             import moderngl  # here: a World without this renderer never loads OpenGL
@@ -255,6 +255,11 @@ class GLRenderer:
             raise GLRendererError(f'{parts} parts, at most {MAX_PARTS}')
         self.parts = parts
         self.near, self.far = float(near), float(far)
+        light = np.asarray(light_direction, dtype=float)
+        if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.any(light):
+            raise GLRendererError(f'light_direction must be 3 finite values, not all 0: '
+                                  f'{light_direction!r}')
+        self._light = tuple(light / np.linalg.norm(light))
         try:
             self._current = _CurrentEGL()
         except OSError as exc:
@@ -279,8 +284,7 @@ class GLRenderer:
         self.gl_renderer = self._ctx.info.get('GL_RENDERER', '?')
         self._program = self._ctx.program(vertex_shader=_VERTEX_SHADER % {'parts': parts},
                                           fragment_shader=_FRAGMENT_SHADER)
-        light = np.asarray(LIGHT_DIRECTION, dtype=float)
-        self._program['light'].value = tuple(light / np.linalg.norm(light))
+        self._program['light'].value = self._light
         rows = np.concatenate([
             np.column_stack([shape.positions, shape.normals,
                              np.tile(np.asarray(shape.rgb, float), (len(shape.positions), 1)),

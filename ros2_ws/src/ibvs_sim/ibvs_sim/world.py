@@ -229,7 +229,7 @@ class World:
                     static[part] = self._base_frame(body)
         robot_links = sorted(link for body, link in parts if body == self.body and link >= 0)
         try:
-            self._gl = GLRenderer(shapes, NEAR_M, FAR_M)
+            self._gl = GLRenderer(shapes, NEAR_M, FAR_M, LIGHT['lightDirection'])
         except GLRendererError as exc:
             raise RendererError(f'renderer opengl: {exc}') from None
         self._gl_links = robot_links

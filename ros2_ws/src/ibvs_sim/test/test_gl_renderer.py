@@ -17,7 +17,7 @@ from ibvs_sim.gl_renderer import (box_triangles, cylinder_triangles, GLRenderer,
                                   GLRendererError, obj_triangles, Shape)
 from ibvs_sim.rendering import (FAR_M, focus_windows, lens_poses, NEAR_M, projection_matrix,
                                 supersampled, view_matrix, window_intrinsics)
-from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, World
+from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, LIGHT, World
 import numpy as np
 import pytest
 
@@ -30,7 +30,8 @@ def sphere_renderer():
     positions, normals = obj_triangles(icosphere_obj(), [MARKER_RADIUS_M] * 3)
     rgb = tuple(c / 255.0 for c in MARKER_RGB[0])
     try:
-        renderer = GLRenderer([Shape(0, positions, normals, rgb)], NEAR_M, FAR_M)
+        renderer = GLRenderer([Shape(0, positions, normals, rgb)], NEAR_M, FAR_M,
+                              LIGHT['lightDirection'])
     except GLRendererError as exc:
         pytest.skip(f'no OpenGL context here: {exc}')
     yield renderer
