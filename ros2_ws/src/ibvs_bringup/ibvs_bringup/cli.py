@@ -24,7 +24,6 @@ from pathlib import Path
 import sys
 import time
 
-from ibvs_control.servo_laws import feedforward_overrides
 
 from . import domains, runner, scenario, study_spec
 
@@ -43,7 +42,12 @@ def _print_summary(metrics, out=sys.stdout):
 def with_servo_law(overrides):
     """Return ``overrides`` with the feedforward parameters of its servo_law added."""
     law = overrides.get('servo_law')
-    for key, value in (feedforward_overrides(law) if law is not None else {}).items():
+    if law is None:
+        return overrides
+    # Here, not at the top: ibvs_control pulls in scipy.signal, seconds of start-up that a
+    # run without servo_law does not need (issue 24).
+    from ibvs_control.servo_laws import feedforward_overrides
+    for key, value in feedforward_overrides(law).items():
         overrides.setdefault(key, value)
     return overrides
 

@@ -44,7 +44,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
-from . import analysis, domains, plots, scenario
+from . import analysis, domains, scenario
 from .recorder import Recorder
 
 #: The nodes of docs/design.md §1, each with its own executable (package, executable).
@@ -562,5 +562,6 @@ def write_results(bag_path, out_dir, wall_duration_s=None):
         metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
     metrics['bag'] = str(bag_path)
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
     plots.write_all(run, out_dir, target_features(run))
     return metrics

@@ -109,8 +109,9 @@ CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT
                        'point of {O} on the optical axis (image up = +z of {O})', 'm',
                        low=-20.0, high=20.0, length=3)
 RENDERER = Param('renderer', 'auto', "PyBullet renderer: 'egl' (OpenGL without display), "
-                 "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads)", '-',
-                 choices=RENDERERS)
+                 "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads); or 'opengl': "
+                 'our own OpenGL renderer of the same shapes (ibvs_sim.gl_renderer), several '
+                 'times faster, no shadows', '-', choices=RENDERERS)
 RENDER_SUPERSAMPLING = Param(
     'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
     'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
@@ -127,7 +128,8 @@ MOUNT_HEIGHT_M = Param(
 RENDER_PARALLEL_LENSES = Param(
     'render_parallel_lenses', True, 'render the right lens in a second process while this one '
     'renders the left (ibvs_sim.lens_worker): the same images in about half the wall time on '
-    'two cores; false: both lenses in this process', '-')
+    "two cores; false: both lenses in this process; renderer 'opengl' always draws both "
+    'lenses in this process, in one context (faster)', '-')
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
