@@ -44,7 +44,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
-from . import analysis, domains, plots, scenario
+from . import analysis, domains, graph_params, plots, scenario
 from .recorder import Recorder
 
 #: The nodes of docs/design.md §1, each with its own executable (package, executable).
@@ -342,7 +342,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
     0.1 mm and 0.01 deg of the target for that long (sim time). Raises
-    :class:`scenario.ScenarioError` for a configuration that cannot make progress (before
+    :class:`scenario.ScenarioError` for a parameter no node declares or out of its range
+    (:func:`graph_params.check`) or a configuration that cannot make progress (before
     starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
     (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
@@ -350,9 +351,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
+    graph_params.check(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
-    duration_s = float(duration_s or params.get('run_duration_s', 3.0))
+    duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     log_dir = out_dir / 'logs'
@@ -367,8 +369,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
     with domains.held() as (domain, chosen):
-        if chosen and domain != 0:
-            progress(f'  ROS_DOMAIN_ID {domain}: lower domains are used by other runs')
+        busy = chosen and domain != domains.FREE_POOL[0]
+        progress(f'  ROS_DOMAIN_ID {domain}'
+                 + (': the first free one, lower domains are used by other runs' if busy
+                    else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
         dds.configure()  # before rclpy.init here, and inherited by the node processes
         context = rclpy.context.Context()
         rclpy.init(context=context)
@@ -427,9 +431,13 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                 if now - last_print >= 2.0:
                     last_print = now
                     rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
+                    # Before the first tool pose there is no error to print yet.
+                    error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)
+                             else '        - mm')
+                    axis = (f'{monitor.axis_deg:7.3f} deg' if np.isfinite(monitor.axis_deg)
+                            else '      - deg')
                     progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
-                             f'  position error {monitor.error_m * 1e3:9.3f} mm'
-                             f'  axis error {monitor.axis_deg:7.3f} deg  RTF {rtf:5.3f}')
+                             f'  position error {error}  axis error {axis}  RTF {rtf:5.3f}')
                 if converge_hold_s is not None and \
                         monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
                     converged = True

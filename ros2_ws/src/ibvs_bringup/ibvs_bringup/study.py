@@ -45,13 +45,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import scenario, study_spec  # noqa: E402
-from .domains import HELD_ENV, lock_domain  # noqa: E402
+from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
 from .runner import _die_with_parent, STALL_S  # noqa: E402
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
 CPUS_PER_RUN = 1
-#: Default pool of ROS_DOMAIN_IDs for the runs (inclusive).
-DOMAIN_IDS = (101, 199)
+#: Default pool of ROS_DOMAIN_IDs for the runs (inclusive): ``IBVS_ROS_DOMAINS``, else the
+#: safe range 0-101 (:mod:`ibvs_bringup.domains`); the runs' locks keep them apart.
+DOMAIN_IDS = pool()
 #: The packages whose sources make up the code version of a run.
 PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_control',
             'ibvs_bringup')
@@ -91,16 +92,11 @@ def code_version():
 
 
 def parse_domains(text):
-    """Parse ``'LOW-HIGH'`` into the inclusive range of ROS_DOMAIN_IDs."""
+    """Parse ``'LOW-HIGH'`` into the inclusive range of ROS_DOMAIN_IDs (within 0-101)."""
     try:
-        low, high = (int(x) for x in str(text).split('-'))
-    except ValueError:
-        raise study_spec.StudyError(f'domain range {text!r}: expected LOW-HIGH, '
-                                    'e.g. 101-199') from None
-    if not 0 <= low <= high <= 232:
-        raise study_spec.StudyError(f'domain range {text!r}: expected 0 <= LOW <= HIGH '
-                                    '<= 232')
-    return low, high
+        return parse_pool(text)
+    except ValueError as exc:
+        raise study_spec.StudyError(str(exc)) from None
 
 
 def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s):

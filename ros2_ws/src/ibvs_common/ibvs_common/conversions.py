@@ -27,8 +27,10 @@ POSITION_MARGIN_RAD = 0.1
 #: overshoots its travel (scenarios 1-3: up to 44 rad on joint 1 in the first steps), so the
 #: travel is no bound; a thousand radians is no reference.
 REFERENCE_BOUND_RAD = 1000.0
-#: How many times its rated speed (IRB4600.qd_max) a joint velocity may be and still be read.
-SPEED_FACTOR = 10.0
+#: Largest |velocity| (rad/s) of a joint that is read: ten times PyBullet's own cap on a
+#: joint's speed (100 rad/s). Not the rated speed: the paper's ideal actuators drive the
+#: joints to that cap while the feedforward starts (scenario 1).
+SPEED_BOUND_RAD_S = 1000.0
 
 
 class InputError(ValueError):
@@ -160,9 +162,9 @@ def position_bounds(params=IRB4600):
             np.asarray(params.q_max, dtype=float) + POSITION_MARGIN_RAD)
 
 
-def velocity_bounds(params=IRB4600):
-    """Return (low, high) of a joint velocity that can be meant: SPEED_FACTOR x rated."""
-    qd = SPEED_FACTOR * np.asarray(params.qd_max, dtype=float)
+def velocity_bounds():
+    """Return (low, high) of a joint velocity that can be meant: +-SPEED_BOUND_RAD_S."""
+    qd = np.full(len(contract.JOINT_NAMES), SPEED_BOUND_RAD_S)
     return -qd, qd
 
 

@@ -27,7 +27,7 @@ Bad input (rejected, logged, counted on /diagnostics, never raised): malformed m
 (wrong length, NaN, missing or unknown joint names: values are mapped by name; a trajectory
 not sampled at the physics period or with a non-finite value in any field (its positions are
 not bounded by the travel: a feedforward leads the arm and overshoots it); encoder positions
-beyond a joint's travel or velocities beyond ten times its rated speed:
+beyond a joint's travel or velocities beyond SPEED_BOUND_RAD_S (1000 rad/s):
 :func:`ibvs_common.conversions.position_bounds`), a /joint_states not newer than the last
 one, a q_feedback older than what is still needed. Every stamp goes through the one stamp
 rule (:func:`ibvs_common.conversions.read_stamp`): malformed, or more than
