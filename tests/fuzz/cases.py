@@ -10,7 +10,7 @@ non-unit quaternion, a camera looking away.
 """
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point32, PolygonStamped, PoseStamped
+from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
 from ibvs_common.conversions import image_msg, joint_state, joint_trajectory, ns_stamp
 import numpy as np
@@ -53,19 +53,18 @@ def joint_states(topic, next_ns, position, fields=('position',), scale=1.0):
             cases.append((f'{label} {field}', lambda f=field, b=bad: [msg(next_ns(), **{f: b})]))
         cases.append((f'wrong {field} length',
                       lambda f=field, g=good: [msg(next_ns(), **{f: np.r_[g, 0.0]})]))
+        absurd = np.full(6, 1e6 * scale)
         cases.append((f'absurd finite {field} ({scale:g} x 1e6)',
-                      lambda f=field, g=good: [msg(next_ns(), **{f: np.asarray(g) * 0 + 1e6
-                                                                  * scale})]))
+                      lambda f=field, a=absurd: [msg(next_ns(), **{f: a})]))
+    nan = {fields[0]: np.full(6, np.nan)}
     cases += [
         ('no names', lambda: [msg(next_ns(), names=[])]),
         ('repeated names', lambda: [msg(next_ns(), names=[NAMES[0]] * 6)]),
         ('unknown name', lambda: [msg(next_ns(), names=NAMES[:5] + ['joint_7'])]),
         ('missing name', lambda: [joint_state(next_ns(), position[:5], np.zeros(5),
                                               np.zeros(5), NAMES[:5])]),
-        (f'burst of {BURST} NaN', lambda: [msg(next_ns(), **{fields[0]: np.full(6, np.nan)})
-                                          for _ in range(BURST)]),
-        ('NaN with a far-future stamp',
-         lambda: [_stamped(msg(0, **{fields[0]: np.full(6, np.nan)}), stamp(FAR_SEC))]),
+        (f'burst of {BURST} NaN', lambda: [msg(next_ns(), **nan) for _ in range(BURST)]),
+        ('NaN with a far-future stamp', lambda: [_stamped(msg(0, **nan), stamp(FAR_SEC))]),
     ]
     for label in ('negative stamp', 'nanosec >= 1e9', 'far-future stamp',
                   'future stamp, 1000 s ahead'):

@@ -1,6 +1,8 @@
 """
-The fuzz harness: one node in a private Context, a driver that publishes on every topic it
-subscribes, and the three checks of each case (survival, counting, recovery).
+The fuzz harness: one node in a private Context, a driver, the three checks of a case.
+
+The driver publishes on every topic the node subscribes; the checks are survival, counting
+and recovery.
 
 A node's subscriptions are found from the node itself (``node.subscriptions``), and each
 one's callback is wrapped to count the messages handled, so that a case waits for the

@@ -216,7 +216,8 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
     positions for the six joints (in any order, mapped by name). Velocities, accelerations
     and efforts are not read: they may be empty, but a non-finite value there rejects the
     trajectory (as :func:`check_finite` does for a JointState), and so does a position beyond
-    :data:`REFERENCE_BOUND_RAD`. The stamp is returned as it is: the caller applies :func:`read_stamp` with its own time. Raises :class:`InputError`.
+    :data:`REFERENCE_BOUND_RAD`. The stamp is returned as it is: the caller applies
+    :func:`read_stamp` with its own time. Raises :class:`InputError`.
     """
     if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
         raise InputError('wrong joint names', f'{list(msg.joint_names)}')

@@ -41,8 +41,8 @@ def is_frame_stamp(t_ns, camera_period_ns, step_ns):
 
     Frame n is stamped in [n T, n T + dt) and T >= dt, so the only candidate is n = t // T.
     """
-    return t_ns >= 0 and frame_stamp_ns(t_ns // camera_period_ns, camera_period_ns,
-                                         step_ns) == t_ns
+    n = t_ns // camera_period_ns
+    return t_ns >= 0 and frame_stamp_ns(n, camera_period_ns, step_ns) == t_ns
 
 
 def feedback_frame_ns(t_ns, camera_period_ns, latency_ns, step_ns):
