@@ -10,7 +10,9 @@ the simulator's (:data:`PROCESSES`, :mod:`ibvs_bringup.compose`). The runner rec
 run, prints progress, stops when the sim time limit is reached or the tool has converged,
 and stops every process cleanly (SIGINT, then SIGTERM, then SIGKILL). If a node dies, the
 run stops and :class:`NodeDied` names it and its exit code; no process is left behind in
-any case (children also get SIGKILL if the runner dies).
+any case (children also get SIGKILL if the runner dies). The Fast DDS shared memory that a
+killed process leaves in /dev/shm is removed, and the runner says so (:mod:`.shm`): at the
+end of a run what its dead processes left, at the start what earlier dead processes left.
 
 No silent hang: a configuration that cannot advance sim time is refused before any node
 starts (:func:`scenario.check_progress`), and a run whose sim time stops advancing for
@@ -44,7 +46,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
-from . import analysis, domains, graph_params, plots, scenario
+from . import analysis, domains, graph_params, plots, scenario, shm
 from .recorder import Recorder
 
 #: The nodes of docs/design.md §1, each with its own executable (package, executable).
@@ -366,6 +368,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     if bag_path.exists():
         shutil.rmtree(bag_path)
     target = target_from_parameters(params)
+    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    shm_before = shm.names()
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
     with domains.held() as (domain, chosen):
@@ -471,12 +475,21 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             recorder.destroy_node()
             watcher.destroy_node()
             rclpy.shutdown(context=context)
+            _clean_shm(progress, 'node processes of this run that died', shm_before)
     if died:
         raise died
     if stalled:
         raise stalled
     metrics = write_results(bag_path, out_dir, wall_duration)
     return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
+
+
+def _clean_shm(progress, whose, new_since=None):
+    """Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so."""
+    count, freed = shm.clean(new_since=new_since)
+    if count:
+        progress(f'  removed {count} Fast DDS shared-memory files ({freed / 1e6:.0f} MB) in '
+                 f'{shm.SHM_DIR} that {whose} left')
 
 
 #: The nodes that read each topic of step 0 (docs/design.md §1); the runner's recorder and
