@@ -117,6 +117,10 @@ POLL_S = 0.02
 #: What the stall report says of a node that reported no wait: busy, frozen, or a node that
 #: does not report its waits.
 SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
+#: Wall time (s) without a /diagnostics from a node after which its heartbeat counts as
+#: stopped: every node publishes its status once a second on a steady clock, also while it
+#: waits (ibvs_common.diagnostics), so only a frozen or hung node falls silent that long.
+HEARTBEAT_S = 3.0
 #: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
 _WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[([^\]]+)\]: (waiting .*)$')
 
@@ -139,15 +143,23 @@ class NodeDied(RuntimeError):
 
 
 class RunStalled(RuntimeError):
-    """Sim time stopped advancing; ``waits`` maps each node to what it said it waits for."""
+    """
+    Sim time stopped advancing; ``waits`` maps each node to what it said it waits for.
 
-    def __init__(self, what, sim_s, waits):
+    ``silent`` names the nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`):
+    a frozen or hung node, the likely cause, named first.
+    """
+
+    def __init__(self, what, sim_s, waits, silent=()):
         """Keep the sim time reached and each node's wait; the message lists them."""
         lines = [f'  {node}: {text}' for node, text in waits.items()]
-        super().__init__(f'{what} at sim time {sim_s:.3f} s; what each node waits for:\n'
-                         + '\n'.join(lines))
+        head = (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
+                f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
+        super().__init__(f'{what} at sim time {sim_s:.3f} s{head}; what each node waits '
+                         'for:\n' + '\n'.join(lines))
         self.sim_s = sim_s
         self.waits = waits
+        self.silent = tuple(silent)
 
 
 def last_waiting_line(log_path, since_epoch_s, node=None):
@@ -270,8 +282,11 @@ class Monitor:
     time), not at each step.
     """
 
-    def __init__(self, node, recorder, target):
+    def __init__(self, node, recorder, target, clock=time.monotonic):
         """Follow ``recorder``'s /clock and /ibvs/tool_path; /diagnostics on ``node``."""
+        self._clock = clock
+        #: Wall time (``clock``) of the latest /diagnostics of each node, by node name.
+        self.heard = {}
         self.target = target
         self._recorder = recorder
         self._pose_raw = None
@@ -307,10 +322,30 @@ class Monitor:
         for status in msg.status:
             node = status.name.split(':', 1)[0]
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
+            self.heard[node] = self._clock()
+
+    def silent(self, nodes):
+        """Return those of ``nodes`` whose heartbeat stopped (none for :data:`HEARTBEAT_S`)."""
+        now = self._clock()
+        return [n for n in nodes if n in self.heard and now - self.heard[n] > HEARTBEAT_S]
+
+    def stalled_sim_s(self):
+        """Return the sim time of the stall: the simulator's own status if newer than /clock."""
+        sim = self.diagnostics.get('sim_node', {}).get('sim_time_s')
+        try:
+            return max(self.sim_ns * 1e-9, float(sim))
+        except (TypeError, ValueError):
+            return self.sim_ns * 1e-9
 
     def waits(self, procs, since_epoch_s):
-        """Return, per node, what it last said it waits for (log line, /diagnostics)."""
+        """
+        Return, per node, what it last said it waits for (log line, /diagnostics).
+
+        Each /diagnostics value is quoted with the age of the status it comes from; a node
+        whose heartbeat stopped is said to be so first.
+        """
         out = {}
+        now = self._clock()
         for p in procs:
             for node in p.nodes:
                 said = []
@@ -318,10 +353,16 @@ class Monitor:
                                          node if len(p.nodes) > 1 else None)
                 if line:
                     said.append(line)
-                said += [f'/diagnostics {k} = {v}'
+                age = (f' (status {now - self.heard[node]:.1f} s old)'
+                       if node in self.heard else '')
+                said += [f'/diagnostics {k} = {v}{age}'
                          for k, v in self.diagnostics.get(node, {}).items()
                          if k.startswith('waiting') and v not in ('', '-1')]
                 out[node] = '; '.join(said) or SILENT
+                if node in self.silent([node]):
+                    out[node] = (f'HEARTBEAT STOPPED: last /diagnostics '
+                                 f'{now - self.heard[node]:.1f} s ago (frozen or hung); '
+                                 + out[node])
         return out
 
     def update_convergence(self, pos_tol_m, axis_tol_deg):
@@ -461,7 +502,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                     what = (f'no sim-time progress for {limit:.0f} s of wall time'
                             if monitor.started_wall is not None
                             else f'the simulator took no step within {limit:.0f} s of its launch')
-                    stalled = RunStalled(what, sim_s, monitor.waits(procs, window_start))
+                    nodes = [n for p in procs for n in p.nodes]
+                    stalled = RunStalled(what, monitor.stalled_sim_s(),
+                                         monitor.waits(procs, window_start),
+                                         monitor.silent(nodes))
                     break
             # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
             wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
