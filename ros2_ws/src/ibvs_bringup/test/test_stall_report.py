@@ -7,6 +7,7 @@ from ibvs_bringup.runner import HEARTBEAT_S, Monitor, RunStalled
 
 
 class _Node:
+
     def create_subscription(self, *args):
         return None
 
