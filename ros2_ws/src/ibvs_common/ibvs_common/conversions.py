@@ -19,18 +19,18 @@ from . import contract
 from .sim_time import clock_problem
 from .timing import is_frame_stamp
 
-#: How far (rad) an encoder or reference position may lie outside its joint's travel
-#: (ibvs_model.IRB4600 q_min, q_max) and still be read: a reading a little past a limit is
-#: possible (the simulated joints are not stopped there), one beyond it by more is a fault.
+#: How far (rad) a start posture may lie outside its joint's travel (ibvs_model.IRB4600
+#: q_min, q_max) and still be read (:func:`travel_bounds`).
 POSITION_MARGIN_RAD = 0.1
-#: Largest |position| (rad) of a joint trajectory point: a feedforward leads the arm and
-#: overshoots its travel (scenarios 1-3: up to 44 rad on joint 1 in the first steps), so the
-#: travel is no bound; a thousand radians is no reference.
-REFERENCE_BOUND_RAD = 1000.0
-#: Largest |velocity| (rad/s) of a joint that is read: ten times PyBullet's own cap on a
-#: joint's speed (100 rad/s). Not the rated speed: the paper's ideal actuators drive the
-#: joints to that cap while the feedforward starts (scenario 1).
-SPEED_BOUND_RAD_S = 1000.0
+#: Largest |position| (rad) of a joint state or trajectory point that is read
+#: (:func:`position_bounds`). Not the travel: the paper's feedforward leads the arm and
+#: overshoots it (scenarios 1-3: up to 44 rad on joint 1 in the first steps), and the ideal
+#: actuators follow where no hard stop is modelled; a thousand radians is no reading.
+POSITION_BOUND_RAD = 1000.0
+#: Largest |velocity| (rad/s) of a joint that is read: about ten times the 1.2e3 rad/s the
+#: paper's feedforward asks of the ideal actuators (a stand-in plant without PyBullet's
+#: 100 rad/s cap follows it), far below what breaks the dynamics.
+SPEED_BOUND_RAD_S = 1e4
 
 
 class InputError(ValueError):
@@ -156,10 +156,16 @@ def read_joints(msg, field='position', names=contract.JOINT_NAMES, bound=None):
     return values
 
 
-def position_bounds(params=IRB4600):
-    """Return (low, high) of a joint position that can be meant: the travel, with a margin."""
+def travel_bounds(params=IRB4600):
+    """Return (low, high) of a posture the arm can start from: the travel, with a margin."""
     return (np.asarray(params.q_min, dtype=float) - POSITION_MARGIN_RAD,
             np.asarray(params.q_max, dtype=float) + POSITION_MARGIN_RAD)
+
+
+def position_bounds():
+    """Return (low, high) of a joint position that is read: +-POSITION_BOUND_RAD."""
+    q = np.full(len(contract.JOINT_NAMES), POSITION_BOUND_RAD)
+    return -q, q
 
 
 def velocity_bounds():
@@ -216,7 +222,7 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
     positions for the six joints (in any order, mapped by name). Velocities, accelerations
     and efforts are not read: they may be empty, but a non-finite value there rejects the
     trajectory (as :func:`check_finite` does for a JointState), and so does a position beyond
-    :data:`REFERENCE_BOUND_RAD`. The stamp is returned as it is: the caller applies
+    :data:`POSITION_BOUND_RAD`. The stamp is returned as it is: the caller applies
     :func:`read_stamp` with its own time. Raises :class:`InputError`.
     """
     if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
@@ -235,9 +241,9 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
                          f'{positions.shape[1:]} values per point, expected {len(names)}')
     if not np.all(np.isfinite(positions)):
         raise InputError('non-finite positions')
-    if np.any(np.abs(positions) > REFERENCE_BOUND_RAD):
+    if np.any(np.abs(positions) > POSITION_BOUND_RAD):
         raise InputError('positions out of range',
-                         f'beyond +-{REFERENCE_BOUND_RAD:g} rad (REFERENCE_BOUND_RAD)')
+                         f'beyond +-{POSITION_BOUND_RAD:g} rad (POSITION_BOUND_RAD)')
     positions = positions[:, [list(msg.joint_names).index(n) for n in names]]
     for field in ('velocities', 'accelerations', 'effort'):
         if not all(np.all(np.isfinite(np.asarray(getattr(p, field), dtype=float)))

@@ -34,8 +34,8 @@ answered is rejected, not answered. Every stamp goes through the one stamp rule
 (:func:`ibvs_common.conversions.read_stamp`): a malformed one, or one more than
 ``stale_timeout_s`` and a camera period ahead of the newest time the node knows (its clock,
 its newest joint state; 0 before either) is rejected and never stored, so that it cannot
-make every later input look stale; joint states beyond a joint's travel or faster than
-``SPEED_BOUND_RAD_S`` (:mod:`ibvs_common.conversions`) are rejected too. Each CameraInfo
+make every later input look stale; joint states beyond ``POSITION_BOUND_RAD`` or faster
+than ``SPEED_BOUND_RAD_S`` (:mod:`ibvs_common.conversions`) are rejected too. Each CameraInfo
 is checked on its own (:func:`ibvs_common.conversions.check_camera_info`) and a camera pose
 looking away from the robot is refused, each counted under its topic. /diagnostics: singular
 values of C1, condition number, rank used, image error norm.

@@ -18,7 +18,7 @@ and this node leaves the lockstep: it unsubscribes from /joint_states once it ha
 published (docs/design.md §4).
 
 A /joint_states that is malformed (wrong length, NaN, missing or unknown joint names, a
-position beyond its joint's travel: :func:`ibvs_common.conversions.position_bounds`) or whose
+position beyond its joint's travel: :func:`ibvs_common.conversions.travel_bounds`) or whose
 stamp breaks the one stamp rule (:func:`ibvs_common.conversions.read_stamp`: malformed, or
 more than ``stale_timeout_s`` and one physics step ahead of the node's /clock, 0 before the
 first /clock) is rejected (counted on /diagnostics) and the node keeps listening for the
@@ -27,8 +27,8 @@ publisher would hold the arm at its start until then.
 """
 
 from ibvs_common import contract
-from ibvs_common.conversions import (InputError, joint_trajectory, position_bounds,
-                                     read_joints, read_stamp, stamp_lead_ns)
+from ibvs_common.conversions import (InputError, joint_trajectory, read_joints, read_stamp,
+                                     stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
@@ -79,7 +79,7 @@ class FeedforwardNode(Node):
             return  # a message already queued when the subscription was destroyed
         try:
             t_ns = read_stamp(msg.header.stamp, node_time_ns(self), self.lead_ns)
-            q = read_joints(msg, bound=position_bounds())
+            q = read_joints(msg, bound=travel_bounds())
         except InputError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
             return

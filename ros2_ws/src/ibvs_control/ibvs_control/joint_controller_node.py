@@ -26,9 +26,9 @@ reads the messages, keeps the feedforward and answers.
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
 (wrong length, NaN, missing or unknown joint names: values are mapped by name; a trajectory
 not sampled at the physics period or with a non-finite value in any field (its positions are
-not bounded by the travel: a feedforward leads the arm and overshoots it); encoder positions
-beyond a joint's travel or velocities beyond SPEED_BOUND_RAD_S (1000 rad/s):
-:func:`ibvs_common.conversions.position_bounds`), a /joint_states not newer than the last
+not bounded by the travel: a feedforward leads the arm and overshoots it); positions beyond
+1000 rad or velocities beyond 1e4 rad/s (:mod:`ibvs_common.conversions`:
+``POSITION_BOUND_RAD``, ``SPEED_BOUND_RAD_S``), a /joint_states not newer than the last
 one, a q_feedback older than what is still needed. Every stamp goes through the one stamp
 rule (:func:`ibvs_common.conversions.read_stamp`): malformed, or more than
 ``stale_timeout_s`` and one input period ahead of the newest time the node knows (its last

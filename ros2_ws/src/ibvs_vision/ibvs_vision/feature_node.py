@@ -32,7 +32,7 @@ goes through the one stamp rule (:func:`ibvs_common.conversions.read_stamp`) bef
 pairer sees it: a malformed one, or one more than ``stale_timeout_s`` and a camera period
 ahead of the newest time the node knows (its clock, its newest input; 0 before either), is
 rejected and never stored, so that one bad message cannot make every later frame stale.
-Joint states beyond a joint's travel, a CameraInfo of an impossible size and a camera pose
+Joint states beyond ``POSITION_BOUND_RAD``, a CameraInfo of an impossible size and a camera pose
 looking away from the robot are rejected too; each rejection is counted under its topic.
 
 Taught target. The stereo pair of the tool at the target pose
