@@ -112,9 +112,7 @@ def cmd_study(args):
     """Run a study spec's runs on Ray (local or --address), then its table and figures."""
     from . import study
     spec = study_spec.load(study.study_path(args.spec))
-    base = scenario.load_parameters(spec.scenario)
-    for run in spec.runs():
-        graph_params.check({**base, **run.overrides}, f'{spec.name} run {run.index}')
+    study.check_spec(spec)  # before the output directory and Ray
     out = Path(args.out or Path('results') / 'studies')
     start = time.monotonic()
     records = study.run_studies([spec], out, address=args.address, parallel=args.parallel,

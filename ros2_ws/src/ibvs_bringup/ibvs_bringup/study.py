@@ -44,7 +44,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import scenario, study_spec  # noqa: E402
+from . import graph_params, scenario, study_spec  # noqa: E402
 from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
 from .runner import _die_with_parent, STALL_S  # noqa: E402
 
@@ -230,6 +230,19 @@ def default_parallel():
     return max(1, (os.cpu_count() or 1) // CPUS_PER_RUN)
 
 
+def check_spec(spec):
+    """
+    Raise :class:`scenario.ScenarioError` unless every run of ``spec`` can start.
+
+    Each run's parameters (its scenario's, the spec's ``parameters``, its grid point and
+    draws) are checked as ``ibvs run`` checks them (:func:`graph_params.check`): the nodes'
+    declared names and ranges.
+    """
+    base = scenario.load_parameters(spec.scenario)
+    for run in spec.runs():
+        graph_params.check({**base, **run.overrides}, f'study {spec.name}, run {run.index}')
+
+
 def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
                 stall_s=STALL_S, retry_failed=False, out=sys.stdout):
     """
@@ -238,8 +251,12 @@ def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
     Each study writes into ``<out_dir>/<name>/``: ``runs/<key>/`` per run (``ibvs run``'s
     output, ``runner.log``, ``run.json``), ``table.csv``, ``table.md`` and its figures.
     Returns ``{name: [record, ...]}`` in run order. Runs recorded under the same key are not
-    run again (failed ones are with ``retry_failed``).
+    run again (failed ones are with ``retry_failed``). Every run's parameters are checked
+    first (:func:`check_spec`): a spec with a name no node declares or a value out of range
+    runs nothing.
     """
+    for spec in specs:
+        check_spec(spec)
     records, todo = plan(specs, out_dir, retry_failed)
     cached = sum(len(r) for r in records.values()) - len(todo)
     total = cached + len(todo)
