@@ -61,6 +61,7 @@ NODES = (
 REMAPS = {
     'feature_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
     'adaptive_feedback_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
+    'viz_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
 }
 
 
@@ -94,7 +95,11 @@ class ProcessSpec:
 #: process (0.1 instead of 0.4 ms a step on two cores), as gazebo_ros2_control runs the
 #: controllers inside the simulator.
 LOCKSTEP = ('joint_controller_node', 'sim_node')
+#: ibvs_viz's viz_node is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and
+#: the bag /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint
+#: states (REMAPS), so nothing in the lockstep waits for it.
 PROCESSES = (
+    ProcessSpec('ibvs_viz', 'viz_node'),
     ProcessSpec('ibvs_vision', 'feature_node'),
     ProcessSpec('ibvs_control', 'adaptive_feedback_node'),
     ProcessSpec('ibvs_control', 'feedforward_node'),
@@ -335,9 +340,12 @@ class Monitor:
 
 def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
                  wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
-                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S):
+                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False):
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
+
+    ``record_overlays`` records the feature node's overlay images (/ibvs/debug/*/image,
+    which it then draws for every frame; ``ibvs video`` makes a film of them).
 
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
@@ -374,6 +382,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         rclpy.init(context=context)
         executor = make_executor(context)
         recorder = Recorder(bag_path, include_images=record_images, context=context,
+                            include_overlays=record_overlays,
                             custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
         watcher = rclpy.create_node('ibvs_run_monitor', context=context,
                                     parameter_overrides=[])

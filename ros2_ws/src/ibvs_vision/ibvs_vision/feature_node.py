@@ -91,7 +91,7 @@ PARAMS = (
     shared_params.TARGET_ROTATION,
 )
 #: The overlay images (:mod:`.overlay`), one per lens.
-DEBUG_IMAGES = {'left': '/ibvs/debug/left/image', 'right': '/ibvs/debug/right/image'}
+DEBUG_IMAGES = {'left': contract.DEBUG_LEFT_IMAGE, 'right': contract.DEBUG_RIGHT_IMAGE}
 
 _SIDES = ('left', 'right')
 _LENS_FRAMES = {'left': contract.LEFT_CAMERA_FRAME, 'right': contract.RIGHT_CAMERA_FRAME}

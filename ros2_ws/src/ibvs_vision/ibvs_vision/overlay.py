@@ -17,8 +17,8 @@ desired ones in red), with what our feature node adds:
 Pure OpenCV on numpy arrays (no ROS): the feature node calls it only when someone listens
 to /ibvs/debug/{left,right}/image or ``publish_debug_images`` is set, and ``ibvs video``
 uses the images it recorded. Every colour is drawn exactly (no anti-aliasing), so a test can
-find a drawn cross by its colour: the :data:`FEATURE_RGB` pixels of a marker centre on its
-published feature within half a pixel.
+find a drawn cross by its colour (:func:`find_drawn_features`): the two markers' crosses
+are kept apart, and each centres on its published feature within the pixel's rounding.
 """
 
 import cv2
@@ -74,7 +74,7 @@ def draw(image, side, t_s, mode, reason='', features=None, estimate=None, target
     out = np.array(image, dtype=np.uint8, copy=True)
     height, width = out.shape[:2]
     scale = max(1.0, width / 640.0)
-    thickness = max(1, int(round(scale)))
+    thickness = 1 + 2 * int(scale // 2)  # odd: a line is centred on its pixel row
     arm = CROSS_PX * scale
     for blobs in candidates:
         for blob in blobs:
@@ -89,10 +89,15 @@ def draw(image, side, t_s, mode, reason='', features=None, estimate=None, target
         for u, v in side_points(estimate, side):
             _cross(out, u, v, arm * 0.8, ESTIMATE_RGB, thickness)
     if features is not None:
-        for k, (u, v) in enumerate(side_points(features, side), start=1):
-            _plus(out, u, v, arm, FEATURE_RGB[k - 1], thickness)
-            cv2.putText(out, str(k), (int(u + arm + 2), int(v - arm)),
+        points = side_points(features, side)
+        # Each cross within its own square: no cross hides part of the other.
+        apart = np.max(np.abs(points[0] - points[1]))
+        feature_arm = max(3.0, min(arm, 0.45 * apart))
+        for k, (u, v) in enumerate(points, start=1):
+            cv2.putText(out, str(k), (int(u + feature_arm + 3), int(v - feature_arm)),
                         cv2.FONT_HERSHEY_SIMPLEX, 0.5 * scale, TEXT_RGB, thickness)
+        for k, (u, v) in enumerate(points, start=1):
+            _plus(out, u, v, feature_arm, FEATURE_RGB[k - 1], thickness)
     font = 0.5 * scale
     line = int(20 * scale)
     cv2.putText(out, f'{side}  t = {t_s:.3f} s  {mode}', (8, line),
@@ -114,16 +119,28 @@ def find_drawn_features(image, side, features, window_px=None):
     """
     Return the (u, v) centres of the :data:`FEATURE_RGB` crosses near each marker, or NaN.
 
-    The centroid of the exactly-coloured pixels within ``window_px`` of where ``features``
-    put each marker in image ``side``: the check that an overlay draws what was published.
+    Within ``window_px`` of where ``features`` put each marker in image ``side``, the +
+    drawn in that marker's colour: its horizontal arm gives v (the rows that hold at least
+    half as many of its pixels as the fullest row), its vertical arm u (likewise by
+    column), so that the marker's number drawn beside it does not count. The check that an
+    overlay draws what was published.
     """
     image = np.asarray(image)
-    width = image.shape[1]
+    height, width = image.shape[:2]
     arm = CROSS_PX * max(1.0, width / 640.0)
-    window = window_px or 1.5 * arm
+    window = int(np.ceil(window_px or 1.5 * arm))
     out = []
     for colour, (u, v) in zip(FEATURE_RGB, side_points(features, side)):
-        vs, us = np.nonzero(np.all(image == np.array(colour, dtype=np.uint8), axis=2))
-        near = (np.abs(us - u) <= window) & (np.abs(vs - v) <= window)
-        out.append((us[near].mean(), vs[near].mean()) if near.any() else (np.nan, np.nan))
+        u0, v0 = max(0, int(u) - window), max(0, int(v) - window)
+        u1, v1 = min(width, int(u) + window + 1), min(height, int(v) + window + 1)
+        if u1 <= u0 or v1 <= v0:
+            out.append((np.nan, np.nan))
+            continue
+        mask = np.all(image[v0:v1, u0:u1] == np.array(colour, dtype=np.uint8), axis=2)
+        rows, cols = mask.sum(axis=1), mask.sum(axis=0)
+        if not rows.any():
+            out.append((np.nan, np.nan))
+            continue
+        out.append((u0 + np.flatnonzero(cols >= cols.max() / 2.0).mean(),
+                    v0 + np.flatnonzero(rows >= rows.max() / 2.0).mean()))
     return np.array(out)

@@ -50,11 +50,6 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from . import scene
 
-ROBOT_DESCRIPTION = '/robot_description'
-TF = '/tf'
-TF_STATIC = '/tf_static'
-MARKERS = '/ibvs/markers'
-
 PARAMS = (
     shared_params.DISTURBANCE_DEG,
     shared_params.L2_SCALE,
@@ -133,11 +128,11 @@ class VizNode(Node):
         self._diag = Diagnostics(self, 'robot description, tf and markers')
         self._diag.update(waiting_for='camera_info, /stereo/pose', tf_published=0,
                           markers_published=0)
-        self._description_pub = self.create_publisher(String, ROBOT_DESCRIPTION,
+        self._description_pub = self.create_publisher(String, contract.ROBOT_DESCRIPTION,
                                                       contract.LATCHED)
-        self._static_pub = self.create_publisher(TFMessage, TF_STATIC, contract.LATCHED)
-        self._tf_pub = self.create_publisher(TFMessage, TF, 100)
-        self._markers_pub = self.create_publisher(MarkerArray, MARKERS, 10)
+        self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
+        self._tf_pub = self.create_publisher(TFMessage, contract.TF, 100)
+        self._markers_pub = self.create_publisher(MarkerArray, contract.MARKERS, 10)
         for side, topic in (('left', contract.LEFT_INFO), ('right', contract.RIGHT_INFO)):
             self.create_subscription(CameraInfo, topic,
                                      lambda msg, side=side: self._on_info(side, msg),

@@ -9,6 +9,7 @@ A driver node publishes the simulator's and the feature node's topics; the viz n
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
+from ibvs_common.contract import MARKERS, ROBOT_DESCRIPTION, TF, TF_STATIC
 from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_matrix,
                                      pose_stamped)
 from ibvs_common.params import ParameterError
@@ -16,8 +17,7 @@ from ibvs_common.testing import default_camera, spin_until
 from ibvs_model import CameraRobotModel, forward_kinematics, IRB4600, paper
 from ibvs_model.robot import fiducial_points
 from ibvs_viz import scene
-from ibvs_viz.viz_node import MARKERS, NS_ESTIMATED, NS_MEASURED, NS_PATH, ROBOT_DESCRIPTION
-from ibvs_viz.viz_node import TF, TF_STATIC, VizNode
+from ibvs_viz.viz_node import NS_ESTIMATED, NS_MEASURED, NS_PATH, VizNode
 import numpy as np
 import pytest
 from rclpy.node import Node
