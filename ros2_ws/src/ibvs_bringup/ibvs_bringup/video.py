@@ -25,6 +25,10 @@ from scipy.spatial.transform import Rotation
 
 #: Height (px) of each panel of the video; the overlays are scaled to it.
 PANEL_HEIGHT = 360
+#: The zoomed inset of each overlay: this many image pixels around the markers' features,
+#: drawn INSET_PX wide in the panel's lower right corner (the markers are small at 2.4 m).
+ZOOM_HALF_PX = 45
+INSET_PX = 160
 FOURCC = 'mp4v'
 #: The chain drawn as the arm, from the base to the flange.
 ARM_FRAMES = (contract.BASE_FRAME,) + tuple(f'link_{i}' for i in range(1, 7)) + ('tool0',)
@@ -60,17 +64,25 @@ def read_frames(bag_path):
     """
     Yield (stamp ns, left rgb, right rgb, {frame: T^base_link}) of each overlaid frame.
 
+    Each overlay gets a zoomed inset of its markers (:func:`_with_inset`) when the frame's
+    /ibvs/features is in the bag.
+
     The poses compose /tf_static with the /tf message of the frame's stamp (the viz node
     publishes one per frame joint state, stamped as the frame). Two passes over the bag:
     the transforms first, then the images one pair at a time (a run's images do not fit in
     memory at HD720).
     """
     typestore = get_typestore(Stores.ROS2_JAZZY)
-    static, dynamic = {}, {}
+    static, dynamic, features = {}, {}, {}
     with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
-        conns = [c for c in reader.connections if c.topic in (contract.TF, contract.TF_STATIC)]
+        conns = [c for c in reader.connections
+                 if c.topic in (contract.TF, contract.TF_STATIC, contract.FEATURES)]
         for conn, _, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == contract.FEATURES:
+                features[stamp_ns(msg.header.stamp)] = np.array(
+                    [[p.x, p.y, p.z] for p in msg.polygon.points]).ravel()
+                continue
             local = {t.child_frame_id: (t.header.frame_id, _matrix(t.transform))
                      for t in msg.transforms}
             if conn.topic == contract.TF_STATIC:
@@ -93,7 +105,11 @@ def read_frames(bag_path):
             if pair[0] is not None and pair[1] is not None:
                 del pending[t_ns]
                 if t_ns in dynamic:
-                    yield t_ns, pair[0], pair[1], frame_poses({**static, **dynamic[t_ns]})
+                    left, right = pair
+                    if t_ns in features and features[t_ns].size == 6:
+                        left, right = (_with_inset(image, side, features[t_ns])
+                                       for image, side in ((left, 'left'), (right, 'right')))
+                    yield t_ns, left, right, frame_poses({**static, **dynamic[t_ns]})
 
 
 def count_frames(bag_path):
@@ -147,6 +163,28 @@ class ArmView:
         ax.set_title(f't = {t_s:.3f} s', fontsize=9)
         self.canvas.draw()
         return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
+
+
+def _with_inset(image, side, features):
+    """Return ``image`` with the region around the markers, magnified, in a corner."""
+    points = features.reshape(2, 3)[:, [0 if side == 'left' else 1, 2]]
+    u, v = points.mean(axis=0)
+    height, width = image.shape[:2]
+    scale = max(1.0, width / 640.0)
+    half = int(ZOOM_HALF_PX * scale)
+    size = int(INSET_PX * scale)
+    if not (np.isfinite(u) and np.isfinite(v)) or size >= min(height, width) // 2:
+        return image
+    u0 = int(np.clip(round(u) - half, 0, width - 2 * half))
+    v0 = int(np.clip(round(v) - half, 0, height - 2 * half))
+    zoom = cv2.resize(image[v0:v0 + 2 * half, u0:u0 + 2 * half], (size, size),
+                      interpolation=cv2.INTER_NEAREST)
+    out = image.copy()
+    top, left = height - size - int(30 * scale), width - size - 4
+    out[top:top + size, left:left + size] = zoom
+    cv2.rectangle(out, (left - 1, top - 1), (left + size, top + size), (255, 255, 255), 1)
+    cv2.rectangle(out, (u0, v0), (u0 + 2 * half, v0 + 2 * half), (255, 255, 255), 1)
+    return out
 
 
 def _scaled(image, height):

@@ -1,6 +1,9 @@
 """The viewer's frame tree and URDF give ibvs_model's kinematics (eq. 4-10) and camera."""
 
 import io
+import json
+from pathlib import Path
+import re
 
 from ibvs_common import contract
 from ibvs_common.testing import default_camera
@@ -72,3 +75,15 @@ def test_urdf_parses_and_its_kinematics_is_ibvs_models(params):
                                        point, atol=1e-6)
     np.testing.assert_allclose(urdf.get_transform(contract.CAMERA_FRAME, 'base_link'),
                                camera.pose_C_O, atol=1e-9)
+
+
+def test_foxglove_layout_shows_the_graphs_topics():
+    """Every topic the shipped layout names is one the graph publishes (contract names)."""
+    layout = json.loads((Path(__file__).resolve().parents[1] / 'config'
+                         / 'foxglove_layout.json').read_text())
+    names = set(re.findall(r'"(/[a-z_/]+)', json.dumps(layout['configById'])))
+    published = {getattr(contract, n) for n in dir(contract)
+                 if isinstance(getattr(contract, n), str) and getattr(contract, n).startswith('/')}
+    assert names and names <= published
+    panels = set(re.findall(r'"([A-Za-z0-9]+![a-z0-9]+)"', json.dumps(layout['layout'])))
+    assert panels == set(layout['configById'])
