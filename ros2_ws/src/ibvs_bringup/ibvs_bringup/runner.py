@@ -37,6 +37,7 @@ from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
+from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 import rclpy
@@ -548,4 +549,10 @@ def write_results(bag_path, out_dir, wall_duration_s=None):
     metrics['bag'] = str(bag_path)
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
     plots.write_all(run, out_dir, target_features(run))
+    params = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
+                            float(run.params.get('l4_scale', 1.0)))
+    series = analysis.load_joints(bag_path, run.run_info.get('duration_s'))
+    if len(series[0]):
+        plots.joints(series, (params.q_min, params.q_max, params.qd_max, joint_efforts(params)),
+                     out_dir / 'joints.png', plots.title_of(run))
     return metrics
