@@ -24,6 +24,19 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   noise); the whole run when it is shorter;
 - ``time_estimated_s``: sim time during which the feature node published model estimates
   (or blended them) instead of measurements.
+
+Free-running runs (``lockstep: false``; the keys are absent from lockstep runs, whose
+metrics stay as they were):
+
+- ``frame_latency_{mean,p95,max}_s``, ``frames_used``: sim time from a frame's exposure
+  (its stamp) to the first position command that used its q_feedback, from the joint
+  controller's /ibvs/frame_latency (sensor_msgs/TimeReference: header.stamp = command,
+  time_ref = frame): camera-to-command latency as the loop saw it, in the time the
+  controller runs on;
+- ``real_time_factor_held_{mean,min}``: the simulator's own measurement, every 2 s of wall
+  time, of the sim seconds it advanced per wall second (``real_time_factor_held`` on
+  /diagnostics), against ``real_time_factor`` (the overall sim/wall ratio of the run,
+  start-up excluded).
 """
 
 from dataclasses import dataclass, field
@@ -58,6 +71,10 @@ class RunData:
     features: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     mode_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     modes: list = field(default_factory=list)
+    #: Free-running: (command ns, frame ns) of each /ibvs/frame_latency, and the simulator's
+    #: real_time_factor_held reports.
+    latency: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    rtf_held: np.ndarray = field(default_factory=lambda: np.zeros(0))
     camera: object = None
 
 
@@ -134,6 +151,28 @@ def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_dur
     return metrics
 
 
+def free_running_metrics(latency, rtf_held):
+    """
+    Return the free-running metrics (module docstring); {} without latency records.
+
+    ``latency``: (command ns, frame ns) pairs; ``rtf_held``: the simulator's
+    real_time_factor_held reports.
+    """
+    latency = np.asarray(latency, dtype=np.int64).reshape(-1, 2)
+    if latency.size == 0:
+        return {}
+    delay = (latency[:, 0] - latency[:, 1]) * 1e-9
+    held = np.asarray(rtf_held, dtype=float)
+    return {
+        'frames_used': int(delay.size),
+        'frame_latency_mean_s': float(delay.mean()),
+        'frame_latency_p95_s': float(np.percentile(delay, 95)),
+        'frame_latency_max_s': float(delay.max()),
+        'real_time_factor_held_mean': float(held.mean()) if held.size else None,
+        'real_time_factor_held_min': float(held.min()) if held.size else None,
+    }
+
+
 def _relative(value, t):
     return None if value is None else float(value - t[0])
 
@@ -148,6 +187,10 @@ def _before(end_ns, stamps, values):
     return [stamps[i] for i in keep], [values[i] for i in keep]
 
 
+#: The camera_info topics of either camera_topics setting, by side.
+INFO_SIDES = {contract.LEFT_INFO: 'left', contract.RIGHT_INFO: 'right',
+              contract.ZED_LEFT_INFO: 'left', contract.ZED_RIGHT_INFO: 'right'}
+
 #: The tool poses of bags recorded before /ibvs/tool_path: one PoseStamped a step.
 OLD_TOOL_POSE = '/ibvs/tool_pose'
 
@@ -161,10 +204,13 @@ def load_run(bag_path):
     run_info = yaml.safe_load(custom.get(RUN_KEY, '{}')) or {}
     t, poses, ft, feats, mt, modes = [], [], [], [], [], []
     infos, cam_pose = {}, None
+    latency, rtf_held = [], []
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
         wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
-                  contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE}
+                  contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE,
+                  contract.ZED_LEFT_INFO, contract.ZED_RIGHT_INFO, contract.FRAME_LATENCY,
+                  contract.DIAGNOSTICS}
         conns = [c for c in reader.connections if c.topic in wanted]
         for conn, _, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
@@ -179,8 +225,14 @@ def load_run(bag_path):
                 values = {kv.key: kv.value for s in msg.status for kv in s.values}
                 mt.append(_stamp(msg.header))
                 modes.append(values.get('mode', 'unknown'))
-            elif conn.topic in (contract.LEFT_INFO, contract.RIGHT_INFO):
-                infos.setdefault(conn.topic, msg)
+            elif conn.topic in INFO_SIDES:
+                infos.setdefault(INFO_SIDES[conn.topic], msg)
+            elif conn.topic == contract.FRAME_LATENCY:
+                latency.append((msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec,
+                                msg.time_ref.sec * 10 ** 9 + msg.time_ref.nanosec))
+            elif conn.topic == contract.DIAGNOSTICS:
+                rtf_held.extend(float(kv.value) for status in msg.status
+                                for kv in status.values if kv.key == 'real_time_factor_held')
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -192,6 +244,7 @@ def load_run(bag_path):
         t, poses = _before(end_ns, t, poses)
         ft, feats = _before(end_ns, ft, feats)
         mt, modes = _before(end_ns, mt, modes)
+        latency = [pair for pair in latency if pair[0] < end_ns]
     if len(t) < 2:
         raise ValueError(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH}')
     order = np.argsort(t, kind='stable')
@@ -199,14 +252,15 @@ def load_run(bag_path):
     camera = None
     if cam_pose is not None and len(infos) == 2:
         # rosbags messages have the fields of the rclpy ones: the same conversion serves.
-        camera = camera_from_msgs(infos[contract.LEFT_INFO], infos[contract.RIGHT_INFO],
-                                  cam_pose)
+        camera = camera_from_msgs(infos['left'], infos['right'], cam_pose)
     target = target_from_parameters(params)
     feats = np.array([np.ravel(f) for f in feats if len(f) == 2]) if feats else np.zeros((0, 6))
     return RunData(params=params, run_info=run_info, t=np.asarray(t)[order],
                    position=poses[:, :3, 3], rotation=poses[:, :3, :3], target=target,
                    feature_t=np.asarray(ft), features=feats, mode_t=np.asarray(mt),
-                   modes=modes, camera=camera)
+                   modes=modes, camera=camera,
+                   latency=np.array(latency, dtype=np.int64).reshape(-1, 2),
+                   rtf_held=np.array(rtf_held))
 
 
 def load_joints(bag_path, end_s=None):
@@ -274,4 +328,5 @@ def analyse_bag(bag_path):
     metrics = compute_metrics(run.t, run.position, run.rotation, run.target, run.mode_t,
                               run.modes, run.run_info.get('wall_duration_s'),
                               run.params.get('scenario_name', run.params.get('scenario')))
+    metrics.update(free_running_metrics(run.latency, run.rtf_held))
     return run, metrics

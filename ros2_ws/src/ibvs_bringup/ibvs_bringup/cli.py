@@ -16,9 +16,10 @@ Commands:
   short run of it with overlays and its video into ``results/scenario1_video``;
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
   of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
-- ``report [--laws]``: scenarios 1-3 and the L2/L4 robustness sweep, as studies, into
-  ``results/report.md``; ``--laws`` adds each servo law on scenarios 1-3 with ideal and
-  with limited actuators (:mod:`ibvs_bringup.laws_report`).
+- ``report [--quick]``: scenarios 1-3, the L2/L4 robustness sweep and each servo law on
+  scenarios 1-3 with ideal and with limited actuators (:mod:`ibvs_bringup.laws_report`),
+  as studies on Ray, into ``results/report.md``; ``--quick`` keeps the sweep's endpoints
+  and skips the servo laws.
 """
 
 import argparse
@@ -134,7 +135,7 @@ def cmd_report(args):
     start = time.monotonic()
     path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
                                parallel=args.parallel,
-                               domains=study.parse_domains(args.domains), laws=args.laws)
+                               domains=study.parse_domains(args.domains))
     print(f'wrote {path}')
     minutes, seconds = divmod(time.monotonic() - start, 60.0)
     print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
@@ -190,9 +191,8 @@ def main(argv=None):
     p.set_defaults(func=cmd_study)
     p = sub.add_parser('report', help=cmd_report.__doc__)
     p.add_argument('-o', '--out', default='results', help='results directory')
-    p.add_argument('--quick', action='store_true', help='sweep endpoints only')
-    p.add_argument('--laws', action='store_true',
-                   help='also each servo law on scenarios 1-3, two actuator cases')
+    p.add_argument('--quick', action='store_true',
+                   help='sweep endpoints only, and no servo-law comparison')
     p.set_defaults(func=cmd_report)
     for name in ('study', 'report'):
         p = sub.choices[name]

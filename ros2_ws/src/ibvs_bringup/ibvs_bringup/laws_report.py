@@ -4,8 +4,9 @@ Servo laws side by side: each law on scenarios 1-3, two actuator cases, a table 
 The runs (:func:`plan`): every law of :data:`ibvs_control.servo_laws.SERVO_LAWS` on
 scenarios 1-3, with the paper's ideal actuators and with the IRB 4600's limited actuators
 plus 0.067 s between a camera frame and the command it causes (:data:`CASES`). Each run is an
-ordinary ``ibvs run`` (``ibvs_bringup.runner.run_scenario``) into its own folder; this module
-only reads the folders back (:func:`read_run`), so the runs may come from any scheduler.
+ordinary ``ibvs run`` into its own folder, as studies on Ray with the report's others
+(:func:`specs`) or one at a time (:func:`run_all`); this module only reads the folders back
+(:func:`read_run`), so the runs may come from any scheduler.
 
 Per run (:class:`LawRun`, the metrics of :mod:`.analysis` plus the joint speeds of the bag):
 final position and tool-axis error, time to 1 mm (after which the tool stays within 1 mm),
@@ -38,9 +39,12 @@ import yaml  # noqa: E402
 from . import analysis  # noqa: E402
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
-#: Actuator cases: name -> parameter overrides.
+#: Actuator cases: name -> parameter overrides. With 0.067 s latency the velocity laws'
+#: lambda_0 is halved to 6 / s (ignored by the others): the loop then holds about 0.13 s of
+#: delay (latency, camera period, inner loop), and at 12 / s (lambda times delay ~ 1.6) the
+#: model-only loop oscillates and diverges from scenario 1; at 6 / s it converges.
 CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
-         'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067}}
+         'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
 #: Converged: at the end within this far (m) and this angle (deg) of the target.
 CONVERGED_M = 1e-3
 CONVERGED_DEG = 0.5
@@ -79,6 +83,36 @@ def plan(out_dir, laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
             for case in cases for law in laws for name in scenarios]
 
 
+#: Sim time of a law study's run, per case (s): the velocity laws need about 1.5 s to
+#: 1 mm with ideal actuators and up to 3 s with limited ones (graph, this release).
+DURATIONS_S = {'ideal': 3.0, 'limited': 5.0}
+#: Study names: ``laws_<case>_<scenario>``.
+STUDY_PREFIX = 'laws'
+
+
+def specs(laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
+    """
+    Return the law comparison as studies (:class:`.study_spec.Spec`), one per case and scenario.
+
+    Each study's grid is one point per law (its overrides, :func:`overrides_for`), so the
+    runs go to Ray with the report's other studies (:func:`.study.run_studies`).
+    """
+    from .study_spec import Spec
+    return [Spec(name=f'{STUDY_PREFIX}_{case}_{name}', scenario=name,
+                 duration_s=DURATIONS_S[case],
+                 grid=tuple({k: [v] for k, v in overrides_for(law, case).items()}
+                            for law in laws),
+                 description=f'each servo law on {name}, {case} actuators')
+            for case in cases for name in scenarios]
+
+
+def read_records(records):
+    """Return the :class:`LawRun` of the law studies' records (``run_studies``'s answer)."""
+    runs = [read_run(record['run_dir']) for name, rs in records.items()
+            if name.startswith(STUDY_PREFIX + '_') for record in rs if record['status'] == 'ok']
+    return _ordered(runs)
+
+
 def run_all(out_dir, progress=print, **selection):
     """Run :func:`plan` one run at a time (``runner.run_scenario``); return :func:`read_all`."""
     from . import runner
@@ -110,7 +144,7 @@ def case_of(params):
 def summarise(params, metrics, qdot, position, target, qd_max=IRB4600.qd_max):
     """Return the :class:`LawRun` of a run's parameters, metrics, joint speeds and path."""
     speed = np.abs(np.asarray(qdot, dtype=float))
-    return LawRun(law=params.get('servo_law', 'paper'), case=case_of(params),
+    return LawRun(law=params.get('servo_law', SERVO_LAWS[0]), case=case_of(params),
                   scenario=str(params.get('scenario_name', metrics.get('scenario'))),
                   metrics=metrics, peak_joint_speed=float(speed.max(initial=0.0)),
                   peak_speed_share=float((speed / np.asarray(qd_max)).max(initial=0.0)),
@@ -126,15 +160,20 @@ def read_run(run_dir):
     if (run_dir / 'params.yaml').exists():
         loaded = yaml.safe_load((run_dir / 'params.yaml').read_text()) or {}
         params = {**loaded.get('/**', {}).get('ros__parameters', {}), **params}
-    params.setdefault('scenario_name', run_dir.name)
+    params.setdefault('scenario_name', f"scenario{params['scenario']}" if 'scenario' in params
+                      else run_dir.name)
     return summarise(params, metrics, joint_speeds(run_dir / 'bag'), data.position,
                      data.target)
 
 
 def read_all(out_dir):
     """Return the :class:`LawRun` of every run folder (one with a ``bag``) under out_dir."""
-    runs = [read_run(bag.parent) for bag in sorted(Path(out_dir).rglob('bag'))
-            if (bag / 'metadata.yaml').exists()]
+    return _ordered([read_run(bag.parent) for bag in sorted(Path(out_dir).rglob('bag'))
+                     if (bag / 'metadata.yaml').exists()])
+
+
+def _ordered(runs):
+    """Return ``runs`` by case (ideal first), scenario and law (registry order)."""
     order = {law: i for i, law in enumerate(SERVO_LAWS)}
     return sorted(runs, key=lambda r: (list(CASES).index(r.case) if r.case in CASES else 9,
                                        r.scenario, order.get(r.law, 9)))
@@ -196,7 +235,8 @@ def section(runs, out_dir, figure_prefix=''):
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ['## Servo laws side by side', '',
              f'Ideal actuators (the paper), and limited actuators with '
-             f"{CASES['limited']['feedback_latency_s']} s latency. Converged: within "
+             f"{CASES['limited']['feedback_latency_s']} s latency (there lambda_0 "
+             f"{CASES['limited']['lambda_0']:g} / s for ibvs and pbvs). Converged: within "
              f'{CONVERGED_M * 1e3:g} mm and {CONVERGED_DEG:g} deg at the end, and within 1 mm '
              'from the time to 1 mm on.', '']
     lines += table(runs) + ['']

@@ -137,18 +137,20 @@ def sweep_figure(rows, path):
 
 
 def build_report(out_dir, quick=False, address=None, parallel=None, domains=study.DOMAIN_IDS,
-                 laws=False):
+                 laws=None):
     """
     Run the report's studies and write ``<out_dir>/report.md``; return its path.
 
-    ``laws``: also the servo laws side by side (:mod:`.laws_report`, 24 runs, one at a
-    time).
+    ``laws``: also the servo laws side by side (:func:`.laws_report.specs`, 24 runs on Ray
+    with the other studies); default: unless ``quick``.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    laws = not quick if laws is None else laws
     specs = load_specs(quick)
-    records = study.run_studies(specs, out_dir / 'studies', address=address, parallel=parallel,
-                                domains=domains)
+    law_specs = laws_report.specs() if laws else []
+    records = study.run_studies(specs + law_specs, out_dir / 'studies', address=address,
+                                parallel=parallel, domains=domains)
     failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
               for rs in records.values() for r in rs if r['status'] != 'ok']
     if failed:
@@ -225,8 +227,19 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
                   for p in sorted((out_dir / 'studies' / name).glob('*.png'))]
     lines += ['']
     if laws:
-        runs = laws_report.run_all(out_dir / 'laws')
+        runs = laws_report.read_records(records)
         lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
+        from ibvs_control import calibration_sweep
+        lines += ['### Calibration error (model-only loop, scenario 1)', '',
+                  calibration_sweep.__doc__.strip().split('\n\n')[1].replace('\n', ' '), '',
+                  'Final position / tool-axis error of the true flange after '
+                  f'{calibration_sweep.DURATION_S:g} s:', '']
+        lines += calibration_sweep.table(calibration_sweep.sweep()) + ['']
+        lines += ['### Feature noise (model-only loop, scenario 1)', '',
+                  'Gaussian noise on every measured feature (px, a stand-in for the '
+                  "detector's error, not rendered image noise); RMS position / tool-axis "
+                  f'error over the last {calibration_sweep.TAIL_S:g} s:', '']
+        lines += calibration_sweep.noise_table(calibration_sweep.noise_sweep()) + ['']
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path

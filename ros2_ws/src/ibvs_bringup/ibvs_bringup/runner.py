@@ -64,6 +64,27 @@ REMAPS = {
     'adaptive_feedback_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
     'viz_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
 }
+#: sim_node camera_topics 'zed_wrapper': the ZED wrapper's names, which the camera's readers
+#: take by remapping alone, as on a real cell.
+ZED_TOPICS = {contract.LEFT_IMAGE: contract.ZED_LEFT_IMAGE,
+              contract.RIGHT_IMAGE: contract.ZED_RIGHT_IMAGE,
+              contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+              contract.RIGHT_INFO: contract.ZED_RIGHT_INFO}
+ZED_REMAPS = {
+    'feature_node': ZED_TOPICS,
+    'adaptive_feedback_node': {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+                               contract.RIGHT_INFO: contract.ZED_RIGHT_INFO},
+    'viz_node': {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+                 contract.RIGHT_INFO: contract.ZED_RIGHT_INFO},
+}
+
+
+def remaps(params):
+    """Return {node: {topic: remapped}} of a run with the parameters ``params``."""
+    if params.get('camera_topics', 'ibvs') != 'zed_wrapper':
+        return REMAPS
+    return {node: {**REMAPS.get(node, {}), **ZED_REMAPS.get(node, {})}
+            for node in set(REMAPS) | set(ZED_REMAPS)}
 
 
 @dataclass(frozen=True)
@@ -397,9 +418,11 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         wall_duration = None
         wall_start = time.monotonic()
         try:
+            run_remaps = remaps(params)
+            topic_of = ZED_TOPICS if run_remaps is not REMAPS else {}
             for spec in PROCESSES:
                 extra = tuple(arg for node in spec.nodes
-                              for topic, remapped in REMAPS.get(node, {}).items()
+                              for topic, remapped in run_remaps.get(node, {}).items()
                               for arg in ('-r', f'{topic}:={remapped}'))
                 if 'sim_node' in spec.nodes:
                     _wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes],
@@ -409,7 +432,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                     # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
                     # The simulator waits for as many subscribers as the runner sees once each
                     # node's own subscriptions are in the graph, recorder and monitor included.
-                    counts = _wait_for_readers(executor, watcher, procs, spec.nodes)
+                    counts = _wait_for_readers(executor, watcher, procs, spec.nodes, topic_of)
                     extra += ('-p', 'min_joint_state_subscribers:='
                               f'{counts[contract.JOINT_STATES]}',
                               '-p', 'min_frame_joint_state_subscribers:='
@@ -492,20 +515,23 @@ STEP0_READERS = {
 }
 
 
-def _wait_for_readers(executor, node, procs, alongside=(), timeout_s=60.0):
+def _wait_for_readers(executor, node, procs, alongside=(), topic_of=None, timeout_s=60.0):
     """
     Spin until each node of STEP0_READERS subscribes its topic; return subscriber counts.
 
     ``alongside``: the nodes that start in the simulator's process, with it: not waited for,
-    and counted as the readers STEP0_READERS says they are.
+    and counted as the readers STEP0_READERS says they are. ``topic_of``: the name each
+    contract topic is remapped to in this run (by contract name in the result).
     """
+    topic_of = topic_of or {}
     deadline = time.monotonic() + timeout_s
     while True:
         executor.spin_once(timeout_sec=0.05)
         for p in procs:
             if p.poll() is not None:
                 raise NodeDied(p.name, p.poll(), p.log_path)
-        infos = {topic: node.get_subscriptions_info_by_topic(topic) for topic in STEP0_READERS}
+        infos = {topic: node.get_subscriptions_info_by_topic(topic_of.get(topic, topic))
+                 for topic in STEP0_READERS}
         missing = [f'{name} on {topic}' for topic, names in STEP0_READERS.items()
                    for name in names if name not in alongside
                    and name not in {i.node_name for i in infos[topic]}]

@@ -62,3 +62,15 @@ def test_table_and_figures(tmp_path):
     for law in ('paper', 'ibvs'):
         assert (tmp_path / f'law_path_{law}.png').stat().st_size > 0
         assert f'![{law}](laws/law_path_{law}.png)' in lines
+
+
+def test_specs_put_every_law_of_a_case_and_scenario_in_one_study():
+    specs = laws_report.specs()
+    assert len(specs) == 2 * len(laws_report.SCENARIOS)
+    for spec in specs:
+        case = spec.name.split('_')[1]
+        assert spec.duration_s == laws_report.DURATIONS_S[case]
+        runs = spec.runs()
+        assert [r.overrides['servo_law'] for r in runs] == list(SERVO_LAWS)
+        for run in runs:
+            assert run.overrides == laws_report.overrides_for(run.overrides['servo_law'], case)

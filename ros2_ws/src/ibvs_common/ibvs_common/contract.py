@@ -41,6 +41,17 @@ FEATURES = '/ibvs/features'
 FEEDFORWARD_TRAJECTORY = '/ibvs/feedforward_trajectory'
 Q_FEEDBACK = '/ibvs/q_feedback'
 EFFORT_COMMANDS = '/joint_effort_commands'
+#: command_interface 'position' (docs/design.md §4, free-running): ros2_controllers'
+#: forward_command_controller (std_msgs/Float64MultiArray, the values in the order of the
+#: controller's ``joints`` parameter) under the name of the usual position_controllers
+#: configuration, or a joint_trajectory_controller (trajectory_msgs/JointTrajectory, by
+#: joint name). Remappable, as every name here.
+POSITION_COMMANDS = '/forward_position_controller/commands'
+TRAJECTORY_COMMANDS = '/joint_trajectory_controller/joint_trajectory'
+#: sensor_msgs/TimeReference, one per camera frame, from the joint controller in position
+#: mode: header.stamp = the time of the first command that uses the frame's q_feedback,
+#: time_ref = the frame's stamp (its exposure); the run's latency metric.
+FRAME_LATENCY = '/ibvs/frame_latency'
 #: Evaluation only (nav_msgs/Path in base_link): the true flange pose of every physics step,
 #: published in batches just before each /clock, so that when /clock says T every pose
 #: stamped before T is out. One pose message per step cost the lockstep 0.3 ms a step.
@@ -60,6 +71,21 @@ MARKERS = '/ibvs/markers'
 DEBUG_LEFT_IMAGE = '/ibvs/debug/left/image'
 DEBUG_RIGHT_IMAGE = '/ibvs/debug/right/image'
 
+#: What zed-ros2-wrapper 5.4 (master, zed_components zed_camera_component_video_depth.cpp)
+#: publishes for the rectified colour pair of a camera named 'zed' (launch defaults:
+#: namespace = camera_name 'zed', node 'zed_node'; topic root '~/'): images in bgra8,
+#: CameraInfo at image_transport's getCameraInfoTopic of the image topic, frame ids
+#: '<camera>_{left,right}_camera_frame_optical', QoS rclcpp::QoS(10) (keep last 10,
+#: reliable, volatile); right P[3] = -f_x * baseline (m). sim_node camera_topics
+#: 'zed_wrapper' publishes these; the other nodes take them by remapping.
+ZED_LEFT_IMAGE = '/zed/zed_node/left/color/rect/image'
+ZED_RIGHT_IMAGE = '/zed/zed_node/right/color/rect/image'
+ZED_LEFT_INFO = '/zed/zed_node/left/color/rect/camera_info'
+ZED_RIGHT_INFO = '/zed/zed_node/right/color/rect/camera_info'
+ZED_LEFT_FRAME = 'zed_left_camera_frame_optical'
+ZED_RIGHT_FRAME = 'zed_right_camera_frame_optical'
+ZED_ENCODING = 'bgra8'
+
 #: Base frame {O} and the camera frames (ROS optical frames, x right, y down, z forward).
 BASE_FRAME = 'base_link'
 CAMERA_FRAME = 'stereo_center_optical_frame'
@@ -74,6 +100,10 @@ RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
 IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
                     reliability=ReliabilityPolicy.RELIABLE,
                     durability=DurabilityPolicy.VOLATILE)
+#: The ZED wrapper's image and camera_info QoS (rclcpp::QoS(10)).
+ZED_IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
 #: Facts that do not change (camera pose): the last value reaches late joiners.
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                      reliability=ReliabilityPolicy.RELIABLE,

@@ -221,32 +221,42 @@ def path_msg(stamped_poses, frame_id=contract.BASE_FRAME):
 
 
 def image_msg(array, stamp, encoding='rgb8', frame_id=''):
-    """Return an (H, W, 3) uint8 array as a sensor_msgs/Image of ``encoding``."""
+    """
+    Return an (H, W, 3) uint8 array as a sensor_msgs/Image of ``encoding``.
+
+    ``encoding`` rgb8 or bgr8: the array's channels as they are, in that order; bgra8
+    (zed-ros2-wrapper's): the array is taken as RGB, reordered to BGR and given an opaque
+    alpha channel.
+    """
     array = np.ascontiguousarray(array, dtype=np.uint8)
     if array.ndim != 3 or array.shape[2] != 3:
         raise ValueError('array must be (H, W, 3)')
+    if encoding == 'bgra8':
+        alpha = np.full(array.shape[:2] + (1,), 255, dtype=np.uint8)
+        array = np.concatenate((array[:, :, ::-1], alpha), axis=2)
     msg = Image()
     msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
     msg.header.frame_id = frame_id
     msg.height, msg.width = int(array.shape[0]), int(array.shape[1])
     msg.encoding = encoding
     msg.is_bigendian = 0
-    msg.step = 3 * msg.width
+    msg.step = array.shape[2] * msg.width
     msg.data = array.tobytes()
     return msg
 
 
-def camera_infos(intrinsics, stamp):
+def camera_infos(intrinsics, stamp,
+                 frames=(contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)):
     """
     Return (left, right) CameraInfo of a rectified stereo pair (ROS conventions).
 
     Both have K = [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]], no distortion, and
-    P = [K | t] with t = 0 on the left and t = (-f_u b, 0, 0) on the right.
+    P = [K | t] with t = 0 on the left and t = (-f_u b, 0, 0) on the right (as
+    zed-ros2-wrapper fills it); ``frames`` are their frame ids.
     """
     k = intrinsics
     infos = []
-    for frame, tx in ((contract.LEFT_CAMERA_FRAME, 0.0),
-                      (contract.RIGHT_CAMERA_FRAME, -k.fu * k.baseline)):
+    for frame, tx in zip(frames, (0.0, -k.fu * k.baseline)):
         info = CameraInfo()
         info.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
         info.header.frame_id = frame

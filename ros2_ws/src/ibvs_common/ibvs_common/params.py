@@ -45,6 +45,8 @@ class Param:
             return 'one of ' + ', '.join(repr(c) for c in self.choices)
         if isinstance(self.default, bool):
             return 'true or false'
+        if self._strings():
+            return f'{self.length or "any number of"} strings'
         if isinstance(self.default, str):
             return 'any string'
         lo = '-inf' if self.low is None else f'{self.low:g}'
@@ -54,6 +56,11 @@ class Param:
         if self.length is not None:
             text = f'{self.length} values, each in {text}'
         return text
+
+    def _strings(self):
+        """Return whether the parameter is an array of strings (its default is one)."""
+        return isinstance(self.default, (list, tuple)) and bool(self.default) and \
+            isinstance(self.default[0], str)
 
     def descriptor(self):
         """Return the ParameterDescriptor shown by ``ros2 param describe``."""
@@ -91,6 +98,13 @@ class Param:
             if not isinstance(value, bool):
                 fail('not a boolean')
             return value
+        if self._strings():
+            if not isinstance(value, (list, tuple)) or \
+                    not all(isinstance(v, str) for v in value):
+                fail('not an array of strings')
+            if self.length is not None and len(value) != self.length:
+                fail(f'has {len(value)} values')
+            return list(value)
         values = list(value) if isinstance(value, (list, tuple)) else [value]
         if self.length is not None:
             if not isinstance(value, (list, tuple)):

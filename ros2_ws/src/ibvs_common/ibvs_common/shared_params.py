@@ -72,3 +72,80 @@ def target_from_parameters(values):
     except ValueError as exc:
         raise ParameterError(f"parameter 'target_rotation' = {rotation!r} is invalid: {exc}; "
                              'allowed: a rotation matrix, row-major') from None
+
+
+# -- a real cell: position interface and free-running time (docs/design.md §4) --------------
+COMMAND_INTERFACE = Param(
+    'command_interface', 'effort', "how the joint controller drives the arm: 'effort' (the "
+    'paper: computed torque at physics_rate_hz on /joint_effort_commands, in lockstep) or '
+    "'position' (joint position references at command_rate_hz for a ros2_control position "
+    "controller, the arm's own drive closing the loop; needs lockstep false)", '-',
+    choices=('effort', 'position'))
+POSITION_COMMAND_TYPE = Param(
+    'position_command_type', 'forward_command', "with command_interface 'position': "
+    "'forward_command' (std_msgs/Float64MultiArray for ros2_controllers' "
+    'forward_command_controller on /forward_position_controller/commands) or '
+    "'joint_trajectory' (trajectory_msgs/JointTrajectory for a joint_trajectory_controller "
+    'on /joint_trajectory_controller/joint_trajectory)', '-',
+    choices=('forward_command', 'joint_trajectory'))
+COMMAND_RATE_HZ = Param(
+    'command_rate_hz', 250.0, "with command_interface 'position': the rate of the position "
+    "references (ABB EGM: 250 Hz); free-running, the simulator's /clock runs at least this "
+    'fast, so that sim-time timers fire at it', 'Hz', low=1.0, high=1000.0)
+JOINTS = Param(
+    'joints', ['joint_1', 'joint_2', 'joint_3', 'joint_4', 'joint_5', 'joint_6'],
+    "the position controller's joints parameter: the order of the values in each command "
+    "(ros2_control's forward_command_controller takes them in exactly this order); each "
+    'of joint_1 ... joint_6 once', '-', length=6)
+LOCKSTEP = Param(
+    'lockstep', True, "true (the paper's reproduction): the simulator steps only when the "
+    'effort command of each step has come; false: it runs on its own at real_time_factor, '
+    'as a real cell does, and nobody waits for anybody', '-')
+
+
+def check_command_interface(values):
+    """
+    Refuse a command interface and time mode that do not go together (ParameterError).
+
+    'effort' runs in lockstep only (the computed-torque loop answers every physics step);
+    'position' is free-running only (the drive waits for nobody).
+    """
+    interface, lockstep = values['command_interface'], values['lockstep']
+    if interface == 'position' and lockstep:
+        raise ParameterError("parameter 'lockstep' = True is invalid with command_interface "
+                             "'position': the arm's drive waits for nobody; allowed: false "
+                             "(or command_interface 'effort')")
+    if interface == 'effort' and not lockstep:
+        raise ParameterError("parameter 'lockstep' = False is invalid with command_interface "
+                             "'effort': the computed-torque loop runs in lockstep only; "
+                             "allowed: true (or command_interface 'position')")
+
+
+CAMERA_POSE = Param(
+    'camera_pose', [0.0] * 7, 'the stereo camera frame {C} (midway between the lenses, x '
+    'right, y down, z forward) in the robot base frame, as x, y, z, qx, qy, qz, qw: a '
+    "hand-eye calibration's result, used instead of /stereo/pose; all zeros: take "
+    '/stereo/pose', 'm, -', low=-20.0, high=20.0, length=7)
+
+
+def camera_pose_from(values):
+    """
+    Return the 'camera_pose' parameter as a 4x4 T_C^O, or None when it is all zeros.
+
+    Raises ParameterError naming it when its quaternion is not of unit length (within 1e-6).
+    """
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    pose = np.asarray(values.get(CAMERA_POSE.name, CAMERA_POSE.default), dtype=float)
+    if not pose.any():
+        return None
+    if abs(np.linalg.norm(pose[3:]) - 1.0) > 1e-6:
+        raise ParameterError(f"parameter 'camera_pose' = {pose.tolist()!r} is invalid: the "
+                             f'quaternion (qx, qy, qz, qw) has length '
+                             f'{np.linalg.norm(pose[3:]):.6g}, not 1; allowed: '
+                             f'{CAMERA_POSE.allowed()}')
+    tf = np.eye(4)
+    tf[:3, :3] = Rotation.from_quat(pose[3:]).as_matrix()
+    tf[:3, 3] = pose[:3]
+    return tf

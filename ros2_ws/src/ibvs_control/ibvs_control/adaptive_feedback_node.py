@@ -37,21 +37,23 @@ Servo law (``servo_law``, :mod:`.servo_laws`): 'paper' (default) is the above. '
 (classic IBVS) and 'pbvs' (position-based) integrate a velocity command per frame and
 carry the whole move (the feedforward node then holds q(0): feedforward_method 'hold',
 checked at start); 'switching' runs the paper's feedback from the first measured frame
-after the feedforward has settled. These three need to know whether a frame was measured
-or estimated (eq. 46): they also wait, per frame, for /ibvs/feature_status of the same
-stamp ('reason' 'measured': the detector found both markers in both images). 'paper'
-does not subscribe to it and runs exactly as before.
+after the feedforward has settled. A law that needs to know whether a frame was measured
+or estimated (eq. 46) (:meth:`.servo_laws.ServoLaw.needs_measured`: 'switching', and
+'ibvs' / 'pbvs' with ``feature_fallback`` 'hold') also waits, per frame, for
+/ibvs/feature_status of the same stamp ('reason' 'measured': the detector found both
+markers in both images). The others do not subscribe to it.
 """
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, read_features,
-                                     read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, pose_stamped,
+                                     read_features, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (CAMERA_RATE_HZ, OMEGA_N, STALE_TIMEOUT_S,
+from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
+                                       OMEGA_N, STALE_TIMEOUT_S,
                                        TARGET_FEATURES_SOURCE, TARGET_POSITION,
                                        TARGET_ROTATION, TAU_IN, ZETA)
 from ibvs_common.sync import FrameLockstep
@@ -62,21 +64,21 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
-from .node_params import (check_gains, check_servo_law, FEEDBACK_DESIGN, FEEDFORWARD_METHOD,
-                          HOLD_SPEED_FRACTION, LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, LINEARISE_AT,
-                          MAX_CORRECTION_RAD, SERVO_LAW, SVD_DAMPING, SVD_RCOND,
-                          SWITCH_SETTLE_S, target_from)
-from .servo_laws import make_law
+from .node_params import (check_gains, check_servo_law, FEATURE_FALLBACK, FEEDBACK_DESIGN,
+                          FEEDFORWARD_METHOD, HOLD_SPEED_FRACTION, JOINT_LIMIT_MARGIN_RAD,
+                          LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, LINEARISE_AT, MAX_CORRECTION_RAD,
+                          SERVO_LAW, SVD_DAMPING, SVD_RCOND, SWITCH_SETTLE_S, target_from,
+                          WINDUP_HORIZON_S)
+from .servo_laws import law_class
 
-#: The parameters that go to :func:`.servo_laws.make_law` as they are, under their names.
+#: The parameters that go to the law's :meth:`.servo_laws.ServoLaw.create` under their
+#: names (each law takes those it declares).
 LAW_PARAMS = (FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION_RAD, HOLD_SPEED_FRACTION,
-              LINEARISE_AT, SWITCH_SETTLE_S)
+              LINEARISE_AT, SWITCH_SETTLE_S, FEATURE_FALLBACK, WINDUP_HORIZON_S,
+              JOINT_LIMIT_MARGIN_RAD)
 PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0,
-          LAMBDA_INF, LAMBDA_SLOPE) + LAW_PARAMS
-#: What the diagnostics say while a law holds q_feedback on a usable frame.
-HOLDING = {'paper': 'holding (arm slewing)', 'switching': 'feedforward only (before the switch)',
-           'ibvs': 'holding (markers not measured)', 'pbvs': 'holding (markers not measured)'}
+          LAMBDA_INF, LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
 
 #: Steady-clock period of the 'waiting' log.
 WAIT_LOG_S = 1.0
@@ -93,8 +95,8 @@ class AdaptiveFeedbackNode(Node):
         self.values = values = declare(self, PARAMS)
         check_gains(values)
         self.gain = check_servo_law(values)
-        self.law = values['servo_law']
-        self.needs_status = self.law != 'paper'
+        self.law = law_class(values['servo_law'])
+        self.needs_status = self.law.needs_measured(values)
         self.pose = target_from(values)
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.timeout_ns = int(round(values['stale_timeout_s'] * 1e9))
@@ -114,8 +116,12 @@ class AdaptiveFeedbackNode(Node):
                                  lambda m: self._on_info(0, m), contract.IMAGES)
         self.create_subscription(CameraInfo, contract.RIGHT_INFO,
                                  lambda m: self._on_info(1, m), contract.IMAGES)
-        self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                 contract.LATCHED)
+        calibrated = camera_pose_from(values)
+        if calibrated is None:
+            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                     contract.LATCHED)
+        else:  # a hand-eye calibration's result, as a parameter
+            self._camera_pose = pose_stamped(calibrated, 0)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
         joints = self.create_subscription(JointState, contract.JOINT_STATES,
                                           self._on_joint_state, contract.RELIABLE)
@@ -135,7 +141,7 @@ class AdaptiveFeedbackNode(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._answered_since_log = True
         self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
-        self.get_logger().info(f"servo law '{self.law}'")
+        self.get_logger().info(f"servo law '{self.law.name}'")
 
     def _missing(self):
         """Return what the oldest pending frame still waits for (empty: nothing pending)."""
@@ -193,17 +199,17 @@ class AdaptiveFeedbackNode(Node):
             return
         try:
             camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
-            self.feedback = make_law(
-                self.law, CameraRobotModel(camera, IRB4600), self.pose, self.values['tau_in'],
-                self.values['omega_n'], self.values['zeta'], self.camera_ns * 1e-9,
+            self.feedback = self.law.create(
+                CameraRobotModel(camera, IRB4600), self.pose, self.camera_ns * 1e-9,
                 gain=self.gain, p_target=self._p_target,
-                **{spec.name: self.values[spec.name] for spec in LAW_PARAMS})
+                **{spec.name: self.values[spec.name]
+                   for spec in (TAU_IN, OMEGA_N, ZETA) + LAW_PARAMS})
         except (InputError, ModelError) as exc:
             # e.g. the target behind the camera: nothing to servo on; keep waiting.
             self.diagnostics.reject('camera model', type(exc).__name__, str(exc))
             self._infos = [None, None]
             return
-        self.diagnostics.update(state='running', servo_law=self.law,
+        self.diagnostics.update(state='running', servo_law=self.law.name,
                                 p_target=self.feedback.p_target)
         self.get_logger().info(
             f'camera model ready; {"taught" if self._taught else "model"} target features '
@@ -294,7 +300,7 @@ class AdaptiveFeedbackNode(Node):
             self.get_logger().info(f'fresh features at {t_ns * 1e-9:.6f} s: feedback resumes')
             self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
         self.diagnostics.update(
-            state=HOLDING[self.law] if update.held else 'running',
+            state=self.law.holding if update.held else 'running',
             singular_values=update.singular_values, condition_number=update.condition,
             rank=update.rank, image_error_norm_px=update.error_norm,
             q_estimate=update.q_estimate, correction_clipped=update.clipped)

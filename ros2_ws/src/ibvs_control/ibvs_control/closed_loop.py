@@ -26,8 +26,8 @@ import numpy as np
 from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
                           FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
                           MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
-from .servo_laws import (feedforward_method_for, feedforward_overrides, make_law,
-                         SWITCH_SETTLE_S)
+from .servo_laws import (FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, law_class, SERVO_LAWS,
+                         SWITCH_SETTLE_S, WINDUP_HORIZON_S)
 
 
 @dataclass
@@ -70,8 +70,12 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
              feedforward_method=FEEDFORWARD_METHODS[0], feedback_design=FEEDBACK_DESIGNS[0],
              svd_rcond=SVD_RCOND, svd_damping=SVD_DAMPING,
              max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
-             target=None, integration='exact', linearise_at=LINEARISE_AT, servo_law='paper',
-             gain=None, switch_settle_s=SWITCH_SETTLE_S, feedforward_ratio=None):
+             target=None, integration='exact', linearise_at=LINEARISE_AT,
+             servo_law=SERVO_LAWS[0], gain=None, switch_settle_s=SWITCH_SETTLE_S,
+             feedforward_ratio=None,
+             feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
+             joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD, plant_camera=None,
+             target_features_source='model', feature_noise_px=0.0, seed=0):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -79,7 +83,14 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
 
     ``model``: the controllers' F (default :func:`ibvs_model.default_model`);
     ``plant_params``: the true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)``
-    for Figure 13). ``disturbance``: d_q (rad), default the scenario's. The start is the
+    for Figure 13); ``plant_camera``: the true camera, which makes the features (default
+    the model's; another one is a calibration error). ``target_features_source``: 'model'
+    (p_bar = the model's F at the target, eq. 30) or 'taught' (p_bar = the true features
+    of the true robot at the target, as the feature node measures them on the teach
+    pair). ``feature_noise_px``: the standard deviation of Gaussian noise added to each
+    measured feature (px, independent per value and frame;
+    ``numpy.random.default_rng(seed)``), a stand-in for the detector's error, not rendered
+    image noise. ``disturbance``: d_q (rad), default the scenario's. The start is the
     scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
     features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
     'limited' actuators with the bare double integrator (M = I, h = 0) take
@@ -88,16 +99,21 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     (qd += a dt, then q += qd dt: how PyBullet steps the simulated arm; use it to compare
     with the graph).
     ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
-    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; ibvs and pbvs run with the
-    feedforward held at q(0) ('hold'), ``gain`` (:class:`.servo_laws.AdaptiveGain`) is
-    theirs, ``switch_settle_s`` the switching law's. A frame is 'measured' when both
-    markers are in view of the true robot. ``feedforward_ratio``: T_forward's double pole
-    in tau_in, default the law's (:func:`.servo_laws.feedforward_overrides`: 2 for
+    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; the law's class says its
+    feedforward (ibvs and pbvs: held at q(0), 'hold'); ``gain``
+    (:class:`.servo_laws.AdaptiveGain`), ``feature_fallback``, ``windup_horizon_s`` and
+    ``joint_limit_margin_rad`` are theirs, ``switch_settle_s`` the switching law's. A frame
+    is 'measured' when both markers are in view of the true robot. ``feedforward_ratio``:
+    T_forward's double pole in tau_in, default the law's (its ``feedforward``: 2 for
     switching, else the paper's 0.1).
     """
+    law = law_class(servo_law)
     model = default_model() if model is None else model
-    plant = CameraRobotModel(model.camera, model.params if plant_params is None
-                             else plant_params)
+    plant = CameraRobotModel(model.camera if plant_camera is None else plant_camera,
+                             model.params if plant_params is None else plant_params)
+    if target_features_source not in ('model', 'taught'):
+        raise ValueError("target_features_source must be 'model' or 'taught', got "
+                         f'{target_features_source!r}')
     d_q = paper.scenario_disturbance(scenario) if disturbance is None \
         else np.asarray(disturbance, dtype=float)
     pose = paper.target_pose() if target is None else np.asarray(target, dtype=float)
@@ -116,21 +132,26 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     qd = np.zeros(6)
     joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_limits)
     if feedforward_ratio is None:
-        feedforward_ratio = feedforward_overrides(servo_law).get('feedforward_ratio',
-                                                                 FEEDFORWARD_RATIO)
+        feedforward_ratio = law.feedforward.get('feedforward_ratio', FEEDFORWARD_RATIO)
     ff = Feedforward(pose, tau_in, dt, model.params, feedforward_ratio=feedforward_ratio,
-                     feedforward_method=feedforward_method_for(servo_law, feedforward_method))
+                     feedforward_method=law.feedforward_method(feedforward_method))
     q_target = ff.start(q)
-    fb = make_law(servo_law, model, pose, tau_in, omega_n, zeta, cam_ns * 1e-9, gain,
-                  switch_settle_s, svd_rcond=svd_rcond, svd_damping=svd_damping,
-                  feedback_design=feedback_design, max_correction_rad=max_correction_rad,
-                  hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at)
+    fb = law.create(model, pose, cam_ns * 1e-9, tau_in=tau_in, omega_n=omega_n, zeta=zeta,
+                    gain=gain, switch_settle_s=switch_settle_s, svd_rcond=svd_rcond,
+                    svd_damping=svd_damping, feedback_design=feedback_design,
+                    max_correction_rad=max_correction_rad,
+                    hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at,
+                    feature_fallback=feature_fallback, windup_horizon_s=windup_horizon_s,
+                    joint_limit_margin_rad=joint_limit_margin_rad,
+                    p_target=plant.features(inverse_kinematics(pose, plant.params, seed=q_target))
+                    if target_features_source == 'taught' else None)
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
     frames_t, frames_p, frames_measured = [], [], []
     # The joint controller's rule: q_feedback = 0 until the first frame acts.
     lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
+    rng = np.random.default_rng(seed)
     next_frame = 0
     rejected = 0
     for k in range(steps):
@@ -140,6 +161,8 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
             measured = bool(np.all(plant.in_view(q_now)))
             p_hat = plant.features(q_now) if measured or not estimate_out_of_view \
                 else model.features(q)
+            if measured and feature_noise_px > 0.0:
+                p_hat = p_hat + rng.normal(0.0, feature_noise_px, 6)
             try:
                 q_feedback = fb.update(p_hat, q, qd, measured=measured,
                                        t=t_ns * 1e-9).q_feedback

@@ -56,6 +56,15 @@ def check_inputs(p_hat, q_encoder):
     return p_hat, q_encoder
 
 
+def feature_error(s, s_target):
+    """
+    Return the error e = s - s* of every servo law (ViSP vpServo, Chaumette & Hutchinson 2006).
+
+    The one sign convention: each law drives e to zero with a correction along -e.
+    """
+    return s - s_target
+
+
 def check_reachable(pose, params=IRB4600):
     """Raise ibvs_model.UnreachablePoseError when no IK branch reaches ``pose`` (eq. 43)."""
     ik_solutions(pose, params)
@@ -264,9 +273,10 @@ class AdaptiveFeedback:
 
     Per frame: the linearisation point (``linearise_at``, below), C1 = J there (eq. 31), its
     SVD (eq. 34, :func:`.decoupling.decouple`), the joint-space correction
-    dq = C1^+ (p_bar - p_hat) and q_feedback = k_d(z) dq (eq. 38-41 in the form
-    G_C = C1^+ k). The dynamic part k acts on dq, after the time-varying C1^+, so the
-    integrator holds a joint correction that does not jump when C1 is updated.
+    dq = -C1^+ e = C1^+ (p_bar - p_hat) (e = p_hat - p_bar, :func:`feature_error`) and
+    q_feedback = k_d(z) dq (eq. 38-41 in the form G_C = C1^+ k). The dynamic part k acts on
+    dq, after the time-varying C1^+, so the integrator holds a joint correction that does
+    not jump when C1 is updated.
     ``svd_rcond`` and ``svd_damping`` go to :func:`.decoupling.decouple`.
     ``feedback_design``: 'sampled' (default, :func:`.youla.outer_controller_discrete`) or
     'tustin'.
@@ -369,8 +379,8 @@ class AdaptiveFeedback:
         q_est = self.model.inverse(p_hat, q_encoder[5], seed=q_encoder)
         q_lin = q_est if self.linearise_at == 'features' else q_encoder
         dec = decouple(self.model.jacobian(q_lin), self.svd_rcond, self.svd_damping)
-        error = self.p_target - p_hat
-        channels = dec.channels(error)
+        error = feature_error(p_hat, self.p_target)
+        channels = -dec.channels(error)
         clipped = bool(np.any(np.abs(channels) > self.max_correction_rad))
         if clipped:
             channels = np.clip(channels, -self.max_correction_rad, self.max_correction_rad)

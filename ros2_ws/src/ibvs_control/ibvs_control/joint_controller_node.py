@@ -33,6 +33,23 @@ bad publisher is caught, and it cannot hold the buffer so that the good states a
 unanswered), a q_feedback older than what is still needed. A new trajectory replaces the
 old one.
 
+Position interface (``command_interface: position``, free-running only: ``lockstep``
+false; docs/design.md §4). The arm's own drive closes the joint loop (ros2_control and
+ABB's EGM on a real cell, :class:`ibvs_sim.position_servo.PositionServo` in simulation).
+Every 1 / ``command_rate_hz`` of the node's clock (sim time with use_sim_time) the node
+sends q_ref = q_feedforward(t) + q_feedback, shaped to the arm's speed and acceleration
+limits (:class:`.position_interface.PositionShaper`, started from the measured joints), as
+std_msgs/Float64MultiArray on /forward_position_controller/commands in the order of the
+``joints`` parameter (ros2_controllers' forward_command_controller), or with
+``position_command_type: joint_trajectory`` as one trajectory_msgs/JointTrajectory point
+on /joint_trajectory_controller/joint_trajectory (joint_names = ``joints``, header stamp 0:
+"start now", time_from_start one command period). Nobody waits: a command uses the newest
+q_feedback that has arrived (:class:`.position_interface.FeedbackHold`), and the first
+command that uses a frame's q_feedback is reported on /ibvs/frame_latency
+(sensor_msgs/TimeReference: header.stamp = the command's time, time_ref = the frame's
+stamp). Until the feedforward trajectory and a /joint_states have come nothing is sent
+(the drive holds the arm) and the node logs once a second what it waits for.
+
 /ibvs/q_feedback contract: six finite positions, mapped by joint name, each within
 :data:`FEEDBACK_BOUND_RAD` (the joint's whole travel: no correction can be larger). Velocity
 and effort are not read; they may be empty, but a non-finite value there rejects the
@@ -40,14 +57,18 @@ message. A rejected q_feedback is not stored, so a good one with the same stamp 
 and the loop goes on as if the bad one had never come.
 """
 
+from builtin_interfaces.msg import Duration
 from ibvs_common import contract
-from ibvs_common.conversions import (check_finite, InputError, joint_state, read_joints,
-                                     read_stamp, read_trajectory)
+from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
+                                     read_joints, read_stamp, read_trajectory)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
-from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S,
-                                       PHYSICS_RATE_HZ, STALE_TIMEOUT_S, TAU_IN)
+from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_interface,
+                                       COMMAND_INTERFACE,
+                                       COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
+                                       PHYSICS_RATE_HZ, POSITION_COMMAND_TYPE,
+                                       STALE_TIMEOUT_S, TAU_IN)
 from ibvs_common.sim_time import known_now_ns
 from ibvs_common.sync import FeedbackLockstep
 from ibvs_common.timing import check_camera_rate, period_ns
@@ -55,16 +76,18 @@ from ibvs_model import IRB4600
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
-from trajectory_msgs.msg import JointTrajectory
+from sensor_msgs.msg import JointState, TimeReference
+from std_msgs.msg import Float64MultiArray, Header
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .controllers import JointLoop
 from .dynamics import RobotDynamics
 from .node_params import ACCELERATION_MARGIN, SPEED_MARGIN, TORQUE_LIMITS
+from .position_interface import FeedbackHold, joint_permutation, PositionShaper
 
 PARAMS = (TAU_IN, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS,
-          TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN, STALE_TIMEOUT_S)
+          TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN, STALE_TIMEOUT_S,
+          COMMAND_INTERFACE, COMMAND_RATE_HZ, POSITION_COMMAND_TYPE, JOINTS, LOCKSTEP)
 
 #: Steady-clock period of the 'waiting for' log.
 WAIT_LOG_S = 1.0
@@ -81,6 +104,12 @@ class JointControllerNode(Node):
         """Declare and check the parameters, load the dynamics model, create interfaces."""
         super().__init__('joint_controller_node', **kwargs)
         values = declare(self, PARAMS)
+        check_command_interface(values)
+        self.command_interface = values['command_interface']
+        self.dynamics = None
+        if self.command_interface == 'position':
+            self._setup_position(values)
+            return
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.latency_ns = int(round(values['feedback_latency_s'] * 1e9))
@@ -125,10 +154,115 @@ class JointControllerNode(Node):
             f"{values['actuators']} actuators, G_c at {1e9 / self.dt_ns:g} Hz, frames every "
             f'{self.camera_ns} ns, latency {self.latency_ns} ns')
 
+    def _setup_position(self, values):
+        """Position interface (module docstring): shaper, publishers, command timer."""
+        try:
+            self._order = joint_permutation(values['joints'], contract.JOINT_NAMES)
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'joints' = {values['joints']!r} is invalid: "
+                                 f'{exc}') from None
+        self.joints = list(values['joints'])
+        self.dt_ns = period_ns(values['physics_rate_hz'])
+        self.command_period_ns = period_ns(values['command_rate_hz'])
+        self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.shaper = PositionShaper(values['command_rate_hz'],
+                                     speed_margin=values['speed_margin'])
+        self._hold = FeedbackHold(np.zeros(6))
+        self._trajectory = None
+        self._measured = None
+        self.commands = 0
+        self.frames_used = 0
+        self.diagnostics = Diagnostics(self, 'joint controller')
+        self.diagnostics.update(command_interface='position', commands=0,
+                                position_command_type=values['position_command_type'])
+        if values['position_command_type'] == 'forward_command':
+            self._pub = self.create_publisher(Float64MultiArray, contract.POSITION_COMMANDS,
+                                              contract.RELIABLE)
+        else:
+            self._pub = self.create_publisher(JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                                              contract.RELIABLE)
+        self._pub_latency = self.create_publisher(TimeReference, contract.FRAME_LATENCY,
+                                                  contract.RELIABLE)
+        self.create_subscription(JointState, contract.JOINT_STATES, self._on_measured,
+                                 contract.RELIABLE)
+        self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
+                                 self._on_trajectory, contract.LATCHED)
+        self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
+                                 contract.RELIABLE)
+        self.create_timer(1e-9 * self.command_period_ns, self._command)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._progress = True
+        self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self.get_logger().info(
+            f"position references at {values['command_rate_hz']:g} Hz on "
+            f'{self._pub.topic_name} ({values["position_command_type"]}), joints '
+            f'{self.joints}')
+
     def destroy_node(self):
         """Release the PyBullet client with the node."""
-        self.dynamics.close()
+        if self.dynamics is not None:
+            self.dynamics.close()
         return super().destroy_node()
+
+    # -- position interface ----------------------------------------------------------------
+    def _on_measured(self, msg):
+        source = contract.JOINT_STATES
+        try:
+            t_ns = read_stamp(msg.header.stamp)
+            q = read_joints(msg)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
+        now_ns = known_now_ns(self)
+        if now_ns is not None and t_ns > now_ns + self.future_ns:
+            self.diagnostics.reject(source, 'stamp in the future',
+                                    f'{t_ns} ns, more than stale_timeout_s after the clock '
+                                    f'({now_ns} ns)')
+            return
+        if self._measured is not None and t_ns <= self._measured[0]:
+            self.diagnostics.reject(source, 'out of order',
+                                    f'{t_ns} ns, not newer than {self._measured[0]} ns')
+            return
+        self._measured = (t_ns, q)
+
+    def _position_missing(self):
+        """Return what the first position command still waits for (empty when ready)."""
+        missing = []
+        if self._trajectory is None:
+            missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
+        if self._measured is None:
+            missing.append(f'a {contract.JOINT_STATES} (the shaper starts from it)')
+        return missing
+
+    def _command(self):
+        """Send one position reference (module docstring, position interface)."""
+        if self._position_missing():
+            return
+        now_ns = self.get_clock().now().nanoseconds
+        if not self.shaper.started:
+            self.shaper.start(self._measured[1])
+            self._last_command_ns = now_ns - self.command_period_ns
+        q_feedback, first_frame_ns = self._hold.use()
+        q_command = self.shaper.step(self.q_feedforward(now_ns) + q_feedback,
+                                     1e-9 * (now_ns - self._last_command_ns))
+        self._last_command_ns = now_ns
+        values = [float(v) for v in q_command[self._order]]
+        if self._pub.msg_type is Float64MultiArray:
+            self._pub.publish(Float64MultiArray(data=values))
+        else:
+            self._pub.publish(JointTrajectory(joint_names=self.joints, points=[
+                JointTrajectoryPoint(positions=values, time_from_start=Duration(
+                    sec=self.command_period_ns // 10 ** 9,
+                    nanosec=self.command_period_ns % 10 ** 9))]))
+        if first_frame_ns is not None:
+            self._pub_latency.publish(TimeReference(
+                header=Header(stamp=ns_stamp(now_ns)), time_ref=ns_stamp(first_frame_ns),
+                source=contract.Q_FEEDBACK))
+            self.frames_used += 1
+        self.commands += 1
+        self._progress = True
+        self.diagnostics.update(commands=self.commands, frames_used=self.frames_used,
+                                last_command_ns=now_ns)
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_joint_state(self, msg):
@@ -155,7 +289,8 @@ class JointControllerNode(Node):
         start_ns, positions = self._trajectory
         self.diagnostics.update(feedforward_start_ns=start_ns,
                                 feedforward_points=len(positions))
-        self._drain()
+        if self.command_interface == 'effort':
+            self._drain()
 
     def _on_feedback(self, msg):
         source = contract.Q_FEEDBACK
@@ -169,6 +304,11 @@ class JointControllerNode(Node):
         if np.any(np.abs(q) > FEEDBACK_BOUND_RAD):
             self.diagnostics.reject(source, 'out of range',
                                     f'{q.tolist()} rad: a joint beyond its whole travel')
+            return
+        if self.command_interface == 'position':
+            rejection = self._hold.offer(t_ns, q)
+            if rejection is not None:
+                self.diagnostics.reject(source, *rejection)
             return
         rejection = self._lockstep.offer_feedback(t_ns, q)
         if rejection is not None:
@@ -227,6 +367,13 @@ class JointControllerNode(Node):
                                 saturated_joints=int(np.count_nonzero(self.loop.saturated)))
 
     def _log_waiting(self):
+        if self.command_interface == 'position':
+            missing = self._position_missing()
+            if missing and not self._progress:
+                self.get_logger().info('waiting to send position references for '
+                                       + ', '.join(missing))
+            self._progress = False
+            return
         t_ns = self._lockstep.states.first_ns
         if t_ns is not None and not self._progress:
             self.get_logger().info(f'waiting to answer /joint_states {t_ns} ns for '

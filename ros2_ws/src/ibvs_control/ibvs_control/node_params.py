@@ -26,11 +26,24 @@ FEEDFORWARD_RATIO = Param(
     "reference on the same joint-space line ('ibvs run' sets 2 for servo_law 'switching')",
     '-', low=0.01, high=100.0)
 SERVO_LAW = Param(
-    'servo_law', 'paper',
+    'servo_law', servo_laws.SERVO_LAWS[0],
     "feedback law: 'paper' (adaptive Youla, eq. 38-41), 'switching' (the paper's law, "
     "switched on once the markers are measured and the feedforward has settled), 'ibvs' "
     "(classic IBVS, -lambda C1^+ e) or 'pbvs' (position-based, flange and tool axis); "
     "'ibvs' and 'pbvs' need feedforward_method 'hold'", '-', choices=servo_laws.SERVO_LAWS)
+FEATURE_FALLBACK = Param(
+    'feature_fallback', servo_laws.FEATURE_FALLBACKS[0],
+    "servo_law 'ibvs' / 'pbvs', a frame whose markers were not measured: 'estimate' "
+    "integrates the feature node's blended or model-estimated features as 'paper' does; "
+    "'hold' adds nothing (the robot stops)", '-', choices=servo_laws.FEATURE_FALLBACKS)
+WINDUP_HORIZON_S = Param(
+    'windup_horizon_s', servo_laws.WINDUP_HORIZON_S,
+    "servo_law 'ibvs' / 'pbvs', anti-windup: the joint reference stays within the joint "
+    'speed limits times this of the encoder angles', 's', low=0.0, high=10.0, low_open=True)
+JOINT_LIMIT_MARGIN_RAD = Param(
+    'joint_limit_margin_rad', servo_laws.JOINT_LIMIT_MARGIN_RAD,
+    "servo_law 'ibvs' / 'pbvs': the joint reference stays this far inside the joint limits",
+    'rad', low=0.0, high=0.5)
 LAMBDA_0 = Param('lambda_0', servo_laws.LAMBDA_0,
                  "servo_law 'ibvs' / 'pbvs': gain lambda at zero error (ViSP's lambda(0); "
                  "'pbvs' uses it as its constant gain)", '1/s', low=0.0, high=1000.0,
@@ -95,20 +108,16 @@ def check_servo_law(values):
     """
     Raise ParameterError unless the servo law, its gains and the feedforward agree.
 
-    'ibvs' and 'pbvs' carry the whole move in q_feedback and need feedforward_method
-    'hold' (q_feedforward = q(0)); 'paper' and 'switching' need the feedforward. With
-    lambda_slope > 0, lambda_inf must not exceed lambda_0 (:class:`.servo_laws.AdaptiveGain`).
+    The law's class says which feedforward_method goes with it
+    (:meth:`.servo_laws.ServoLaw.feedforward_problem`); with lambda_slope > 0, lambda_inf
+    must not exceed lambda_0 (:class:`.servo_laws.AdaptiveGain`). Return the gain.
     """
-    law, method = values['servo_law'], values['feedforward_method']
-    wanted = servo_laws.feedforward_method_for(law, method)
-    if law in servo_laws.WITHOUT_FEEDFORWARD and method != 'hold':
+    law, method = servo_laws.law_class(values['servo_law']), values['feedforward_method']
+    problem = law.feedforward_problem(method)
+    if problem is not None:
         raise ParameterError(
-            f"parameter 'feedforward_method' = {method!r} is invalid with servo_law = {law!r}:"
-            f' that law has no feedforward; allowed: {wanted!r} (ibvs run sets it for you)')
-    if law not in servo_laws.WITHOUT_FEEDFORWARD and method == 'hold':
-        raise ParameterError(
-            f"parameter 'feedforward_method' = 'hold' is invalid with servo_law = {law!r}: "
-            "that law needs the feedforward; allowed: 'sampled', 'tustin' or 'zoh'")
+            f"parameter 'feedforward_method' = {method!r} is invalid with servo_law = "
+            f'{law.name!r}: {problem}')
     try:
         return servo_laws.AdaptiveGain(**{spec.name: values[spec.name]
                                           for spec in (LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE)})

@@ -283,7 +283,8 @@ def feature_status(t_ns, measured):
 
 def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context):
     model = default_model()
-    node, h = feedback_harness(context, servo_law='ibvs', feedforward_method='hold')
+    node, h = feedback_harness(context, servo_law='ibvs', feedforward_method='hold',
+                               feature_fallback='hold')
     status_pub = h.pub[contract.FEATURE_STATUS] = h.node.create_publisher(
         DiagnosticArray, contract.FEATURE_STATUS, contract.RELIABLE)
     try:
@@ -308,7 +309,8 @@ def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context
         for t, measured in zip(frames, (True, False, True)):
             h.publish(contract.FEATURE_STATUS, feature_status(t, measured))
         h.spin_until(lambda: len(out) == 3, 'q_feedback')
-        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, svd_damping=0.1)
+        ref = ClassicIBVS(model, paper.target_pose(), 1 / 30, node.gain, svd_damping=0.1,
+                          feature_fallback='hold')
         for msg, measured in zip(out, (True, False, True)):
             up = ref.update(sent, q, measured=measured)
             np.testing.assert_allclose(read_joints(msg), up.q_feedback, atol=1e-9)

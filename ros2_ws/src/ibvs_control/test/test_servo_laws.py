@@ -8,12 +8,14 @@ Servo laws beside the paper's (no ROS): classic IBVS, PBVS, switching, by proper
 - ibvs and pbvs hold still while the markers are not measured.
 """
 
+from dataclasses import replace
+
 from ibvs_control import controllers, servo_laws
 from ibvs_control.closed_loop import simulate
 from ibvs_control.controllers import Feedforward
 from ibvs_control.servo_laws import (AdaptiveGain, axis_error, ClassicIBVS, make_law, PBVS,
                                      Switching, tool_from_markers)
-from ibvs_model import default_model, forward_kinematics, inverse_kinematics, paper
+from ibvs_model import default_model, forward_kinematics, inverse_kinematics, IRB4600, paper
 import numpy as np
 import pytest
 
@@ -65,8 +67,8 @@ def test_hold_feedforward_stays_at_the_initial_joints():
     rows = ff.trajectory()
     assert 2 <= rows.shape[0] <= 2 + controllers.SETTLED_SAMPLES
     np.testing.assert_array_equal(rows, np.tile(q0, (rows.shape[0], 1)))
-    assert servo_laws.feedforward_method_for('ibvs') == 'hold'
-    assert servo_laws.feedforward_method_for('switching', 'tustin') == 'tustin'
+    assert servo_laws.ClassicIBVS.feedforward_method('sampled') == 'hold'
+    assert servo_laws.Switching.feedforward_method('tustin') == 'tustin'
     assert servo_laws.feedforward_overrides('pbvs') == {'feedforward_method': 'hold'}
     assert servo_laws.feedforward_overrides('paper') == {}
     assert servo_laws.feedforward_overrides('switching') == {
@@ -127,14 +129,27 @@ def test_classic_ibvs_in_the_model_only_loop_decays_at_about_lambda():
     np.testing.assert_array_equal(r.q_feedforward, np.tile(r.q[0], (r.t.size, 1)))
 
 
-def test_pbvs_moves_the_flange_on_a_straight_line():
+def test_pbvs_moves_the_flange_on_a_straight_line_unless_a_joint_limit_is_in_the_way():
     target = paper.target_pose()[:3, 3]
-    r = simulate(1, 5.0, servo_law='pbvs', gain=AdaptiveGain(1.0, 1.0, 0.0))
+    # that line from scenario 1 takes joint 2 to -90.5 deg, past its -90 deg limit: with
+    # the limits out of the way the flange follows it ...
+    wide = replace(IRB4600, q_min=(-7.0,) * 6, q_max=(7.0,) * 6)
+    r = simulate(1, 5.0, servo_law='pbvs', gain=AdaptiveGain(1.0, 1.0, 0.0),
+                 model=default_model(params=wide))
     path = flange_path(r)
     travelled = np.linalg.norm(target - path[0])
     _, lateral, _ = path_metrics(r.t, path, target)
     assert np.linalg.norm(path[-1] - target) < 0.02 * travelled
     assert lateral < 0.005 * travelled, f'{lateral * 1e3:.1f} mm off the line'
+    low = IRB4600.q_min[1] + servo_laws.JOINT_LIMIT_MARGIN_RAD
+    assert r.q_true[:, 1].min() < low
+    # ... with the IRB 4600's, the reference stops joint 2 at its limit (less the margin)
+    # and the path bends round it, still to the target
+    limited = simulate(1, 5.0, servo_law='pbvs', gain=AdaptiveGain(1.0, 1.0, 0.0))
+    bent = flange_path(limited)
+    assert np.linalg.norm(bent[-1] - target) < 0.02 * travelled
+    assert path_metrics(limited.t, bent, target)[1] > 0.05 * travelled
+    assert (limited.q_feedforward + limited.q_feedback)[:, 1].min() >= low - 1e-12
     # the paper's law, for contrast, moves in joint space: far off the line
     paper_path = flange_path(simulate(1, 0.5))
     assert path_metrics(r.t[:paper_path.shape[0]], paper_path, target)[1] > 0.1 * travelled
@@ -143,13 +158,11 @@ def test_pbvs_moves_the_flange_on_a_straight_line():
 def test_taught_target_features_set_the_vision_only_targets():
     model = default_model()
     pose = paper.target_pose()
-    taught = make_law('ibvs', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30)
+    taught = make_law('ibvs', model, pose, 1 / 30)
     shifted = taught.p_target + [2.0, 2.0, -1.0, 0.5, 0.5, 1.0]
-    ibvs = make_law('ibvs', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30,
-                    p_target=shifted)
+    ibvs = make_law('ibvs', model, pose, 1 / 30, p_target=shifted)
     np.testing.assert_array_equal(ibvs.p_target, shifted)
-    pbvs = make_law('pbvs', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30,
-                    p_target=shifted)
+    pbvs = make_law('pbvs', model, pose, 1 / 30, p_target=shifted)
     position, axis = tool_from_markers(model.camera, shifted)
     np.testing.assert_array_equal(pbvs.t_target, position)
     np.testing.assert_allclose(pbvs.pose_error(shifted), 0.0, atol=1e-12)
@@ -177,11 +190,15 @@ def test_pbvs_pose_error_of_the_target_is_zero():
 
 
 @pytest.mark.parametrize('law', ['ibvs', 'pbvs'])
-def test_vision_only_laws_hold_still_out_of_view(law):
-    r = simulate(2, 0.3, servo_law=law)
+def test_vision_only_laws_hold_still_out_of_view_with_fallback_hold(law):
+    r = simulate(2, 0.3, servo_law=law, feature_fallback='hold')
     assert not np.any(r.measured)
     assert np.all(r.q_feedback == 0.0)
     np.testing.assert_allclose(r.q, np.tile(r.q[0], (r.t.size, 1)), atol=1e-12)
+    # 'estimate' (the default): the model-estimated features move them, as the paper's law
+    moved = simulate(2, 0.3, servo_law=law)
+    assert not moved.measured[0]
+    assert np.abs(moved.q[-1] - moved.q[0]).max() > 0.1
 
 
 @pytest.mark.parametrize('scenario', [1, 2, 3])
@@ -217,8 +234,8 @@ def test_switching_overshoots_little_and_is_fast(scenario):
 def test_switching_waits_for_measured_features_and_for_the_settle_time():
     model = default_model()
     pose = paper.target_pose()
-    law = make_law('switching', model, pose, paper.TAU_IN, paper.OMEGA_N, paper.ZETA, 1 / 30,
-                   switch_settle_s=0.1)
+    law = make_law('switching', model, pose, 1 / 30, tau_in=paper.TAU_IN,
+                   omega_n=paper.OMEGA_N, zeta=paper.ZETA, switch_settle_s=0.1)
     assert isinstance(law, Switching)
     q = inverse_kinematics(pose) + np.radians([0.3, 0.0, 0.0, 0.0, 0.0, 0.0])
     p = model.features(q)
@@ -252,3 +269,58 @@ def test_parameters_of_the_laws_are_checked_at_start():
     with pytest.raises(ParameterError, match="'lambda_inf' = 20.0"):
         check_servo_law(dict(values, lambda_inf=20.0))
     assert check_servo_law(dict(values, lambda_inf=20.0, lambda_slope=0.0))(1e3) == 12.0
+
+
+def test_guard_keeps_the_reference_within_reach_and_inside_the_joint_limits():
+    q = np.zeros(6)
+    lead = np.asarray(IRB4600.qd_max) * 0.1
+    ref, cut = servo_laws.guard_reference(q + 10.0, q, IRB4600, 0.1, 0.05)
+    assert cut
+    np.testing.assert_allclose(ref, q + lead)
+    near = np.asarray(IRB4600.q_max) - 0.01
+    ref, cut = servo_laws.guard_reference(near + 0.2, near, IRB4600, 0.1, 0.05)
+    np.testing.assert_allclose(ref, np.asarray(IRB4600.q_max) - 0.05)
+    ref, cut = servo_laws.guard_reference(q + 0.01, q, IRB4600, 0.1, 0.05)
+    assert not cut and np.all(ref == q + 0.01)
+
+
+@pytest.mark.parametrize('law', [ClassicIBVS, PBVS])
+def test_velocity_laws_do_not_wind_up_past_what_the_arm_can_follow(law):
+    """A frame far from the target with a huge gain: q_ref = q(0) + q_feedback stays in reach."""
+    model = default_model()
+    pose = paper.target_pose()
+    servo = law(model, pose, 1 / 30, AdaptiveGain(500.0, 500.0, 0.0), windup_horizon_s=0.1)
+    q = inverse_kinematics(paper.scenario_start_pose(1))
+    for _ in range(5):  # the arm does not move: the reference must not run away
+        update = servo.update(model.features(q), q)
+    lead = np.asarray(model.params.qd_max) * 0.1
+    assert update.clipped
+    assert np.all(np.abs(servo.q_feedback) <= lead + 1e-12)
+    assert law.needs_measured({'feature_fallback': 'hold'})
+    assert not law.needs_measured({'feature_fallback': 'estimate'})
+
+
+def test_the_registry_is_the_one_place_that_knows_the_laws():
+    assert servo_laws.SERVO_LAWS == tuple(law.name for law in servo_laws.LAWS)
+    assert servo_laws.SERVO_LAWS[0] == 'paper', 'the default first'
+    assert len(set(servo_laws.SERVO_LAWS)) == len(servo_laws.LAWS)
+    for law in servo_laws.LAWS:
+        assert issubclass(law, servo_laws.ServoLaw)
+        assert servo_laws.law_class(law.name) is law
+        assert law.feedforward_problem(law.feedforward_method('sampled')) is None
+        assert law.feedforward_problem('hold' if not law.without_feedforward else 'zoh')
+    with pytest.raises(ValueError, match="servo_law must be one of .* got 'nope'"):
+        servo_laws.law_class('nope')
+    # every law is made from the same settings, each taking what it declares
+    model = default_model()
+    settings = {'tau_in': paper.TAU_IN, 'omega_n': paper.OMEGA_N, 'zeta': paper.ZETA,
+                'svd_rcond': 1e-6, 'svd_damping': 0.1, 'feature_fallback': 'estimate'}
+    q = inverse_kinematics(paper.target_pose()) + np.radians([0.3, 0.0, 0.2, 0.0, 0.1, 0.0])
+    for name in servo_laws.SERVO_LAWS:
+        law = make_law(name, model, paper.target_pose(), 1 / 30, **settings)
+        assert isinstance(law, servo_laws.law_class(name))
+        update = law.update(model.features(q), q, np.zeros(6), measured=True, t=0.0)
+        # e = s - s*, one sign for all: the same error norm whatever the law
+        if name != 'pbvs':
+            assert update.error_norm == pytest.approx(
+                np.linalg.norm(model.features(q) - law.p_target))

@@ -37,6 +37,28 @@ seeded with camera_seed. With target_features_source 'taught' the tool is first 
 the target pose and a stereo pair rendered (true camera, noise added); it is published
 latched on /stereo/teach/{left,right}/image_raw for the feature node to measure p_bar.
 
+Free-running (``lockstep: false``, with ``command_interface: position``: a real cell's
+timing, docs/design.md §4). After the same start, a steady-clock timer advances the
+physics on its own, ``real_time_factor`` sim seconds per wall second (Gazebo's setting),
+publishing each step's outputs as above, frames included: each frame is rendered when it is
+due and published whether or not anybody is ready, stamped with its exposure time (the
+step it shows). /clock goes out at least at ``command_rate_hz`` (so that the joint
+controller's sim-time command timer fires at its rate). The arm is a position-controlled
+IRB 4600: joint references on /forward_position_controller/commands
+(std_msgs/Float64MultiArray, values in the order of the ``joints`` parameter, as
+ros2_controllers' forward_command_controller takes them) or, with ``position_command_type:
+joint_trajectory``, on /joint_trajectory_controller/joint_trajectory (trajectory_msgs/
+JointTrajectory, mapped by joint name; the last point's positions are the reference),
+tracked by the drive model :class:`.position_servo.PositionServo` (dead time, bandwidth,
+speed and acceleration limits), the last reference held (zero-order hold). A reference
+older than ``command_timeout_s`` (sim time) is stale: the drive stops the arm and holds it,
+logs it and says so on /diagnostics (``command: stale``) until a new one comes. A command
+with the wrong number of values, unknown, missing or repeated joint names, a non-finite
+value or a position outside the joint's range is rejected and counted. When the machine
+cannot keep ``real_time_factor`` (a step's work, rendering above all, takes longer than its
+share of wall time) the node says so once a second (WARN log and /diagnostics
+``real_time_factor_held``) and goes on at the pace it can hold: sim time is never skipped.
+
 Bad input. A command with another stamp is rejected as stale (older) or early (newer) and
 ignored. A command with the right stamp but a wrong length, unknown joint names, NaN or inf
 is rejected too; the step then happens with the holding torque (PyBullet inverse dynamics
@@ -46,6 +68,7 @@ its position. Each rejection is logged and counted on /diagnostics.
 
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
@@ -53,21 +76,26 @@ from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
-from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
-                                       PHYSICS_RATE_HZ, SCENARIO, TARGET_FEATURES_SOURCE,
-                                       target_from_parameters, TARGET_POSITION,
-                                       TARGET_ROTATION)
+from ibvs_common.shared_params import (CAMERA_RATE_HZ, check_command_interface,
+                                       COMMAND_INTERFACE, COMMAND_RATE_HZ, DISTURBANCE_DEG,
+                                       JOINTS, L2_SCALE, L4_SCALE, LOCKSTEP, PHYSICS_RATE_HZ,
+                                       POSITION_COMMAND_TYPE, SCENARIO,
+                                       TARGET_FEATURES_SOURCE, target_from_parameters,
+                                       TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.timing import period_ns
-from ibvs_model import paper
+from ibvs_model import IRB4600, paper
+from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
 from nav_msgs.msg import Path
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import CameraInfo, Image, JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Float64MultiArray, Header
+from trajectory_msgs.msg import JointTrajectory
 
 from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
+from .position_servo import PositionServo
 from .simulator import ConfigError, Simulator
 from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M, DEFAULT_SUPERSAMPLING,
                     MAX_FOCUS_SUPERSAMPLING, MAX_MOUNT_HEIGHT_M, MAX_SUPERSAMPLING, RENDERERS)
@@ -151,6 +179,27 @@ FOCAL_LENGTH_ERROR = Param(
     'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
     'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
 
+REAL_TIME_FACTOR = Param(
+    'real_time_factor', 0.05, 'free-running (lockstep false): sim seconds per wall second '
+    "(Gazebo's real_time_factor); 0.05 leaves margin on a loaded 2-core machine, where one "
+    'HD720 stereo pair takes about 80 ms to render (0.1 was held at 0.05-0.09 with three '
+    'other test suites running); when it cannot be held the node says so',
+    '-', low=0.0, high=10.0, low_open=True)
+COMMAND_TIMEOUT_S = Param(
+    'command_timeout_s', 0.1, 'free-running: a position reference older than this (sim '
+    'time) is stale: the drive stops and holds the arm', 's', low=0.0, high=10.0, low_open=True)
+DRIVE_BANDWIDTH_HZ = Param(
+    'drive_bandwidth_hz', EGM_BANDWIDTH_HZ, "position drive model: bandwidth of the drive's "
+    'position loop (ibvs_model.drive: EGM)', 'Hz', low=0.0, high=80.0, low_open=True)
+DRIVE_DELAY_S = Param(
+    'drive_delay_s', EGM_DELAY_S, 'position drive model: dead time from a reference to the '
+    'motion (ibvs_model.drive: EGM, about 20 ms)', 's', low=0.0, high=0.5)
+CAMERA_TOPICS = Param(
+    'camera_topics', 'ibvs', "names and format of the stereo pair: 'ibvs' (/stereo/*/image_raw "
+    "in rgb8, this project's contract) or 'zed_wrapper' (what zed-ros2-wrapper 5.4 publishes "
+    'for a camera named zed: /zed/zed_node/{left,right}/color/rect/image in bgra8 with '
+    'their camera_info and frame ids, QoS depth 10)', '-', choices=('ibvs', 'zed_wrapper'))
+
 #: The parameters that go to :class:`.simulator.Simulator` as they are, under their names.
 SIMULATOR_PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION,
                     CAMERA_EYE, CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDER_SUPERSAMPLING,
@@ -161,7 +210,29 @@ PARAMS = SIMULATOR_PARAMS + (
     RENDERER, RENDER_PARALLEL_LENSES, PUBLISH_IMAGES, CLOCK_RATE_HZ,
     MIN_JOINT_STATE_SUBSCRIBERS, MIN_FRAME_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_PATH_SUBSCRIBERS,
     MIN_CAMERA_INFO_SUBSCRIBERS,
-    TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION)
+    TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION,
+    LOCKSTEP, COMMAND_INTERFACE, POSITION_COMMAND_TYPE, COMMAND_RATE_HZ, JOINTS,
+    REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS)
+
+#: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
+CAMERA_OUTPUTS = {
+    'ibvs': ((contract.LEFT_IMAGE, contract.RIGHT_IMAGE),
+             (contract.LEFT_INFO, contract.RIGHT_INFO),
+             (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME), 'rgb8',
+             contract.IMAGES),
+    'zed_wrapper': ((contract.ZED_LEFT_IMAGE, contract.ZED_RIGHT_IMAGE),
+                    (contract.ZED_LEFT_INFO, contract.ZED_RIGHT_INFO),
+                    (contract.ZED_LEFT_FRAME, contract.ZED_RIGHT_FRAME),
+                    contract.ZED_ENCODING, contract.ZED_IMAGES),
+}
+#: Free-running: the longest the stepping timer waits (wall s), and the most physics steps
+#: one of its calls takes before it lets the executor run other callbacks.
+FREE_RUN_TICK_S = 0.005
+MAX_STEPS_PER_TICK = 20
+#: Free-running: the wall-clock window over which the real-time factor held is measured,
+#: and the share of the set factor below which the node reports that it falls behind.
+RTF_WINDOW_S = 2.0
+RTF_TOLERANCE = 0.9
 
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
@@ -184,12 +255,19 @@ class SimNode(Node):
 
     def _setup(self):
         values = declare(self, PARAMS)
+        check_command_interface(values)
+        self._lockstep = values['lockstep']
+        self._position = values['command_interface'] == 'position'
         self._publish_images = values['publish_images']
         self._min_joint_subscribers = values['min_joint_state_subscribers']
         self._min_frame_joint_subscribers = values['min_frame_joint_state_subscribers']
         self._min_tool_subscribers = values['min_tool_path_subscribers']
         self._min_info_subscribers = values['min_camera_info_subscribers']
-        self._clock_period_ns = period_ns(values['clock_rate_hz'])
+        clock_rate_hz = values['clock_rate_hz']
+        if not self._lockstep and clock_rate_hz < values['command_rate_hz']:
+            # A sim-time timer fires only when /clock moves: the command timer needs it.
+            clock_rate_hz = values['command_rate_hz']
+        self._clock_period_ns = period_ns(clock_rate_hz)
         self._next_clock_ns = 0
         self.last_clock_ns = None
         teach = values['target_features_source'] == 'taught'
@@ -227,11 +305,13 @@ class SimNode(Node):
         #: The (stamp ns, T_E^O) of the steps since the last /ibvs/tool_path.
         self._tool_poses = []
         self._pub_images = self._pub_infos = ()
+        image_topics, info_topics, self._camera_frames, self._encoding, qos = \
+            CAMERA_OUTPUTS[values['camera_topics']]
         if self._publish_images:
-            self._pub_images = tuple(self.create_publisher(Image, topic, contract.IMAGES)
-                                     for topic in (contract.LEFT_IMAGE, contract.RIGHT_IMAGE))
-            self._pub_infos = tuple(self.create_publisher(CameraInfo, topic, contract.IMAGES)
-                                    for topic in (contract.LEFT_INFO, contract.RIGHT_INFO))
+            self._pub_images = tuple(self.create_publisher(Image, topic, qos)
+                                     for topic in image_topics)
+            self._pub_infos = tuple(self.create_publisher(CameraInfo, topic, qos)
+                                    for topic in info_topics)
         self._pub_lost = self.create_publisher(Header, contract.FRAME_LOST, contract.RELIABLE)
         # The controllers get the calibrated camera; the images show the true one.
         pose_pub = self.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
@@ -246,8 +326,11 @@ class SimNode(Node):
                                          (contract.LEFT_CAMERA_FRAME,
                                           contract.RIGHT_CAMERA_FRAME)):
                 pub.publish(image_msg(image, 0, 'rgb8', frame))
-        self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
-                                             self._on_command, contract.RELIABLE)
+        if self._position:
+            self._setup_position(values)
+        else:
+            self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
+                                                 self._on_command, contract.RELIABLE)
 
         self.started = False
         self._frame_step = False
@@ -260,6 +343,37 @@ class SimNode(Node):
                                               clock=self._steady)
         self._wait_timer = self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
 
+    def _setup_position(self, values):
+        """Create the position drive and its command subscription (module docstring)."""
+        self._joints = list(values['joints'])
+        if sorted(self._joints) != sorted(contract.JOINT_NAMES) or \
+                len(set(self._joints)) != 6:
+            raise ParameterError(f"parameter 'joints' = {self._joints!r} is invalid: it must "
+                                 f'name each of {list(contract.JOINT_NAMES)} exactly once')
+        # Command value i is joint self._joints[i]; _to_contract reorders to joint_1..6.
+        self._to_contract = np.array([self._joints.index(n) for n in contract.JOINT_NAMES])
+        try:
+            self.servo = PositionServo(self.sim.dt_ns * 1e-9, self.sim.q_start,
+                                       bandwidth_hz=values['drive_bandwidth_hz'],
+                                       delay_s=values['drive_delay_s'])
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'drive_bandwidth_hz' = "
+                                 f"{values['drive_bandwidth_hz']!r} is invalid: {exc}") from None
+        self._command_timeout_ns = int(round(values['command_timeout_s'] * 1e9))
+        self._rtf = values['real_time_factor']
+        self._command_ns = None
+        self._stale = False
+        self.commands = 0
+        if values['position_command_type'] == 'forward_command':
+            self._sub = self.create_subscription(Float64MultiArray, contract.POSITION_COMMANDS,
+                                                 self._on_position_command, contract.RELIABLE)
+        else:
+            self._sub = self.create_subscription(JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                                                 self._on_trajectory_command,
+                                                 contract.RELIABLE)
+        self.diagnostics.update(command='none yet', commands=0, real_time_factor=self._rtf)
+        self._run_timer = None
+
     def destroy_node(self):
         """Release PyBullet with the node."""
         if self.sim is not None:
@@ -270,7 +384,7 @@ class SimNode(Node):
         """Return what the start still waits for (empty when it can start)."""
         missing = []
         if self._sub.get_publisher_count() < 1:
-            missing.append(f'a publisher on {contract.EFFORT_COMMANDS}')
+            missing.append(f'a publisher on {self._sub.topic_name}')
         for pub, wanted in ((self._pub_joints, self._min_joint_subscribers),
                             (self._pub_frame_joints, self._min_frame_joint_subscribers),
                             (self._pub_tool, self._min_tool_subscribers)):
@@ -294,8 +408,26 @@ class SimNode(Node):
         self._start_timer.cancel()
         self.get_logger().info('starting at t = 0: publishing step 0')
         self._publish_step()
+        if not self._lockstep:
+            self.get_logger().info(
+                f'free-running at real_time_factor {self._rtf:g}, /clock every '
+                f'{self._clock_period_ns} ns, commands stale after '
+                f'{self._command_timeout_ns} ns')
+            self._anchor = (time.monotonic(), self.sim.t_ns)
+            self._window = (time.monotonic(), self.sim.t_ns)
+            self._run_timer = self.create_timer(
+                min(FREE_RUN_TICK_S, self.sim.dt_ns * 1e-9 / self._rtf), self._run,
+                clock=self._steady)
 
     def _log_waiting(self):
+        if not self._lockstep:
+            if not self.started:
+                self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
+            elif self._command_ns is None:
+                self.get_logger().info(f'no position reference yet on {self._sub.topic_name}: '
+                                       f'holding the arm at its start (t = '
+                                       f'{self.sim.t_ns * 1e-9:.3f} s)')
+            return
         if not self.started:
             self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
         elif not self._progress_since_log:
@@ -336,11 +468,11 @@ class SimNode(Node):
                                               frame_id=contract.CAMERA_FRAME))
             elif images is not None:
                 with timing.section('image_messages'):
-                    frames = (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)
-                    infos = camera_infos(sim.calibrated_camera.intrinsics, stamp)
+                    frames = self._camera_frames
+                    infos = camera_infos(sim.calibrated_camera.intrinsics, stamp, frames)
                     for pub, info_pub, image, info, frame in zip(
                             self._pub_images, self._pub_infos, images, infos, frames):
-                        pub.publish(image_msg(image, stamp, 'rgb8', frame))
+                        pub.publish(image_msg(image, stamp, self._encoding, frame))
                         info_pub.publish(info)
         timing.reached(t_ns)
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
@@ -376,6 +508,103 @@ class SimNode(Node):
             self.sim.step(torque)
         self._progress_since_log = True
         self._publish_step()
+
+    # -- free-running, position drive ----------------------------------------------------
+    def _run(self):
+        """Advance the physics to where real_time_factor puts sim time now (module docs)."""
+        wall0, sim0 = self._anchor
+        now = time.monotonic()
+        due_ns = sim0 + int((now - wall0) * self._rtf * 1e9)
+        steps = 0
+        while self.sim.t_ns + self.sim.dt_ns <= due_ns and steps < MAX_STEPS_PER_TICK:
+            self._free_step()
+            steps += 1
+        if self.sim.t_ns + self.sim.dt_ns <= due_ns and \
+                due_ns - self.sim.t_ns > 10 * MAX_STEPS_PER_TICK * self.sim.dt_ns:
+            # Behind by more than ten ticks' worth: go on from here at the set pace rather
+            # than rush (sim time is never skipped, only the lost wall time is not made up).
+            self._anchor = (now, self.sim.t_ns)
+        start, sim_start = self._window
+        if now - start >= RTF_WINDOW_S:
+            held = (self.sim.t_ns - sim_start) * 1e-9 / (now - start)
+            self._window = (now, self.sim.t_ns)
+            self.diagnostics.update(real_time_factor_held=held)
+            if held < RTF_TOLERANCE * self._rtf:
+                message = (f'falling behind: real_time_factor {held:.3f} held over the last '
+                           f'{now - start:.1f} s of wall time, {self._rtf:g} set')
+                self.get_logger().warn(message)
+                self.diagnostics.set_level(DiagnosticStatus.WARN, message)
+            elif not self._stale:
+                self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
+
+    def _free_step(self):
+        """One physics step of the position drive, then the next step's outputs."""
+        sim = self.sim
+        if self._command_ns is not None and not self._stale and \
+                sim.t_ns - self._command_ns > self._command_timeout_ns:
+            self._stale = True
+            self.servo.hold()
+            message = (f'command stale: no position reference for '
+                       f'{(sim.t_ns - self._command_ns) * 1e-9:.3f} s of sim time (command_'
+                       f'timeout_s {self._command_timeout_ns * 1e-9:g}): holding the arm')
+            self.get_logger().warn(message)
+            self.diagnostics.set_level(DiagnosticStatus.WARN, message)
+            self.diagnostics.update(command='stale')
+        with self.diagnostics.timing.section('physics'):
+            q, qd = self.servo.step()
+            sim.move_to(q, qd)
+        self._publish_step()
+
+    def _take_reference(self, q_encoder, source):
+        """Take a reference in encoder angles (contract order): range check, then the drive."""
+        low, high = np.asarray(IRB4600.q_min), np.asarray(IRB4600.q_max)
+        q_true = q_encoder + self.sim.d_q
+        if np.any(q_true < low) or np.any(q_true > high):
+            self.diagnostics.reject(source, 'out of range', f'{q_encoder.tolist()} rad: '
+                                    'beyond a joint range')
+            return
+        self.servo.command(q_true)
+        self._command_ns = self.sim.t_ns
+        self.commands += 1
+        if self._stale:
+            self._stale = False
+            self.get_logger().info('position references again: tracking')
+            self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
+        self.diagnostics.update(command='tracking', commands=self.commands)
+
+    def _on_position_command(self, msg):
+        """Take a forward_command_controller command: values in the order of ``joints``."""
+        source = self._sub.topic_name
+        values = np.asarray(msg.data, dtype=float)
+        if values.shape != (6,):
+            self.diagnostics.reject(source, 'wrong length',
+                                    f'{values.size} values, expected 6 ({self._joints})')
+            return
+        if not np.all(np.isfinite(values)):
+            self.diagnostics.reject(source, 'not finite', f'{values.tolist()}')
+            return
+        self._take_reference(values[self._to_contract], source)
+
+    def _on_trajectory_command(self, msg):
+        """Take a joint_trajectory_controller command: the last point, mapped by name."""
+        source = self._sub.topic_name
+        names = list(msg.joint_names)
+        if sorted(names) != sorted(contract.JOINT_NAMES) or len(set(names)) != 6:
+            self.diagnostics.reject(source, 'bad joint names',
+                                    f'{names}: each of {list(contract.JOINT_NAMES)} once')
+            return
+        if not msg.points:
+            self.diagnostics.reject(source, 'no points', 'an empty trajectory')
+            return
+        values = np.asarray(msg.points[-1].positions, dtype=float)
+        if values.shape != (6,):
+            self.diagnostics.reject(source, 'wrong length',
+                                    f'{values.size} positions in the last point, expected 6')
+            return
+        if not np.all(np.isfinite(values)):
+            self.diagnostics.reject(source, 'not finite', f'{values.tolist()}')
+            return
+        self._take_reference(values[[names.index(n) for n in contract.JOINT_NAMES]], source)
 
 
 def main(args=None):

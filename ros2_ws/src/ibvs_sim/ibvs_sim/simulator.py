@@ -209,6 +209,21 @@ class Simulator:
         """Return the torque that stops the arm where it is in one step (World.hold_torque)."""
         return self.world.hold_torque()
 
+    def move_to(self, q, qd):
+        """
+        Set the true joints to ``q`` with speed ``qd`` as the next step's state; k += 1.
+
+        ``q``, ``qd``: the position drive's output (:class:`.position_servo.PositionServo`).
+        No torque is modelled: ``last_torque`` becomes None.
+        """
+        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        if q.shape != (6,) or qd.shape != (6,) or not np.all(np.isfinite(q)) \
+                or not np.all(np.isfinite(qd)):
+            raise ValueError('q and qd must be 6 finite values each')
+        self.world.reset(q, qd)
+        self.k += 1
+        self.last_torque = None
+
     def step(self, torque=None):
         """
         Apply ``torque`` (6,) for one step, or the holding torque when None; then k += 1.

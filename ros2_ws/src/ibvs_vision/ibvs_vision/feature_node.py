@@ -55,7 +55,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (camera_from_msgs, features_msg, image_msg, InputError,
-                                     ns_stamp, pose_matrix, read_joints, stamp_ns)
+                                     ns_stamp, pose_matrix, pose_stamped, read_joints,
+                                     stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
@@ -86,6 +87,7 @@ PARAMS = (
           'image for every frame even when nobody subscribes (e.g. to record them)', '-'),
     shared_params.PHYSICS_RATE_HZ,
     shared_params.STALE_TIMEOUT_S,
+    shared_params.CAMERA_POSE,
     shared_params.TARGET_FEATURES_SOURCE,
     shared_params.TARGET_POSITION,
     shared_params.TARGET_ROTATION,
@@ -152,8 +154,12 @@ class FeatureNode(Node):
                  contract.RELIABLE)):
             for side, topic in zip(('left', 'right'), topics):
                 self.create_subscription(msg_type, topic, partial(on_message, side), qos)
-        self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                 contract.LATCHED)
+        calibrated = shared_params.camera_pose_from(p)
+        if calibrated is None:
+            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                     contract.LATCHED)
+        else:  # a hand-eye calibration's result, as a parameter
+            self._pose = pose_stamped(calibrated, 0)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
                                  contract.RELIABLE)
 

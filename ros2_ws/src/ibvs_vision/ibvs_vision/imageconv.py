@@ -1,5 +1,5 @@
 """
-sensor_msgs/Image -> numpy for the 8-bit colour encodings the detector reads (no cv_bridge).
+sensor_msgs/Image -> numpy for the 8-bit encodings the detector reads (no cv_bridge).
 
 The other way is :func:`ibvs_common.conversions.image_msg`, which the simulator uses too.
 
@@ -13,23 +13,41 @@ import numpy as np
 from .detector import ENCODINGS
 
 
+#: Encodings read besides the detector's own (rgb8, bgr8): channels per pixel, and the
+#: detector encoding their first three channels become. bgra8 is what zed-ros2-wrapper
+#: publishes (its alpha is dropped); mono8 is spread over three equal channels (the
+#: detector finds the markers by colour, so a monochrome camera is not expected to give
+#: measured features; feature_status says which mode each frame had).
+CONVERTED = {'bgra8': (4, 'bgr8'), 'mono8': (1, 'rgb8')}
+
+
 def image_array(msg):
     """
-    Return (array (H, W, 3) uint8, encoding) of an rgb8 or bgr8 Image, without a copy.
+    Return (array (H, W, 3) uint8, encoding rgb8 or bgr8) of an rgb8, bgr8, bgra8 or mono8 Image.
 
-    Raises :class:`InputError` for another encoding, an empty image, a row step shorter
-    than the row, or data whose length is not step * height.
+    rgb8 and bgr8 come without a copy; bgra8 loses its alpha channel (as bgr8) and mono8 is
+    repeated over three channels (as rgb8), in a copy. Raises :class:`InputError` for
+    another encoding, an empty image, a row step shorter than the row, or data whose length
+    is not step * height.
     """
-    if msg.encoding not in ENCODINGS:
+    channels, encoding = CONVERTED.get(msg.encoding, (3, msg.encoding))
+    if encoding not in ENCODINGS:
         raise InputError('unsupported encoding',
-                         f'{msg.encoding!r}, expected one of {sorted(ENCODINGS)}')
+                         f'{msg.encoding!r}, expected one of '
+                         f'{sorted(set(ENCODINGS) | set(CONVERTED))}')
     height, width, step = int(msg.height), int(msg.width), int(msg.step)
     if height <= 0 or width <= 0:
         raise InputError('empty image', f'{width} x {height}')
-    if step < 3 * width:
-        raise InputError('bad image step', f'step {step} < 3 * width {3 * width}')
+    if step < channels * width:
+        raise InputError('bad image step',
+                         f'step {step} < {channels} * width {channels * width}')
     data = np.frombuffer(msg.data, dtype=np.uint8)
     if data.size != step * height:
         raise InputError('bad image data length',
                          f'{data.size} bytes, expected step * height = {step * height}')
-    return data.reshape(height, step)[:, :3 * width].reshape(height, width, 3), msg.encoding
+    pixels = data.reshape(height, step)[:, :channels * width].reshape(height, width, channels)
+    if channels == 3:
+        return pixels, encoding
+    if channels == 1:
+        return np.repeat(pixels, 3, axis=2), encoding
+    return np.ascontiguousarray(pixels[:, :, :3]), encoding

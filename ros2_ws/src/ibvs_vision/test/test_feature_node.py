@@ -295,10 +295,11 @@ def _bad_frame_is_skipped(rig, q_target, send_bad, source, reason):
 
 def test_unsupported_encoding_is_skipped(rig, q_target):
     def send_bad(driver, t, images):
-        mono = image_msg(images[0], t)
-        mono.encoding, mono.step = 'mono8', mono.width
-        mono.data = np.ascontiguousarray(images[0][:, :, 0]).tobytes()
-        driver.send(t, q_target, images=images, left=mono)
+        # mono8, bgr8, rgb8 and bgra8 are read; an encoding outside them is refused
+        yuv = image_msg(images[0], t)
+        yuv.encoding, yuv.step = 'yuv422', 2 * yuv.width
+        yuv.data = np.ascontiguousarray(images[0][:, :, :2]).tobytes()
+        driver.send(t, q_target, images=images, left=yuv)
 
     _bad_frame_is_skipped(rig, q_target, send_bad, 'left image', 'unsupported encoding')
 

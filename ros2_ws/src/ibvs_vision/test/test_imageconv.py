@@ -19,6 +19,30 @@ def test_round_trip(image, encoding):
     assert got == encoding and np.array_equal(array, image)
 
 
+def test_bgra8_of_the_zed_wrapper_reads_as_bgr8(image):
+    msg = image_msg(image, 7, 'bgra8', 'zed_left_camera_frame_optical')
+    assert msg.step == 28 and msg.encoding == 'bgra8'
+    assert np.all(np.frombuffer(msg.data, np.uint8).reshape(5, 7, 4)[:, :, 3] == 255)
+    array, got = image_array(msg)
+    assert got == 'bgr8' and np.array_equal(array, image[:, :, ::-1])
+
+
+def test_mono8_reads_as_three_equal_channels(image):
+    msg = image_msg(image, 0)
+    msg.encoding, msg.step, msg.data = 'mono8', 7, image[:, :, 0].tobytes()
+    array, got = image_array(msg)
+    assert got == 'rgb8' and array.shape == (5, 7, 3)
+    assert all(np.array_equal(array[:, :, c], image[:, :, 0]) for c in range(3))
+
+
+def test_a_bgra8_step_too_short_for_four_channels_is_refused(image):
+    msg = image_msg(image, 0, 'bgra8')
+    msg.step = 21
+    with pytest.raises(InputError) as info:
+        image_array(msg)
+    assert info.value.reason == 'bad image step'
+
+
 def test_rows_with_padding(image):
     msg = image_msg(image, 0)
     padded = np.zeros((5, 24), np.uint8)
@@ -28,7 +52,7 @@ def test_rows_with_padding(image):
 
 
 @pytest.mark.parametrize('change, reason', [
-    ({'encoding': 'mono8'}, 'unsupported encoding'),
+    ({'encoding': 'yuv422'}, 'unsupported encoding'),
     ({'encoding': 'rgba8'}, 'unsupported encoding'),
     ({'width': 0}, 'empty image'),
     ({'step': 20}, 'bad image step'),

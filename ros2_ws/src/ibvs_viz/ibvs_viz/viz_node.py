@@ -9,7 +9,9 @@ kinematics (:mod:`ibvs_viz.scene`; robot_state_publisher and tf2_ros are not on 
   CameraInfo and /stereo/pose);
 - /tf_static (tf2_msgs/TFMessage, transient local, one message as tf2_ros's static
   broadcaster sends): the fixed joints of that URDF (tool0, screwdriver, markers, the
-  camera's optical frames) and the target flange pose ``ibvs_target``;
+  camera's optical frames; the camera where /stereo/pose, or the ``camera_pose``
+  parameter, puts it, as the controllers take it) and the target flange pose
+  ``ibvs_target``;
 - /tf: the six links at each joint state, stamped with its stamp. The angles drawn are
   the true ones the simulator renders, encoder + ``disturbance_deg`` (d_q, eq. 30; 0 on a
   real cell), of the simulated robot (``l2_scale``, ``l4_scale``), so that tool0 is the
@@ -33,7 +35,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (camera_from_msgs, InputError, matrix_poses,
-                                     read_features, read_joints, stamp_ns)
+                                     pose_stamped, read_features, read_joints, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
@@ -56,6 +58,7 @@ PARAMS = (
     shared_params.L4_SCALE,
     shared_params.TARGET_POSITION,
     shared_params.TARGET_ROTATION,
+    shared_params.CAMERA_POSE,
     Param('marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time '
           '(/tf goes out with every joint state)', 'Hz', low=0.0, high=1000.0,
           low_open=True),
@@ -137,8 +140,12 @@ class VizNode(Node):
             self.create_subscription(CameraInfo, topic,
                                      lambda msg, side=side: self._on_info(side, msg),
                                      contract.RELIABLE)
-        self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                 contract.LATCHED)
+        calibrated = shared_params.camera_pose_from(p)
+        if calibrated is None:
+            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                     contract.LATCHED)
+        else:  # a hand-eye calibration's result, as the feature and feedback nodes take it
+            self._pose_msg = pose_stamped(calibrated, 0)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
                                  contract.RELIABLE)
         self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,

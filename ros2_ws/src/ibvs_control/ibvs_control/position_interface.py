@@ -1,0 +1,126 @@
+"""
+The joint controller's position interface, without ROS (docs/design.md §4, free-running).
+
+With ``command_interface: position`` the arm's own drive closes the joint loop (a real
+IRB 4600 through ros2_control and ABB's EGM), and the joint controller sends joint position
+references at its ``command_rate_hz``: q_ref = q_feedforward(t) + q_feedback, shaped so that
+the arm can follow it (:class:`PositionShaper`), in the joint order of the ros2_control
+controller (:func:`joint_permutation`). Which frame's q_feedback each command uses, and
+which command is the first to use a frame (the latency measurement), is
+:class:`FeedbackHold`.
+"""
+
+from ibvs_model import IRB4600
+from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, SPEED_LIMITS
+import numpy as np
+
+from .governor import ReferenceGovernor
+
+
+def joint_permutation(joints, names):
+    """
+    Return the indices that reorder values given in ``names`` order into ``joints`` order.
+
+    ``values[joint_permutation(joints, names)]`` lists them as ``joints`` does. ``joints``
+    is the ros2_control controller's ``joints`` parameter: forward_command_controller takes
+    Float64MultiArray data in exactly that order. Raises ValueError unless ``joints`` names
+    each of ``names`` once.
+    """
+    joints, names = list(joints), list(names)
+    if sorted(joints) != sorted(names) or len(set(joints)) != len(joints):
+        raise ValueError(f'{joints} must name each of {names} exactly once')
+    return np.array([names.index(j) for j in joints])
+
+
+class PositionShaper:
+    """
+    Turn q_ref into a position reference within the arm's speed and acceleration limits.
+
+    The 'limited' actuators' reference governor (:class:`.governor.ReferenceGovernor`, a
+    bang-bang law on the braking curve) at the command period, with the IRB 4600's speed
+    limits times ``speed_margin`` and the acceleration limits of :mod:`ibvs_model.drive`:
+    a reference the drive can follow without saturating, so that its own loop stays
+    linear. A small correction (the feedback's) passes almost unchanged. The target is
+    first clipped to the joint ranges less ``range_margin`` (the drive refuses a reference
+    beyond a joint's range; the margin covers the encoders' offset d_q).
+
+    Each :meth:`step` advances by the time since the last one (``dt``), not by a nominal
+    period: free-running, a command timer on sim time can skip a tick when /clock jumps,
+    and the reference must keep the pace of the arm, not of the ticks.
+    """
+
+    def __init__(self, command_rate_hz, speed_limits=SPEED_LIMITS,
+                 acceleration_limits=ACCELERATION_LIMITS, speed_margin=1.0,
+                 position_limits=(IRB4600.q_min, IRB4600.q_max), range_margin=0.02):
+        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2 and rad."""
+        if not (np.isfinite(command_rate_hz) and command_rate_hz > 0.0):
+            raise ValueError(f'command_rate_hz must be > 0, got {command_rate_hz}')
+        if not (0.0 < speed_margin <= 1.0):
+            raise ValueError(f'speed_margin must be in (0, 1], got {speed_margin}')
+        v_max, a_max = check_limits(speed_limits, acceleration_limits)
+        self.period = 1.0 / command_rate_hz
+        self.governor = ReferenceGovernor(self.period, speed_margin * v_max, a_max)
+        self.low = np.asarray(position_limits[0], dtype=float) + range_margin
+        self.high = np.asarray(position_limits[1], dtype=float) - range_margin
+
+    @property
+    def started(self):
+        """Return whether :meth:`start` was called."""
+        return self.governor.r is not None
+
+    def start(self, q):
+        """Start from the measured joints ``q`` (6,), at rest."""
+        self.governor.reset(q)
+
+    def step(self, q_ref, dt=None):
+        """
+        Advance ``dt`` seconds (default one nominal period) toward ``q_ref`` (6,).
+
+        Returns the reference to send. ``dt`` is clipped to [0, 25 periods]: a long pause
+        (the command timer starved) does not turn into one jump.
+        """
+        if not self.started:
+            raise RuntimeError('start() the shaper from the measured joints first')
+        dt = self.period if dt is None else min(max(float(dt), 0.0), 25.0 * self.period)
+        if dt == 0.0:
+            return self.governor.r.copy()
+        self.governor.dt = dt
+        return self.governor.step(np.clip(q_ref, self.low, self.high))
+
+
+class FeedbackHold:
+    """
+    The q_feedback that each command uses: the newest one received, held until the next.
+
+    Free-running, nobody waits: a command uses what has arrived. :meth:`offer` takes a
+    q_feedback with its frame stamp; :meth:`use` returns the q_feedback for a command and,
+    the first time a frame's q_feedback is used, that frame's stamp (exposure time), so the
+    node can report the latency from exposure to the command that first acts on it.
+    """
+
+    def __init__(self, initial):
+        """Hold ``initial`` (6,) until the first q_feedback."""
+        self.q = np.asarray(initial, dtype=float).copy()
+        self.stamp_ns = None
+        self._used = True
+
+    def offer(self, stamp_ns, q):
+        """
+        Take the q_feedback of the frame stamped ``stamp_ns``.
+
+        Returns None, or (reason, detail) when it is rejected: a stamp not newer than the
+        one held (out of order or a duplicate; the newer one stays).
+        """
+        if self.stamp_ns is not None and stamp_ns <= self.stamp_ns:
+            return ('out of order', f'frame {stamp_ns} ns, not newer than the frame '
+                    f'{self.stamp_ns} ns already held')
+        self.q = np.asarray(q, dtype=float).copy()
+        self.stamp_ns = stamp_ns
+        self._used = False
+        return None
+
+    def use(self):
+        """Return (q_feedback, stamp ns of the frame used for the first time, or None)."""
+        first = None if self._used else self.stamp_ns
+        self._used = True
+        return self.q, first

@@ -1,0 +1,53 @@
+r"""
+The IRB 4600's position interface as ABB's Externally Guided Motion (EGM) presents it (no ROS).
+
+One place for the numbers that both sides of a position-controlled cell use: the joint
+controller shapes its reference with them (:class:`ibvs_control.position_interface.
+PositionShaper`) and the simulator's drive model tracks the reference with them
+(:class:`ibvs_sim.position_servo.PositionServo`).
+
+- ``EGM_RATE_HZ`` = 250: EGM exchanges a position reference and the feedback every 4 ms
+  (ABB, *Application manual - Externally Guided Motion*, 3HAC073318-001, section "EGM
+  Position Guidance": "This can be done every 4 ms").
+- ``EGM_DELAY_S`` = 0.02: the same section: "a control lag of 10-20 ms depending on the
+  robot type"; "the time between writing a new position until that given position starts to
+  affect the actual robot position is usually around 20 ms". A large arm (IRB 4600) is
+  taken at the upper end: a pure dead time of 20 ms.
+- ``EGM_BANDWIDTH_HZ`` = 20: the bandwidth of the position loop seen through EGM. EGM's
+  RAPID instructions (EGMActJoint) take a low-pass filter bandwidth (``\LpFilter``, Hz)
+  applied to the references; 20 Hz is the value of ABB's examples and the order of a large
+  arm's position-loop bandwidth. An assumption to measure on the cell (README "On a real
+  cell"): a step of 1 deg on one joint through EGM, time constant = 1 / (2 pi f).
+- ``ACCELERATION_LIMITS`` (rad/s^2): ABB publishes the IRB 4600's axis speeds
+  (``IRB4600.qd_max``) but not its accelerations. These are half of what the model's motor
+  torques give against gravity at the paper's start poses for joints 1-3 (174, 28 and
+  123 rad/s^2 for joint 1, 2, 3; the wrists' inertia is small), rounded down and made
+  uniform: 10 rad/s^2 for joints 1-3, 20 rad/s^2 for the wrist. Half, as the effort mode's
+  ``acceleration_margin``: what the drive can do at any pose, not at the best one.
+"""
+
+import numpy as np
+
+from .robot import IRB4600
+
+EGM_RATE_HZ = 250.0
+EGM_DELAY_S = 0.02
+EGM_BANDWIDTH_HZ = 20.0
+ACCELERATION_LIMITS = (10.0, 10.0, 10.0, 20.0, 20.0, 20.0)
+SPEED_LIMITS = tuple(float(v) for v in IRB4600.qd_max)
+
+
+def check_limits(speed_limits, acceleration_limits):
+    """
+    Return the speed and acceleration limits as two (6,) float arrays.
+
+    Raises ValueError unless both are six finite values > 0.
+    """
+    out = []
+    for name, values in (('speed limits', speed_limits),
+                         ('acceleration limits', acceleration_limits)):
+        array = np.asarray(values, dtype=float)
+        if array.shape != (6,) or not np.all(np.isfinite(array)) or np.any(array <= 0.0):
+            raise ValueError(f'{name} must be 6 finite values > 0, got {list(values)}')
+        out.append(array)
+    return tuple(out)
