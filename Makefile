@@ -14,8 +14,12 @@ SOURCES := $(shell find $(WS)/src -type f -not -path '*/__pycache__/*' -not -nam
 # would after `source install/setup.bash`.
 RUN := source $(VENV)/bin/activate && source $(WS)/install/local_setup.sh &&
 PYTEST_ARGS ?=
+# The pool of ROS domains of every run, study, report and test (ibvs_bringup.domains): within
+# 0-101, the range ROS 2 documents as safe on Linux.
+IBVS_ROS_DOMAINS ?= 0-101
+export IBVS_ROS_DOMAINS
 
-.PHONY: all venv build test demo report bench lint lock clean
+.PHONY: all venv build test fuzz demo report bench lint lock clean
 all: build
 
 # requirements-test.txt: test-only peer packages, without their declared dependencies
@@ -48,6 +52,10 @@ build: $(BUILD_STAMP)
 test: build
 	$(RUN) python -m pytest -m linter $(PYTEST_ARGS)
 	$(RUN) python -m pytest -m 'not linter' $(PYTEST_ARGS)
+
+# Bad input into every subscribed topic of every node (tests/fuzz; make test runs it too).
+fuzz: build
+	$(RUN) python -m pytest tests/fuzz $(PYTEST_ARGS)
 
 demo: build
 	$(RUN) python -m ibvs_bringup.cli demo

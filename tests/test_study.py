@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 #: Domain IDs of the study's runs: clear of the 1-100 that the suite derives from PIDs.
-DOMAINS = (170, 199)
+DOMAINS = study.DOMAIN_IDS  # IBVS_ROS_DOMAINS, within the safe 0-101
 
 
 def grid_spec(directory, name, duration_s, grid):

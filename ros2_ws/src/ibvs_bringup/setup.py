@@ -22,7 +22,7 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='Scenarios, runner, recorder, metrics, plots and report.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'ibvs = ibvs_bringup.cli:main',

@@ -19,7 +19,7 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='ROS 2 plumbing shared by the IBVS nodes.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
         ],

@@ -18,7 +18,7 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='Inner joint loop, feedforward and adaptive Youla feedback controllers.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'joint_controller_node = ibvs_control.joint_controller_node:main',

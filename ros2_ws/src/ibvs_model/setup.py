@@ -18,7 +18,7 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='IRB 4600 and ZED 2 model: kinematics, stereo camera, camera-and-robot model.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
         ],

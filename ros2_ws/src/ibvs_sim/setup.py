@@ -21,7 +21,7 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='PyBullet simulator node of the IRB 4600 and the ZED 2.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'sim_node = ibvs_sim.sim_node:main',

@@ -18,7 +18,7 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='Hough fiducial detector and feature node.',
     license='Apache-2.0',
-    tests_require=['pytest'],
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'feature_node = ibvs_vision.feature_node:main',

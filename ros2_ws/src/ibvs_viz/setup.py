@@ -21,7 +21,6 @@ setup(
     maintainer_email='maintainers@ibvs-stack.dev',
     description='What RViz and Foxglove show: robot description, tf, markers; the video.',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'viz_node = ibvs_viz.viz_node:main',

@@ -322,6 +322,38 @@ def node_timings(bag_path):
     return out
 
 
+def feature_errors(run, params=None):
+    """
+    Return the measured features minus the true projection of the markers, (N, 6) px.
+
+    One row (u_l, u_r, v of marker 1, then of marker 2) per frame whose mode on
+    /ibvs/feature_status is 'measured' (estimated and blended frames are not
+    measurements). The truth: the fiducials P1, P2 (eq. 8-9) at the recorded true flange
+    pose of the frame's stamp, projected (eq. 14-22) by the run's camera (the published
+    one: the true camera unless the run sets calibration errors). ``params``: the robot
+    whose tool carries the fiducials (default the paper's IRB 4600). Not part of the
+    metrics (issue 24: an accuracy check of the renderer and detector, printed by
+    ``make bench``).
+    """
+    from ibvs_model import IRB4600
+    params = IRB4600 if params is None else params
+    if run.camera is None:
+        raise ValueError('the run recorded no camera (camera_info and /stereo/pose)')
+    if len(run.feature_t) != len(run.features):
+        raise ValueError('features without two points in the recording')
+    mode_of = {round(t * 1e9): mode for t, mode in zip(run.mode_t, run.modes)}
+    step_of = {round(t * 1e9): i for i, t in enumerate(run.t)}
+    rows = []
+    for t, features in zip(run.feature_t, run.features):
+        stamp = round(t * 1e9)
+        if mode_of.get(stamp) != 'measured' or stamp not in step_of:
+            continue
+        i = step_of[stamp]
+        points = params.fiducials_E @ run.rotation[i].T + run.position[i]
+        rows.append(features - run.camera.project(points).reshape(6))
+    return np.array(rows).reshape(-1, 6)
+
+
 def analyse_bag(bag_path):
     """Return (RunData, metrics) of a recorded run."""
     run = load_run(bag_path)

@@ -24,13 +24,14 @@ Commands:
 
 import argparse
 import json
+import math
 from pathlib import Path
+import re
 import sys
 import time
 
-from ibvs_control.servo_laws import feedforward_overrides
 
-from . import domains, runner, scenario, study_spec
+from . import domains, graph_params, runner, scenario, study_spec
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
                 'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',
@@ -47,15 +48,38 @@ def _print_summary(metrics, out=sys.stdout):
 def with_servo_law(overrides):
     """Return ``overrides`` with the feedforward parameters of its servo_law added."""
     law = overrides.get('servo_law')
-    for key, value in (feedforward_overrides(law) if law is not None else {}).items():
+    if law is None:
+        return overrides
+    # Here, not at the top: ibvs_control pulls in scipy.signal, seconds of start-up that a
+    # run without servo_law does not need (issue 24).
+    from ibvs_control.servo_laws import feedforward_overrides
+    for key, value in feedforward_overrides(law).items():
         overrides.setdefault(key, value)
     return overrides
 
 
+def positive_seconds(text):
+    """Return ``text`` as a number of seconds > 0 (argparse type of --duration, --stall-s)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if not (value > 0.0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f'{text} must be a finite number of seconds > 0')
+    return value
+
+
 def cmd_run(args):
     """Run one scenario and print its metrics."""
-    overrides = with_servo_law(dict(scenario.parse_override(p) for p in args.param))
+    overrides = dict(scenario.parse_override(p) for p in args.param)
+    graph_params.check(overrides, '-p')
+    overrides = with_servo_law(overrides)
     out = Path(args.out or Path('results') / Path(args.scenario).stem)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f'error: cannot write the results to {out}: {exc.strerror}', file=sys.stderr)
+        return 2
     print(f'running {args.scenario} -> {out}')
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
@@ -118,6 +142,7 @@ def cmd_study(args):
     """Run a study spec's runs on Ray (local or --address), then its table and figures."""
     from . import study
     spec = study_spec.load(study.study_path(args.spec))
+    study.check_spec(spec)  # before the output directory and Ray
     out = Path(args.out or Path('results') / 'studies')
     start = time.monotonic()
     records = study.run_studies([spec], out, address=args.address, parallel=args.parallel,
@@ -126,6 +151,10 @@ def cmd_study(args):
     failed = sum(r['status'] != 'ok' for r in records[spec.name])
     print(f'wrote {out / spec.name}/table.md, table.csv and figures; {failed} failed run(s); '
           f'{time.monotonic() - start:.0f} s of wall time')
+    if failed:
+        print(f'error: {failed} run(s) of {spec.name} failed (see the run.json of each)',
+              file=sys.stderr)
+        return 1
     return 0
 
 
@@ -147,9 +176,14 @@ def _study_defaults():
     return {'domains': study.DOMAIN_IDS, 'parallel': study.default_parallel()}
 
 
+def plain_text(doc):
+    """Return a docstring as a terminal shows it: reST roles and literals as plain text."""
+    return re.sub(r':\w+:`~?([^`]+)`', r'\1', doc).replace('``', "'")
+
+
 def main(argv=None):
     """Parse the command line and run the command."""
-    parser = argparse.ArgumentParser(prog='ibvs', description=__doc__,
+    parser = argparse.ArgumentParser(prog='ibvs', description=plain_text(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
     for name, func in (('run', cmd_run), ('demo', cmd_demo)):
@@ -157,9 +191,9 @@ def main(argv=None):
         if name == 'run':
             p.add_argument('scenario', help='scenario1..3 or a parameter file')
         p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
-        p.add_argument('--duration', type=float, help='sim time limit, s')
+        p.add_argument('--duration', type=positive_seconds, help='sim time limit, s (> 0)')
         p.add_argument('--images', action='store_true', help='also record raw images')
-        p.add_argument('--stall-s', type=float, default=runner.STALL_S,
+        p.add_argument('--stall-s', type=positive_seconds, default=runner.STALL_S,
                        help='wall seconds without sim-time progress that end the run as '
                        'stalled (exit code 4; default %(default)s)')
         p.add_argument('-p', '--param', action='append', default=[],

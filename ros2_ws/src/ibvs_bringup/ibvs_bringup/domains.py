@@ -9,8 +9,12 @@ its process.
 
 - ``ROS_DOMAIN_ID`` set: the run takes that domain, or stops with :class:`DomainBusy` if
   another run holds it.
-- Not set: the run takes the first free domain from 0 on, so that a lone run is on domain 0,
-  where the ``ros2`` CLI looks by default.
+- Not set: the run takes the first free domain of the pool, from 0 on by default, so that a
+  lone run is on domain 0, where the ``ros2`` CLI looks by default.
+
+The pool of every run, study, report and test is the one environment variable
+``IBVS_ROS_DOMAINS`` (``LOW-HIGH``), by default the whole range ROS 2 documents as safe on
+Linux, 0-101 (higher IDs can collide with the ephemeral ports of the operating system).
 - A study holds the domains of its runs itself and says so in ``IBVS_DOMAIN_HELD``.
 """
 
@@ -25,8 +29,33 @@ import time
 LOCK_DIR = Path(tempfile.gettempdir()) / 'ibvs-ros-domains'
 #: Environment variable by which a parent that holds the lock of ROS_DOMAIN_ID says so.
 HELD_ENV = 'IBVS_DOMAIN_HELD'
-#: Domains a run without ROS_DOMAIN_ID may take (inclusive; Fast DDS ports allow 0-232).
-FREE_POOL = (0, 100)
+#: The ROS domains ROS 2 documents as safe on Linux (inclusive): above 101 a domain's ports
+#: can collide with the kernel's ephemeral ports.
+SAFE_RANGE = (0, 101)
+#: Environment variable that sets the pool of domains (``LOW-HIGH``) of every run.
+POOL_ENV = 'IBVS_ROS_DOMAINS'
+
+
+def parse_pool(text):
+    """Return ``'LOW-HIGH'`` as (low, high) within :data:`SAFE_RANGE`; ValueError if not."""
+    try:
+        low, high = (int(x) for x in str(text).strip().split('-'))
+    except ValueError:
+        raise ValueError(f'domain range {text!r}: expected LOW-HIGH, e.g. 50-101') from None
+    if not SAFE_RANGE[0] <= low <= high <= SAFE_RANGE[1]:
+        raise ValueError(f'domain range {text!r}: expected {SAFE_RANGE[0]} <= LOW <= HIGH <= '
+                         f'{SAFE_RANGE[1]} (the ROS domains that are safe on Linux)')
+    return low, high
+
+
+def pool(environ=os.environ):
+    """Return the pool of domains: ``IBVS_ROS_DOMAINS`` if set, else :data:`SAFE_RANGE`."""
+    text = environ.get(POOL_ENV, '').strip()
+    return parse_pool(text) if text else SAFE_RANGE
+
+
+#: Domains a run without ROS_DOMAIN_ID may take (inclusive), as the environment says.
+FREE_POOL = pool()
 
 
 class DomainBusy(RuntimeError):

@@ -10,7 +10,9 @@ the simulator's (:data:`PROCESSES`, :mod:`ibvs_bringup.compose`). The runner rec
 run, prints progress, stops when the sim time limit is reached or the tool has converged,
 and stops every process cleanly (SIGINT, then SIGTERM, then SIGKILL). If a node dies, the
 run stops and :class:`NodeDied` names it and its exit code; no process is left behind in
-any case (children also get SIGKILL if the runner dies).
+any case (children also get SIGKILL if the runner dies). The Fast DDS shared memory that a
+killed process leaves in /dev/shm is removed, and the runner says so (:mod:`.shm`): at the
+end of a run what its dead processes left, at the start what earlier dead processes left.
 
 No silent hang: a configuration that cannot advance sim time is refused before any node
 starts (:func:`scenario.check_progress`), and a run whose sim time stops advancing for
@@ -45,7 +47,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
-from . import analysis, domains, plots, scenario
+from . import analysis, domains, graph_params, scenario, shm
 from .recorder import Recorder
 
 #: The nodes of docs/design.md §1, each with its own executable (package, executable).
@@ -142,6 +144,10 @@ POLL_S = 0.02
 #: What the stall report says of a node that reported no wait: busy, frozen, or a node that
 #: does not report its waits.
 SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
+#: Wall time (s) without a /diagnostics from a node after which its heartbeat counts as
+#: stopped: every node publishes its status once a second on a steady clock, also while it
+#: waits (ibvs_common.diagnostics), so only a frozen or hung node falls silent that long.
+HEARTBEAT_S = 3.0
 #: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
 _WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[([^\]]+)\]: (waiting .*)$')
 
@@ -164,15 +170,23 @@ class NodeDied(RuntimeError):
 
 
 class RunStalled(RuntimeError):
-    """Sim time stopped advancing; ``waits`` maps each node to what it said it waits for."""
+    """
+    Sim time stopped advancing; ``waits`` maps each node to what it said it waits for.
 
-    def __init__(self, what, sim_s, waits):
+    ``silent`` names the nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`):
+    a frozen or hung node, the likely cause, named first.
+    """
+
+    def __init__(self, what, sim_s, waits, silent=()):
         """Keep the sim time reached and each node's wait; the message lists them."""
         lines = [f'  {node}: {text}' for node, text in waits.items()]
-        super().__init__(f'{what} at sim time {sim_s:.3f} s; what each node waits for:\n'
-                         + '\n'.join(lines))
+        head = (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
+                f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
+        super().__init__(f'{what} at sim time {sim_s:.3f} s{head}; what each node waits '
+                         'for:\n' + '\n'.join(lines))
         self.sim_s = sim_s
         self.waits = waits
+        self.silent = tuple(silent)
 
 
 def last_waiting_line(log_path, since_epoch_s, node=None):
@@ -295,8 +309,11 @@ class Monitor:
     time), not at each step.
     """
 
-    def __init__(self, node, recorder, target):
+    def __init__(self, node, recorder, target, clock=time.monotonic):
         """Follow ``recorder``'s /clock and /ibvs/tool_path; /diagnostics on ``node``."""
+        self._clock = clock
+        #: Wall time (``clock``) of the latest /diagnostics of each node, by node name.
+        self.heard = {}
         self.target = target
         self._recorder = recorder
         self._pose_raw = None
@@ -332,10 +349,30 @@ class Monitor:
         for status in msg.status:
             node = status.name.split(':', 1)[0]
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
+            self.heard[node] = self._clock()
+
+    def silent(self, nodes):
+        """Return those of ``nodes`` whose heartbeat stopped (none for :data:`HEARTBEAT_S`)."""
+        now = self._clock()
+        return [n for n in nodes if n in self.heard and now - self.heard[n] > HEARTBEAT_S]
+
+    def stalled_sim_s(self):
+        """Return the sim time of the stall: the simulator's own status if newer than /clock."""
+        sim = self.diagnostics.get('sim_node', {}).get('sim_time_s')
+        try:
+            return max(self.sim_ns * 1e-9, float(sim))
+        except (TypeError, ValueError):
+            return self.sim_ns * 1e-9
 
     def waits(self, procs, since_epoch_s):
-        """Return, per node, what it last said it waits for (log line, /diagnostics)."""
+        """
+        Return, per node, what it last said it waits for (log line, /diagnostics).
+
+        Each /diagnostics value is quoted with the age of the status it comes from; a node
+        whose heartbeat stopped is said to be so first.
+        """
         out = {}
+        now = self._clock()
         for p in procs:
             for node in p.nodes:
                 said = []
@@ -343,10 +380,16 @@ class Monitor:
                                          node if len(p.nodes) > 1 else None)
                 if line:
                     said.append(line)
-                said += [f'/diagnostics {k} = {v}'
+                age = (f' (status {now - self.heard[node]:.1f} s old)'
+                       if node in self.heard else '')
+                said += [f'/diagnostics {k} = {v}{age}'
                          for k, v in self.diagnostics.get(node, {}).items()
                          if k.startswith('waiting') and v not in ('', '-1')]
                 out[node] = '; '.join(said) or SILENT
+                if node in self.silent([node]):
+                    out[node] = (f'HEARTBEAT STOPPED: last /diagnostics '
+                                 f'{now - self.heard[node]:.1f} s ago (frozen or hung); '
+                                 + out[node])
         return out
 
     def update_convergence(self, pos_tol_m, axis_tol_deg):
@@ -372,7 +415,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
     0.1 mm and 0.01 deg of the target for that long (sim time). Raises
-    :class:`scenario.ScenarioError` for a configuration that cannot make progress (before
+    :class:`scenario.ScenarioError` for a parameter no node declares or out of its range
+    (:func:`graph_params.check`) or a configuration that cannot make progress (before
     starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
     (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
@@ -380,9 +424,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
+    graph_params.check(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
-    duration_s = float(duration_s or params.get('run_duration_s', 3.0))
+    duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     log_dir = out_dir / 'logs'
@@ -394,11 +439,15 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     if bag_path.exists():
         shutil.rmtree(bag_path)
     target = target_from_parameters(params)
+    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    shm_before = shm.names()
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
     with domains.held() as (domain, chosen):
-        if chosen and domain != 0:
-            progress(f'  ROS_DOMAIN_ID {domain}: lower domains are used by other runs')
+        busy = chosen and domain != domains.FREE_POOL[0]
+        progress(f'  ROS_DOMAIN_ID {domain}'
+                 + (': the first free one, lower domains are used by other runs' if busy
+                    else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
         dds.configure()  # before rclpy.init here, and inherited by the node processes
         context = rclpy.context.Context()
         rclpy.init(context=context)
@@ -460,9 +509,13 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                 if now - last_print >= 2.0:
                     last_print = now
                     rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
+                    # Before the first tool pose there is no error to print yet.
+                    error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)
+                             else '        - mm')
+                    axis = (f'{monitor.axis_deg:7.3f} deg' if np.isfinite(monitor.axis_deg)
+                            else '      - deg')
                     progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
-                             f'  position error {monitor.error_m * 1e3:9.3f} mm'
-                             f'  axis error {monitor.axis_deg:7.3f} deg  RTF {rtf:5.3f}')
+                             f'  position error {error}  axis error {axis}  RTF {rtf:5.3f}')
                 if converge_hold_s is not None and \
                         monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
                     converged = True
@@ -482,7 +535,10 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                     what = (f'no sim-time progress for {limit:.0f} s of wall time'
                             if monitor.started_wall is not None
                             else f'the simulator took no step within {limit:.0f} s of its launch')
-                    stalled = RunStalled(what, sim_s, monitor.waits(procs, window_start))
+                    nodes = [n for p in procs for n in p.nodes]
+                    stalled = RunStalled(what, monitor.stalled_sim_s(),
+                                         monitor.waits(procs, window_start),
+                                         monitor.silent(nodes))
                     break
             # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
             wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
@@ -496,12 +552,21 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             recorder.destroy_node()
             watcher.destroy_node()
             rclpy.shutdown(context=context)
+            _clean_shm(progress, 'node processes of this run that died', shm_before)
     if died:
         raise died
     if stalled:
         raise stalled
     metrics = write_results(bag_path, out_dir, wall_duration)
     return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
+
+
+def _clean_shm(progress, whose, new_since=None):
+    """Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so."""
+    count, freed = shm.clean(new_since=new_since)
+    if count:
+        progress(f'  removed {count} Fast DDS shared-memory files ({freed / 1e6:.0f} MB) in '
+                 f'{shm.SHM_DIR} that {whose} left')
 
 
 #: The nodes that read each topic of step 0 (docs/design.md §1); the runner's recorder and
@@ -574,6 +639,7 @@ def write_results(bag_path, out_dir, wall_duration_s=None):
         metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
     metrics['bag'] = str(bag_path)
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
     plots.write_all(run, out_dir, target_features(run))
     params = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
                             float(run.params.get('l4_scale', 1.0)))

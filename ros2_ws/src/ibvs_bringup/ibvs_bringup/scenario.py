@@ -44,7 +44,10 @@ def scenario_path(name_or_path):
 def load_parameters(name_or_path):
     """Return the ``/**`` parameters of a scenario file as a dict."""
     path = scenario_path(name_or_path)
-    data = yaml.safe_load(path.read_text()) or {}
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f'{path}: not valid YAML: {exc}') from None
     try:
         params = dict(data['/**']['ros__parameters'])
     except (KeyError, TypeError):
@@ -75,7 +78,10 @@ def parse_override(text):
     if ':=' not in text:
         raise ScenarioError(f'override {text!r} is not of the form name:=value')
     name, value = text.split(':=', 1)
-    return name.strip(), yaml.safe_load(value)
+    try:
+        return name.strip(), yaml.safe_load(value)
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f'override {text!r}: the value is not valid YAML: {exc}') from None
 
 
 def write_parameters(params, path):

@@ -44,14 +44,15 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import scenario, study_spec  # noqa: E402
-from .domains import HELD_ENV, lock_domain  # noqa: E402
+from . import graph_params, scenario, study_spec  # noqa: E402
+from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
 from .runner import _die_with_parent, STALL_S  # noqa: E402
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
 CPUS_PER_RUN = 1
-#: Default pool of ROS_DOMAIN_IDs for the runs (inclusive).
-DOMAIN_IDS = (101, 199)
+#: Default pool of ROS_DOMAIN_IDs for the runs (inclusive): ``IBVS_ROS_DOMAINS``, else the
+#: safe range 0-101 (:mod:`ibvs_bringup.domains`); the runs' locks keep them apart.
+DOMAIN_IDS = pool()
 #: The packages whose sources make up the code version of a run.
 PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_control',
             'ibvs_bringup')
@@ -91,16 +92,11 @@ def code_version():
 
 
 def parse_domains(text):
-    """Parse ``'LOW-HIGH'`` into the inclusive range of ROS_DOMAIN_IDs."""
+    """Parse ``'LOW-HIGH'`` into the inclusive range of ROS_DOMAIN_IDs (within 0-101)."""
     try:
-        low, high = (int(x) for x in str(text).split('-'))
-    except ValueError:
-        raise study_spec.StudyError(f'domain range {text!r}: expected LOW-HIGH, '
-                                    'e.g. 101-199') from None
-    if not 0 <= low <= high <= 232:
-        raise study_spec.StudyError(f'domain range {text!r}: expected 0 <= LOW <= HIGH '
-                                    '<= 232')
-    return low, high
+        return parse_pool(text)
+    except ValueError as exc:
+        raise study_spec.StudyError(str(exc)) from None
 
 
 def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s):
@@ -234,6 +230,19 @@ def default_parallel():
     return max(1, (os.cpu_count() or 1) // CPUS_PER_RUN)
 
 
+def check_spec(spec):
+    """
+    Raise :class:`scenario.ScenarioError` unless every run of ``spec`` can start.
+
+    Each run's parameters (its scenario's, the spec's ``parameters``, its grid point and
+    draws) are checked as ``ibvs run`` checks them (:func:`graph_params.check`): the nodes'
+    declared names and ranges.
+    """
+    base = scenario.load_parameters(spec.scenario)
+    for run in spec.runs():
+        graph_params.check({**base, **run.overrides}, f'study {spec.name}, run {run.index}')
+
+
 def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
                 stall_s=STALL_S, retry_failed=False, out=sys.stdout):
     """
@@ -242,8 +251,12 @@ def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
     Each study writes into ``<out_dir>/<name>/``: ``runs/<key>/`` per run (``ibvs run``'s
     output, ``runner.log``, ``run.json``), ``table.csv``, ``table.md`` and its figures.
     Returns ``{name: [record, ...]}`` in run order. Runs recorded under the same key are not
-    run again (failed ones are with ``retry_failed``).
+    run again (failed ones are with ``retry_failed``). Every run's parameters are checked
+    first (:func:`check_spec`): a spec with a name no node declares or a value out of range
+    runs nothing.
     """
+    for spec in specs:
+        check_spec(spec)
     records, todo = plan(specs, out_dir, retry_failed)
     cached = sum(len(r) for r in records.values()) - len(todo)
     total = cached + len(todo)

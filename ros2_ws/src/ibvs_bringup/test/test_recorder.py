@@ -107,3 +107,24 @@ def test_a_malformed_clock_is_recorded_but_does_not_move_the_bag_time(bag):
     with Reader(bag) as reader:
         times = [t for c, t, _ in reader.messages() if c.topic == contract.JOINT_STATES]
     assert times == [2_000_000_000]
+
+
+def test_finding13_messages_before_a_clock_are_on_disk_before_the_bag_is_closed(tmp_path):
+    """A runner killed before its first 1 MB chunk left a 0-byte bag (issue 26, finding 13)."""
+    from ibvs_bringup.recorder import JazzyWriter
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.typesys import get_typestore, Stores
+    writer = JazzyWriter(tmp_path / 'bag', version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    conn = writer.add_connection('/joint_states', 'sensor_msgs/msg/JointState',
+                                 typestore=get_typestore(Stores.ROS2_JAZZY))
+    payload = b'\x00\x01\x00\x00' + b'ibvs-marker' * 10
+    writer.write(conn, 1, payload)
+    mcap = tmp_path / 'bag' / 'bag.mcap'
+    assert b'ibvs-marker' not in mcap.read_bytes()  # rosbags keeps it in memory
+    writer.storage.flush()
+    assert b'ibvs-marker' in mcap.read_bytes()  # a SIGKILL now would keep it
+    writer.write(conn, 2, payload)
+    writer.close()
+    with Reader(tmp_path / 'bag') as reader:
+        assert [t for _, t, _ in reader.messages()] == [1, 2]

@@ -7,7 +7,7 @@ Readers raise :class:`InputError` with a short reason (used as the rejection rea
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
-from ibvs_model import StereoCamera, StereoIntrinsics
+from ibvs_model import IRB4600, StereoCamera, StereoIntrinsics
 from nav_msgs.msg import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -17,6 +17,20 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
 from .sim_time import clock_problem
+from .timing import is_frame_stamp
+
+#: How far (rad) a start posture may lie outside its joint's travel (ibvs_model.IRB4600
+#: q_min, q_max) and still be read (:func:`travel_bounds`).
+POSITION_MARGIN_RAD = 0.1
+#: Largest |position| (rad) of a joint state or trajectory point that is read
+#: (:func:`position_bounds`). Not the travel: the paper's feedforward leads the arm and
+#: overshoots it (scenarios 1-3: up to 44 rad on joint 1 in the first steps), and the ideal
+#: actuators follow where no hard stop is modelled; a thousand radians is no reading.
+POSITION_BOUND_RAD = 1000.0
+#: Largest |velocity| (rad/s) of a joint that is read: about ten times the 1.2e3 rad/s the
+#: paper's feedforward asks of the ideal actuators (a stand-in plant without PyBullet's
+#: 100 rad/s cap follows it), far below what breaks the dynamics.
+SPEED_BOUND_RAD_S = 1e4
 
 
 class InputError(ValueError):
@@ -34,17 +48,63 @@ def stamp_ns(stamp):
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def read_stamp(stamp):
+def read_stamp(stamp, now_ns=None, lead_ns=None, frames=None):
     """
-    Return a header stamp as integer nanoseconds; :class:`InputError` if it is malformed.
+    Return a header stamp as integer nanoseconds; :class:`InputError` if no node may use it.
 
-    Malformed: a negative ``sec`` (before the sim starts at 0) or ``nanosec`` of a second or
-    more, which :func:`stamp_ns` would silently carry into the seconds.
+    The one stamp rule of every node (docs/design.md §4). Refused:
+
+    - malformed: a negative ``sec`` (before the sim starts at 0) or ``nanosec`` of a second
+      or more, which :func:`stamp_ns` would silently carry into the seconds;
+    - with ``lead_ns``, 'stamp in the future': more than ``lead_ns`` after ``now_ns``, the
+      newest time the node knows (:func:`ibvs_common.sim_time.node_time_ns`; None: 0, the
+      start of sim time). A node never stores such a stamp: one input from a bad publisher
+      would otherwise make every later good one look stale, or hold a buffer for ever;
+    - with ``frames`` = (camera_period_ns, step_ns), 'off the frame grid': not the stamp
+      of a camera frame (:func:`ibvs_common.timing.is_frame_stamp`).
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        The stamp read.
+    now_ns : int, optional
+        The node's newest known time (ns).
+    lead_ns : int, optional
+        How far (ns) a stamp may lead ``now_ns``; None: no bound.
+    frames : tuple of (int, int), optional
+        The camera period and the physics step (ns) of a frame stamp.
+
+    Returns
+    -------
+    int
+        The stamp in nanoseconds.
+
     """
     problem = clock_problem(stamp.sec, stamp.nanosec)
     if problem is not None:
         raise InputError(*problem)
-    return stamp_ns(stamp)
+    t_ns = stamp_ns(stamp)
+    now_ns = max(int(now_ns or 0), 0)
+    if lead_ns is not None and t_ns > now_ns + lead_ns:
+        raise InputError('stamp in the future',
+                         f'{t_ns} ns, more than {lead_ns} ns after the newest time known, '
+                         f'{now_ns} ns')
+    if frames is not None and not is_frame_stamp(t_ns, *frames):
+        raise InputError('off the frame grid',
+                         f'{t_ns} ns is not the stamp of a frame (every {frames[0]} ns, '
+                         f'at the physics step of {frames[1]} ns at or after it)')
+    return t_ns
+
+
+def stamp_lead_ns(stale_timeout_s, input_period_ns):
+    """
+    Return how far (ns) an input's stamp may lead the newest time its node knows.
+
+    ``stale_timeout_s`` (the parameter that also ages inputs out) and one period of the
+    input (the next input of a stream is one period after the last): the ``lead_ns`` of
+    :func:`read_stamp`.
+    """
+    return int(round(float(stale_timeout_s) * 1e9)) + int(input_period_ns)
 
 
 def ns_stamp(ns):
@@ -68,13 +128,15 @@ def joint_state(stamp, position=None, velocity=None, effort=None, names=contract
     return msg
 
 
-def read_joints(msg, field='position', names=contract.JOINT_NAMES):
+def read_joints(msg, field='position', names=contract.JOINT_NAMES, bound=None):
     """
     Return ``msg.<field>`` as a (6,) array in the order of ``names``.
 
     Values are mapped by joint name: the message must name the six joints, in any order.
-    Raises :class:`InputError` for a wrong length, missing, unknown or repeated names, or a
-    non-finite value.
+    Raises :class:`InputError` for a wrong length, missing, unknown or repeated names, a
+    non-finite value or, with ``bound`` = (low, high) (arrays in the order of ``names``), a
+    value outside [low, high] ('out of range': :func:`position_bounds`,
+    :func:`velocity_bounds`).
     """
     values = np.asarray(getattr(msg, field), dtype=float)
     if values.shape != (len(names),):
@@ -87,7 +149,29 @@ def read_joints(msg, field='position', names=contract.JOINT_NAMES):
     values = values[[list(msg.name).index(n) for n in names]]
     if not np.all(np.isfinite(values)):
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
+    if bound is not None and not np.all((values >= bound[0]) & (values <= bound[1])):
+        raise InputError(f'{field} out of range',
+                         f'{values.tolist()}, allowed {np.round(bound[0], 3).tolist()} to '
+                         f'{np.round(bound[1], 3).tolist()}')
     return values
+
+
+def travel_bounds(params=IRB4600):
+    """Return (low, high) of a posture the arm can start from: the travel, with a margin."""
+    return (np.asarray(params.q_min, dtype=float) - POSITION_MARGIN_RAD,
+            np.asarray(params.q_max, dtype=float) + POSITION_MARGIN_RAD)
+
+
+def position_bounds():
+    """Return (low, high) of a joint position that is read: +-POSITION_BOUND_RAD."""
+    q = np.full(len(contract.JOINT_NAMES), POSITION_BOUND_RAD)
+    return -q, q
+
+
+def velocity_bounds():
+    """Return (low, high) of a joint velocity that can be meant: +-SPEED_BOUND_RAD_S."""
+    qd = np.full(len(contract.JOINT_NAMES), SPEED_BOUND_RAD_S)
+    return -qd, qd
 
 
 def check_finite(msg, fields):
@@ -137,7 +221,9 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
     The points must be at 0, period_ns, 2 period_ns, ... from the header stamp, with finite
     positions for the six joints (in any order, mapped by name). Velocities, accelerations
     and efforts are not read: they may be empty, but a non-finite value there rejects the
-    trajectory (as :func:`check_finite` does for a JointState). Raises :class:`InputError`.
+    trajectory (as :func:`check_finite` does for a JointState), and so does a position beyond
+    :data:`POSITION_BOUND_RAD`. The stamp is returned as it is: the caller applies
+    :func:`read_stamp` with its own time. Raises :class:`InputError`.
     """
     if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
         raise InputError('wrong joint names', f'{list(msg.joint_names)}')
@@ -155,12 +241,15 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
                          f'{positions.shape[1:]} values per point, expected {len(names)}')
     if not np.all(np.isfinite(positions)):
         raise InputError('non-finite positions')
+    if np.any(np.abs(positions) > POSITION_BOUND_RAD):
+        raise InputError('positions out of range',
+                         f'beyond +-{POSITION_BOUND_RAD:g} rad (POSITION_BOUND_RAD)')
+    positions = positions[:, [list(msg.joint_names).index(n) for n in names]]
     for field in ('velocities', 'accelerations', 'effort'):
         if not all(np.all(np.isfinite(np.asarray(getattr(p, field), dtype=float)))
                    for p in msg.points):
             raise InputError(f'non-finite {field}')
-    order = [list(msg.joint_names).index(n) for n in names]
-    return stamp_ns(msg.header.stamp), positions[:, order]
+    return stamp_ns(msg.header.stamp), positions
 
 
 def pose_matrix(pose):
@@ -270,6 +359,26 @@ def camera_infos(intrinsics, stamp,
     return tuple(infos)
 
 
+#: Largest image side (px) a CameraInfo may give: above any stereo camera's (ZED 2: 2208),
+#: far below sizes whose images could not be held in memory.
+MAX_IMAGE_SIDE_PX = 8192
+
+
+def check_camera_info(info):
+    """
+    Raise :class:`InputError` unless one CameraInfo can be a lens of the stereo camera.
+
+    Its size must be 1 to :data:`MAX_IMAGE_SIDE_PX` pixels a side and its P 12 finite values
+    with f_u > 0; what the two lenses must agree on is :func:`intrinsics_from_infos`'s.
+    """
+    if not (0 < info.width <= MAX_IMAGE_SIDE_PX and 0 < info.height <= MAX_IMAGE_SIDE_PX):
+        raise InputError('bad camera_info size',
+                         f'{info.width} x {info.height}, each side 1 to {MAX_IMAGE_SIDE_PX}')
+    p = np.asarray(info.p, dtype=float)
+    if p.shape != (12,) or not np.all(np.isfinite(p)) or p[0] <= 0.0:
+        raise InputError('bad camera_info', 'P must have 12 finite values with P[0] > 0')
+
+
 def intrinsics_from_infos(left, right):
     """
     Return :class:`StereoIntrinsics` from the left and right CameraInfo.
@@ -277,11 +386,10 @@ def intrinsics_from_infos(left, right):
     The baseline comes from the right projection matrix, P[3] = -f_u b. Raises
     :class:`InputError` when the two disagree on size or intrinsics, or P[3] >= 0.
     """
+    check_camera_info(left)
+    check_camera_info(right)
     pl = np.asarray(left.p, dtype=float)
     pr = np.asarray(right.p, dtype=float)
-    if pl.shape != (12,) or pr.shape != (12,) or not (np.all(np.isfinite(pl))
-                                                      and np.all(np.isfinite(pr))):
-        raise InputError('bad camera_info', 'P must have 12 finite values')
     if (left.width, left.height) != (right.width, right.height):
         raise InputError('camera_info size mismatch',
                          f'{left.width}x{left.height} vs {right.width}x{right.height}')
@@ -296,10 +404,37 @@ def intrinsics_from_infos(left, right):
         raise InputError('bad camera_info', str(exc)) from None
 
 
+#: Farthest a camera may be from the robot base (m) and still see its markers (the
+#: simulator's camera_eye lies within 20 m of it in each axis).
+MAX_CAMERA_DISTANCE_M = 100.0
+
+
+def read_camera_pose(pose_msg):
+    """
+    Return /stereo/pose (PoseStamped or Pose) as T_C^O; :class:`InputError` if unusable.
+
+    Besides :func:`pose_matrix`'s checks, the camera must be within
+    :data:`MAX_CAMERA_DISTANCE_M` of the robot base and look towards the robot: the base
+    origin of {O} in front of it (positive depth). A pose looking away is a wrong
+    calibration; nothing could be servoed on.
+    """
+    pose = pose_msg.pose if hasattr(pose_msg, 'pose') else pose_msg
+    tf = pose_matrix(pose)
+    distance = float(np.linalg.norm(tf[:3, 3]))
+    if distance > MAX_CAMERA_DISTANCE_M:
+        raise InputError('camera too far from the robot',
+                         f'{distance:.3g} m from the base, at most {MAX_CAMERA_DISTANCE_M:g}')
+    depth = float(tf[:3, 2] @ -tf[:3, 3])  # z_C of the point O = 0
+    if depth <= 0.0:
+        raise InputError('camera looks away from the robot',
+                         f'the robot base is {depth:.3f} m deep in the camera frame')
+    return tf
+
+
 def camera_from_msgs(left_info, right_info, pose_msg):
     """Return the :class:`StereoCamera` described by both CameraInfo and /stereo/pose."""
-    pose = pose_msg.pose if hasattr(pose_msg, 'pose') else pose_msg
-    return StereoCamera(intrinsics_from_infos(left_info, right_info), pose_matrix(pose))
+    return StereoCamera(intrinsics_from_infos(left_info, right_info),
+                        read_camera_pose(pose_msg))
 
 
 def features_msg(features, stamp, frame_id=contract.CAMERA_FRAME):

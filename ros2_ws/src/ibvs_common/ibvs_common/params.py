@@ -128,7 +128,7 @@ class Param:
         return value
 
 
-def _plain(value, default):
+def plain_value(value, default):
     """Convert rclpy's value to plain Python, integers to floats where the default is a float."""
     if hasattr(value, 'tolist'):
         value = value.tolist()
@@ -161,5 +161,5 @@ def declare(node, specs):
         except Exception as exc:  # rclpy raises several types for a bad override
             raise ParameterError(f"parameter '{spec.name}': {exc}; allowed: {spec.allowed()}") \
                 from None
-        values[spec.name] = spec.check(_plain(param.value, spec.default))
+        values[spec.name] = spec.check(plain_value(param.value, spec.default))
     return values

@@ -79,3 +79,14 @@ def known_now_ns(node):
     if clock.ros_time_is_active and now == 0:
         return None
     return now
+
+
+def node_time_ns(node, *stamps):
+    """
+    Return the newest time ``node`` knows (ns): its clock and the ``stamps`` it accepted.
+
+    The clock counts while sim time is unknown (:func:`known_now_ns` None) as 0, the start
+    of sim time, so that a stamp far in the future is recognised from the first message on;
+    ``stamps`` that are None (nothing accepted yet) are skipped.
+    """
+    return max([known_now_ns(node) or 0] + [t for t in stamps if t is not None])

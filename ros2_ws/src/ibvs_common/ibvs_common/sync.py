@@ -226,10 +226,9 @@ class FeedbackLockstep:
     camera_period_ns, latency_ns, step_ns : int
         T_cam, the feedback latency and the physics step (ns), as for feedback_frame_ns.
     max_buffer : int
-        Most states, q_feedbacks and lost frames kept, each (a flood is rejected).
-    future_ns : int, optional
-        A state stamped more than this after the newest known time (the last answered
-        stamp, or the ``now_ns`` given) is rejected: the node's ``stale_timeout_s``.
+        Most states, q_feedbacks and lost frames kept, each (a flood is rejected). Stamps
+        ahead of the node's time are the node's to refuse before they get here
+        (:func:`ibvs_common.conversions.read_stamp`, the one stamp rule).
     initial
         The q_feedback held before the first frame acts (the node's zeros).
     feedback_name, lost_name : str
@@ -238,8 +237,7 @@ class FeedbackLockstep:
     """
 
     def __init__(self, camera_period_ns: int, latency_ns: int, step_ns: int, *,
-                 max_buffer: int = 1000, future_ns: Optional[int] = None,
-                 initial: Any = None, feedback_name: str = 'q_feedback',
+                 max_buffer: int = 1000, initial: Any = None, feedback_name: str = 'q_feedback',
                  lost_name: str = 'frame_lost'):
         """Create the lockstep with nothing received (see the class docstring)."""
         feedback_frame_ns(0, camera_period_ns, latency_ns, step_ns)  # checks the periods
@@ -247,7 +245,6 @@ class FeedbackLockstep:
         self.latency_ns = latency_ns
         self.step_ns = step_ns
         self.max_buffer = max_buffer
-        self.future_ns = future_ns
         self.feedback_name = feedback_name
         self.lost_name = lost_name
         self.states: PendingQueue = PendingQueue(max_buffer)
@@ -275,8 +272,7 @@ class FeedbackLockstep:
             return Rejection('stale stamp', f'{t_ns} ns is no longer needed')
         return None
 
-    def offer_state(self, t_ns: int, item: Any,
-                    now_ns: Optional[int] = None) -> Optional[Rejection]:
+    def offer_state(self, t_ns: int, item: Any) -> Optional[Rejection]:
         """
         Buffer the state at ``t_ns`` until it can be answered; return why not, or None.
 
@@ -286,23 +282,14 @@ class FeedbackLockstep:
             Its stamp (ns).
         item
             What the answer needs of it (the node's q, qdot), handed back by :meth:`pop_ready`.
-        now_ns : int, optional
-            The node's clock, when it knows one: a bound for stamps in the future.
 
         Returns
         -------
         Rejection or None
-            'stale stamp' (not after the newest state), 'stamp in the future', 'buffer full'.
+            'stale stamp' (not after the newest state), 'buffer full'.
 
         """
-        rejection = self.states.check_order(t_ns)
-        if rejection is not None:
-            return rejection
-        known = [t for t in (self.last_answered_ns, now_ns) if t is not None]
-        if self.future_ns is not None and known and t_ns > max(known) + self.future_ns:
-            return Rejection('stamp in the future',
-                             f'{t_ns} ns, more than stale_timeout_s after {max(known)} ns')
-        return self.states.push(t_ns, item)
+        return self.states.offer(t_ns, item)
 
     def offer_feedback(self, t_ns: int, q_feedback: Any) -> Optional[Rejection]:
         """

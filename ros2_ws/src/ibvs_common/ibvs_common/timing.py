@@ -35,6 +35,16 @@ def frame_stamp_ns(n, camera_period_ns, step_ns):
     return -(-n * camera_period_ns // step_ns) * step_ns
 
 
+def is_frame_stamp(t_ns, camera_period_ns, step_ns):
+    """
+    Return whether ``t_ns`` is the stamp of a camera frame (:func:`frame_stamp_ns`).
+
+    Frame n is stamped in [n T, n T + dt) and T >= dt, so the only candidate is n = t // T.
+    """
+    n = t_ns // camera_period_ns
+    return t_ns >= 0 and frame_stamp_ns(n, camera_period_ns, step_ns) == t_ns
+
+
 def feedback_frame_ns(t_ns, camera_period_ns, latency_ns, step_ns):
     """
     Return the stamp (ns) of the camera frame whose q_feedback applies at sim time ``t_ns``.

@@ -168,6 +168,24 @@ def test_read_stamp_is_stamp_ns_on_good_stamps():
         assert conversions.read_stamp(conversions.ns_stamp(ns)) == ns
 
 
+def test_the_one_stamp_rule_refuses_future_and_off_grid_stamps():
+    ms, cam = 1_000_000, 33_333_333
+    lead = conversions.stamp_lead_ns(0.5, cam)
+    assert lead == 500 * ms + cam
+    # Time unknown (None) counts as 0, the start of sim time: 2^31 s is in the future.
+    with pytest.raises(InputError, match='stamp in the future'):
+        conversions.read_stamp(Time(sec=2 ** 31 - 1), None, lead)
+    assert conversions.read_stamp(Time(sec=0, nanosec=533 * ms), None, lead) == 533 * ms
+    with pytest.raises(InputError, match='stamp in the future'):
+        conversions.read_stamp(Time(sec=0, nanosec=534 * ms), None, lead)
+    assert conversions.read_stamp(Time(sec=10), 9_600 * ms, lead) == 10_000 * ms
+    frames = (cam, ms)
+    assert conversions.read_stamp(Time(sec=0, nanosec=34 * ms), 0, lead, frames) == 34 * ms
+    for off_grid in (33 * ms, 33_333_333, 35 * ms):
+        with pytest.raises(InputError, match='off the frame grid'):
+            conversions.read_stamp(Time(sec=0, nanosec=off_grid), 0, lead, frames)
+
+
 def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
     rng = np.random.default_rng(3)
     rows = rng.normal(size=(7, 6))

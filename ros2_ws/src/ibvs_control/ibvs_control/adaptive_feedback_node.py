@@ -30,8 +30,15 @@ holds it too). Sim time "now" is the newest /joint_states stamp (deterministic i
 lockstep, unlike the arrival of /clock). When no usable frame has come for
 ``stale_timeout_s`` of sim time, the feedback is marked frozen (WARN on /diagnostics) and
 logged; it resumes with the next fresh frame. A frame not newer than the last one
-answered is rejected, not answered. /diagnostics: singular values of C1, condition
-number, rank used, image error norm.
+answered is rejected, not answered. Every stamp goes through the one stamp rule
+(:func:`ibvs_common.conversions.read_stamp`): a malformed one, or one more than
+``stale_timeout_s`` and a camera period ahead of the newest time the node knows (its clock,
+its newest joint state; 0 before either) is rejected and never stored, so that it cannot
+make every later input look stale; joint states beyond ``POSITION_BOUND_RAD`` or faster
+than ``SPEED_BOUND_RAD_S`` (:mod:`ibvs_common.conversions`) are rejected too. Each CameraInfo
+is checked on its own (:func:`ibvs_common.conversions.check_camera_info`) and a camera pose
+looking away from the robot is refused, each counted under its topic. /diagnostics: singular
+values of C1, condition number, rank used, image error norm.
 
 Servo law (``servo_law``, :mod:`.servo_laws`): 'paper' (default) is the above. 'ibvs'
 (classic IBVS) and 'pbvs' (position-based) integrate a velocity command per frame and
@@ -47,8 +54,10 @@ markers in both images). The others do not subscribe to it.
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_from_msgs, InputError, joint_state, pose_stamped,
-                                     read_features, read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
+                                     joint_state, pose_stamped, position_bounds,
+                                     read_camera_pose, read_features, read_joints, read_stamp,
+                                     stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
@@ -56,6 +65,7 @@ from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RAT
                                        OMEGA_N, STALE_TIMEOUT_S,
                                        TARGET_FEATURES_SOURCE, TARGET_POSITION,
                                        TARGET_ROTATION, TAU_IN, ZETA)
+from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import FrameLockstep
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
@@ -100,6 +110,7 @@ class AdaptiveFeedbackNode(Node):
         self.pose = target_from(values)
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.timeout_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
         self.feedback = None
         self._infos = [None, None]
         self._camera_pose = None
@@ -170,28 +181,41 @@ class AdaptiveFeedbackNode(Node):
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_info(self, index, msg):
-        if self.feedback is not None:
+        topic = (contract.LEFT_INFO, contract.RIGHT_INFO)[index]
+        try:
+            check_camera_info(msg)
+        except InputError as exc:
+            self.diagnostics.reject(topic, exc.reason, exc.detail)
             return
+        if self.feedback is not None:
+            return  # the camera model is built once
         self._infos[index] = msg
-        self._try_camera()
+        self._try_camera(topic)
 
     def _on_pose(self, msg):
+        try:
+            read_camera_pose(msg)
+        except InputError as exc:
+            self.diagnostics.reject(contract.STEREO_POSE, exc.reason, exc.detail)
+            return
         if self.feedback is not None:
             return
         self._camera_pose = msg
-        self._try_camera()
+        self._try_camera(contract.STEREO_POSE)
 
     def _on_target(self, msg):
-        if self.feedback is not None:
-            return
         try:
-            self._p_target = read_features(msg)
+            p_target = read_features(msg)
         except InputError as exc:
             self.diagnostics.reject(contract.TARGET_FEATURES, exc.reason, exc.detail)
             return
-        self._try_camera()
+        if self.feedback is not None:
+            return
+        self._p_target = p_target
+        self._try_camera(contract.TARGET_FEATURES)
 
-    def _try_camera(self):
+    def _try_camera(self, source):
+        """Build the servo law once every camera input is here; ``source`` came last."""
         if self._camera_pose is None or None in self._infos:
             return
         if self._taught and self._p_target is None:
@@ -205,8 +229,10 @@ class AdaptiveFeedbackNode(Node):
                 **{spec.name: self.values[spec.name]
                    for spec in (TAU_IN, OMEGA_N, ZETA) + LAW_PARAMS})
         except (InputError, ModelError) as exc:
-            # e.g. the target behind the camera: nothing to servo on; keep waiting.
-            self.diagnostics.reject('camera model', type(exc).__name__, str(exc))
+            # e.g. the target behind the camera: nothing to servo on; counted under the
+            # input that completed the model, and the camera inputs are awaited again.
+            reason = exc.reason if isinstance(exc, InputError) else type(exc).__name__
+            self.diagnostics.reject(source, reason, str(exc))
             self._infos = [None, None]
             return
         self.diagnostics.update(state='running', servo_law=self.law.name,
@@ -217,11 +243,15 @@ class AdaptiveFeedbackNode(Node):
             f'{np.round(self.feedback.p_target, 2).tolist()} px')
         self._drain()
 
+    def now_ns(self):
+        """Return the newest time the node knows: its clock and its newest joint state."""
+        return node_time_ns(self, self._lockstep.joints.newest)
+
     def _on_joint_state(self, msg):
-        t_ns = stamp_ns(msg.header.stamp)
         try:
-            q = read_joints(msg)
-            qd = read_joints(msg, 'velocity')
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
+            q = read_joints(msg, bound=position_bounds())
+            qd = read_joints(msg, 'velocity', bound=velocity_bounds())
         except InputError as exc:
             self.diagnostics.reject(self._joints_topic, exc.reason, exc.detail)
             return
@@ -235,11 +265,19 @@ class AdaptiveFeedbackNode(Node):
         self._drain()
 
     def _on_features(self, msg):
-        t_ns = stamp_ns(msg.header.stamp)
+        try:
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
+        except InputError as exc:
+            self.diagnostics.reject(contract.FEATURES, exc.reason, exc.detail)
+            return
         try:
             features = read_features(msg)
         except InputError as exc:
-            features = exc  # answered with the held q_feedback, in its turn
+            # Counted now; answered with the held q_feedback in its turn (the joint
+            # controller waits for an answer to every frame).
+            self.diagnostics.reject(contract.FEATURES, exc.reason,
+                                    f'{exc.detail}; q_feedback held')
+            features = exc
         rejection = self._lockstep.offer_frame(t_ns, features)
         if rejection is not None:
             self.diagnostics.reject(contract.FEATURES, *rejection)
@@ -248,7 +286,11 @@ class AdaptiveFeedbackNode(Node):
 
     def _on_status(self, msg):
         """Keep whether the frame of this /ibvs/feature_status stamp was measured."""
-        t_ns = stamp_ns(msg.header.stamp)
+        try:
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
+        except InputError as exc:
+            self.diagnostics.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
+            return
         measured = any(kv.key == 'reason' and kv.value == 'measured'
                        for status in msg.status for kv in status.values)
         rejection = self._lockstep.offer_status(t_ns, measured)
@@ -271,8 +313,7 @@ class AdaptiveFeedbackNode(Node):
         source = contract.FEATURES
         now_ns = self._lockstep.joints.newest
         if isinstance(features, InputError):
-            self.diagnostics.reject(source, features.reason,
-                                    f'{features.detail}; q_feedback held')
+            pass  # counted when it came; the held q_feedback answers it
         elif now_ns - t_ns > self.timeout_ns:
             self.diagnostics.reject(source, 'stale features',
                                     f'frame {t_ns} ns is {(now_ns - t_ns) * 1e-9:.3f} s old '

@@ -17,22 +17,26 @@ trajectory controller does. The joint controller then never waits for the feedfo
 and this node leaves the lockstep: it unsubscribes from /joint_states once it has
 published (docs/design.md §4).
 
-A /joint_states that is malformed (wrong length, NaN, missing or unknown joint names, a stamp
-with a negative ``sec`` or ``nanosec`` >= 1e9) or stamped more than ``stale_timeout_s`` ahead
-of the node's /clock is rejected (counted on /diagnostics) and the node waits for the next
-one: the trajectory starts at the stamp of the state it comes from, and one from a bad
+A /joint_states that is malformed (wrong length, NaN, missing or unknown joint names, a
+position beyond its joint's travel: :func:`ibvs_common.conversions.travel_bounds`) or whose
+stamp breaks the one stamp rule (:func:`ibvs_common.conversions.read_stamp`: malformed, or
+more than ``stale_timeout_s`` and one physics step ahead of the node's /clock, 0 before the
+first /clock) is rejected (counted on /diagnostics) and the node keeps listening for the
+next one: the trajectory starts at the stamp of the state it comes from, and one from a bad
 publisher would hold the arm at its start until then.
 """
 
 from ibvs_common import contract
-from ibvs_common.conversions import InputError, joint_trajectory, read_joints, read_stamp
+from ibvs_common.conversions import (InputError, joint_trajectory, read_joints, read_stamp,
+                                     stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.shared_params import (PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
                                        TARGET_POSITION, TARGET_ROTATION, TAU_IN)
-from ibvs_common.sim_time import known_now_ns
+from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
+from ibvs_model import ModelError
 import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -54,7 +58,7 @@ class FeedforwardNode(Node):
         values = declare(self, PARAMS)
         self.pose = target_from(values)
         self.dt_ns = period_ns(values['physics_rate_hz'])
-        self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
         self.ff = Feedforward(self.pose, values['tau_in'], self.dt_ns * 1e-9,
                               feedforward_ratio=values['feedforward_ratio'],
                               feedforward_method=values['feedforward_method'])
@@ -74,20 +78,22 @@ class FeedforwardNode(Node):
         if self.t0_ns is not None:
             return  # a message already queued when the subscription was destroyed
         try:
-            t_ns = read_stamp(msg.header.stamp)
-            q = read_joints(msg)
+            t_ns = read_stamp(msg.header.stamp, node_time_ns(self), self.lead_ns)
+            q = read_joints(msg, bound=travel_bounds())
         except InputError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
             return
-        now_ns = known_now_ns(self)
-        if now_ns is not None and t_ns > now_ns + self.future_ns:
-            self.diagnostics.reject(contract.JOINT_STATES, 'stamp in the future',
-                                    f'{t_ns} ns, more than stale_timeout_s after the clock '
-                                    f'({now_ns} ns)')
+        try:
+            q_target = self.ff.start(q)
+            positions = self.ff.trajectory()
+        except ModelError as exc:
+            self.diagnostics.reject(contract.JOINT_STATES, type(exc).__name__, str(exc))
+            return
+        if not np.all(np.isfinite(positions)):  # never published: a node's outputs are finite
+            self.diagnostics.reject(contract.JOINT_STATES, 'non-finite trajectory',
+                                    f'from q = {q.tolist()}')
             return
         self.t0_ns = t_ns
-        q_target = self.ff.start(q)
-        positions = self.ff.trajectory()
         self._pub.publish(joint_trajectory(self.t0_ns, self.dt_ns, positions))
         self.destroy_subscription(self._sub)
         dpos, drot = self.ff.pose_error()

@@ -25,13 +25,18 @@ reads the messages, keeps the feedforward and answers.
 
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
 (wrong length, NaN, missing or unknown joint names: values are mapped by name; a trajectory
-not sampled at the physics period or with a non-finite value in any field; a stamp with a
-negative ``sec`` or ``nanosec`` >= 1e9), a /joint_states not newer than the last one, or
-stamped more than ``stale_timeout_s`` ahead of the newest time the node knows (its last
-answered stamp, or its /clock: in lockstep the next state is one physics step on, so only a
-bad publisher is caught, and it cannot hold the buffer so that the good states after it go
-unanswered), a q_feedback older than what is still needed. A new trajectory replaces the
-old one.
+not sampled at the physics period or with a non-finite value in any field (its positions are
+not bounded by the travel: a feedforward leads the arm and overshoots it); positions beyond
+1000 rad or velocities beyond 1e4 rad/s (:mod:`ibvs_common.conversions`:
+``POSITION_BOUND_RAD``, ``SPEED_BOUND_RAD_S``), a /joint_states not newer than the last
+one, a q_feedback older than what is still needed. Every stamp goes through the one stamp
+rule (:func:`ibvs_common.conversions.read_stamp`): malformed, or more than
+``stale_timeout_s`` and one input period ahead of the newest time the node knows (its last
+answered stamp, or its /clock; 0 before either) is refused and never stored, so that a bad
+publisher cannot hold a buffer and leave the good inputs after it unanswered; a q_feedback
+or frame_lost must carry a frame's stamp (:func:`ibvs_common.timing.is_frame_stamp`). A new
+trajectory replaces the old one. A command that would not be finite is not published: the
+state is rejected ('non-finite command') and the holding torque h(q, 0) goes out instead.
 
 Position interface (``command_interface: position``, free-running only: ``lockstep``
 false; docs/design.md §4). The arm's own drive closes the joint loop (ros2_control and
@@ -60,7 +65,8 @@ and the loop goes on as if the bad one had never come.
 from builtin_interfaces.msg import Duration
 from ibvs_common import contract
 from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
-                                     read_joints, read_stamp, read_trajectory)
+                                     position_bounds, read_joints, read_stamp,
+                                     read_trajectory, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
@@ -69,7 +75,7 @@ from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_
                                        COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
                                        PHYSICS_RATE_HZ, POSITION_COMMAND_TYPE,
                                        STALE_TIMEOUT_S, TAU_IN)
-from ibvs_common.sim_time import known_now_ns
+from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import FeedbackLockstep
 from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import IRB4600
@@ -113,7 +119,9 @@ class JointControllerNode(Node):
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.latency_ns = int(round(values['feedback_latency_s'] * 1e9))
-        self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.state_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
+        self.frame_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
+        self._frames = (self.camera_ns, self.dt_ns)
         try:
             check_camera_rate(values['camera_rate_hz'], values['physics_rate_hz'])
         except ValueError as exc:
@@ -129,7 +137,7 @@ class JointControllerNode(Node):
         # Before the first frame acts, q_feedback = 0; a lost frame holds the last one.
         self._lockstep = FeedbackLockstep(
             self.camera_ns, self.latency_ns, self.dt_ns, max_buffer=MAX_BUFFER,
-            future_ns=self.future_ns, initial=np.zeros(6), feedback_name=contract.Q_FEEDBACK,
+            initial=np.zeros(6), feedback_name=contract.Q_FEEDBACK,
             lost_name=contract.FRAME_LOST)
         self._trajectory = None
         self.commands = 0
@@ -164,7 +172,11 @@ class JointControllerNode(Node):
         self.joints = list(values['joints'])
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.command_period_ns = period_ns(values['command_rate_hz'])
-        self.future_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.camera_ns = period_ns(values['camera_rate_hz'])
+        # The one stamp rule (ibvs_common.conversions.read_stamp), as in the effort mode.
+        self.state_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
+        self.frame_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
+        self._frames = (self.camera_ns, self.dt_ns)
         self.shaper = PositionShaper(values['command_rate_hz'],
                                      speed_margin=values['speed_margin'])
         self._hold = FeedbackHold(np.zeros(6))
@@ -208,16 +220,10 @@ class JointControllerNode(Node):
     def _on_measured(self, msg):
         source = contract.JOINT_STATES
         try:
-            t_ns = read_stamp(msg.header.stamp)
-            q = read_joints(msg)
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
+            q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
-            return
-        now_ns = known_now_ns(self)
-        if now_ns is not None and t_ns > now_ns + self.future_ns:
-            self.diagnostics.reject(source, 'stamp in the future',
-                                    f'{t_ns} ns, more than stale_timeout_s after the clock '
-                                    f'({now_ns} ns)')
             return
         if self._measured is not None and t_ns <= self._measured[0]:
             self.diagnostics.reject(source, 'out of order',
@@ -265,16 +271,22 @@ class JointControllerNode(Node):
                                 last_command_ns=now_ns)
 
     # -- inputs ----------------------------------------------------------------------------
+    def now_ns(self):
+        """Return the newest time the node knows: its clock and its last answered stamp."""
+        if self.command_interface == 'position':
+            return node_time_ns(self, self._measured[0] if self._measured else None)
+        return node_time_ns(self, self._lockstep.last_answered_ns)
+
     def _on_joint_state(self, msg):
         source = contract.JOINT_STATES
         try:
-            t_ns = read_stamp(msg.header.stamp)
-            q = read_joints(msg)
-            qd = read_joints(msg, 'velocity')
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
+            q = read_joints(msg, bound=position_bounds())
+            qd = read_joints(msg, 'velocity', bound=velocity_bounds())
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        rejection = self._lockstep.offer_state(t_ns, (q, qd), known_now_ns(self))
+        rejection = self._lockstep.offer_state(t_ns, (q, qd))
         if rejection is not None:
             self.diagnostics.reject(source, *rejection)
             return
@@ -282,11 +294,13 @@ class JointControllerNode(Node):
 
     def _on_trajectory(self, msg):
         try:
-            self._trajectory = read_trajectory(msg, self.dt_ns)
+            read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
+            trajectory = read_trajectory(msg, self.dt_ns)
         except InputError as exc:
             self.diagnostics.reject(contract.FEEDFORWARD_TRAJECTORY, exc.reason, exc.detail)
             return
-        start_ns, positions = self._trajectory
+        self._trajectory = trajectory
+        start_ns, positions = trajectory
         self.diagnostics.update(feedforward_start_ns=start_ns,
                                 feedforward_points=len(positions))
         if self.command_interface == 'effort':
@@ -295,7 +309,8 @@ class JointControllerNode(Node):
     def _on_feedback(self, msg):
         source = contract.Q_FEEDBACK
         try:
-            t_ns = read_stamp(msg.header.stamp)
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.frame_lead_ns,
+                              self._frames)
             q = read_joints(msg)
             check_finite(msg, ('velocity', 'effort'))
         except InputError as exc:
@@ -319,7 +334,7 @@ class JointControllerNode(Node):
     def _on_frame_lost(self, msg):
         source = contract.FRAME_LOST
         try:
-            t_ns = read_stamp(msg.stamp)
+            t_ns = read_stamp(msg.stamp, self.now_ns(), self.frame_lead_ns, self._frames)
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
@@ -359,6 +374,12 @@ class JointControllerNode(Node):
             mass = self.dynamics.mass_matrix(q)
             bias = self.dynamics.bias(q, qd)
             torque = self.loop.step(q_ref, q, qd, mass, bias)
+        if not np.all(np.isfinite(torque)):
+            self.diagnostics.reject(contract.JOINT_STATES, 'non-finite command',
+                                    f'{torque.tolist()} at {t_ns} ns: holding torque sent')
+            torque = self.dynamics.bias(q, np.zeros(6))
+            if not np.all(np.isfinite(torque)):
+                return
         self.diagnostics.timing.reached(t_ns)
         self._pub.publish(joint_state(t_ns, effort=torque))
         self.commands += 1

@@ -17,6 +17,7 @@ from ibvs_common.conversions import (camera_infos, features_msg, joint_state, jo
                                      pose_stamped, read_joints, read_trajectory, stamp_ns)
 from ibvs_common.params import ParameterError
 from ibvs_common.testing import spin_until
+from ibvs_common.timing import frame_stamp_ns
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
 from ibvs_control.dynamics import RobotDynamics
@@ -544,8 +545,9 @@ def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dyna
                                    dynamics.bias(Q0, np.zeros(6)), rtol=1e-9, atol=1e-9)
         # the joint's whole travel is the bound: J4 and J6 turn +-400 deg
         assert node.diagnostics.rejected_total == len(bad)
-        h.publish(contract.Q_FEEDBACK, joint_state(CAMERA_NS, np.r_[np.zeros(5), 13.9]))
-        h.spin_until(lambda: CAMERA_NS in node._lockstep.feedback,
+        frame1 = frame_stamp_ns(1, CAMERA_NS, MS)  # frame 1 on the physics grid: 34 ms
+        h.publish(contract.Q_FEEDBACK, joint_state(frame1, np.r_[np.zeros(5), 13.9]))
+        h.spin_until(lambda: frame1 in node._lockstep.feedback,
                      'a large but possible J6 correction')
 
 

@@ -6,7 +6,8 @@ physics step (torque control at 1 kHz, computed torque from PyBullet's inverse d
 included), and one stereo pair rendered at HD720 and at VGA with the default renderer (EGL
 where it loads) and, if that is EGL, with the TinyRenderer fallback too; each with one
 sample per pixel, with 2 x 2, and as the simulator renders by default (one sample per pixel,
-8 x 8 in the windows around the markers). No ROS involved.
+8 x 8 in the windows around the markers); the same with renderer 'opengl'
+(:mod:`ibvs_sim.gl_renderer`). No ROS involved.
 ``python -m ibvs_sim.bench`` prints median and p95 of each.
 """
 
@@ -16,7 +17,7 @@ from ibvs_common.bench import print_timing
 from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoIntrinsics
 import numpy as np
 
-from .world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, World
+from .world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, RendererError, World
 
 PHYSICS_STEPS = 2000
 RENDERS = {'HD720': 20, 'VGA': 40}
@@ -73,6 +74,15 @@ def run(report):
             _bench_world(tiny, report, TINY_RENDERS, physics=False)
         finally:
             tiny.close()
+    try:
+        fast = World(renderer='opengl')
+    except RendererError as exc:
+        print(f'  sim: renderer opengl not available here ({exc})')
+        return
+    try:
+        _bench_world(fast, report, RENDERS, physics=False)
+    finally:
+        fast.close()
 
 
 def main():

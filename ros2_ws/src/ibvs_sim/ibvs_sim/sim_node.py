@@ -59,11 +59,13 @@ cannot keep ``real_time_factor`` (a step's work, rendering above all, takes long
 share of wall time) the node says so once a second (WARN log and /diagnostics
 ``real_time_factor_held``) and goes on at the pace it can hold: sim time is never skipped.
 
-Bad input. A command with another stamp is rejected as stale (older) or early (newer) and
-ignored. A command with the right stamp but a wrong length, unknown joint names, NaN or inf
-is rejected too; the step then happens with the holding torque (PyBullet inverse dynamics
-that stops the arm where it is: Simulator.hold_torque), so the run goes on and the arm holds
-its position. Each rejection is logged and counted on /diagnostics.
+Bad input. A command with a malformed stamp (:func:`ibvs_common.conversions.read_stamp`) is
+rejected; one with another stamp is rejected as stale (older) or early (newer) and ignored.
+A command with the right stamp but a wrong length, unknown joint names, NaN or inf, or an
+effort beyond :data:`EFFORT_BOUND_FACTOR` times its joint's rated torque (absurd: it would
+only break the physics) is rejected too; the step then happens with the holding torque
+(PyBullet inverse dynamics that stops the arm where it is: Simulator.hold_torque), so the run
+goes on and the arm holds its position. Each rejection is logged and counted on /diagnostics.
 """
 
 import time
@@ -72,7 +74,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
-                                     ns_stamp, path_msg, pose_stamped, read_joints, stamp_ns)
+                                     ns_stamp, path_msg, pose_stamped, read_joints, read_stamp,
+                                     stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
@@ -85,6 +88,7 @@ from ibvs_common.shared_params import (CAMERA_RATE_HZ, check_command_interface,
 from ibvs_common.timing import period_ns
 from ibvs_model import IRB4600, paper
 from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
+from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -109,8 +113,9 @@ CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT
                        'point of {O} on the optical axis (image up = +z of {O})', 'm',
                        low=-20.0, high=20.0, length=3)
 RENDERER = Param('renderer', 'auto', "PyBullet renderer: 'egl' (OpenGL without display), "
-                 "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads)", '-',
-                 choices=RENDERERS)
+                 "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads); or 'opengl': "
+                 'our own OpenGL renderer of the same shapes (ibvs_sim.gl_renderer), several '
+                 'times faster, no shadows', '-', choices=RENDERERS)
 RENDER_SUPERSAMPLING = Param(
     'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
     'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
@@ -127,7 +132,8 @@ MOUNT_HEIGHT_M = Param(
 RENDER_PARALLEL_LENSES = Param(
     'render_parallel_lenses', True, 'render the right lens in a second process while this one '
     'renders the left (ibvs_sim.lens_worker): the same images in about half the wall time on '
-    'two cores; false: both lenses in this process', '-')
+    "two cores; false: both lenses in this process; renderer 'opengl' always draws both "
+    'lenses in this process, in one context (faster)', '-')
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
@@ -234,6 +240,13 @@ MAX_STEPS_PER_TICK = 20
 RTF_WINDOW_S = 2.0
 RTF_TOLERANCE = 0.9
 
+#: Largest |effort| of a command, in multiples of its joint's rated torque
+#: (ibvs_model.mass_model.joint_efforts). Not the rating itself: the paper's ideal actuators
+#: command thousands of times it while the feedforward starts (scenario 1: 4.6e7 N m on
+#: joint 1, 6e3 times its rating, in the first steps), and the 'limited' actuators clip to it
+#: in the controller. Beyond this bound a command is absurd and would only break the physics.
+EFFORT_BOUND_FACTOR = 1e6
+
 #: Steady-clock periods: readiness poll before the start, and the waiting log.
 START_POLL_S = 0.02
 WAIT_LOG_S = 1.0
@@ -329,6 +342,9 @@ class SimNode(Node):
         if self._position:
             self._setup_position(values)
         else:
+            limit = EFFORT_BOUND_FACTOR * np.asarray(joint_efforts(self.sim.params),
+                                                     dtype=float)
+            self._effort_bound = (-limit, limit)
             self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
                                                  self._on_command, contract.RELIABLE)
 
@@ -486,14 +502,18 @@ class SimNode(Node):
             self.diagnostics.reject(source, 'before start',
                                     f'stamp {stamp_ns(msg.header.stamp)} ns')
             return
-        stamp = stamp_ns(msg.header.stamp)
+        try:
+            stamp = read_stamp(msg.header.stamp)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return
         if stamp != self.sim.t_ns:
             reason = 'stale stamp' if stamp < self.sim.t_ns else 'early stamp'
             self.diagnostics.reject(source, reason, f'{stamp} ns, waiting for '
                                     f'{self.sim.t_ns} ns')
             return
         try:
-            torque = read_joints(msg, 'effort')
+            torque = read_joints(msg, 'effort', bound=self._effort_bound)
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason,
                                     f'{exc.detail}; holding the arm at step {self.sim.k}')

@@ -14,8 +14,10 @@ fixed step h = 1 / physics_rate_hz.
 Rendering: the pure geometry (OpenGL matrices of the pinhole lenses, tiles of the EGL window,
 supersampling, the windows around the fiducials) is :mod:`ibvs_sim.rendering`; this module
 makes the PyBullet calls. The EGL plugin (OpenGL without a display) is used where it loads,
-TinyRenderer otherwise. Lighting is mostly ambient, without specular highlights, so that a
-marker keeps its hue all over its disc. TinyRenderer draws no shadows (``shadow`` 0); the EGL
+TinyRenderer otherwise; with renderer 'opengl', our own renderer (:mod:`.gl_renderer`)
+draws PyBullet's visual shapes at PyBullet's link poses, without shadows. Lighting is
+mostly ambient, without specular highlights, so that a marker keeps its hue all over its
+disc. TinyRenderer draws no shadows (``shadow`` 0); the EGL
 plugin ignores that flag and always shades with its shadow map, so there the robot casts a
 shadow on the ground (a one-sided square: :func:`ibvs_sim.rendering.ground_obj`).
 """
@@ -33,6 +35,8 @@ from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
 import pybullet
 
+from .gl_renderer import (box_triangles, cylinder_triangles, GLRenderer, GLRendererError,
+                          obj_triangles, Shape, transformed)
 from .lens_worker import LensWorker
 from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
                         DEFAULT_SUPERSAMPLING, EGL_WINDOW, FAR_M, focus_windows, gl_matrix,
@@ -56,7 +60,14 @@ RISER_RGBA = (0.35, 0.35, 0.38, 1.0)
 LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
          'lightDistance': 10.0, 'shadow': 0, 'lightAmbientCoeff': 0.75,
          'lightDiffuseCoeff': 0.35, 'lightSpecularCoeff': 0.0}
-RENDERERS = ('auto', 'egl', 'tiny')
+RENDERERS = ('auto', 'egl', 'tiny', 'opengl')
+#: PyBullet's renderers draw a URDF cylinder as the convex hull of a 32-gon prism with a
+#: collision margin of 1 mm (bullet3 EGLRendererVisualShapeConverter: setMargin(0.001)),
+#: i.e. 1 mm thicker and longer at each end than the URDF says; renderer 'opengl' draws the
+#: same, so that the thin rods across the markers (the quill, 2.5 mm, and the shaft, 2 mm)
+#: cut the notches the detector was made for (measured at the target pose: without it the
+#: detected vertical separation of the markers is 0.02 px off, 0.16 deg of tool axis).
+PYBULLET_CYLINDER_MARGIN_M = 0.001
 #: Mesa's variable for the number of llvmpipe rendering threads (see World, lens_worker).
 LLVMPIPE_THREADS = 'LP_NUM_THREADS'
 #: The World that holds the process's EGL plugin, if any (one at a time: see World).
@@ -94,13 +105,16 @@ class World:
     ``renderer``: 'egl' (fail if the plugin does not load), 'tiny', or 'auto' (EGL where it
     loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'. One
     World per process at a time can use EGL; 'auto' gives the others TinyRenderer.
+    'opengl': our own renderer (:mod:`ibvs_sim.gl_renderer`) draws PyBullet's visual shapes
+    (``getVisualShapeData``) at the link poses PyBullet computes, on a standalone EGL context
+    of its own (any number of Worlds); :class:`RendererError` if none can be created.
 
     ``lens_worker``: render the right lens in a second process (:mod:`ibvs_sim.lens_worker`)
     while this one renders the left, so that a stereo pair takes about one lens's time on
     two cores; the images are the same. Both processes then draw with one llvmpipe thread
     each (``LP_NUM_THREADS=1`` unless the environment sets it): two renderers that each
     spread over every core fight for them (measured on two cores: 44.5 ms instead of 47-48
-    ms a VGA pair).
+    ms a VGA pair). Not with 'opengl', which draws both lenses in one context.
     """
 
     def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
@@ -115,7 +129,12 @@ class World:
         self.dt = 1.0 / physics_rate_hz
         self._client = pybullet.connect(pybullet.DIRECT)
         self._plugin = None
+        self._gl = None
         self._lens_worker = None
+        # 'opengl' draws both lenses in one context: faster than two processes on two cores
+        # (measured: 64 against 64-78 ms a VGA pair, 121-135 against 184-186 ms at HD720,
+        # loaded machine), as llvmpipe's own threads already use both.
+        lens_worker = lens_worker and renderer != 'opengl'
         if lens_worker:  # before the EGL plugin loads here; the worker inherits it
             os.environ.setdefault(LLVMPIPE_THREADS, '1')
         try:
@@ -147,6 +166,12 @@ class World:
                                specularColor=[0.0, 0.0, 0.0])
             self.ground = self._call(pybullet.createMultiBody, baseMass=0.0,
                                      baseVisualShapeIndex=shape, basePosition=(0.0, 0.0, floor))
+            self._setup_bodies(with_tool, floor)
+            if self.renderer == 'opengl':  # while the mesh files exist
+                self._gl_setup()
+
+    def _setup_bodies(self, with_tool, floor):
+        """Find the links and joints, set the dynamics and the colours, add the riser."""
         self.links = {}
         joints = {}
         for j in range(self._call(pybullet.getNumJoints, self.body)):
@@ -175,6 +200,61 @@ class World:
                 self._call(pybullet.getCameraImage, 8, 8,
                            renderer=pybullet.ER_BULLET_HARDWARE_OPENGL)
 
+    def _gl_setup(self):
+        """
+        Build the :class:`GLRenderer` of every visual shape of the world's bodies.
+
+        A part is one (body, link): the links of the robot move, the robot's base, the
+        ground and the riser do not, so their poses are taken once here.
+        """
+        bodies = [self.body, self.ground] + ([self.riser] if self.riser is not None else [])
+        parts, shapes, static = {}, [], {}
+        for body in bodies:
+            for data in self._call(pybullet.getVisualShapeData, body):
+                link, kind, dims, mesh, xyz, quat, rgba = data[1:8]
+                if kind == pybullet.GEOM_BOX:
+                    tris = box_triangles(np.asarray(dims) / 2.0)
+                elif kind == pybullet.GEOM_CYLINDER:  # dims: (length, radius)
+                    tris = cylinder_triangles(dims[1] + PYBULLET_CYLINDER_MARGIN_M,
+                                              dims[0] + 2.0 * PYBULLET_CYLINDER_MARGIN_M)
+                elif kind == pybullet.GEOM_MESH:
+                    tris = obj_triangles(Path(mesh.decode()).read_text(), dims)
+                else:
+                    raise RendererError(f'renderer opengl: visual geometry {kind} of body '
+                                        f'{body} link {link} is not supported')
+                part = parts.setdefault((body, link), len(parts))
+                shapes.append(Shape(part, *transformed(*tris, _pose_matrix(xyz, quat)),
+                                    tuple(rgba[:3])))
+                if body != self.body or link < 0:
+                    static[part] = self._base_frame(body)
+        robot_links = sorted(link for body, link in parts if body == self.body and link >= 0)
+        try:
+            self._gl = GLRenderer(shapes, NEAR_M, FAR_M, LIGHT['lightDirection'])
+        except GLRendererError as exc:
+            raise RendererError(f'renderer opengl: {exc}') from None
+        self._gl_links = robot_links
+        self._gl_link_parts = [parts[(self.body, link)] for link in robot_links]
+        self._gl_poses = np.empty((len(parts), 4, 4))
+        for part, pose in static.items():
+            self._gl_poses[part] = pose
+
+    def _base_frame(self, body):
+        """Return the pose in {O} of the frame of ``body``'s base (its URDF base link)."""
+        position, quaternion = self._call(pybullet.getBasePositionAndOrientation, body)
+        # PyBullet's base pose is that of the base's inertial frame; the visuals hang off the
+        # link frame, which lies at the inverse of the local inertial frame from it.
+        info = self._call(pybullet.getDynamicsInfo, body, -1)
+        inertial = _pose_matrix(info[3], info[4])
+        return _pose_matrix(position, quaternion) @ np.linalg.inv(inertial)
+
+    def _gl_part_poses(self):
+        """Return the poses (P, 4, 4) of the parts of :meth:`_gl_setup` now."""
+        states = self._call(pybullet.getLinkStates, self.body, self._gl_links,
+                            computeForwardKinematics=True)
+        for part, state in zip(self._gl_link_parts, states):
+            self._gl_poses[part] = _pose_matrix(state[4], state[5])
+        return self._gl_poses
+
     def _box(self, half_extents, z_centre, rgba):
         """Add a static box (visual only) centred on the z axis of {O}; return its body."""
         shape = self._call(pybullet.createVisualShape, pybullet.GEOM_BOX,
@@ -185,8 +265,8 @@ class World:
 
     def _setup_renderer(self, renderer):
         global _egl_owner
-        if renderer == 'tiny':
-            return 'tiny'
+        if renderer in ('tiny', 'opengl'):
+            return renderer
         if _egl_owner is not None:
             # A second EGL plugin in one process breaks the first one's renders (measured:
             # the first world then draws nothing), so only one World may use it at a time.
@@ -218,6 +298,9 @@ class World:
         if self._lens_worker is not None:
             self._lens_worker.close()
             self._lens_worker = None
+        if self._gl is not None:
+            self._gl.close()
+            self._gl = None
         if self._client is not None and self._call(pybullet.isConnected):
             if self._plugin is not None:
                 self._call(pybullet.unloadPlugin, self._plugin)
@@ -307,8 +390,9 @@ class World:
 
         The arguments are those of :meth:`render_stereo`, checked there.
         """
-        view = gl_matrix(view_matrix(pose))
-        image = self._render(view, intrinsics, supersampling)
+        view = view_matrix(pose)
+        poses = self._gl_part_poses() if self._gl is not None else None
+        image = self._render(view, intrinsics, supersampling, poses)
         if focus and focus_supersampling > supersampling:
             windows = focus_windows(intrinsics, pose, focus)
             if self.renderer == 'egl':
@@ -316,12 +400,22 @@ class World:
             for window in windows:
                 u0, v0, u1, v1 = window
                 image[v0:v1, u0:u1] = self._render(
-                    view, window_intrinsics(intrinsics, window), focus_supersampling)
+                    view, window_intrinsics(intrinsics, window), focus_supersampling, poses)
         return image
 
-    def _render(self, view, intrinsics, supersampling):
-        """Return the image with ``intrinsics`` rendered with s x s samples per pixel."""
+    def _render(self, view, intrinsics, supersampling, part_poses=None):
+        """
+        Return the image with ``intrinsics`` rendered with s x s samples per pixel.
+
+        ``view``: the OpenGL view matrix; ``part_poses``: those of :meth:`_gl_part_poses`
+        (renderer 'opengl' only).
+        """
         k = supersampled(intrinsics, supersampling)
+        if self._gl is not None:
+            image = self._gl.render(part_poses, view, projection_matrix(k), int(k.width),
+                                    int(k.height))
+            return box_downsample(image, supersampling)
+        view = gl_matrix(view)
         if self.renderer == 'egl':
             renderer, parts = pybullet.ER_BULLET_HARDWARE_OPENGL, tiles(k)
         else:

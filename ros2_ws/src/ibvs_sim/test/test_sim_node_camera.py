@@ -14,6 +14,7 @@ from ibvs_common.conversions import joint_state, joint_trajectory, pose_matrix, 
 from ibvs_common.params import ParameterError
 from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.joint_controller_node import JointControllerNode
+from ibvs_sim import markers
 from ibvs_sim.camera_effects import error_transform
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
@@ -133,6 +134,27 @@ def test_two_runs_with_one_seed_publish_identical_images(context):
         finally:
             sim.destroy_node()
     assert all(np.array_equal(a, b) for a, b in zip(*images))
+
+
+def test_renderer_opengl_is_a_choice_of_the_node_and_draws_both_lenses_in_process(context):
+    """renderer:=opengl (issue 24): our own renderer, both lenses in the node's process."""
+    sim = SimNode(context=context, parameter_overrides=_overrides(renderer='opengl'))
+    try:
+        assert sim.sim.world.renderer == 'opengl'
+        assert sim.sim.world._lens_worker is None  # render_parallel_lenses does not apply
+        _, (left, right), _ = sim.sim.take_frame()
+        clean = Simulator(resolution='VGA', renderer='tiny')
+        try:
+            reference = clean.take_frame()[1]
+        finally:
+            clean.close()
+        assert left.shape == right.shape == reference[0].shape
+        # The scenario 1 start: both markers in both images, where TinyRenderer has them.
+        ours, _ = markers.marker_centres(left, right)
+        theirs, _ = markers.marker_centres(*reference)
+        assert np.all(np.isfinite(ours)) and np.abs(ours - theirs).max() < 0.5
+    finally:
+        sim.destroy_node()
 
 
 def test_published_camera_differs_from_the_rendering_one_by_exactly_the_error(graph):

@@ -31,7 +31,7 @@ def _renders(renderer):
         world.close()
 
 
-@pytest.mark.parametrize('renderer', ['auto', 'tiny'])
+@pytest.mark.parametrize('renderer', ['auto', 'tiny', 'opengl'])
 def test_same_state_same_images_in_fresh_worlds(renderer):
     used, first, other, again = _renders(renderer)
     used2, first2, _, _ = _renders(renderer)

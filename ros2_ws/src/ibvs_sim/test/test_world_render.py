@@ -216,6 +216,14 @@ def test_box_downsample_averages_each_block():
     assert np.array_equal(out, np.rint(
         image.reshape(2, 2, 3, 2, 3).astype(float).mean(axis=(1, 3))).astype(np.uint8))
     assert box_downsample(image, 1) is image
+    # Equal to the rounded float mean for every factor, half-way blocks included.
+    rng = np.random.default_rng(4)
+    for factor in range(2, 17):
+        image = rng.integers(0, 256, (3 * factor, 2 * factor, 3), dtype=np.uint8)
+        image[:factor, :factor] = 0
+        image[:factor, :factor:2, 0] = 1  # the first block's red: mean exactly 1/2 (or 0)
+        mean = image.reshape(3, factor, 2, factor, 3).astype(np.float32).mean(axis=(1, 3))
+        assert np.array_equal(box_downsample(image, factor), np.rint(mean).astype(np.uint8))
 
 
 def test_supersampled_render_keeps_the_geometry(world, camera):

@@ -27,7 +27,13 @@ not match, no valid joint state at its stamp, older than ``stale_timeout_s`` beh
 newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
 frame the camera lost (/stereo/frame_lost) brings no images: nothing is published for it.
 The pairing, matching and dropping rules are :class:`ibvs_common.sync.StereoPairer` (plain
-Python, tested without rclpy); the node decodes, detects, publishes and counts.
+Python, tested without rclpy); the node decodes, detects, publishes and counts. Every stamp
+goes through the one stamp rule (:func:`ibvs_common.conversions.read_stamp`) before the
+pairer sees it: a malformed one, or one more than ``stale_timeout_s`` and a camera period
+ahead of the newest time the node knows (its clock, its newest input; 0 before either), is
+rejected and never stored, so that one bad message cannot make every later frame stale.
+Joint states beyond ``POSITION_BOUND_RAD``, a CameraInfo of an impossible size and a camera pose
+looking away from the robot are rejected too; each rejection is counted under its topic.
 
 Debug overlays. /ibvs/debug/left/image and /ibvs/debug/right/image (sensor_msgs/Image,
 rgb8, stamped with the frame) show each camera image with the detected markers, the
@@ -54,12 +60,14 @@ import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, shared_params
-from ibvs_common.conversions import (camera_from_msgs, features_msg, image_msg, InputError,
-                                     ns_stamp, pose_matrix, pose_stamped, read_joints,
-                                     stamp_ns)
+from ibvs_common.conversions import (camera_from_msgs, check_camera_info, features_msg,
+                                     image_msg, InputError, ns_stamp, pose_stamped,
+                                     position_bounds, read_camera_pose, read_joints,
+                                     read_stamp, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
+from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Drop, Ready, Rejection, StereoPairer
 from ibvs_common.timing import period_ns
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
@@ -86,6 +94,7 @@ PARAMS = (
     Param('publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/'
           'image for every frame even when nobody subscribes (e.g. to record them)', '-'),
     shared_params.PHYSICS_RATE_HZ,
+    shared_params.CAMERA_RATE_HZ,
     shared_params.STALE_TIMEOUT_S,
     shared_params.CAMERA_POSE,
     shared_params.TARGET_FEATURES_SOURCE,
@@ -118,6 +127,11 @@ class FeatureNode(Node):
                                     window_ns=period_ns(p['physics_rate_hz']),
                                     history_ns=int(round(p['joint_history_s'] * 1e9)),
                                     sides=_SIDES)
+        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
+        self._topics = {'left': contract.LEFT_IMAGE, 'right': contract.RIGHT_IMAGE,
+                        'left teach': contract.TEACH_LEFT_IMAGE,
+                        'right teach': contract.TEACH_RIGHT_IMAGE,
+                        'left info': contract.LEFT_INFO, 'right info': contract.RIGHT_INFO}
         self._infos = {}
         self._pose = None
         self._camera_key = None
@@ -160,13 +174,29 @@ class FeatureNode(Node):
                                      contract.LATCHED)
         else:  # a hand-eye calibration's result, as a parameter
             self._pose = pose_stamped(calibrated, 0)
-        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
-                                 contract.RELIABLE)
+        joints = self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
+                                          contract.RELIABLE)
+        # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
+        self._topics['joints'] = joints.topic_name
 
     # --- inputs ----------------------------------------------------------------------
 
+    def now_ns(self):
+        """Return the newest time the node knows: its clock and its newest input's stamp."""
+        return node_time_ns(self, self._stereo.newest_ns)
+
+    def _read_stamp(self, topic, stamp):
+        """Return ``stamp`` in ns by the one stamp rule, or None (rejected, counted)."""
+        try:
+            return read_stamp(stamp, self.now_ns(), self._lead_ns)
+        except InputError as exc:
+            self._diag.reject(topic, exc.reason, exc.detail)
+            return None
+
     def _on_image(self, side, msg):
-        t_ns = stamp_ns(msg.header.stamp)
+        t_ns = self._read_stamp(self._topics[side], msg.header.stamp)
+        if t_ns is None:
+            return
         try:
             image, error = image_array(msg), None
         except InputError as exc:
@@ -174,7 +204,7 @@ class FeatureNode(Node):
         rejection = self._stereo.offer_image(side, t_ns, image, error)
         if rejection is not None:
             # The frame is skipped; its other image, if it comes, is dropped silently.
-            self._diag.reject(f'{side} image', *rejection)
+            self._diag.reject(self._topics[side], *rejection)
         self._try_frames()
 
     def _on_teach(self, side, msg):
@@ -183,7 +213,7 @@ class FeatureNode(Node):
         try:
             self._teach[side] = image_array(msg)
         except InputError as exc:
-            self._diag.reject(f'{side} teach image', exc.reason, exc.detail)
+            self._diag.reject(self._topics[f'{side} teach'], exc.reason, exc.detail)
             return
         self._try_frames()
 
@@ -197,7 +227,7 @@ class FeatureNode(Node):
             right = right[:, :, ::-1].copy()
         k = self._detector.intrinsics
         if any(image.shape[:2] != (k.height, k.width) for image in (left, right)):
-            self._diag.reject('teach image', 'size disagrees with camera_info',
+            self._diag.reject(contract.TEACH_LEFT_IMAGE, 'size disagrees with camera_info',
                               f'{left.shape[1]} x {left.shape[0]}, camera_info says '
                               f'{k.width} x {k.height}')
             return
@@ -215,25 +245,33 @@ class FeatureNode(Node):
                                f'{np.round(detection.features, 3).tolist()} px')
 
     def _on_joints(self, msg):
-        t_ns = stamp_ns(msg.header.stamp)
+        topic = self._topics['joints']
+        t_ns = self._read_stamp(topic, msg.header.stamp)
+        if t_ns is None:
+            return
         try:
-            q = read_joints(msg)
+            q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
-            self._diag.reject('joint_states', exc.reason, exc.detail)
+            self._diag.reject(topic, exc.reason, exc.detail)
             self._stereo.offer_bad_joints(t_ns, exc.reason)
         else:
             self._stereo.offer_joints(t_ns, q)
         self._try_frames()
 
     def _on_info(self, side, msg):
+        try:
+            check_camera_info(msg)
+        except InputError as exc:
+            self._diag.reject(self._topics[f'{side} info'], exc.reason, exc.detail)
+            return
         self._infos[side] = msg
         self._try_frames()
 
     def _on_pose(self, msg):
         try:
-            pose_matrix(msg.pose)
+            read_camera_pose(msg)
         except InputError as exc:
-            self._diag.reject('stereo pose', exc.reason, exc.detail)
+            self._diag.reject(contract.STEREO_POSE, exc.reason, exc.detail)
             return
         self._pose = msg
         self._try_frames()
@@ -257,7 +295,7 @@ class FeatureNode(Node):
         try:
             camera = camera_from_msgs(left, right, self._pose)
         except InputError as exc:
-            self._diag.reject('camera_info', exc.reason, exc.detail)
+            self._diag.reject(contract.LEFT_INFO, exc.reason, exc.detail)
             self._model = self._detector = None
             self._camera_problem = f'usable camera_info ({exc.reason})'
             return self._camera_problem
@@ -294,7 +332,7 @@ class FeatureNode(Node):
         for side in _SIDES:
             h, w = images[side][0].shape[:2]
             if (w, h) != (k.width, k.height):
-                self._diag.reject(f'{side} image', 'size disagrees with camera_info',
+                self._diag.reject(self._topics[side], 'size disagrees with camera_info',
                                   f'{w} x {h}, camera_info says {k.width} x {k.height}')
                 return
         (left, encoding), (right, right_encoding) = images['left'], images['right']

@@ -301,7 +301,8 @@ def test_unsupported_encoding_is_skipped(rig, q_target):
         yuv.data = np.ascontiguousarray(images[0][:, :, :2]).tobytes()
         driver.send(t, q_target, images=images, left=yuv)
 
-    _bad_frame_is_skipped(rig, q_target, send_bad, 'left image', 'unsupported encoding')
+    _bad_frame_is_skipped(rig, q_target, send_bad, contract.LEFT_IMAGE,
+                          'unsupported encoding')
 
 
 def test_image_size_that_disagrees_with_camera_info_is_skipped(rig, q_target):
@@ -309,7 +310,7 @@ def test_image_size_that_disagrees_with_camera_info_is_skipped(rig, q_target):
         small = [image_msg(im[:240, :320], t) for im in images]
         driver.send(t, q_target, left=small[0], right=small[1])
 
-    _bad_frame_is_skipped(rig, q_target, send_bad, 'left image',
+    _bad_frame_is_skipped(rig, q_target, send_bad, contract.LEFT_IMAGE,
                           'size disagrees with camera_info')
 
 
@@ -325,7 +326,7 @@ def test_nan_joint_states_skip_the_frame(rig, q_target):
         driver.send(t, q_target, images=images, position=[np.nan] * 6)
 
     diag = _bad_frame_is_skipped(rig, q_target, send_bad, 'stereo frame', 'no joint state')
-    assert int(diag['rejected[joint_states: non-finite position]']) == 1
+    assert int(diag[f'rejected[{contract.JOINT_STATES}: non-finite position]']) == 1
 
 
 def test_frames_wait_for_camera_info_and_say_so(rig, q_target):
@@ -334,8 +335,9 @@ def test_frames_wait_for_camera_info_and_say_so(rig, q_target):
     driver.send(0, q_target, images=images, infos=False)
     diag = latest_diag(driver, executor, lambda d: 'camera_info' in d.get('waiting_for', ''))
     assert diag['pending_frames'] == '1'
-    # A newer input beyond the stale timeout drops it, with the reason.
-    driver.pub['joints'].publish(joint_state(100 * DT_NS, q_target, np.zeros(6)))
+    # A newer input beyond the stale timeout drops it, with the reason (within the lead the
+    # stamp rule allows: stale_timeout_s and one camera period).
+    driver.pub['joints'].publish(joint_state(80 * DT_NS, q_target, np.zeros(6)))
     key = 'rejected[stereo frame: timed out]'
     latest_diag(driver, executor, lambda d: key in d)
     assert driver.features == []

@@ -1,0 +1,57 @@
+"""
+The parameters of the node graph, by name: the one check of a run's parameters.
+
+Every node declares its parameters as :class:`ibvs_common.params.Param` (name, default,
+range) and checks them at start with :meth:`~ibvs_common.params.Param.check`. The runner
+checks a run's parameters (scenario file, ``-p`` overrides, a study's grid and draws) with
+the very same :class:`Param` objects and the same conversion before any node starts
+(:func:`check`), so that a value a node would refuse is refused in a second, not after the
+graph has started, and a name that no node declares, which every node would silently
+ignore, is refused with the nearest declared names.
+"""
+
+import difflib
+
+from ibvs_common.params import ParameterError, plain_value
+
+from .scenario import ScenarioError
+
+#: Parameters that are not a node's: ROS's own (every node declares use_sim_time) and the
+#: runner's (a scenario's name and its sim time limit).
+NOT_NODES = ('use_sim_time', 'scenario_name', 'run_duration_s')
+
+
+def declared():
+    """Return ``{name: Param}`` of every parameter a node of the graph declares."""
+    from ibvs_control import adaptive_feedback_node, feedforward_node, joint_controller_node
+    from ibvs_sim import sim_node
+    from ibvs_vision import feature_node
+    specs = {}
+    for module in (sim_node, feature_node, adaptive_feedback_node, feedforward_node,
+                   joint_controller_node):
+        for spec in module.PARAMS:
+            specs.setdefault(spec.name, spec)
+    return specs
+
+
+def check(params, where='parameter'):
+    """
+    Raise :class:`ScenarioError` unless every one of ``params`` is declared and in range.
+
+    ``where`` starts each message (e.g. the scenario file or the study's run).
+    """
+    specs = declared()
+    for name, value in params.items():
+        if name in NOT_NODES:
+            continue
+        spec = specs.get(name)
+        if spec is None:
+            near = difflib.get_close_matches(name, list(specs) + list(NOT_NODES), n=3)
+            raise ScenarioError(
+                f"{where} '{name}': no node of the graph declares it"
+                + (f"; did you mean {', '.join(repr(n) for n in near)}?" if near else
+                   '; `ros2 param list` on a running graph lists the declared names'))
+        try:
+            spec.check(plain_value(value, spec.default))
+        except ParameterError as exc:
+            raise ScenarioError(f'{where}: {exc}') from None

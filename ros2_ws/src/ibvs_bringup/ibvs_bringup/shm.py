@@ -1,0 +1,88 @@
+"""
+Fast DDS shared-memory files that dead processes left in /dev/shm: find them, remove them.
+
+Fast DDS (the RMW of the graph) gives each participant shared-memory segments and ports,
+files in /dev/shm. A process that exits cleanly removes its own; one killed with SIGKILL
+leaves them, about 68 MB per lockstep process, and nothing reclaims them. The rule is Fast
+DDS's own (``fastdds shm clean``, tools/fastdds/shm/clean.py of eProsima/Fast-DDS): each
+segment ``fastrtps_<16 characters>`` and each port ``fastrtps_port<N>`` has a lock file
+(``_el`` or ``_sl`` appended) that its owner holds with ``flock`` while it is alive; a lock
+file that can be locked belongs to a dead owner, and its segment (a port: also its mutex
+``sem.fastrtps_port<N>_mutex``) can go. Unlike that tool this module leaves alone files
+younger than :data:`MIN_AGE_S`, so that it cannot race a participant that has created its
+lock file but not yet locked it, and it reports what it freed.
+"""
+
+import fcntl
+import os
+from pathlib import Path
+import re
+import time
+
+#: Where Fast DDS keeps its shared memory on Linux.
+SHM_DIR = Path('/dev/shm')
+#: A segment's or a port's lock file (Fast DDS 2.x names).
+LOCK_FILE = re.compile(r'^fastrtps_(?:[0-9a-z]{16}|port\d{1,5})_(?:el|sl)$')
+#: Files younger than this (s) are left alone: their owner may be starting.
+MIN_AGE_S = 10.0
+
+
+def _locked(path):
+    """Return whether another open file description holds ``path``'s flock."""
+    try:
+        with open(path, 'rb') as fd:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # gone meanwhile, or not ours to open: leave it
+        return True
+    return False
+
+
+def names(shm_dir=SHM_DIR):
+    """Return the names of the files in ``shm_dir`` now (a run's snapshot at its start)."""
+    try:
+        return set(os.listdir(shm_dir))
+    except FileNotFoundError:
+        return set()
+
+
+def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
+    """
+    Return the files of the segments and ports whose owner is dead (module docstring).
+
+    With ``new_since`` (a :func:`names` snapshot) only lock files created since count, and
+    they count at any age: what processes started and died since then left.
+    """
+    now = time.time() if now is None else now
+    found = []
+    for name in sorted(names(shm_dir)):
+        if not LOCK_FILE.match(name) or (new_since is not None and name in new_since):
+            continue
+        lock = Path(shm_dir) / name
+        try:
+            if new_since is None and now - lock.stat().st_mtime < min_age_s:
+                continue
+        except FileNotFoundError:
+            continue
+        if _locked(lock):
+            continue
+        segment = lock.with_name(name[:-3])
+        found += [lock, segment]
+        if '_port' in name:
+            found.append(lock.with_name(f'sem.{name[:-3]}_mutex'))
+    return found
+
+
+def clean(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, new_since=None):
+    """Remove :func:`zombies`; return (files removed, bytes freed)."""
+    count, freed = 0, 0
+    for path in zombies(shm_dir, min_age_s, new_since=new_since):
+        try:
+            size = path.stat().st_size
+            path.unlink()
+        except OSError:
+            continue
+        count += 1
+        freed += size
+    return count, freed

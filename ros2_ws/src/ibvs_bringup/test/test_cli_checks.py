@@ -1,0 +1,98 @@
+"""
+What a new user meets first (issue 26, findings 8-10 and 14-16): refusals before any node.
+
+Each bad command ends with one ``error:`` line and exit code 2 within a second, not a
+traceback and not a graph started for nothing.
+"""
+
+from pathlib import Path
+
+from ibvs_bringup import cli, domains, graph_params, study
+from ibvs_bringup.scenario import ScenarioError
+import pytest
+
+
+def run(capsys, *argv):
+    code = cli.main(list(argv))
+    return code, capsys.readouterr().err
+
+
+def test_finding8_a_misspelt_parameter_is_refused_with_the_nearest_names(capsys):
+    code, err = run(capsys, 'run', 'scenario1', '-p', 'camera_rate_hzz:=30', '-o', '/tmp/x')
+    assert code == 2
+    assert "'camera_rate_hzz': no node of the graph declares it" in err
+    assert "'camera_rate_hz'" in err
+    with pytest.raises(ScenarioError, match='stale_timeout_s'):
+        graph_params.check({'stale_timeout': 1.0})
+
+
+def test_finding9_bad_commands_end_with_an_error_line_and_code_2(capsys, tmp_path):
+    code, err = run(capsys, 'run', 'scenario1', '-p', 'servo_law:=bogus')
+    assert code == 2 and err.startswith('error:') and 'servo_law' in err
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('/**:\n  ros__parameters: {tau_in: [0.01\n')
+    code, err = run(capsys, 'run', str(broken))
+    assert code == 2 and str(broken) in err and 'Traceback' not in err
+    code, err = run(capsys, 'run', 'scenario1', '-o', '/proc/ibvs-results')
+    assert code == 2 and err.startswith('error:')
+    for duration in ('-1', '0'):
+        with pytest.raises(SystemExit) as exit_:
+            cli.main(['run', 'scenario1', '--duration', duration])
+        assert exit_.value.code == 2
+        assert 'seconds > 0' in capsys.readouterr().err
+
+
+def test_finding10_the_pre_check_uses_the_nodes_parser(capsys):
+    for value in ('0', '"false"', 'yes please'):
+        code, err = run(capsys, 'run', 'scenario1', '-p', f'publish_images:={value}')
+        assert code == 2 and "parameter 'publish_images'" in err and 'not a boolean' in err
+    graph_params.check({'publish_images': True, 'camera_rate_hz': 30})  # a float takes an int
+
+
+def test_shipped_scenarios_pass_the_check():
+    from ibvs_bringup import scenario
+    for name in scenario.SCENARIOS:
+        graph_params.check(scenario.load_parameters(name), name)
+
+
+def test_finding14_domains_stay_in_the_safe_range_set_by_one_variable():
+    assert domains.SAFE_RANGE == (0, 101)
+    assert domains.pool({}) == (0, 101)
+    assert domains.pool({domains.POOL_ENV: '40-60'}) == (40, 60)
+    for bad in ('101-199', '170-199', '5', 'a-b'):
+        with pytest.raises(ValueError):
+            domains.pool({domains.POOL_ENV: bad})
+    low, high = study.DOMAIN_IDS
+    assert 0 <= low <= high <= 101
+    makefile = (Path(__file__).resolve().parents[4] / 'Makefile')
+    if makefile.is_file():
+        assert 'export IBVS_ROS_DOMAINS' in makefile.read_text()
+
+
+def test_finding15_a_study_spec_is_checked_against_the_declared_names(capsys, tmp_path):
+    for grid, expected in (('{l2_scal: [0.5, 1.0]}', "'l2_scal'"),
+                           ('{l2_scale: [0.5, 99.0]}', "'l2_scale' = 99.0")):
+        spec = tmp_path / 'bad.yaml'
+        spec.write_text(f'scenario: scenario1\ngrid: {grid}\n')
+        code, err = run(capsys, 'study', str(spec), '-o', str(tmp_path / 'out'))
+        assert code == 2 and expected in err, err
+        assert not (tmp_path / 'out').exists()
+
+
+def test_finding15_a_study_with_failed_runs_exits_non_zero(capsys, tmp_path, monkeypatch):
+    spec = tmp_path / 'one.yaml'
+    spec.write_text('scenario: scenario1\ngrid: {l2_scale: [1.0]}\n')
+    monkeypatch.setattr(study, 'run_studies',
+                        lambda specs, *a, **k: {specs[0].name: [{'status': 'failed'}]})
+    code, err = run(capsys, 'study', str(spec), '-o', str(tmp_path / 'out'))
+    assert code == 1 and '1 run(s) of one failed' in err
+
+
+def test_finding16_help_is_plain_text_and_setup_files_have_no_tests_require(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(['--help'])
+    out = capsys.readouterr().out
+    assert '``' not in out and ':mod:' not in out and ':func:' not in out
+    src = Path(__file__).resolve().parents[2]
+    for setup in src.glob('*/setup.py'):
+        assert 'tests_require' not in setup.read_text(), setup

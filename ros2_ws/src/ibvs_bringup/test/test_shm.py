@@ -1,0 +1,37 @@
+"""Finding 11 of issue 26: the shared memory of dead Fast DDS participants is reclaimed."""
+
+import fcntl
+import os
+import time
+
+from ibvs_bringup import shm
+
+
+def _files(tmp_path, *names, age_s=60.0):
+    old = time.time() - age_s
+    for name in names:
+        (tmp_path / name).write_bytes(b'x' * 1000)
+        os.utime(tmp_path / name, (old, old))
+
+
+def test_finding11_dead_segments_and_ports_go_live_ones_stay(tmp_path):
+    dead, live = 'fastrtps_0123456789abcdef', 'fastrtps_fedcba9876543210'
+    _files(tmp_path, dead, f'{dead}_el', live, f'{live}_el', 'fastrtps_port7411',
+           'fastrtps_port7411_el', 'sem.fastrtps_port7411_mutex', 'unrelated')
+    with open(tmp_path / f'{live}_el', 'rb') as holder:  # its owner is alive
+        fcntl.flock(holder, fcntl.LOCK_EX)
+        count, freed = shm.clean(tmp_path)
+        assert count == 5 and freed == 5000
+        left = sorted(os.listdir(tmp_path))
+    assert left == sorted([live, f'{live}_el', 'unrelated'])
+
+
+def test_finding11_young_files_are_left_unless_new_since_the_run_started(tmp_path):
+    old = 'fastrtps_00000000000000aa'
+    _files(tmp_path, old, f'{old}_el')
+    before = shm.names(tmp_path)
+    young = 'fastrtps_00000000000000bb'
+    _files(tmp_path, young, f'{young}_el', age_s=0.0)
+    assert shm.zombies(tmp_path) == [tmp_path / f'{old}_el', tmp_path / old]
+    assert shm.clean(tmp_path, new_since=before) == (2, 2000)
+    assert sorted(os.listdir(tmp_path)) == sorted([old, f'{old}_el'])

@@ -1,0 +1,255 @@
+"""
+The classes of bad input, as message builders for each message type of the graph.
+
+Each builder returns a list of ``(name, make)``: ``make()`` returns the case's messages
+when the case runs (stamps are those the rig expects next, so that only the fault is
+wrong). Classes: NaN / inf, 1e308, wrong lengths, wrong / missing / repeated names,
+negative stamps, ``nanosec`` >= 1e9, far-future stamps, bursts; for images wrong step, size
+or encoding; for CameraInfo an impossible size or projection; for poses a non-finite or
+non-unit quaternion, a camera looking away.
+"""
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point32, PolygonStamped
+from ibvs_common import contract
+from ibvs_common.conversions import image_msg, joint_state, joint_trajectory, ns_stamp
+import numpy as np
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo
+from std_msgs.msg import Header
+
+from .harness import stamp
+
+NAMES = list(contract.JOINT_NAMES)
+#: A stamp 2^31 - 1 s on: as far in the future as a builtin_interfaces/Time goes.
+FAR_SEC = 2 ** 31 - 1
+#: Messages in a burst.
+BURST = 50
+
+
+def bad_stamps(t_ns):
+    """Return (name, stamp) of the malformed and far-future stamps, ``t_ns`` the next one."""
+    sec, nsec = divmod(t_ns, 1_000_000_000)
+    return [('negative stamp', stamp(-5, nsec)),
+            ('nanosec >= 1e9', stamp(sec, 4_000_000_000)),
+            ('far-future stamp', stamp(FAR_SEC, 0)),
+            ('future stamp, 1000 s ahead', stamp(sec + 1000, nsec))]
+
+
+def joint_states(topic, next_ns, position, fields=('position',), scale=1.0):
+    """Bad JointStates on ``topic``; ``position`` (6,) a valid value; ``fields`` read."""
+    def msg(t_ns, names=NAMES, **values):
+        full = {'position': position, 'velocity': np.zeros(6), 'effort': np.zeros(6)}
+        full.update(values)
+        return joint_state(t_ns, full['position'], full['velocity'], full['effort'], names)
+
+    cases = []
+    for field in fields:
+        good = {'position': position, 'velocity': np.zeros(6), 'effort': np.zeros(6)}[field]
+        for label, value in (('NaN', np.nan), ('inf', np.inf), ('1e308', 1e308),
+                             ('-1e308', -1e308)):
+            bad = np.array(good, dtype=float)
+            bad[2] = value
+            cases.append((f'{label} {field}', lambda f=field, b=bad: [msg(next_ns(), **{f: b})]))
+        cases.append((f'wrong {field} length',
+                      lambda f=field, g=good: [msg(next_ns(), **{f: np.r_[g, 0.0]})]))
+        absurd = np.full(6, 1e6 * scale)
+        cases.append((f'absurd finite {field} ({scale:g} x 1e6)',
+                      lambda f=field, a=absurd: [msg(next_ns(), **{f: a})]))
+    nan = {fields[0]: np.full(6, np.nan)}
+    cases += [
+        ('no names', lambda: [msg(next_ns(), names=[])]),
+        ('repeated names', lambda: [msg(next_ns(), names=[NAMES[0]] * 6)]),
+        ('unknown name', lambda: [msg(next_ns(), names=NAMES[:5] + ['joint_7'])]),
+        ('missing name', lambda: [joint_state(next_ns(), position[:5], np.zeros(5),
+                                              np.zeros(5), NAMES[:5])]),
+        (f'burst of {BURST} NaN', lambda: [msg(next_ns(), **nan) for _ in range(BURST)]),
+        ('NaN with a far-future stamp', lambda: [_stamped(msg(0, **nan), stamp(FAR_SEC))]),
+    ]
+    for label in ('negative stamp', 'nanosec >= 1e9', 'far-future stamp',
+                  'future stamp, 1000 s ahead'):
+        cases.append((label, lambda lb=label: [
+            _stamped(msg(0), dict(bad_stamps(next_ns()))[lb])]))
+    cases.append((f'paced stream of {BURST} future stamps', lambda: [
+        msg(next_ns() + (1000 + k) * 1_000_000_000) for k in range(BURST)]))
+    return [(name, topic, make) for name, make in cases]
+
+
+def _stamped(msg, t):
+    msg.header.stamp = t
+    return msg
+
+
+def headers(topic, next_ns, off_grid=True):
+    """Bad std_msgs/Header (frame_lost): stamps only."""
+    cases = [(name, lambda s=s: [Header(stamp=s, frame_id=contract.CAMERA_FRAME)])
+             for name, s in bad_stamps(0)]
+    if off_grid:
+        cases.append(('off the frame grid', lambda: [Header(stamp=ns_stamp(next_ns() + 1))]))
+    cases.append((f'burst of {BURST} far-future', lambda: [
+        Header(stamp=stamp(FAR_SEC - k)) for k in range(BURST)]))
+    return [(name, topic, make) for name, make in cases]
+
+
+def clocks(topic=contract.CLOCK):
+    """Bad /clock: negative time and nanosec >= 1e9."""
+    return [('negative /clock', topic, lambda: [Clock(clock=stamp(-1, 0))]),
+            ('/clock nanosec >= 1e9', topic, lambda: [Clock(clock=stamp(1, 2_000_000_000))])]
+
+
+def trajectories(topic, next_ns, rows):
+    """Bad JointTrajectory: values, names, sample times, stamps."""
+    def traj(t_ns=0, values=rows, names=NAMES):
+        return joint_trajectory(t_ns, 1_000_000, values, names)
+
+    def nan():
+        values = np.array(rows, dtype=float)
+        values[1, 3] = np.nan
+        return [traj(values=values)]
+
+    def huge():
+        values = np.array(rows, dtype=float)
+        values[:, 0] = 1e308
+        return [traj(values=values)]
+
+    def times():
+        msg = traj()
+        msg.points[1].time_from_start.nanosec = 7
+        return [msg]
+
+    def ragged():
+        msg = traj()
+        msg.points[1].positions = [0.0] * 5
+        return [msg]
+
+    def empty():
+        msg = traj()
+        msg.points = []
+        return [msg]
+
+    cases = [('NaN position', nan), ('1e308 positions', huge), ('wrong sample times', times),
+             ('ragged points', ragged), ('empty', empty),
+             ('wrong names', lambda: [traj(names=NAMES[:5] + ['joint_7'])])]
+    for name, s in bad_stamps(0):
+        cases.append((name, lambda s=s: [_stamped(traj(), s)]))
+    return [(name, topic, make) for name, make in cases]
+
+
+def polygons(topic, next_ns, features):
+    """Bad features (PolygonStamped): values, point count, stamps."""
+    def msg(t_ns, values=features, points=2):
+        out = PolygonStamped()
+        out.header.stamp = ns_stamp(t_ns)
+        p = np.asarray(values, dtype=float).reshape(2, 3)
+        out.polygon.points = [Point32(x=float(r[0]), y=float(r[1]), z=float(r[2]))
+                              for r in p][:points]
+        if points > 2:
+            out.polygon.points = out.polygon.points + [Point32()] * (points - 2)
+        return out
+
+    cases = [('NaN features', lambda: [msg(next_ns(), np.r_[np.nan, features[1:]])]),
+             ('inf features', lambda: [msg(next_ns(), np.r_[np.inf, features[1:]])]),
+             ('one point', lambda: [msg(next_ns(), points=1)]),
+             ('three points', lambda: [msg(next_ns(), points=3)])]
+    for name, s in bad_stamps(0):
+        cases.append((name, lambda s=s: [_stamped(msg(0), s)]))
+    cases.append((f'burst of {BURST} far-future', lambda: [
+        _stamped(msg(0), stamp(FAR_SEC - k)) for k in range(BURST)]))
+    return [(name, topic, make) for name, make in cases]
+
+
+def statuses(topic, next_ns):
+    """Bad /ibvs/feature_status: stamps."""
+    cases = []
+    for name, s in bad_stamps(0):
+        msg = DiagnosticArray()
+        msg.header.stamp = s
+        cases.append((name, topic, lambda m=msg: [m]))
+    return cases
+
+
+def camera_infos(topic, good):
+    """Bad CameraInfo: impossible sizes and projections."""
+    def info(**changes):
+        msg = CameraInfo()
+        msg.header, msg.width, msg.height = good.header, good.width, good.height
+        msg.k, msg.p, msg.d, msg.r = good.k, good.p, good.d, good.r
+        msg.distortion_model = good.distortion_model
+        for key, value in changes.items():
+            setattr(msg, key, value)
+        return msg
+
+    p_nan = list(good.p)
+    p_nan[0] = float('nan')
+    p_neg = list(good.p)
+    p_neg[0] = -p_neg[0]
+    cases = [('100000 x 100000', lambda: [info(width=100000, height=100000)]),
+             ('0 x 0', lambda: [info(width=0, height=0)]),
+             ('NaN in P', lambda: [info(p=p_nan)]),
+             ('negative focal length', lambda: [info(p=p_neg)])]
+    return [(name, topic, make) for name, make in cases]
+
+
+def poses(topic, good_tf):
+    """Bad /stereo/pose: non-finite, non-unit quaternion, a camera looking away."""
+    from ibvs_common.conversions import pose_stamped
+
+    def msg(changes):
+        out = pose_stamped(good_tf, 0)
+        for (part, key), value in changes.items():
+            setattr(getattr(out.pose, part), key, value)
+        return out
+
+    away = np.array(good_tf, dtype=float)
+    away[:3, 1:3] *= -1.0  # turned half a turn about its x axis: z points away
+    cases = [('NaN position', lambda: [msg({('position', 'x'): float('nan')})]),
+             ('quaternion not normalised', lambda: [msg({('orientation', 'w'): 5.0})]),
+             ('1e308 position', lambda: [msg({('position', 'z'): 1e308})]),
+             ('camera looking away', lambda: [pose_stamped(away, 0)])]
+    return [(name, topic, make) for name, make in cases]
+
+
+def images(topic, frame, image):
+    """
+    Bad images, each sent as a whole frame: ``frame(left=..., right=...)`` returns it.
+
+    ``image(t_ns)`` is a valid image message stamped ``t_ns``.
+    """
+    def variant(change):
+        def make():
+            return frame(**{_side(topic): change})
+        return make
+
+    def bad_step(msg):
+        msg.step = msg.width  # shorter than a row
+        return msg
+
+    def bad_size(msg):
+        msg.data = bytes(msg.data)[:-7]
+        return msg
+
+    def bad_encoding(msg):
+        msg.encoding = '16UC1'
+        return msg
+
+    def empty(msg):
+        msg.width = msg.height = msg.step = 0
+        msg.data = b''
+        return msg
+
+    def small(msg):
+        array = np.zeros((msg.height // 2, msg.width // 2, 3), dtype=np.uint8)
+        return image_msg(array, msg.header.stamp)
+
+    cases = [('step shorter than a row', variant(bad_step)),
+             ('data length', variant(bad_size)),
+             ('encoding 16UC1', variant(bad_encoding)),
+             ('empty', variant(empty)),
+             ('size disagrees with camera_info', variant(small))]
+    for name, s in bad_stamps(0):
+        cases.append((name, variant(lambda msg, s=s: _stamped(msg, s))))
+    return [(name, topic, make) for name, make in cases]
+
+
+def _side(topic):
+    return 'left' if 'left' in topic else 'right'

@@ -1,0 +1,16 @@
+"""The fuzz suite's fixtures, and its table at the end of the session."""
+
+from ibvs_common.testing import context  # noqa: F401 (the shared fixture)
+
+from .harness import TABLES
+
+HEADER = f"{'node':24s} {'cases':>5s} {'crashes':>7s} {'stuck':>5s} {'accepted silently':>17s}"
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Print the per-node table: cases / crashes / stuck / accepted silently."""
+    if TABLES:
+        terminalreporter.section('fuzz: bad input into every subscribed topic')
+        terminalreporter.write_line(HEADER)
+        for line in TABLES:
+            terminalreporter.write_line(line)

@@ -1,0 +1,279 @@
+"""The five nodes, each in a :class:`~.harness.Rig` that knows its valid input and action."""
+
+from ibvs_common import contract
+from ibvs_common.conversions import (camera_infos, features_msg, image_msg, joint_state,
+                                     joint_trajectory, pose_stamped, stamp_ns)
+from ibvs_common.testing import default_camera
+from ibvs_common.timing import feedback_frame_ns, frame_stamp_ns
+from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600, paper
+import numpy as np
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from . import cases as bad
+from .harness import Case, Rig
+
+MS = 1_000_000
+CAMERA_NS = 33_333_333
+#: The true joint angles of the scenario 1 start.
+Q0 = inverse_kinematics(paper.scenario_start_pose(1))
+SIM_TIME = [Parameter('use_sim_time', value=True)]
+
+
+def frame_ns(n):
+    """Return the stamp of frame ``n`` at 30 Hz on the 1 kHz physics grid."""
+    return frame_stamp_ns(n, CAMERA_NS, MS)
+
+
+def build(rig, specs):
+    """Return a case maker per (name, topic, make) of ``specs`` (messages or (topic, msg))."""
+    makers = []
+    for name, topic, make in specs:
+        def maker(name=name, topic=topic, make=make):
+            messages = [m if isinstance(m, tuple) else (topic, m) for m in make()]
+            return Case(name, topic, messages)
+        makers.append(maker)
+    return makers
+
+
+class JointControllerRig(Rig):
+    """joint_controller_node: acts by answering /joint_states with an effort command."""
+
+    def __init__(self, context):
+        """Create the node (sim time) and its rig."""
+        from ibvs_control.joint_controller_node import JointControllerNode
+        node = JointControllerNode(context=context, parameter_overrides=SIM_TIME)
+        super().__init__(context, node, node.diagnostics)
+        self.k = 0
+        self.feedback_sent = set()
+        self.efforts = []
+        self.driver.create_subscription(JointState, contract.EFFORT_COMMANDS,
+                                        lambda m: self.efforts.append(m), contract.RELIABLE)
+
+    def setup(self):
+        """Send the feedforward trajectory: the arm held at Q0."""
+        self.deliver(contract.FEEDFORWARD_TRAJECTORY,
+                     joint_trajectory(0, MS, np.tile(Q0, (5, 1))))
+
+    def next_ns(self):
+        """Return the stamp of the next joint state."""
+        return self.k * MS
+
+    def valid_step(self):
+        """Send the q_feedback it needs (if new) and the next joint state."""
+        t = self.next_ns()
+        frame = feedback_frame_ns(t, CAMERA_NS, 0, MS)
+        if frame not in self.feedback_sent:
+            self.deliver(contract.Q_FEEDBACK, joint_state(frame, np.zeros(6)))
+            self.feedback_sent.add(frame)
+        self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
+        self.k += 1
+        return lambda: any(stamp_ns(m.header.stamp) == t for m in self.efforts)
+
+    def next_frame_ns(self):
+        """Return the stamp of the frame the next joint state will need after this one."""
+        t = self.next_ns() + CAMERA_NS
+        return feedback_frame_ns(t, CAMERA_NS, 0, MS)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
+                                  ('position', 'velocity'))
+                 + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
+                 + bad.headers(contract.FRAME_LOST, self.next_frame_ns)
+                 + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
+                                    np.tile(Q0, (5, 1)))
+                 + bad.clocks())
+        return build(self, specs)
+
+
+class SimRig(Rig):
+    """sim_node: acts by taking a physics step on the command stamped with its step."""
+
+    def __init__(self, context):
+        """Create the node (no images: its inputs are the commands and /clock)."""
+        from ibvs_sim.sim_node import SimNode
+        node = SimNode(context=context, parameter_overrides=SIM_TIME + [
+            Parameter('publish_images', value=False), Parameter('renderer', value='tiny')])
+        self.joints = []
+        super().__init__(context, node, node.diagnostics)
+        self.driver.create_subscription(JointState, contract.JOINT_STATES,
+                                        lambda m: self.joints.append(m), contract.RELIABLE)
+
+    def setup(self):
+        """Wait for step 0."""
+        assert self.spin_until(lambda: self.joints, 'step 0')
+
+    def next_ns(self):
+        """Return the stamp of the step the simulator waits for."""
+        return self.node.sim.t_ns
+
+    def valid_step(self):
+        """Send the holding torque of the current step."""
+        t = self.next_ns()
+        torque = self.node.sim.hold_torque()
+        self.deliver(contract.EFFORT_COMMANDS, joint_state(t, effort=torque))
+        return lambda: self.node.sim.t_ns > t and any(
+            stamp_ns(m.header.stamp) == self.node.sim.t_ns for m in self.joints)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        specs = (bad.joint_states(contract.EFFORT_COMMANDS, self.next_ns, np.zeros(6),
+                                  ('effort',), scale=1e6) + bad.clocks())
+        return build(self, specs)
+
+
+class FeedforwardRig(Rig):
+    """feedforward_node: acts once, on its first valid /joint_states, by a trajectory."""
+
+    def __init__(self, context):
+        """Create the node (sim time, no /clock yet: time unknown)."""
+        from ibvs_control.feedforward_node import FeedforwardNode
+        node = FeedforwardNode(context=context, parameter_overrides=SIM_TIME)
+        super().__init__(context, node, node.diagnostics)
+        self.trajectories = []
+        self.driver.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
+                                        lambda m: self.trajectories.append(m),
+                                        contract.LATCHED)
+
+    def recovered(self):
+        """Still listening: no trajectory yet, its input open (the valid state comes last)."""
+        return not self.trajectories and self.node.t0_ns is None
+
+    def valid_step(self):
+        """Send the first valid state, at t = 0."""
+        self.deliver(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
+        return lambda: len(self.trajectories) == 1
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        specs = bad.joint_states(contract.JOINT_STATES, lambda: 0, Q0) + bad.clocks()
+        specs += [('position 100 rad', contract.JOINT_STATES,
+                   lambda: [joint_state(0, np.r_[100.0, Q0[1:]], np.zeros(6))]),
+                  ('position -1e6 rad', contract.JOINT_STATES,
+                   lambda: [joint_state(0, np.r_[Q0[:5], -1e6], np.zeros(6))])]
+        return build(self, specs)
+
+
+class AdaptiveFeedbackRig(Rig):
+    """adaptive_feedback_node: acts by answering each frame's features with a q_feedback."""
+
+    def __init__(self, context):
+        """Create the node (sim time, the paper's law, the model target)."""
+        from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
+        node = AdaptiveFeedbackNode(context=context, parameter_overrides=SIM_TIME)
+        super().__init__(context, node, node.diagnostics)
+        self.camera = default_camera('HD720')
+        self.model = CameraRobotModel(self.camera, IRB4600)
+        self.n = 0
+        self.out = []
+        self.driver.create_subscription(JointState, contract.Q_FEEDBACK,
+                                        lambda m: self.out.append(m), contract.RELIABLE)
+
+    def setup(self):
+        """Send the camera model: both CameraInfo and /stereo/pose."""
+        left, right = camera_infos(self.camera.intrinsics, 0)
+        self.deliver(contract.STEREO_POSE, pose_stamped(self.camera.pose_C_O, 0))
+        self.deliver(contract.LEFT_INFO, left)
+        self.deliver(contract.RIGHT_INFO, right)
+        assert self.spin_until(lambda: self.node.feedback is not None, 'camera model')
+
+    def next_ns(self):
+        """Return the stamp of the next frame."""
+        return frame_ns(self.n)
+
+    def valid_step(self):
+        """Send the next frame's joint state and features."""
+        t = self.next_ns()
+        self.n += 1
+        self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
+        self.deliver(contract.FEATURES, features_msg(self.model.features(Q0), t))
+        return lambda: any(stamp_ns(m.header.stamp) == t for m in self.out)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        left, right = camera_infos(self.camera.intrinsics, 0)
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
+                                  ('position', 'velocity'))
+                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0))
+                 + bad.camera_infos(contract.LEFT_INFO, left)
+                 + bad.camera_infos(contract.RIGHT_INFO, right)
+                 + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
+                 + bad.clocks())
+        return build(self, specs)
+
+
+class FeatureRig(Rig):
+    """feature_node: acts by publishing the features of each complete stereo frame."""
+
+    def __init__(self, context):
+        """Create the node (sim time); frames are VGA, black (the estimate is published)."""
+        from ibvs_vision.feature_node import FeatureNode
+        from geometry_msgs.msg import PolygonStamped
+        node = FeatureNode(context=context, parameter_overrides=SIM_TIME)
+        super().__init__(context, node, node._diag)
+        self.camera = default_camera('VGA')
+        self.n = 0
+        self.out = []
+        self.driver.create_subscription(PolygonStamped, contract.FEATURES,
+                                        lambda m: self.out.append(m), contract.RELIABLE)
+
+    def setup(self):
+        """Send /stereo/pose."""
+        self.deliver(contract.STEREO_POSE, pose_stamped(self.camera.pose_C_O, 0))
+
+    def next_ns(self):
+        """Return the stamp of the next frame."""
+        return frame_ns(self.n)
+
+    def image(self, t_ns):
+        """Return a black VGA image stamped ``t_ns``."""
+        k = self.camera.intrinsics
+        return image_msg(np.zeros((k.height, k.width, 3), dtype=np.uint8), t_ns)
+
+    def frame(self, left=None, right=None):
+        """Return the next frame's messages; ``left``/``right`` change that image."""
+        t = self.next_ns()
+        self.n += 1
+        infos = camera_infos(self.camera.intrinsics, t)
+        images = [self.image(t), self.image(t)]
+        for i, change in enumerate((left, right)):
+            if change is not None:
+                images[i] = change(images[i])
+        return [(contract.LEFT_INFO, infos[0]), (contract.RIGHT_INFO, infos[1]),
+                (contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6))),
+                (contract.LEFT_IMAGE, images[0]), (contract.RIGHT_IMAGE, images[1])]
+
+    def valid_step(self):
+        """Send the next complete frame."""
+        t = self.next_ns()
+        for topic, msg in self.frame():
+            self.deliver(topic, msg)
+        return lambda: any(stamp_ns(m.header.stamp) == t for m in self.out)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        left, right = camera_infos(self.camera.intrinsics, 0)
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
+                 + bad.images(contract.LEFT_IMAGE, self.frame, self.image)
+                 + bad.images(contract.RIGHT_IMAGE, self.frame, self.image)
+                 + bad.camera_infos(contract.LEFT_INFO, left)
+                 + bad.camera_infos(contract.RIGHT_INFO, right)
+                 + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
+                 + bad.clocks())
+        for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
+            specs += [(name, topic, make) for name, make in (
+                ('encoding 16UC1', lambda: [_encoding(self.image(0), '16UC1')]),
+                ('data length', lambda: [_truncated(self.image(0))]))]
+        return build(self, specs)
+
+
+def _encoding(msg, encoding):
+    msg.encoding = encoding
+    return msg
+
+
+def _truncated(msg):
+    msg.data = bytes(msg.data)[:-5]
+    return msg
