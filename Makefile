@@ -24,18 +24,25 @@ all: build
 
 # requirements-test.txt: test-only peer packages, without their declared dependencies
 # (they would pull opencv-python over the headless cv2; see the file).
+# tools/fix_cmake_exports.py: the message wheels' CMake exports name their build machine's
+# Python headers; the interface package ros2_ws/src/tf2_msgs needs this machine's.
 $(VENV_STAMP): requirements.txt requirements-test.txt
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r requirements.txt
 	$(VENV)/bin/pip install --quiet --disable-pip-version-check --no-deps \
 	  -r requirements-test.txt
+	$(VENV)/bin/python tools/fix_cmake_exports.py
 	touch $@
 
 venv: $(VENV_STAMP)
 
+# The interface package (tf2_msgs, CMake) finds the ROS packages of the venv through
+# AMENT_PREFIX_PATH; its linter tests are not built (they would need ament_cppcheck).
 $(BUILD_STAMP): $(VENV_STAMP) $(SOURCES)
 	source $(VENV)/bin/activate && cd $(WS) && \
-	  colcon --log-base log build --merge-install --event-handlers console_direct- summary+
+	  AMENT_PREFIX_PATH=$$VIRTUAL_ENV$${AMENT_PREFIX_PATH:+:$$AMENT_PREFIX_PATH} \
+	  colcon --log-base log build --merge-install --event-handlers console_direct- summary+ \
+	  --cmake-args -DBUILD_TESTING=OFF
 	touch $@
 
 build: $(BUILD_STAMP)

@@ -263,6 +263,38 @@ def load_run(bag_path):
                    rtf_held=np.array(rtf_held))
 
 
+def load_joints(bag_path, end_s=None):
+    """
+    Return (t, q, qd, tau_t, tau) of a run's bag: /joint_states and /joint_effort_commands.
+
+    Angles and speeds by joint name (contract.JOINT_NAMES), (N, 6); times in s of sim
+    time; only the samples stamped before ``end_s`` when given.
+    """
+    rows = {contract.JOINT_STATES: [], contract.EFFORT_COMMANDS: []}
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
+        conns = [c for c in reader.connections if c.topic in rows]
+        for conn, _, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, conn.msgtype)
+            t = _stamp(msg.header)
+            if (end_s is not None and t >= end_s) or list(msg.name) != list(
+                    contract.JOINT_NAMES):
+                continue
+            if conn.topic == contract.JOINT_STATES:
+                rows[conn.topic].append((t, msg.position, msg.velocity))
+            else:
+                rows[conn.topic].append((t, msg.effort))
+    states, efforts = rows[contract.JOINT_STATES], rows[contract.EFFORT_COMMANDS]
+
+    def column(items, k):
+        if not items:
+            return np.zeros((0, 6)) if k else np.zeros(0)
+        values = np.array([r[k] for r in items], dtype=float)
+        return values if k else values.reshape(-1)
+    return (column(states, 0), column(states, 1), column(states, 2), column(efforts, 0),
+            column(efforts, 1))
+
+
 def node_timings(bag_path):
     """
     Return each node's last section timings from the bag's /diagnostics.

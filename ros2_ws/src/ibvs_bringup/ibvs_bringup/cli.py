@@ -8,8 +8,12 @@ Commands:
   ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
+  ``--overlays`` also records the feature node's overlay images, ``--video`` then writes
+  ``video.mp4`` of them (:mod:`ibvs_bringup.video`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
-- ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``;
+- ``video <run dir> [-o FILE]``: the MP4 of a run recorded with ``--overlays``;
+- ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, then a
+  short run of it with overlays and its video into ``results/scenario1_video``;
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
   of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
 - ``report [--quick]``: scenarios 1-3, the L2/L4 robustness sweep and each servo law on
@@ -79,7 +83,8 @@ def cmd_run(args):
     print(f'running {args.scenario} -> {out}')
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
-                                     record_images=args.images, stall_s=args.stall_s)
+                                     record_images=args.images, stall_s=args.stall_s,
+                                     record_overlays=args.overlays or args.video)
     except domains.DomainBusy as exc:
         print(f'run not started: {exc}', file=sys.stderr)
         return 2
@@ -91,6 +96,20 @@ def cmd_run(args):
         return 4
     print(f'wrote {out}/metrics.json, figures and the bag {result.bag_path}')
     _print_summary(result.metrics)
+    if args.video:
+        return cmd_video(argparse.Namespace(run_dir=out, out=None))
+    return 0
+
+
+def cmd_video(args):
+    """Write the MP4 of a run recorded with --overlays: overlays beside a 3D view."""
+    from . import video
+    try:
+        path, frames = video.write_video(args.run_dir, args.out)
+    except video.NoOverlays as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    print(f'wrote {path} ({frames} frames)')
     return 0
 
 
@@ -110,7 +129,13 @@ def cmd_demo(args):
     args.scenario = 'scenario1'
     args.out = args.out or 'results/scenario1'
     args.param = ['actuators:=ideal'] + list(args.param)
-    return cmd_run(args)
+    code = cmd_run(args)
+    if code or not args.video_duration:
+        return code
+    # The film in a run of its own: drawing and recording the overlays costs wall time,
+    # which the timed run above does not pay.
+    return cmd_run(argparse.Namespace(**{**vars(args), 'out': args.out + '_video',
+                                         'duration': args.video_duration, 'video': True}))
 
 
 def cmd_study(args):
@@ -173,7 +198,19 @@ def main(argv=None):
                        'stalled (exit code 4; default %(default)s)')
         p.add_argument('-p', '--param', action='append', default=[],
                        help='override a parameter: name:=value (repeatable)')
+        p.add_argument('--overlays', action='store_true',
+                       help='also record the overlay images /ibvs/debug/{left,right}/image')
+        p.add_argument('--video', action='store_true',
+                       help='record the overlays and write video.mp4 (ibvs video)')
+        if name == 'demo':
+            p.add_argument('--video-duration', type=float, default=0.5,
+                           help='sim seconds of the demo film, in a run of its own into '
+                           '<out>_video (0: none; default %(default)s)')
         p.set_defaults(func=func)
+    p = sub.add_parser('video', help=cmd_video.__doc__)
+    p.add_argument('run_dir', help='a run directory (with bag/) recorded with --overlays')
+    p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
+    p.set_defaults(func=cmd_video)
     p = sub.add_parser('analyse', help=cmd_analyse.__doc__)
     p.add_argument('bag', help='bag directory of a run')
     p.add_argument('-o', '--out', help='output directory (default: next to the bag)')

@@ -7,7 +7,14 @@ Figures of one run, in the style of the paper's Figures 10-12, and more.
   and the target axis (red arrow);
 - ``image_plane.png``: both markers' paths in the left and right images, measured and
   estimated parts apart, targets and image borders;
-- ``feature_timeline.png``: which frames were measured, blended or estimated.
+- ``feature_timeline.png``: which frames were measured, blended or estimated;
+- ``error_vs_time.png``: position and tool-axis error norms on a log axis over the whole
+  run (the sub-millimetre end), each with a linear inset from the time it first came within
+  5 % of its start value (the overshoot);
+- ``feature_error.png``: each marker's image error |p_I - p_bar| (px) against time, log
+  axis, coloured by the frame's mode;
+- ``joints.png`` (with :func:`joints`): joint angles, speeds and torques against their
+  limits.
 """
 
 import matplotlib
@@ -18,6 +25,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 MODE_COLOURS = {'measured': 'tab:green', 'blending': 'tab:orange', 'estimated': 'tab:red'}
+#: Each marker's colour in the figures: P1 (flange) red, P2 (shaft) blue, as the spheres.
+MARKER_COLOURS = ('tab:red', 'tab:blue')
+#: The inset of error_vs_time.png shows this many seconds on a linear axis, from the time
+#: the error is first within 5 % of its start value (the overshoot).
+TRANSIENT_S = 0.4
 
 
 def pose_vs_time(run, path):
@@ -81,23 +93,31 @@ def image_plane(run, path, target_features=None):
     if run.camera is not None:
         width, height = run.camera.intrinsics.width, run.camera.intrinsics.height
     modes = _modes_at(run, run.feature_t)
+    measured = np.array([m == 'measured' for m in modes], dtype=bool)
     for side, ax in enumerate(axes):
-        ax.add_patch(plt.Rectangle((-0.5, -0.5), width, height, fill=False, color='grey'))
-        for marker, style in ((0, 'o'), (1, 's')):
+        ax.add_patch(plt.Rectangle((-0.5, -0.5), width, height, fill=False, color='grey',
+                                   label='image border'))
+        us, vs = [-0.5, width - 0.5], [-0.5, height - 0.5]
+        for marker, colour in enumerate(MARKER_COLOURS):
             u = run.features[:, 3 * marker + side] if len(run.features) else np.zeros(0)
             v = run.features[:, 3 * marker + 2] if len(run.features) else np.zeros(0)
-            ax.plot(u, v, color='lightgrey', lw=0.8, zorder=1)
-            for mode, colour in MODE_COLOURS.items():
-                sel = np.array([m == mode for m in modes], dtype=bool)
-                if sel.any():
-                    ax.scatter(u[sel], v[sel], s=6, color=colour, marker=style, zorder=2,
-                               label=f'marker {marker + 1} {mode}')
+            us += list(u)
+            vs += list(v)
+            ax.plot(u, v, color=colour, lw=0.6, alpha=0.4, zorder=1)
+            if measured.any():
+                ax.scatter(u[measured], v[measured], s=8, color=colour, zorder=2,
+                           label=f'marker {marker + 1} measured')
+            if (~measured).any():
+                ax.scatter(u[~measured], v[~measured], s=14, marker='x', color=colour,
+                           zorder=2, label=f'marker {marker + 1} estimated / blended')
             if target_features is not None:
                 ax.scatter(target_features[3 * marker + side], target_features[3 * marker + 2],
-                           s=150, marker='*', color='black', zorder=3,
+                           s=150, marker='*', color=colour, edgecolor='black', zorder=3,
                            label=f'marker {marker + 1} target')
-        ax.set_xlim(-0.05 * width, 1.05 * width)
-        ax.set_ylim(1.05 * height, -0.05 * height)
+        # Estimated features out of view are drawn too: the axes hold every point.
+        pad_u, pad_v = 0.05 * (max(us) - min(us)), 0.05 * (max(vs) - min(vs))
+        ax.set_xlim(min(us) - pad_u, max(us) + pad_u)
+        ax.set_ylim(max(vs) + pad_v, min(vs) - pad_v)
         ax.set_aspect('equal')
         ax.set_xlabel('u [px]')
         ax.set_ylabel('v [px]')
@@ -129,6 +149,108 @@ def feature_timeline(run, path):
     plt.close(fig)
 
 
+def error_vs_time(run, path):
+    """Plot the position and tool-axis error norms, log axis, with the transient inset."""
+    from .analysis import axis_angle_deg
+    t = run.t - run.t[0]
+    errors = (np.linalg.norm(run.position - run.target[:3, 3], axis=1) * 1e3,
+              axis_angle_deg(run.rotation, run.target[:3, :3]))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
+    for ax, error, what, unit in zip(axes, errors, ('position error', 'tool-axis error'),
+                                     ('mm', 'deg')):
+        floor = max(float(np.min(error[error > 0])) if np.any(error > 0) else 1e-6, 1e-6)
+        ax.semilogy(t, np.maximum(error, floor), color='tab:blue')
+        ax.set_xlabel('sim time [s]')
+        ax.set_ylabel(f'{what} [{unit}] (log)')
+        ax.grid(alpha=0.3, which='both')
+        # The approach (metres, in the first tenth of a second) hides the overshoot on a
+        # linear axis: the inset starts once the error is within 5 % of its start value.
+        near = np.flatnonzero(error <= 0.05 * error[0])
+        start = t[near[0]] if len(near) else t[0]
+        window = (t >= start) & (t <= start + TRANSIENT_S)
+        peak = int(np.argmax(np.where(t >= start, error, -np.inf)))
+        ax.set_title(f'{what}: final {error[-1]:.3g} {unit}; largest after first within '
+                     f'5 %: {error[peak]:.3g} {unit} at {t[peak]:.3f} s', fontsize=9)
+        inset = ax.inset_axes([0.5, 0.5, 0.47, 0.42])
+        inset.plot(t[window], error[window], color='tab:blue')
+        inset.set_title(f'{start:.3f}-{start + TRANSIENT_S:.3f} s, linear [{unit}]',
+                        fontsize=8)
+        inset.tick_params(labelsize=7)
+        inset.grid(alpha=0.3)
+    fig.suptitle(_title(run, 'error norms against time'))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def feature_error(run, path, target_features):
+    """Plot each marker's image error |p_I - p_bar| (px, both images) against time."""
+    fig, ax = plt.subplots(figsize=(10, 4))
+    t = np.asarray(run.feature_t) - (run.t[0] if len(run.t) else 0.0)
+    modes = _modes_at(run, run.feature_t)
+    for marker, colour in enumerate(MARKER_COLOURS):
+        cols = slice(3 * marker, 3 * marker + 3)
+        error = np.linalg.norm(run.features[:, cols] - target_features[cols], axis=1) \
+            if len(run.features) else np.zeros(0)
+        ax.semilogy(t, np.maximum(error, 1e-4), color=colour, lw=1,
+                    label=f'marker {marker + 1}')
+        for mode, mode_colour in MODE_COLOURS.items():
+            sel = np.array([m == mode for m in modes], dtype=bool)
+            if sel.any() and mode != 'measured':
+                ax.scatter(t[sel], np.maximum(error[sel], 1e-4), s=10, color=mode_colour,
+                           zorder=3, label=f'{mode} (marker {marker + 1})')
+    ax.set_xlabel('sim time [s]')
+    ax.set_ylabel('|p_I - p_bar| over (u_l, u_r, v) [px] (log)')
+    ax.grid(alpha=0.3, which='both')
+    ax.legend(fontsize=8, loc='upper right')
+    ax.set_title(_title(run, 'feature error against time'))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def joints(series, limits, path, title=''):
+    """
+    Plot joint angles, speeds and torques against time with their limits.
+
+    ``series``: (t, q, qd, tau_t, tau): t (N,) with q, qd (N, 6) (/joint_states), tau_t
+    (M,) with tau (M, 6) (/joint_effort_commands); ``limits``: (q_min, q_max, qd_max,
+    tau_max), six values each.
+    """
+    t, q, qd, tau_t, tau = series
+    q_min, q_max, qd_max, tau_max = (np.asarray(v, dtype=float) for v in limits)
+    fig, axes = plt.subplots(3, 6, figsize=(16, 7.5), sharex=True)
+    for i in range(6):
+        for row, (values, low, high, label) in enumerate((
+                (np.degrees(q[:, i]), np.degrees(q_min[i]), np.degrees(q_max[i]), 'q [deg]'),
+                (np.degrees(qd[:, i]), -np.degrees(qd_max[i]), np.degrees(qd_max[i]),
+                 'qdot [deg/s]'),
+                (tau[:, i] if len(tau) else np.zeros(0), -tau_max[i], tau_max[i],
+                 'torque [N m]'))):
+            ax = axes[row, i]
+            ax.plot(t if row < 2 else tau_t, values, color='tab:blue', lw=0.8)
+            for limit in (low, high):
+                ax.axhline(limit, color='tab:red', ls='--', lw=0.8)
+            ax.grid(alpha=0.3)
+            if row and len(values):
+                # Spikes of many times the limit would flatten the rest: the axis shows
+                # three times the limit, the peak is written.
+                peak = float(np.max(np.abs(values)))
+                ax.set_ylim(3.0 * low, 3.0 * high)
+                ax.text(0.98, 0.95, f'peak {peak:.3g}', transform=ax.transAxes, ha='right',
+                        va='top', fontsize=7, color='tab:red' if peak > high else 'black')
+            if i == 0:
+                ax.set_ylabel(label)
+            if row == 0:
+                ax.set_title(f'joint {i + 1}')
+            if row == 2:
+                ax.set_xlabel('sim time [s]')
+    fig.suptitle((title + ': ' if title else '') + 'joints against their limits (red)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def _modes_at(run, times):
     """Return the mode of the feature status at each time (the latest at or before it)."""
     if not len(run.modes):
@@ -137,9 +259,13 @@ def _modes_at(run, times):
     return [run.modes[max(i, 0)] for i in idx]
 
 
+def title_of(run):
+    """Return the run's name for figure titles: the scenario's name or number."""
+    return run.params.get('scenario_name') or f"scenario {run.params.get('scenario', '?')}"
+
+
 def _title(run, what):
-    name = run.params.get('scenario_name') or f"scenario {run.params.get('scenario', '?')}"
-    return f'{name}: {what}'
+    return f'{title_of(run)}: {what}'
 
 
 def write_all(run, out_dir, target_features=None):
@@ -149,9 +275,14 @@ def write_all(run, out_dir, target_features=None):
         'trajectory_3d': out_dir / 'trajectory_3d.png',
         'image_plane': out_dir / 'image_plane.png',
         'feature_timeline': out_dir / 'feature_timeline.png',
+        'error_vs_time': out_dir / 'error_vs_time.png',
     }
     pose_vs_time(run, paths['pose_vs_time'])
     trajectory_3d(run, paths['trajectory_3d'])
     image_plane(run, paths['image_plane'], target_features)
     feature_timeline(run, paths['feature_timeline'])
+    error_vs_time(run, paths['error_vs_time'])
+    if target_features is not None and len(run.features):
+        paths['feature_error'] = out_dir / 'feature_error.png'
+        feature_error(run, paths['feature_error'], target_features)
     return paths

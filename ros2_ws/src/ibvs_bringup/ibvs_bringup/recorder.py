@@ -55,12 +55,21 @@ KNOWN_TOPICS = {
     contract.EFFORT_COMMANDS: 'sensor_msgs/msg/JointState',
     contract.TOOL_PATH: 'nav_msgs/msg/Path',
     contract.DIAGNOSTICS: 'diagnostic_msgs/msg/DiagnosticArray',
+    contract.ROBOT_DESCRIPTION: 'std_msgs/msg/String',
+    contract.TF: 'tf2_msgs/msg/TFMessage',
+    contract.TF_STATIC: 'tf2_msgs/msg/TFMessage',
+    contract.MARKERS: 'visualization_msgs/msg/MarkerArray',
+    contract.DEBUG_LEFT_IMAGE: 'sensor_msgs/msg/Image',
+    contract.DEBUG_RIGHT_IMAGE: 'sensor_msgs/msg/Image',
 }
 IMAGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
+#: Image topics recorded with ``include_overlays`` (subscribing to them has them drawn).
+OVERLAY_TOPICS = {contract.DEBUG_LEFT_IMAGE, contract.DEBUG_RIGHT_IMAGE}
 #: Deep queues: a recorder that falls behind must not lose lockstep messages.
 RECORD_QOS = QoSProfile(depth=2000, reliability=contract.RELIABLE.reliability,
                         durability=contract.RELIABLE.durability)
-LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY}
+LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY,
+                  contract.ROBOT_DESCRIPTION, contract.TF_STATIC}
 
 
 def bag_qos(profile):
@@ -148,10 +157,18 @@ def message_class(type_name):
 class Recorder(Node):
     """Subscribe to the graph's topics and write them to an MCAP bag as they arrive."""
 
-    def __init__(self, bag_path, include_images=False, custom_data=None, **kwargs):
-        """Open the bag at ``bag_path`` (must not exist) and subscribe to the known topics."""
+    def __init__(self, bag_path, include_images=False, custom_data=None,
+                 include_overlays=False, **kwargs):
+        """
+        Open the bag at ``bag_path`` (must not exist) and subscribe to the known topics.
+
+        Image topics are recorded with ``include_images``, but the feature node's overlays
+        (:data:`OVERLAY_TOPICS`), which are recorded with ``include_overlays``: they are
+        drawn only while someone subscribes to them.
+        """
         super().__init__('ibvs_recorder', **kwargs)
         self._include_images = include_images
+        self._include_overlays = include_overlays
         self._typestore = get_typestore(TYPESTORE)
         self._writer = JazzyWriter(bag_path, version=9, storage_plugin=StoragePlugin.MCAP)
         for key, value in (custom_data or {}).items():
@@ -178,7 +195,8 @@ class Recorder(Node):
         self._writer.set_custom_data(key, value)
 
     def _record(self, topic, type_name):
-        if type_name in IMAGE_TYPES and not self._include_images:
+        wanted = self._include_overlays if topic in OVERLAY_TOPICS else self._include_images
+        if type_name in IMAGE_TYPES and not wanted:
             return
         if type_name not in self._typestore.types:
             if topic not in self._skipped:

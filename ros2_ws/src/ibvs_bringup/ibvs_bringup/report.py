@@ -39,6 +39,57 @@ def _fmt(value, unit='', scale=1.0, digits=3):
     return f'{value * scale:.{digits}f}{unit}'
 
 
+#: What the report reads as the paper's "small overshoot" (scenario 1), m.
+SMALL_OVERSHOOT_M = 0.005
+
+
+def _verdict(ok, why=''):
+    return ('met' if ok else 'not met') + (f' ({why})' if why else '')
+
+
+def claims(s1, s2, s3, worst):
+    """
+    Return the rows (claim, the paper's words, ours, verdict) of the paper's claims.
+
+    ``s1``..``s3``: each scenario's metrics; ``worst``: the sweep row (link, scale,
+    final_position_error_m, metrics) with the largest final position error. The paper
+    (section 5): scenario 1 responds "within 0.3 seconds" with "small overshoots"; out of
+    view (2, 3) it "converges fast (less than a second)"; in Figure 13 every steady-state
+    error is "less than 1%", read here as 1 % of the distance from the start to the target.
+    """
+    t1 = s1['time_to_1mm_s']
+    settle = s1['settling_time_2pct_s']
+    rows = [
+        ('scenario 1 reaches the target fast', 'within about 0.3 s',
+         f'2 % settling {_fmt(settle, " s")}, within 1 mm from {_fmt(t1, " s")}',
+         _verdict(settle is not None and settle <= 0.3,
+                  '2 % settling' + ('' if t1 is not None and t1 <= 0.3
+                                    else '; 1 mm takes longer'))),
+        ('scenario 1 overshoot', 'small', _fmt(s1['max_overshoot_m'], ' mm', 1e3, 2),
+         _verdict(s1['max_overshoot_m'] <= SMALL_OVERSHOOT_M,
+                  f'at most {SMALL_OVERSHOOT_M * 1e3:g} mm read as small')),
+        ('scenario 1 final pose', 'exact (IBVS)',
+         f'{_fmt(s1["final_position_error_m"], " mm", 1e3, 4)}, axis '
+         f'{_fmt(s1["final_tool_axis_error_deg"], " deg", 1.0, 4)}',
+         _verdict(s1['final_position_error_m'] <= 1e-3
+                  and s1['final_tool_axis_error_deg'] <= 0.1, 'within 1 mm and 0.1 deg')),
+    ]
+    for name, s in (('scenario 2', s2), ('scenario 3 (with d_q)', s3)):
+        t = s['time_to_1mm_s']
+        rows.append((f'{name} converges out of view', 'under 1 s, large overshoot',
+                     f'1 mm at {_fmt(t, " s")}, overshoot '
+                     f'{_fmt(s["max_overshoot_m"], " mm", 1e3, 1)}, estimated for '
+                     f'{_fmt(s["time_estimated_s"], " s")}',
+                     _verdict(t is not None and t < 1.0, 'within 1 mm in under 1 s')))
+    share = worst['final_position_error_m'] / worst['metrics']['initial_position_error_m']
+    rows.append(('L2, L4 from 50 % to 110 %: steady-state error', 'under 1 %',
+                 f'worst {_fmt(worst["final_position_error_m"], " mm", 1e3, 4)} '
+                 f'({worst["link"]} at {100 * worst["scale"]:.0f} %), '
+                 f'{100 * share:.4f} % of the distance to go',
+                 _verdict(share < 0.01)))
+    return rows
+
+
 def load_specs(quick=False):
     """Return the report's study specs; ``quick`` keeps the sweep's endpoints and nominal."""
     specs = [study_spec.load(study.study_path(name)) for name in REPORT_STUDIES]
@@ -130,26 +181,14 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         '',
         "## The paper's claims next to our measurements",
         '',
-        '| claim (paper) | paper | measured here |',
-        '|---|---|---|',
-        f'| scenario 1 reaches the target fast | within about 0.3 s | 2 % settling '
-        f'{_fmt(s1["settling_time_2pct_s"], " s")}, 1 mm at '
-        f'{_fmt(s1["time_to_1mm_s"], " s")} |',
-        f'| scenario 1 overshoot | small | {_fmt(s1["max_overshoot_m"], " mm", 1e3, 2)} |',
-        f'| scenario 1 final pose | exact (IBVS) | '
-        f'{_fmt(s1["final_position_error_m"], " mm", 1e3, 4)}, axis '
-        f'{_fmt(s1["final_tool_axis_error_deg"], " deg", 1.0, 4)} |',
-        f'| scenario 2 converges out of view | under 1 s, large overshoot | 1 mm at '
-        f'{_fmt(s2["time_to_1mm_s"], " s")}, overshoot '
-        f'{_fmt(s2["max_overshoot_m"], " mm", 1e3, 1)}, estimated for '
-        f'{_fmt(s2["time_estimated_s"], " s")} |',
-        f'| scenario 3 (with d_q) converges | under 1 s, large overshoot | 1 mm at '
-        f'{_fmt(s3["time_to_1mm_s"], " s")}, overshoot '
-        f'{_fmt(s3["max_overshoot_m"], " mm", 1e3, 1)}, estimated for '
-        f'{_fmt(s3["time_estimated_s"], " s")} |',
-        f'| L2, L4 from 50 % to 110 %: steady-state error | under 1 % | worst '
-        f'{_fmt(worst["final_position_error_m"], " mm", 1e3, 4)} '
-        f'({worst["link"]} at {100 * worst["scale"]:.0f} %) |',
+        'How each verdict is decided is in `ibvs_bringup.report.claims` (the paper gives '
+        'words, not numbers, for some: "small" is read as at most '
+        f'{SMALL_OVERSHOOT_M * 1e3:g} mm). Machine timings are in the README, not here.',
+        '',
+        '| claim (paper) | paper | measured here | verdict |',
+        '|---|---|---|---|',
+        *[f'| {c} | {paper} | {ours} | {verdict} |'
+          for c, paper, ours, verdict in claims(s1, s2, s3, worst)],
         '',
         '## Scenarios',
         '',
@@ -159,6 +198,8 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         lines += [f'| {k} | {v:.6g} |' if isinstance(v, float) else f'| {k} | {v} |'
                   for k, v in metrics.items() if k not in ('bag',)]
         lines += ['', f'![pose]({run_dirs[name]}/pose_vs_time.png)',
+                  f'![errors]({run_dirs[name]}/error_vs_time.png)',
+                  f'![joints]({run_dirs[name]}/joints.png)',
                   f'![trajectory]({run_dirs[name]}/trajectory_3d.png)',
                   f'![image plane]({run_dirs[name]}/image_plane.png)',
                   f'![features]({run_dirs[name]}/feature_timeline.png)', '']

@@ -39,6 +39,7 @@ from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
+from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 import rclpy
@@ -63,6 +64,7 @@ NODES = (
 REMAPS = {
     'feature_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
     'adaptive_feedback_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
+    'viz_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
 }
 #: sim_node camera_topics 'zed_wrapper': the ZED wrapper's names, which the camera's readers
 #: take by remapping alone, as on a real cell.
@@ -74,6 +76,8 @@ ZED_REMAPS = {
     'feature_node': ZED_TOPICS,
     'adaptive_feedback_node': {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
                                contract.RIGHT_INFO: contract.ZED_RIGHT_INFO},
+    'viz_node': {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+                 contract.RIGHT_INFO: contract.ZED_RIGHT_INFO},
 }
 
 
@@ -115,7 +119,11 @@ class ProcessSpec:
 #: process (0.1 instead of 0.4 ms a step on two cores), as gazebo_ros2_control runs the
 #: controllers inside the simulator.
 LOCKSTEP = ('joint_controller_node', 'sim_node')
+#: ibvs_viz's viz_node is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and
+#: the bag /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint
+#: states (REMAPS), so nothing in the lockstep waits for it.
 PROCESSES = (
+    ProcessSpec('ibvs_viz', 'viz_node'),
     ProcessSpec('ibvs_vision', 'feature_node'),
     ProcessSpec('ibvs_control', 'adaptive_feedback_node'),
     ProcessSpec('ibvs_control', 'feedforward_node'),
@@ -397,9 +405,12 @@ class Monitor:
 
 def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
                  wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
-                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S):
+                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False):
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
+
+    ``record_overlays`` records the feature node's overlay images (/ibvs/debug/*/image,
+    which it then draws for every frame; ``ibvs video`` makes a film of them).
 
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
@@ -442,6 +453,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         rclpy.init(context=context)
         executor = make_executor(context)
         recorder = Recorder(bag_path, include_images=record_images, context=context,
+                            include_overlays=record_overlays,
                             custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
         watcher = rclpy.create_node('ibvs_run_monitor', context=context,
                                     parameter_overrides=[])
@@ -629,4 +641,10 @@ def write_results(bag_path, out_dir, wall_duration_s=None):
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
     from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
     plots.write_all(run, out_dir, target_features(run))
+    params = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
+                            float(run.params.get('l4_scale', 1.0)))
+    series = analysis.load_joints(bag_path, run.run_info.get('duration_s'))
+    if len(series[0]):
+        plots.joints(series, (params.q_min, params.q_max, params.qd_max, joint_efforts(params)),
+                     out_dir / 'joints.png', plots.title_of(run))
     return metrics

@@ -129,3 +129,18 @@ def test_mean_and_max_error_over_the_last_half_second():
     # a run shorter than the window: the whole run
     short = analysis.compute_metrics(t[:100], position[:100], rotation[:100], target)
     assert short['max_position_error_last_0_5s_m'] == pytest.approx(0.01)
+
+
+def test_report_verdicts_follow_the_papers_words():
+    from ibvs_bringup.report import claims
+    good = {'time_to_1mm_s': 0.25, 'settling_time_2pct_s': 0.2, 'max_overshoot_m': 0.002,
+            'final_position_error_m': 2e-4, 'final_tool_axis_error_deg': 0.05,
+            'time_estimated_s': 0.3, 'initial_position_error_m': 2.5}
+    worst = {'link': 'L2', 'scale': 0.5, 'final_position_error_m': 3e-4,
+             'metrics': {'initial_position_error_m': 2.5}}
+    assert all(row[3].startswith('met') for row in claims(good, good, good, worst))
+    bad = dict(good, max_overshoot_m=0.045, time_to_1mm_s=None, settling_time_2pct_s=0.5)
+    verdicts = [row[3] for row in claims(bad, bad, good, dict(
+        worst, final_position_error_m=0.03))]
+    assert [v.split(' (')[0] for v in verdicts] == ['not met', 'not met', 'met', 'not met',
+                                                    'met', 'not met']

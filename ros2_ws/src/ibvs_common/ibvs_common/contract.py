@@ -60,6 +60,16 @@ TOOL_PATH = '/ibvs/tool_path'
 #: mode (measured / estimated / blending), the reason and the blend weight.
 FEATURE_STATUS = '/ibvs/feature_status'
 DIAGNOSTICS = '/diagnostics'
+#: For viewers (RViz, Foxglove; ibvs_viz.viz_node): the cell's URDF (std_msgs/String,
+#: latched), the frame tree (tf2_msgs/TFMessage; /tf_static latched) and the markers
+#: (visualization_msgs/MarkerArray): fields of view, target, tool path, fiducials.
+ROBOT_DESCRIPTION = '/robot_description'
+TF = '/tf'
+TF_STATIC = '/tf_static'
+MARKERS = '/ibvs/markers'
+#: The feature node's overlays (sensor_msgs/Image, rgb8), drawn only when someone listens.
+DEBUG_LEFT_IMAGE = '/ibvs/debug/left/image'
+DEBUG_RIGHT_IMAGE = '/ibvs/debug/right/image'
 
 #: What zed-ros2-wrapper 5.4 (master, zed_components zed_camera_component_video_depth.cpp)
 #: publishes for the rectified colour pair of a camera named 'zed' (launch defaults:

@@ -75,11 +75,13 @@ def _origin(xyz, rpy=(0.0, 0.0, 0.0)):
     return f'<origin xyz="{_fmt(xyz)}" rpy="{_fmt(rpy)}"/>'
 
 
-def _geometry(solid):
+def _geometry(solid, marker_mesh=True):
     if solid.kind == 'box':
         return f'<box size="{_fmt(solid.size)}"/>'
     if solid.kind == 'cylinder':
         return f'<cylinder radius="{_num(solid.size[0])}" length="{_num(solid.size[1])}"/>'
+    if not marker_mesh:
+        return f'<sphere radius="{_num(solid.size[0])}"/>'
     # A sphere is drawn with the unit icosphere of MARKER_MESH (module docstring).
     scale = _fmt([solid.size[0]] * 3)
     return f'<mesh filename={quoteattr(MARKER_MESH)} scale="{scale}"/>'
@@ -101,7 +103,7 @@ def _principal_axes(inertia):
     return matrix_rpy(axes), np.diag(moments)
 
 
-def _link_xml(name, solids, material, props):
+def _link_xml(name, solids, material, props, marker_mesh=True):
     lines = [f'  <link name={quoteattr(name)}>']
     if props is not None:
         mass, com, inertia = props
@@ -119,7 +121,7 @@ def _link_xml(name, solids, material, props):
         lines += [
             '    <visual>',
             f'      {_origin(solid.xyz, solid.rpy)}',
-            f'      <geometry>{_geometry(solid)}</geometry>',
+            f'      <geometry>{_geometry(solid, marker_mesh)}</geometry>',
             f'      <material name={quoteattr(material)}/>',
             '    </visual>',
         ]
@@ -167,14 +169,15 @@ def _material_xml(name, rgba):
     return [f'  <material name={quoteattr(name)}><color rgba="{_fmt(rgba)}"/></material>']
 
 
-def robot_urdf(params=IRB4600, with_tool=True):
+def robot_urdf(params=IRB4600, with_tool=True, marker_mesh=True):
     """
     Return the URDF text of the IRB 4600 of ``params`` (any RobotParams, e.g. scaled).
 
     Links base_link, link_1..link_6, tool0 ({E}); with the tool also screwdriver, marker_1
     (P1) and marker_2 (P2). Joints joint_1..joint_6 (ibvs_common.contract.JOINT_NAMES).
     The markers' visuals refer to the mesh :data:`MARKER_MESH` beside the URDF (relative
-    file name): :func:`write_urdf` writes both.
+    file name): :func:`write_urdf` writes both. ``marker_mesh=False`` draws them as URDF
+    ``<sphere>`` instead, for a viewer (RViz, Foxglove) that cannot reach files beside it.
     """
     shapes = link_shapes(params)
     props = inertials(params, with_tool)
@@ -220,7 +223,7 @@ def robot_urdf(params=IRB4600, with_tool=True):
         lines += _fixed_joint('joint_screwdriver', 'tool0', 'screwdriver')
         for k, xyz in enumerate(params.fiducials_E, start=1):
             name = f'marker_{k}'
-            lines += _link_xml(name, tool[name], f'{name}_colour', props[name])
+            lines += _link_xml(name, tool[name], f'{name}_colour', props[name], marker_mesh)
             lines += _fixed_joint(f'joint_{name}', 'tool0', name, xyz)
     lines.append('</robot>')
     return '\n'.join(lines) + '\n'

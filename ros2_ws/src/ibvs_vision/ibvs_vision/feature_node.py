@@ -35,6 +35,15 @@ rejected and never stored, so that one bad message cannot make every later frame
 Joint states beyond ``POSITION_BOUND_RAD``, a CameraInfo of an impossible size and a camera pose
 looking away from the robot are rejected too; each rejection is counted under its topic.
 
+Debug overlays. /ibvs/debug/left/image and /ibvs/debug/right/image (sensor_msgs/Image,
+rgb8, stamped with the frame) show each camera image with the detected markers, the
+estimate, the published features, the target and the mode (:mod:`.overlay`, as ViSP's
+display draws a servo task). They are drawn only while someone subscribes to them or with
+``publish_debug_images``: otherwise a frame costs one subscriber count per lens. The target
+p_bar drawn is the taught one (/ibvs/target_features, this node's own) or, with
+``target_features_source`` 'model', the target markers projected with the calibrated
+camera, F(q_target) of eq. 30, as the adaptive feedback computes it.
+
 Taught target. The stereo pair of the tool at the target pose
 (/stereo/teach/{left,right}/image_raw, latched, published by the simulator before the run
 with target_features_source 'taught') is measured once, as soon as the camera model is
@@ -52,9 +61,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, features_msg,
-                                     InputError, ns_stamp, pose_stamped, position_bounds,
-                                     read_camera_pose, read_joints, read_stamp,
-                                     stamp_lead_ns)
+                                     image_msg, InputError, ns_stamp, pose_stamped,
+                                     position_bounds, read_camera_pose, read_joints,
+                                     read_stamp, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
@@ -66,6 +75,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
+from . import overlay
 from .blend import BumplessSwitch
 from .detector import DetectorConfig, StereoDetector
 from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
@@ -81,13 +91,21 @@ PARAMS = (
     *DETECTOR_PARAMS,
     Param('joint_history_s', 2.0, 'how long joint states are kept to match image stamps',
           's', low=0.0, high=60.0, low_open=True),
+    Param('publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/'
+          'image for every frame even when nobody subscribes (e.g. to record them)', '-'),
     shared_params.PHYSICS_RATE_HZ,
     shared_params.CAMERA_RATE_HZ,
     shared_params.STALE_TIMEOUT_S,
     shared_params.CAMERA_POSE,
+    shared_params.TARGET_FEATURES_SOURCE,
+    shared_params.TARGET_POSITION,
+    shared_params.TARGET_ROTATION,
 )
+#: The overlay images (:mod:`.overlay`), one per lens.
+DEBUG_IMAGES = {'left': contract.DEBUG_LEFT_IMAGE, 'right': contract.DEBUG_RIGHT_IMAGE}
 
 _SIDES = ('left', 'right')
+_LENS_FRAMES = {'left': contract.LEFT_CAMERA_FRAME, 'right': contract.RIGHT_CAMERA_FRAME}
 #: OpenCV threads of this process. The detector's work is small (windows around the markers,
 #: one pair at a time) and OpenCV's thread pool costs more than it shares out: a tracked VGA
 #: pair took 1.8 ms with one thread and 3.2 ms with two (ibvs_vision.bench, two cores), and
@@ -124,6 +142,10 @@ class FeatureNode(Node):
         self._times_ms = []
         self._teach = {}
         self._teach_done = False
+        self._debug_always = p['publish_debug_images']
+        self._taught_source = p['target_features_source'] == 'taught'
+        self._target_pose = shared_params.target_from_parameters(p)
+        self._target_features = None
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._reasons = {}
@@ -134,6 +156,8 @@ class FeatureNode(Node):
                                                  contract.LATCHED)
         self._status_pub = self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
                                                  contract.RELIABLE)
+        self._debug_pubs = {side: self.create_publisher(Image, topic, contract.IMAGES)
+                            for side, topic in DEBUG_IMAGES.items()}
         # Each of a lens's inputs, left then right, in this order.
         for msg_type, topics, on_message, qos in (
                 (Image, (contract.LEFT_IMAGE, contract.RIGHT_IMAGE), self._on_image,
@@ -215,6 +239,7 @@ class FeatureNode(Node):
             self._diag.set_level(DiagnosticStatus.ERROR, message)
             return
         self._target_pub.publish(features_msg(detection.features, ns_stamp(0)))
+        self._target_features = detection.features
         self._diag.update(taught_target_px=detection.features)
         self.get_logger().info(f'taught target features p_bar = '
                                f'{np.round(detection.features, 3).tolist()} px')
@@ -275,6 +300,13 @@ class FeatureNode(Node):
             self._camera_problem = f'usable camera_info ({exc.reason})'
             return self._camera_problem
         self._model = CameraRobotModel(camera, IRB4600)
+        if not self._taught_source:  # p_bar = F(q_target): the target markers projected
+            points = self._target_pose[:3, :3] @ IRB4600.fiducials_E.T \
+                + self._target_pose[:3, 3:4]
+            try:
+                self._target_features = camera.project(points.T).reshape(6)
+            except BehindCameraError:
+                self._target_features = None
         self._detector = StereoDetector(camera.intrinsics, self._config)
         self._prior = None
         self._camera_problem = None
@@ -322,10 +354,29 @@ class FeatureNode(Node):
         output = self._switch.update(t_ns, detection.features, estimate)
         self._pub.publish(features_msg(output, ns_stamp(t_ns)))
         self._publish_status(t_ns, detection)
+        self._publish_overlays(t_ns, {'left': left, 'right': right}, encoding, detection,
+                               estimate, output)
         self._stereo.published(t_ns)
         self._prior = detection.features
         elapsed_ms = (time.perf_counter() - started) * 1e3
         self._record(detection, previous, elapsed_ms)
+
+    def _publish_overlays(self, t_ns, images, encoding, detection, estimate, output):
+        """Draw and publish each lens's overlay that someone listens to (module docstring)."""
+        sides = [side for side in _SIDES if self._debug_always
+                 or self._debug_pubs[side].get_subscription_count() > 0]
+        if not sides:
+            return
+        reason = '' if detection.ok else f'{detection.reason.value}: {detection.detail}'
+        mode = self._switch.mode
+        target = self._target_features
+        for side in sides:
+            image = images[side] if encoding == 'rgb8' else images[side][:, :, ::-1]
+            found = getattr(detection, side)
+            drawn = overlay.draw(image, side, t_ns * 1e-9, mode, reason, output, estimate,
+                                 target, found.blobs if found is not None else ())
+            self._debug_pubs[side].publish(image_msg(drawn, ns_stamp(t_ns), 'rgb8',
+                                                     _LENS_FRAMES[side]))
 
     def _publish_status(self, t_ns, detection):
         """Publish this frame's mode on /ibvs/feature_status, stamped with the image stamp."""

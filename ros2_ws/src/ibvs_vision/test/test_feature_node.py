@@ -19,8 +19,8 @@ from ibvs_common.conversions import (camera_infos, image_msg, joint_state, ns_st
 from ibvs_common.params import ParameterError
 from ibvs_common.testing import spin_until
 from ibvs_model import fiducial_points, inverse_kinematics, paper, scene
-from ibvs_vision import synthetic
-from ibvs_vision.feature_node import FeatureNode
+from ibvs_vision import overlay, synthetic
+from ibvs_vision.feature_node import DEBUG_IMAGES, FeatureNode
 import numpy as np
 import pytest
 from rclpy.node import Node
@@ -354,3 +354,24 @@ def test_bad_parameters_stop_the_node_with_the_parameter_named(context):
     with pytest.raises(ParameterError, match='epipolar_tolerance_px'):
         FeatureNode(context=context,
                     parameter_overrides=[Parameter('epipolar_tolerance_px', value='wide')])
+
+
+def test_debug_overlays_draw_what_was_published_only_when_asked(rig, vga_model, q_target):
+    node, driver, executor = rig()
+    overlays = {'left': [], 'right': []}
+    driver.send(0, q_target)
+    spin_until(executor, lambda: len(driver.features) == 1)
+    assert node.count_subscribers(DEBUG_IMAGES['left']) == 0  # nobody asked: none drawn
+    for side, topic in DEBUG_IMAGES.items():
+        driver.create_subscription(Image, topic, overlays[side].append, contract.IMAGES)
+    spin_until(executor, lambda: all(p.get_subscription_count() == 1
+                                     for p in node._debug_pubs.values()))
+    driver.send(T_CAM_NS, q_target)
+    spin_until(executor, lambda: len(driver.features) == 2 and all(overlays.values()))
+    published = read_features(driver.features[-1])
+    for side in ('left', 'right'):
+        msg = overlays[side][-1]
+        assert stamp_ns(msg.header.stamp) == T_CAM_NS and msg.encoding == 'rgb8'
+        image = np.frombuffer(msg.data, np.uint8).reshape(msg.height, msg.width, 3)
+        found = overlay.find_drawn_features(image, side, published)
+        np.testing.assert_allclose(found, overlay.side_points(published, side), atol=1.0)

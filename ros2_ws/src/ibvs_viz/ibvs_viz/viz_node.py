@@ -1,0 +1,315 @@
+"""
+viz_node: /robot_description, /tf, /tf_static and /ibvs/markers for RViz and Foxglove.
+
+What ``robot_state_publisher`` and a marker publisher would give a viewer, from our own
+kinematics (:mod:`ibvs_viz.scene`; robot_state_publisher and tf2_ros are not on PyPI):
+
+- /robot_description (std_msgs/String, transient local): :func:`scene.cell_urdf`, the arm,
+  tool, markers and the ZED 2 with primitive shapes, once the camera is known (both
+  CameraInfo and /stereo/pose);
+- /tf_static (tf2_msgs/TFMessage, transient local, one message as tf2_ros's static
+  broadcaster sends): the fixed joints of that URDF (tool0, screwdriver, markers, the
+  camera's optical frames; the camera where /stereo/pose, or the ``camera_pose``
+  parameter, puts it, as the controllers take it) and the target flange pose
+  ``ibvs_target``;
+- /tf: the six links at each joint state, stamped with its stamp. The angles drawn are
+  the true ones the simulator renders, encoder + ``disturbance_deg`` (d_q, eq. 30; 0 on a
+  real cell), of the simulated robot (``l2_scale``, ``l4_scale``), so that tool0 is the
+  pose the camera sees; with d_q = 0 it is exactly what robot_state_publisher gives;
+- /ibvs/markers (visualization_msgs/MarkerArray), at most ``marker_rate_hz`` in sim time:
+  each lens's field of view to ``frustum_depth_m``, the target pose (an arrow along the
+  tool axis and the two markers where they must end), the tool's path so far, the two
+  markers estimated by the nominal model at the encoder angles (F of eq. 30, what the
+  feature node falls back to) and, when the feature node measured them, triangulated from
+  /ibvs/features (eq. 19-22 inverted).
+
+It reads /joint_states; ``ibvs run`` remaps that to /stereo/joint_states (one per camera
+frame), so the node does not slow the 1 kHz lockstep. Bad inputs are rejected with a logged
+reason and counted on /diagnostics; while the camera is not known it says what it waits
+for once a second.
+"""
+
+from collections import OrderedDict
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamped
+from ibvs_common import contract, shared_params
+from ibvs_common.conversions import (camera_from_msgs, InputError, matrix_poses,
+                                     pose_stamped, read_features, read_joints, stamp_ns)
+from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.node_main import run
+from ibvs_common.params import declare, Param
+from ibvs_model import IRB4600
+from ibvs_model.robot import fiducial_points
+from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, JointState
+from std_msgs.msg import ColorRGBA, String
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
+
+from . import scene
+
+PARAMS = (
+    shared_params.DISTURBANCE_DEG,
+    shared_params.L2_SCALE,
+    shared_params.L4_SCALE,
+    shared_params.TARGET_POSITION,
+    shared_params.TARGET_ROTATION,
+    shared_params.CAMERA_POSE,
+    Param('marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time '
+          '(/tf goes out with every joint state)', 'Hz', low=0.0, high=1000.0,
+          low_open=True),
+    Param('frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
+          low=0.0, high=100.0, low_open=True),
+    Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
+          'oldest go first)', '-', low=2, high=1_000_000),
+)
+#: Marker namespaces, one per thing drawn.
+NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'
+NS_MEASURED, NS_ESTIMATED = 'markers_measured', 'markers_estimated'
+#: Feature frames kept while their /ibvs/feature_status is awaited.
+_PENDING_FEATURES = 8
+
+
+def _rgba(rgb, alpha=1.0):
+    return ColorRGBA(r=rgb[0], g=rgb[1], b=rgb[2], a=alpha)
+
+
+MARKER_COLOURS = [_rgba([c / 255.0 for c in rgb]) for rgb in MARKER_RGB]
+
+
+def transforms_msg(triples, stamp):
+    """Return (parent, child, 4x4) triples as a TFMessage stamped ``stamp``."""
+    poses = matrix_poses([tf for _, _, tf in triples])
+    msg = TFMessage()
+    for (parent, child, _), pose in zip(triples, poses):
+        t = TransformStamped()
+        t.header.stamp = stamp
+        t.header.frame_id = parent
+        t.child_frame_id = child
+        t.transform.translation.x = pose.position.x
+        t.transform.translation.y = pose.position.y
+        t.transform.translation.z = pose.position.z
+        t.transform.rotation = pose.orientation
+        msg.transforms.append(t)
+    return msg
+
+
+def _points(array):
+    return [Point(x=float(p[0]), y=float(p[1]), z=float(p[2])) for p in array]
+
+
+class VizNode(Node):
+    """Publish what a 3D viewer needs to show the cell (module docstring)."""
+
+    def __init__(self, **kwargs):
+        """Declare and check the parameters, then create the publishers and subscriptions."""
+        super().__init__('viz_node', **kwargs)
+        p = declare(self, PARAMS)
+        self._params = IRB4600.scaled(p['l2_scale'], p['l4_scale'])
+        self._d_q = np.radians(p['disturbance_deg'])
+        self._target = shared_params.target_from_parameters(p)
+        self._marker_period_ns = int(round(1e9 / p['marker_rate_hz']))
+        self._frustum_depth = p['frustum_depth_m']
+        self._path_points = p['tool_path_points']
+        self._infos = {}
+        self._pose_msg = None
+        self._camera = None
+        self._camera_key = None
+        self._path = []
+        self._last_markers_ns = None
+        self._last_joint_ns = None
+        self._features = OrderedDict()
+        #: The markers triangulated from the newest measured /ibvs/features (2, 3), or None
+        #: when the newest frame was not measured.
+        self.measured = None
+        self._estimated = None
+
+        self._diag = Diagnostics(self, 'robot description, tf and markers')
+        self._diag.update(waiting_for='camera_info, /stereo/pose', tf_published=0,
+                          markers_published=0)
+        self._description_pub = self.create_publisher(String, contract.ROBOT_DESCRIPTION,
+                                                      contract.LATCHED)
+        self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
+        self._tf_pub = self.create_publisher(TFMessage, contract.TF, 100)
+        self._markers_pub = self.create_publisher(MarkerArray, contract.MARKERS, 10)
+        for side, topic in (('left', contract.LEFT_INFO), ('right', contract.RIGHT_INFO)):
+            self.create_subscription(CameraInfo, topic,
+                                     lambda msg, side=side: self._on_info(side, msg),
+                                     contract.RELIABLE)
+        calibrated = shared_params.camera_pose_from(p)
+        if calibrated is None:
+            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
+                                     contract.LATCHED)
+        else:  # a hand-eye calibration's result, as the feature and feedback nodes take it
+            self._pose_msg = pose_stamped(calibrated, 0)
+        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
+                                 contract.RELIABLE)
+        self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
+                                 contract.RELIABLE)
+        self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
+                                 contract.RELIABLE)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._waiting_timer = self.create_timer(1.0, self._say_waiting, clock=self._steady)
+
+    # --- camera and static frames ----------------------------------------------------------
+
+    def _on_info(self, side, msg):
+        self._infos[side] = msg
+        self._try_camera()
+
+    def _on_pose(self, msg):
+        self._pose_msg = msg
+        self._try_camera()
+
+    def _try_camera(self):
+        """Build the camera from both CameraInfo and /stereo/pose; publish what it fixes."""
+        if len(self._infos) < 2 or self._pose_msg is None:
+            return
+        pose = self._pose_msg.pose
+        key = (tuple(self._infos['left'].p), tuple(self._infos['right'].p),
+               (self._infos['left'].width, self._infos['left'].height),
+               (pose.position.x, pose.position.y, pose.position.z, pose.orientation.x,
+                pose.orientation.y, pose.orientation.z, pose.orientation.w))
+        if key == self._camera_key:
+            return
+        self._camera_key = key
+        try:
+            camera = camera_from_msgs(self._infos['left'], self._infos['right'], pose)
+        except ValueError as exc:
+            self._diag.reject('camera', 'bad camera_info or /stereo/pose', str(exc))
+            return
+        self._camera = camera
+        baseline = camera.intrinsics.baseline
+        self._description_pub.publish(String(data=scene.cell_urdf(self._params,
+                                                                  camera.pose_C_O, baseline)))
+        static = (scene.robot_fixed_transforms(self._params)
+                  + scene.camera_transforms(camera.pose_C_O, baseline)
+                  + [(contract.BASE_FRAME, scene.TARGET_FRAME, self._target)])
+        self._static_pub.publish(transforms_msg(static, self._pose_msg.header.stamp))
+        self._diag.update(waiting_for='')
+        self.get_logger().info('camera known: /robot_description and /tf_static published')
+
+    def _say_waiting(self):
+        if self._camera is None:
+            missing = [t for t, ok in ((contract.LEFT_INFO, 'left' in self._infos),
+                                       (contract.RIGHT_INFO, 'right' in self._infos),
+                                       (contract.STEREO_POSE, self._pose_msg is not None))
+                       if not ok]
+            self.get_logger().info(f'waiting for {", ".join(missing)} to describe the camera')
+
+    # --- features ---------------------------------------------------------------------------
+
+    def _on_features(self, msg):
+        try:
+            features = read_features(msg)
+        except InputError as exc:
+            self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
+            return
+        self._features[stamp_ns(msg.header.stamp)] = features
+        while len(self._features) > _PENDING_FEATURES:
+            self._features.popitem(last=False)
+
+    def _on_status(self, msg):
+        if not msg.status:
+            self._diag.reject(contract.FEATURE_STATUS, 'no status')
+            return
+        t_ns = stamp_ns(msg.header.stamp)
+        mode = {kv.key: kv.value for kv in msg.status[0].values}.get('mode')
+        features = self._features.pop(t_ns, None)
+        if features is None or self._camera is None:
+            return
+        self.measured = None
+        if mode == 'measured':
+            try:
+                self.measured = self._camera.triangulate(features.reshape(2, 3))
+            except ValueError as exc:
+                self._diag.reject(contract.FEATURES, 'cannot triangulate', str(exc))
+
+    # --- joint states -----------------------------------------------------------------------
+
+    def _on_joints(self, msg):
+        try:
+            q = read_joints(msg)
+        except InputError as exc:
+            self._diag.reject(contract.JOINT_STATES, exc.reason, exc.detail)
+            return
+        t_ns = stamp_ns(msg.header.stamp)
+        if self._last_joint_ns is not None and t_ns < self._last_joint_ns:
+            self._diag.reject(contract.JOINT_STATES, 'stamp went back',
+                              f'{t_ns} ns after {self._last_joint_ns} ns')
+            return
+        self._last_joint_ns = t_ns
+        q_true = q + self._d_q
+        joints = scene.joint_transforms(q_true, self._params)
+        self._tf_pub.publish(transforms_msg(joints, msg.header.stamp))
+        self._diag.values['tf_published'] += 1
+        tool = scene.link_poses(q_true, self._params)[scene.TOOL_FRAME]
+        self._path = (self._path + [tool[:3, 3]])[-self._path_points:]
+        self._estimated = fiducial_points(q, IRB4600)
+        if self._camera is not None and (self._last_markers_ns is None or
+                                         t_ns - self._last_markers_ns >= self._marker_period_ns):
+            self._last_markers_ns = t_ns
+            self._markers_pub.publish(self.markers(msg.header.stamp))
+            self._diag.values['markers_published'] += 1
+
+    # --- markers ----------------------------------------------------------------------------
+
+    def _marker(self, ns, marker_id, kind, stamp, frame=contract.BASE_FRAME):
+        m = Marker()
+        m.header.stamp = stamp
+        m.header.frame_id = frame
+        m.ns, m.id, m.type, m.action = ns, marker_id, kind, Marker.ADD
+        m.pose.orientation.w = 1.0
+        return m
+
+    def markers(self, stamp):
+        """Return the MarkerArray of the current state (module docstring lists it)."""
+        out = MarkerArray()
+        lines = scene.frustum_lines(self._camera.intrinsics, self._frustum_depth)
+        for i, frame in enumerate(scene.LENS_FRAMES):
+            m = self._marker(NS_FRUSTUM, i, Marker.LINE_LIST, stamp, frame)
+            m.scale.x = 0.005
+            m.color = _rgba((0.2, 0.6, 1.0) if i == 0 else (1.0, 0.6, 0.2), 0.8)
+            m.points = _points(lines)
+            out.markers.append(m)
+        arrow = self._marker(NS_TARGET, 0, Marker.ARROW, stamp)
+        axis = self._target[:3, 2]
+        tip = self._target[:3, 3]
+        arrow.points = _points([tip - 0.15 * axis, tip])
+        arrow.scale.x, arrow.scale.y, arrow.scale.z = 0.01, 0.02, 0.03
+        arrow.color = _rgba((0.1, 0.8, 0.1), 0.9)
+        out.markers.append(arrow)
+        goal = self._marker(NS_TARGET, 1, Marker.SPHERE_LIST, stamp)
+        goal.points = _points(self._params.fiducials_E @ self._target[:3, :3].T + tip)
+        goal.scale.x = goal.scale.y = goal.scale.z = 2.0 * MARKER_RADIUS_M
+        goal.colors = [_rgba((0.1, 0.8, 0.1), 0.5)] * 2
+        out.markers.append(goal)
+        path = self._marker(NS_PATH, 0, Marker.LINE_STRIP, stamp)
+        path.points = _points(self._path)
+        path.scale.x = 0.003
+        path.color = _rgba((0.9, 0.9, 0.2), 1.0)
+        out.markers.append(path)
+        for ns, points, scale, alpha in ((NS_ESTIMATED, self._estimated, 2.6, 0.35),
+                                         (NS_MEASURED, self.measured, 2.0, 1.0)):
+            m = self._marker(ns, 0, Marker.SPHERE_LIST, stamp)
+            if points is None:
+                m.action = Marker.DELETE
+            else:
+                m.points = _points(points)
+                m.scale.x = m.scale.y = m.scale.z = scale * MARKER_RADIUS_M
+                m.colors = [ColorRGBA(r=c.r, g=c.g, b=c.b, a=alpha) for c in MARKER_COLOURS]
+            out.markers.append(m)
+        return out
+
+
+def main(args=None):
+    """Run the viz node (``ros2 run ibvs_viz viz_node``)."""
+    run(VizNode, args=args, name='viz_node')
+
+
+if __name__ == '__main__':
+    main()

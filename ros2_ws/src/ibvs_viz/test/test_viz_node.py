@@ -1,0 +1,162 @@
+"""
+viz_node in an rclpy executor: what a viewer gets from camera, joint states and features.
+
+A driver node publishes the simulator's and the feature node's topics; the viz node's
+/robot_description, /tf_static, /tf and /ibvs/markers are checked against ibvs_model.
+"""
+
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PolygonStamped, PoseStamped
+from ibvs_common import contract
+from ibvs_common.contract import MARKERS, ROBOT_DESCRIPTION, TF, TF_STATIC
+from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_matrix,
+                                     pose_stamped)
+from ibvs_common.params import ParameterError
+from ibvs_common.testing import default_camera, spin_until
+from ibvs_model import CameraRobotModel, forward_kinematics, IRB4600, paper
+from ibvs_model.robot import fiducial_points
+from ibvs_viz import scene
+from ibvs_viz.viz_node import NS_ESTIMATED, NS_MEASURED, NS_PATH, VizNode
+import numpy as np
+import pytest
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
+
+D_Q_DEG = [0.5, -0.3, 0.2, 0.0, 0.4, -0.6]
+Q = np.array([0.1, 0.2, -0.1, 0.3, 0.5, -0.2])
+
+
+class Driver(Node):
+    """Publishes camera, joint states and features; keeps what the viz node publishes."""
+
+    def __init__(self, context):
+        super().__init__('driver', context=context)
+        self.got = {ROBOT_DESCRIPTION: [], TF_STATIC: [], TF: [], MARKERS: [], 'diag': []}
+        self.pub = {
+            'joints': self.create_publisher(JointState, contract.JOINT_STATES,
+                                            contract.RELIABLE),
+            'left_info': self.create_publisher(CameraInfo, contract.LEFT_INFO,
+                                               contract.RELIABLE),
+            'right_info': self.create_publisher(CameraInfo, contract.RIGHT_INFO,
+                                                contract.RELIABLE),
+            'pose': self.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED),
+            'features': self.create_publisher(PolygonStamped, contract.FEATURES,
+                                              contract.RELIABLE),
+            'status': self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
+                                            contract.RELIABLE),
+        }
+        for topic, kind, qos in ((ROBOT_DESCRIPTION, String, contract.LATCHED),
+                                 (TF_STATIC, TFMessage, contract.LATCHED),
+                                 (TF, TFMessage, 100), (MARKERS, MarkerArray, 10)):
+            self.create_subscription(kind, topic, self.got[topic].append, qos)
+        self.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diag, 10)
+
+    def _on_diag(self, msg):
+        for status in msg.status:
+            if status.name.startswith('viz_node'):
+                self.got['diag'].append({kv.key: kv.value for kv in status.values})
+
+    def camera(self, camera):
+        left, right = camera_infos(camera.intrinsics, 0)
+        self.pub['left_info'].publish(left)
+        self.pub['right_info'].publish(right)
+        self.pub['pose'].publish(pose_stamped(camera.pose_C_O, 0))
+
+    def status(self, t_ns, mode):
+        msg = DiagnosticArray()
+        msg.header.stamp = joint_state(t_ns).header.stamp
+        msg.status = [DiagnosticStatus(name='feature_node: features',
+                                       values=[KeyValue(key='mode', value=mode)])]
+        self.pub['status'].publish(msg)
+
+
+@pytest.fixture
+def rig(context, executor_of):
+    params = [Parameter('disturbance_deg', value=D_Q_DEG),
+              Parameter('marker_rate_hz', value=10.0)]
+    node = VizNode(context=context, parameter_overrides=params)
+    driver = Driver(context)
+    executor = executor_of(node, driver)
+    spin_until(executor, lambda: driver.count_subscribers(contract.JOINT_STATES) == 1
+               and driver.count_subscribers(contract.FEATURE_STATUS) == 1, what='discovery')
+    return executor, driver, node
+
+
+def chain(tf_messages):
+    """Compose the transforms of several TFMessages from base_link, as a tf listener does."""
+    local = {t.child_frame_id: (t.header.frame_id, t.transform)
+             for msg in tf_messages for t in msg.transforms}
+
+    def pose(frame):
+        if frame == contract.BASE_FRAME:
+            return np.eye(4)
+        parent, tf = local[frame]
+        m = pose_matrix(type('Pose', (), {'position': tf.translation,
+                                          'orientation': tf.rotation}))
+        return pose(parent) @ m
+    return pose
+
+
+def test_description_static_frames_and_links_match_the_model(rig):
+    executor, driver, node = rig
+    camera = default_camera('VGA')
+    driver.camera(camera)
+    spin_until(executor, lambda: driver.got[TF_STATIC] and driver.got[ROBOT_DESCRIPTION],
+               what='/tf_static and /robot_description')
+    urdf = driver.got[ROBOT_DESCRIPTION][-1].data
+    assert '<robot name=' in urdf and contract.LEFT_CAMERA_FRAME in urdf
+    driver.pub['joints'].publish(joint_state(34_000_000, Q))
+    spin_until(executor, lambda: driver.got[TF] and driver.got[MARKERS], what='/tf, markers')
+    tf = driver.got[TF][-1]
+    assert tf.transforms[0].header.stamp.nanosec == 34_000_000
+    assert [t.child_frame_id for t in tf.transforms] == [f'link_{i}' for i in range(1, 7)]
+    pose = chain([driver.got[TF_STATIC][-1], tf])
+    # The true arm the camera sees: encoder angles plus d_q.
+    np.testing.assert_allclose(pose('tool0'), forward_kinematics(Q + np.radians(D_Q_DEG)),
+                               atol=1e-9)
+    np.testing.assert_allclose(pose(contract.CAMERA_FRAME), camera.pose_C_O, atol=1e-9)
+    target = paper.target_pose(paper.TARGET_POSITION, np.ravel(paper.TARGET_ROTATION))
+    np.testing.assert_allclose(pose(scene.TARGET_FRAME), target, atol=1e-9)
+
+
+def test_markers_show_measured_and_estimated_fiducials(rig):
+    executor, driver, node = rig
+    camera = default_camera('VGA')
+    driver.camera(camera)
+    spin_until(executor, lambda: driver.got[TF_STATIC], what='/tf_static')
+    true_q = Q + np.radians(D_Q_DEG)
+    measured = CameraRobotModel(camera, IRB4600).features(true_q)
+    for k, (t_ns, mode) in enumerate(((0, 'estimated'), (100_000_000, 'measured'))):
+        driver.pub['features'].publish(features_msg(measured, joint_state(t_ns).header.stamp))
+        driver.status(t_ns, mode)
+        spin_until(executor, lambda: (node.measured is not None) == (mode == 'measured')
+                   and not node._features, what='the feature status')
+        driver.pub['joints'].publish(joint_state(t_ns, Q))
+        spin_until(executor, lambda: len(driver.got[MARKERS]) == k + 1, what='markers')
+    first, second = ({(m.ns, m.id): m for m in a.markers} for a in driver.got[MARKERS])
+    assert first[(NS_MEASURED, 0)].action == Marker.DELETE   # not measured: not drawn
+    points = np.array([[p.x, p.y, p.z] for p in second[(NS_MEASURED, 0)].points])
+    np.testing.assert_allclose(points, fiducial_points(true_q), atol=1e-4)  # float32 px
+    estimated = np.array([[p.x, p.y, p.z] for p in second[(NS_ESTIMATED, 0)].points])
+    np.testing.assert_allclose(estimated, fiducial_points(Q), atol=1e-12)
+    assert len(second[(NS_PATH, 0)].points) == 2
+
+
+def test_bad_joint_state_is_rejected_and_counted(rig):
+    executor, driver, node = rig
+    bad = joint_state(0, [np.nan] * 6)
+    driver.pub['joints'].publish(bad)
+    spin_until(executor, lambda: any(
+        d.get('rejected[/joint_states: non-finite position]') == '1'
+        for d in driver.got['diag']), what='the rejection on /diagnostics')
+    assert not driver.got[TF]
+
+
+def test_bad_parameter_is_refused_with_its_range(context):
+    with pytest.raises(ParameterError, match='marker_rate_hz'):
+        VizNode(context=context, parameter_overrides=[Parameter('marker_rate_hz', value=0.0)])
