@@ -51,8 +51,12 @@ def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
     """
     Return the files of the segments and ports whose owner is dead (module docstring).
 
-    With ``new_since`` (a :func:`names` snapshot) only lock files created since count, and
-    they count at any age: what processes started and died since then left.
+    With ``new_since`` (a :func:`names` snapshot) only lock files created since count: what
+    processes started and died since then left. Files younger than ``min_age_s`` are left
+    in either case: another graph (a study's parallel run, a test) may be starting on this
+    machine, and a lock file its participant has created but not yet locked looks dead
+    (removing it made that participant fail with "open_and_lock_file failed"). What a
+    process of the run left in its last ``min_age_s`` goes at the next run's start.
     """
     now = time.time() if now is None else now
     found = []
@@ -61,7 +65,7 @@ def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
             continue
         lock = Path(shm_dir) / name
         try:
-            if new_since is None and now - lock.stat().st_mtime < min_age_s:
+            if now - lock.stat().st_mtime < min_age_s:
                 continue
         except FileNotFoundError:
             continue

@@ -26,12 +26,15 @@ def test_finding11_dead_segments_and_ports_go_live_ones_stay(tmp_path):
     assert left == sorted([live, f'{live}_el', 'unrelated'])
 
 
-def test_finding11_young_files_are_left_unless_new_since_the_run_started(tmp_path):
+def test_finding11_young_files_are_left_and_new_since_keeps_what_was_there(tmp_path):
     old = 'fastrtps_00000000000000aa'
     _files(tmp_path, old, f'{old}_el')
     before = shm.names(tmp_path)
-    young = 'fastrtps_00000000000000bb'
+    new = 'fastrtps_00000000000000cc'
+    _files(tmp_path, new, f'{new}_el')
+    young = 'fastrtps_00000000000000bb'  # another graph's participant may be starting
     _files(tmp_path, young, f'{young}_el', age_s=0.0)
-    assert shm.zombies(tmp_path) == [tmp_path / f'{old}_el', tmp_path / old]
+    assert shm.zombies(tmp_path) == [tmp_path / f'{old}_el', tmp_path / old,
+                                     tmp_path / f'{new}_el', tmp_path / new]
     assert shm.clean(tmp_path, new_since=before) == (2, 2000)
-    assert sorted(os.listdir(tmp_path)) == sorted([old, f'{old}_el'])
+    assert sorted(os.listdir(tmp_path)) == sorted([old, f'{old}_el', young, f'{young}_el'])
