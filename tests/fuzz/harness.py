@@ -176,7 +176,7 @@ def table(name, rig, outcomes):
     stuck = [o for o in outcomes if o.stuck]
     silent = [o for o in outcomes if o.silent]
     covered = {o.case.topic for o in outcomes}
-    lines = [f'{name:24s} {len(outcomes):5d} {len(crashes):7d} {len(stuck):5d} '
+    lines = [f'{name:32s} {len(outcomes):5d} {len(crashes):7d} {len(stuck):5d} '
              f'{len(silent):17d}   topics {len(covered)}/{len(rig.topics)}']
     for o in crashes + stuck + silent:
         lines.append(f'    {o.case.topic} {o.case.name}: '

@@ -19,6 +19,10 @@ RIGS = {
     'adaptive_feedback_node': rigs.AdaptiveFeedbackRig,
     'feedforward_node': rigs.FeedforwardRig,
     'joint_controller_node': rigs.JointControllerRig,
+    'sim_node[position]': rigs.SimPositionRig,
+    'sim_node[trajectory]': lambda context: rigs.SimPositionRig(context, 'joint_trajectory'),
+    'joint_controller_node[position]': rigs.JointControllerPositionRig,
+    'viz_node': rigs.VizRig,
 }
 
 
