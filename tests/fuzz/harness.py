@@ -17,6 +17,9 @@ Per case:
   messages the case sent;
 - **stuck**: after the case the node did not act on the next valid input (the rig's
   :meth:`Rig.valid_step`) before a deadline that only guards a hang.
+
+After all its cases, a rig that records the node's outputs checks that every one was
+finite (:meth:`Rig.published_finite`).
 """
 
 from collections import Counter
@@ -140,6 +143,10 @@ class Rig:
     def valid_step(self) -> Callable[[], bool]:
         """Send one valid input; return a predicate true once the node acted on it."""
         raise NotImplementedError
+
+    def published_finite(self):
+        """Return whether every output the rig recorded is finite (subclasses that record)."""
+        return True
 
     def recovered(self):
         """Return whether the node acts on the next valid input."""

@@ -225,6 +225,10 @@ class JointControllerPositionRig(Rig):
         self.deliver(contract.CLOCK, Clock(clock=ns_stamp(self.t_ns)))
         return lambda: len(self.commands) > before
 
+    def published_finite(self):
+        """Return whether every position reference it sent was finite."""
+        return bool(self.commands) and all(np.all(np.isfinite(m.data)) for m in self.commands)
+
     def cases(self):
         """Return every case of every topic it subscribes."""
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
@@ -270,6 +274,13 @@ class VizRig(Rig):
         self.deliver(contract.FEATURE_STATUS, bad.status(t, 'measured'))
         self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
         return lambda: any(stamp_ns(m.transforms[0].header.stamp) == t for m in self.tf)
+
+    def published_finite(self):
+        """Return whether every /tf it sent was finite."""
+        return bool(self.tf) and all(
+            np.all(np.isfinite([t.transform.translation.x, t.transform.translation.y,
+                                t.transform.translation.z, t.transform.rotation.w]))
+            for m in self.tf for t in m.transforms)
 
     def cases(self):
         """Return every case of every topic it subscribes."""

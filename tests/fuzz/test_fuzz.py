@@ -38,5 +38,6 @@ def test_fuzz_node(context, name):
             # Its one action comes last: the first valid state after every bad one.
             assert rig.spin_until(rig.valid_step()), 'feedforward never started'
         assert_clean(rig, outcomes)
+        assert rig.published_finite(), f'{name} published a non-finite value'
     finally:
         rig.close()
