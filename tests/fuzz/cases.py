@@ -9,14 +9,14 @@ or encoding; for CameraInfo an impossible size or projection; for poses a non-fi
 non-unit quaternion, a camera looking away.
 """
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
 from ibvs_common.conversions import image_msg, joint_state, joint_trajectory, ns_stamp
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo
-from std_msgs.msg import Header
+from std_msgs.msg import Float64MultiArray, Header
 
 from .harness import stamp
 
@@ -158,14 +158,64 @@ def polygons(topic, next_ns, features):
     return [(name, topic, make) for name, make in cases]
 
 
+def status(t_ns, mode):
+    """Return a /ibvs/feature_status of the frame stamped ``t_ns`` in ``mode``."""
+    msg = DiagnosticArray()
+    msg.header.stamp = ns_stamp(t_ns)
+    msg.status = [DiagnosticStatus(name='features', values=[KeyValue(key='mode', value=mode)])]
+    return msg
+
+
 def statuses(topic, next_ns):
-    """Bad /ibvs/feature_status: stamps."""
-    cases = []
+    """Bad /ibvs/feature_status: stamps (of a measured frame), no status."""
+    cases = [('no status', topic, lambda: [DiagnosticArray(header=Header(
+        stamp=ns_stamp(next_ns())))])]
     for name, s in bad_stamps(0):
-        msg = DiagnosticArray()
-        msg.header.stamp = s
-        cases.append((name, topic, lambda m=msg: [m]))
+        cases.append((name, topic, lambda s=s: [_stamped(status(0, 'measured'), s)]))
     return cases
+
+
+def arrays(topic, good, beyond):
+    """
+    Bad Float64MultiArray position commands: values, lengths, a joint beyond its travel.
+
+    ``good`` (6,) is a valid command, ``beyond`` (6,) one with a joint past its range.
+    """
+    def msg(values):
+        return Float64MultiArray(data=[float(v) for v in values])
+
+    cases = []
+    for label, value in (('NaN', np.nan), ('inf', np.inf), ('1e308', 1e308),
+                         ('-1e308', -1e308)):
+        bad = np.array(good, dtype=float)
+        bad[2] = value
+        cases.append((f'{label} value', lambda b=bad: [msg(b)]))
+    cases += [('5 values', lambda: [msg(good[:5])]),
+              ('7 values', lambda: [msg(np.r_[good, 0.0])]),
+              ('no values', lambda: [msg([])]),
+              ('a joint beyond its travel', lambda: [msg(beyond)]),
+              (f'burst of {BURST} NaN', lambda: [msg(np.full(6, np.nan))] * BURST)]
+    return [(name, topic, make) for name, make in cases]
+
+
+def command_trajectories(topic, good, beyond):
+    """Bad JointTrajectory position commands beyond :func:`trajectories`: names, travel."""
+    def traj(values=good, names=NAMES):
+        return joint_trajectory(0, 1_000_000, np.atleast_2d(values), names)
+
+    def long_last():
+        msg = traj(np.tile(good, (3, 1)))
+        msg.points[-1].positions = list(good) + [0.0]
+        return [msg]
+
+    nan_last = np.tile(good, (3, 1))
+    nan_last[-1, 4] = np.nan
+    cases = [('repeated names', lambda: [traj(names=[NAMES[0]] * 6)]),
+             ('missing name', lambda: [traj(good[:5], NAMES[:5])]),
+             ('NaN in the last point', lambda: [traj(nan_last)]),
+             ('a joint beyond its travel', lambda: [traj(beyond)]),
+             ('last point 7 positions', long_last)]
+    return [(name, topic, make) for name, make in cases]
 
 
 def camera_infos(topic, good):

@@ -4,7 +4,7 @@ from ibvs_common.testing import context  # noqa: F401 (the shared fixture)
 
 from .harness import TABLES
 
-HEADER = f"{'node':24s} {'cases':>5s} {'crashes':>7s} {'stuck':>5s} {'accepted silently':>17s}"
+HEADER = f"{'node':32s} {'cases':>5s} {'crashes':>7s} {'stuck':>5s} {'accepted silently':>17s}"
 
 
 def pytest_terminal_summary(terminalreporter):

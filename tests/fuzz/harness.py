@@ -17,6 +17,9 @@ Per case:
   messages the case sent;
 - **stuck**: after the case the node did not act on the next valid input (the rig's
   :meth:`Rig.valid_step`) before a deadline that only guards a hang.
+
+After all its cases, a rig that records the node's outputs checks that every one was
+finite (:meth:`Rig.published_finite`).
 """
 
 from collections import Counter
@@ -141,6 +144,10 @@ class Rig:
         """Send one valid input; return a predicate true once the node acted on it."""
         raise NotImplementedError
 
+    def published_finite(self):
+        """Return whether every output the rig recorded is finite (subclasses that record)."""
+        return True
+
     def recovered(self):
         """Return whether the node acts on the next valid input."""
         return self.spin_until(self.valid_step(), 'the node acting on valid input')
@@ -176,7 +183,7 @@ def table(name, rig, outcomes):
     stuck = [o for o in outcomes if o.stuck]
     silent = [o for o in outcomes if o.silent]
     covered = {o.case.topic for o in outcomes}
-    lines = [f'{name:24s} {len(outcomes):5d} {len(crashes):7d} {len(stuck):5d} '
+    lines = [f'{name:32s} {len(outcomes):5d} {len(crashes):7d} {len(stuck):5d} '
              f'{len(silent):17d}   topics {len(covered)}/{len(rig.topics)}']
     for o in crashes + stuck + silent:
         lines.append(f'    {o.case.topic} {o.case.name}: '

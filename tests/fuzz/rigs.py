@@ -2,16 +2,20 @@
 
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, image_msg, joint_state,
-                                     joint_trajectory, pose_stamped, stamp_ns)
+                                     joint_trajectory, ns_stamp, pose_stamped, stamp_ns)
 from ibvs_common.testing import default_camera
 from ibvs_common.timing import feedback_frame_ns, frame_stamp_ns
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600, paper
 import numpy as np
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory
 
 from . import cases as bad
+from .cases import NAMES
 from .harness import Case, Rig
 
 MS = 1_000_000
@@ -19,6 +23,9 @@ CAMERA_NS = 33_333_333
 #: The true joint angles of the scenario 1 start.
 Q0 = inverse_kinematics(paper.scenario_start_pose(1))
 SIM_TIME = [Parameter('use_sim_time', value=True)]
+#: The free-running position interface (docs/design.md §4): sim_node and joint controller.
+POSITION = [Parameter('command_interface', value='position'),
+            Parameter('lockstep', value=False)]
 
 
 def frame_ns(n):
@@ -121,6 +128,170 @@ class SimRig(Rig):
         """Return every case of every topic it subscribes."""
         specs = (bad.joint_states(contract.EFFORT_COMMANDS, self.next_ns, np.zeros(6),
                                   ('effort',), scale=1e6) + bad.clocks())
+        return build(self, specs)
+
+
+class SimPositionRig(Rig):
+    """
+    sim_node free-running with the position drive: acts by tracking a new valid reference.
+
+    ``command_type`` is the ``position_command_type``: 'forward_command'
+    (Float64MultiArray) or 'joint_trajectory' (JointTrajectory).
+    """
+
+    def __init__(self, context, command_type='forward_command'):
+        """Create the node (no images; the default real_time_factor)."""
+        from ibvs_sim.sim_node import SimNode
+        node = SimNode(context=context, parameter_overrides=POSITION + [
+            Parameter('position_command_type', value=command_type),
+            Parameter('publish_images', value=False), Parameter('renderer', value='tiny')])
+        self.joints = []
+        self.topic = node._sub.topic_name
+        self.n = 0
+        super().__init__(context, node, node.diagnostics)
+        self.driver.create_subscription(JointState, contract.JOINT_STATES,
+                                        lambda m: self.joints.append(m), contract.RELIABLE)
+
+    def setup(self):
+        """Wait for the free run to start."""
+        assert self.spin_until(lambda: self.joints, 'free-running /joint_states')
+
+    @property
+    def q_start(self):
+        """Return the encoder angles (contract order) of the start pose."""
+        return self.node.sim.q_start - self.node.sim.d_q
+
+    def command(self, q, names=NAMES):
+        """Return the command message of encoder angles ``q`` given in ``names`` order."""
+        if self.topic == contract.POSITION_COMMANDS:
+            return Float64MultiArray(data=[float(v) for v in q])
+        return joint_trajectory(0, MS, np.atleast_2d(q), names)
+
+    def valid_step(self):
+        """Send a new reference (0.01 rad either side of the start); tracked from the next step."""
+        self.n += 1
+        q = self.q_start + (0.01 if self.n % 2 else -0.01)
+        before, t = self.node.commands, self.node.sim.t_ns
+        self.deliver(self.topic, self.command(q))
+        return lambda: (self.node.commands > before and self.node.sim.t_ns > t
+                        and np.allclose(self.node.servo.reference, q + self.node.sim.d_q)
+                        and self.node.diagnostics.values['command'] == 'tracking')
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        q = self.q_start
+        beyond = np.r_[q[:3], 10.0, q[4:]]  # joint_4 past its travel (+-6.98 rad)
+        if self.topic == contract.POSITION_COMMANDS:
+            specs = bad.arrays(self.topic, q, beyond)
+        else:
+            specs = [c for c in bad.trajectories(self.topic, lambda: 0, np.tile(q, (5, 1)))
+                     if c[0] != 'wrong sample times']  # the drive takes the last point only
+            specs += bad.command_trajectories(self.topic, q, beyond)
+        return build(self, specs)  # no /clock: the sim is the clock
+
+
+class JointControllerPositionRig(Rig):
+    """joint_controller_node, position interface: acts by a reference per command period."""
+
+    def __init__(self, context):
+        """Create the node (sim time: its command timer fires as the driver moves /clock)."""
+        from ibvs_control.joint_controller_node import JointControllerNode
+        node = JointControllerNode(context=context, parameter_overrides=SIM_TIME + POSITION)
+        super().__init__(context, node, node.diagnostics)
+        self.t_ns = 0
+        self.commands = []
+        self.driver.create_subscription(Float64MultiArray, contract.POSITION_COMMANDS,
+                                        lambda m: self.commands.append(m), contract.RELIABLE)
+
+    def setup(self):
+        """Send the feedforward trajectory (the arm held at Q0) and the first joint state."""
+        self.deliver(contract.FEEDFORWARD_TRAJECTORY,
+                     joint_trajectory(0, MS, np.tile(Q0, (5, 1))))
+        self.deliver(contract.JOINT_STATES, joint_state(0, Q0))
+
+    def next_ns(self):
+        """Return the stamp of the next joint state."""
+        return self.t_ns + self.node.command_period_ns
+
+    def next_frame_ns(self):
+        """Return the stamp of the first camera frame after the next joint state."""
+        return frame_ns(-(-self.next_ns() // CAMERA_NS) + 1)
+
+    def valid_step(self):
+        """Send the next joint state, then move /clock one command period on."""
+        self.t_ns = self.next_ns()
+        before = len(self.commands)
+        self.deliver(contract.JOINT_STATES, joint_state(self.t_ns, Q0))
+        self.deliver(contract.CLOCK, Clock(clock=ns_stamp(self.t_ns)))
+        return lambda: len(self.commands) > before
+
+    def published_finite(self):
+        """Return whether every position reference it sent was finite."""
+        return bool(self.commands) and all(np.all(np.isfinite(m.data)) for m in self.commands)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
+                 + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
+                 + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
+                                    np.tile(Q0, (5, 1)))
+                 + bad.clocks())
+        return build(self, specs)
+
+
+class VizRig(Rig):
+    """viz_node: acts by publishing /tf at each joint state, stamped with its stamp."""
+
+    def __init__(self, context):
+        """Create the node (sim time, as ``ibvs run`` starts it)."""
+        from ibvs_viz.viz_node import VizNode
+        node = VizNode(context=context, parameter_overrides=SIM_TIME)
+        super().__init__(context, node, node._diag)
+        self.camera = default_camera('HD720')
+        self.model = CameraRobotModel(self.camera, IRB4600)
+        self.n = 0
+        self.tf = []
+        self.driver.create_subscription(TFMessage, contract.TF, lambda m: self.tf.append(m),
+                                        100)
+
+    def setup(self):
+        """Send the camera: both CameraInfo and /stereo/pose."""
+        left, right = camera_infos(self.camera.intrinsics, 0)
+        self.deliver(contract.STEREO_POSE, pose_stamped(self.camera.pose_C_O, 0))
+        self.deliver(contract.LEFT_INFO, left)
+        self.deliver(contract.RIGHT_INFO, right)
+        assert self.node._camera is not None
+
+    def next_ns(self):
+        """Return the stamp of the next frame."""
+        return frame_ns(self.n)
+
+    def valid_step(self):
+        """Send the next frame's joint state, features and feature status."""
+        t = self.next_ns()
+        self.n += 1
+        self.deliver(contract.FEATURES, features_msg(self.model.features(Q0), t))
+        self.deliver(contract.FEATURE_STATUS, bad.status(t, 'measured'))
+        self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
+        return lambda: any(stamp_ns(m.transforms[0].header.stamp) == t for m in self.tf)
+
+    def published_finite(self):
+        """Return whether every /tf it sent was finite."""
+        return bool(self.tf) and all(
+            np.all(np.isfinite([t.transform.translation.x, t.transform.translation.y,
+                                t.transform.translation.z, t.transform.rotation.w]))
+            for m in self.tf for t in m.transforms)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        left, right = camera_infos(self.camera.intrinsics, 0)
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
+                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0))
+                 + bad.statuses(contract.FEATURE_STATUS, self.next_ns)
+                 + bad.camera_infos(contract.LEFT_INFO, left)
+                 + bad.camera_infos(contract.RIGHT_INFO, right)
+                 + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
+                 + bad.clocks())
         return build(self, specs)
 
 

@@ -175,3 +175,61 @@ def test_finding13_feature_node_counts_minor_inputs_under_their_topic(context):
         assert rig.recovered()
     finally:
         rig.close()
+
+
+def test_finding14_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
+    rig = _run(rigs.SimPositionRig(context, 'joint_trajectory'))
+    try:
+        reference = rig.node.servo.reference.copy()
+        rows = np.tile(rig.q_start, (3, 1))
+        rows[0, 2] = np.nan  # the last point, the one the drive takes, is good
+        rig.deliver(rig.topic, joint_trajectory(0, MS, rows))
+        ragged = joint_trajectory(0, MS, np.tile(rig.q_start, (3, 1)))
+        ragged.points[1].positions = [0.0] * 5
+        rig.deliver(rig.topic, ragged)
+        for bad in (stamp(-5), stamp(0, 4_000_000_000), stamp(2 ** 31 - 1)):
+            msg = rig.command(rig.q_start + 0.02)
+            msg.header.stamp = bad
+            rig.deliver(rig.topic, msg)
+        reasons = rig.reasons(rig.topic)
+        assert reasons['not finite'] == 1 and reasons['wrong length'] == 1
+        assert reasons['negative time'] == 1 and reasons['malformed stamp'] == 1
+        assert reasons['stamp in the future'] == 1
+        np.testing.assert_array_equal(rig.node.servo.reference, reference)
+        assert rig.recovered()
+    finally:
+        rig.close()
+
+
+def test_finding15_a_far_future_joint_state_does_not_stop_the_viz_tf(context):
+    rig = _run(rigs.VizRig(context))
+    try:
+        far = joint_state(0, Q0, np.zeros(6))
+        far.header.stamp = stamp(2 ** 31 - 1)
+        rig.deliver(contract.JOINT_STATES, far)
+        rig.deliver(contract.JOINT_STATES, joint_state(rig.next_ns(), np.full(6, 1e6)))
+        reasons = rig.reasons(contract.JOINT_STATES)
+        assert reasons['stamp in the future'] == 1 and reasons['position out of range'] == 1
+        for _ in range(3):  # the next frames are still drawn, not refused as going back
+            assert rig.recovered()
+        assert rig.reasons(contract.JOINT_STATES)['stamp went back'] == 0
+        assert rig.published_finite()
+    finally:
+        rig.close()
+
+
+def test_finding15_viz_counts_camera_inputs_under_their_topic(context):
+    rig = _run(rigs.VizRig(context))
+    try:
+        left, _ = camera_infos(rig.camera.intrinsics, 0)
+        left.width = left.height = 100000
+        rig.deliver(contract.LEFT_INFO, left)
+        (_, _, looking_away), = [c for c in poses(contract.STEREO_POSE, rig.camera.pose_C_O)
+                                 if c[0] == 'camera looking away']
+        rig.deliver(contract.STEREO_POSE, looking_away()[0])
+        assert rig.reasons(contract.LEFT_INFO)['bad camera_info size'] == 1
+        assert rig.reasons(contract.STEREO_POSE)['camera looks away from the robot'] == 1
+        assert rig.node._camera is not None  # the good camera still drawn
+        assert rig.recovered()
+    finally:
+        rig.close()

@@ -19,6 +19,10 @@ RIGS = {
     'adaptive_feedback_node': rigs.AdaptiveFeedbackRig,
     'feedforward_node': rigs.FeedforwardRig,
     'joint_controller_node': rigs.JointControllerRig,
+    'sim_node[position]': rigs.SimPositionRig,
+    'sim_node[trajectory]': lambda context: rigs.SimPositionRig(context, 'joint_trajectory'),
+    'joint_controller_node[position]': rigs.JointControllerPositionRig,
+    'viz_node': rigs.VizRig,
 }
 
 
@@ -34,5 +38,6 @@ def test_fuzz_node(context, name):
             # Its one action comes last: the first valid state after every bad one.
             assert rig.spin_until(rig.valid_step()), 'feedforward never started'
         assert_clean(rig, outcomes)
+        assert rig.published_finite(), f'{name} published a non-finite value'
     finally:
         rig.close()

@@ -54,7 +54,10 @@ speed and acceleration limits), the last reference held (zero-order hold). A ref
 older than ``command_timeout_s`` (sim time) is stale: the drive stops the arm and holds it,
 logs it and says so on /diagnostics (``command: stale``) until a new one comes. A command
 with the wrong number of values, unknown, missing or repeated joint names, a non-finite
-value or a position outside the joint's range is rejected and counted. When the machine
+value or a position outside the joint's range is rejected and counted; a JointTrajectory
+also for a bad point anywhere in it (as joint_trajectory_controller refuses it) or a header
+stamp that :func:`ibvs_common.conversions.read_stamp` refuses (malformed, or more than
+``command_timeout_s`` ahead of sim time; 0 means now). When the machine
 cannot keep ``real_time_factor`` (a step's work, rendering above all, takes longer than its
 share of wall time) the node says so once a second (WARN log and /diagnostics
 ``real_time_factor_held``) and goes on at the pace it can hold: sim time is never skipped.
@@ -616,14 +619,22 @@ class SimNode(Node):
         if not msg.points:
             self.diagnostics.reject(source, 'no points', 'an empty trajectory')
             return
-        values = np.asarray(msg.points[-1].positions, dtype=float)
-        if values.shape != (6,):
-            self.diagnostics.reject(source, 'wrong length',
-                                    f'{values.size} positions in the last point, expected 6')
+        try:  # stamp 0: start now; one beyond the staleness bound could never be meant
+            read_stamp(msg.header.stamp, self.sim.t_ns, self._command_timeout_ns)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        if not np.all(np.isfinite(values)):
-            self.diagnostics.reject(source, 'not finite', f'{values.tolist()}')
-            return
+        # Every point checked, as joint_trajectory_controller refuses a trajectory with a
+        # bad point anywhere; the drive then takes the last one.
+        for k, point in enumerate(msg.points):
+            values = np.asarray(point.positions, dtype=float)
+            if values.shape != (6,):
+                self.diagnostics.reject(source, 'wrong length',
+                                        f'{values.size} positions in point {k}, expected 6')
+                return
+            if not np.all(np.isfinite(values)):
+                self.diagnostics.reject(source, 'not finite', f'point {k}: {values.tolist()}')
+                return
         self._take_reference(values[[names.index(n) for n in contract.JOINT_NAMES]], source)
 
 

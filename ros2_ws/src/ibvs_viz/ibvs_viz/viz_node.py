@@ -25,8 +25,13 @@ kinematics (:mod:`ibvs_viz.scene`; robot_state_publisher and tf2_ros are not on 
 
 It reads /joint_states; ``ibvs run`` remaps that to /stereo/joint_states (one per camera
 frame), so the node does not slow the 1 kHz lockstep. Bad inputs are rejected with a logged
-reason and counted on /diagnostics; while the camera is not known it says what it waits
-for once a second.
+reason and counted on /diagnostics under their topic: a CameraInfo or /stereo/pose that
+cannot describe the camera (the camera drawn stays the last good one), joint positions
+beyond +-POSITION_BOUND_RAD, and every stamp through the one stamp rule
+(:func:`ibvs_common.conversions.read_stamp`: malformed, or more than ``stale_timeout_s``
+and a camera period ahead of the newest time the node knows), so that one far-future
+joint state cannot make every later one look old. While the camera is not known it says
+what it waits for once a second.
 """
 
 from collections import OrderedDict
@@ -34,11 +39,15 @@ from collections import OrderedDict
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamped
 from ibvs_common import contract, shared_params
-from ibvs_common.conversions import (camera_from_msgs, InputError, matrix_poses,
-                                     pose_stamped, read_features, read_joints, stamp_ns)
+from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
+                                     matrix_poses, pose_stamped, position_bounds,
+                                     read_camera_pose, read_features, read_joints, read_stamp,
+                                     stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
+from ibvs_common.sim_time import node_time_ns
+from ibvs_common.timing import period_ns
 from ibvs_model import IRB4600
 from ibvs_model.robot import fiducial_points
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
@@ -59,6 +68,8 @@ PARAMS = (
     shared_params.TARGET_POSITION,
     shared_params.TARGET_ROTATION,
     shared_params.CAMERA_POSE,
+    shared_params.CAMERA_RATE_HZ,
+    shared_params.STALE_TIMEOUT_S,
     Param('marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time '
           '(/tf goes out with every joint state)', 'Hz', low=0.0, high=1000.0,
           low_open=True),
@@ -115,6 +126,7 @@ class VizNode(Node):
         self._marker_period_ns = int(round(1e9 / p['marker_rate_hz']))
         self._frustum_depth = p['frustum_depth_m']
         self._path_points = p['tool_path_points']
+        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         self._infos = {}
         self._pose_msg = None
         self._camera = None
@@ -158,14 +170,25 @@ class VizNode(Node):
     # --- camera and static frames ----------------------------------------------------------
 
     def _on_info(self, side, msg):
+        topic = contract.LEFT_INFO if side == 'left' else contract.RIGHT_INFO
+        try:
+            check_camera_info(msg)
+        except InputError as exc:
+            self._diag.reject(topic, exc.reason, exc.detail)
+            return
         self._infos[side] = msg
-        self._try_camera()
+        self._try_camera(topic)
 
     def _on_pose(self, msg):
+        try:
+            read_camera_pose(msg)
+        except InputError as exc:
+            self._diag.reject(contract.STEREO_POSE, exc.reason, exc.detail)
+            return
         self._pose_msg = msg
-        self._try_camera()
+        self._try_camera(contract.STEREO_POSE)
 
-    def _try_camera(self):
+    def _try_camera(self, source):
         """Build the camera from both CameraInfo and /stereo/pose; publish what it fixes."""
         if len(self._infos) < 2 or self._pose_msg is None:
             return
@@ -180,7 +203,8 @@ class VizNode(Node):
         try:
             camera = camera_from_msgs(self._infos['left'], self._infos['right'], pose)
         except ValueError as exc:
-            self._diag.reject('camera', 'bad camera_info or /stereo/pose', str(exc))
+            # e.g. the lenses disagree: counted under the input that came last
+            self._diag.reject(source, getattr(exc, 'reason', 'bad camera'), str(exc))
             return
         self._camera = camera
         baseline = camera.intrinsics.baseline
@@ -203,13 +227,18 @@ class VizNode(Node):
 
     # --- features ---------------------------------------------------------------------------
 
+    def now_ns(self):
+        """Return the newest time the node knows: its clock and its last joint state."""
+        return node_time_ns(self, self._last_joint_ns)
+
     def _on_features(self, msg):
         try:
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
             features = read_features(msg)
         except InputError as exc:
             self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
             return
-        self._features[stamp_ns(msg.header.stamp)] = features
+        self._features[t_ns] = features
         while len(self._features) > _PENDING_FEATURES:
             self._features.popitem(last=False)
 
@@ -217,7 +246,11 @@ class VizNode(Node):
         if not msg.status:
             self._diag.reject(contract.FEATURE_STATUS, 'no status')
             return
-        t_ns = stamp_ns(msg.header.stamp)
+        try:
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+        except InputError as exc:
+            self._diag.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
+            return
         mode = {kv.key: kv.value for kv in msg.status[0].values}.get('mode')
         features = self._features.pop(t_ns, None)
         if features is None or self._camera is None:
@@ -233,11 +266,11 @@ class VizNode(Node):
 
     def _on_joints(self, msg):
         try:
-            q = read_joints(msg)
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
             self._diag.reject(contract.JOINT_STATES, exc.reason, exc.detail)
             return
-        t_ns = stamp_ns(msg.header.stamp)
         if self._last_joint_ns is not None and t_ns < self._last_joint_ns:
             self._diag.reject(contract.JOINT_STATES, 'stamp went back',
                               f'{t_ns} ns after {self._last_joint_ns} ns')
