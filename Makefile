@@ -38,8 +38,10 @@ venv: $(VENV_STAMP)
 
 # The interface package (tf2_msgs, CMake) finds the ROS packages of the venv through
 # AMENT_PREFIX_PATH; its linter tests are not built (they would need ament_cppcheck).
+# PYTHONDONTWRITEBYTECODE (set on some machines) makes setuptools warn "byte-compiling is
+# disabled" on stderr for every package, which colcon reports as "had stderr output".
 $(BUILD_STAMP): $(VENV_STAMP) $(SOURCES)
-	source $(VENV)/bin/activate && cd $(WS) && \
+	source $(VENV)/bin/activate && cd $(WS) && unset PYTHONDONTWRITEBYTECODE && \
 	  AMENT_PREFIX_PATH=$$VIRTUAL_ENV$${AMENT_PREFIX_PATH:+:$$AMENT_PREFIX_PATH} \
 	  colcon --log-base log build --merge-install --event-handlers console_direct- summary+ \
 	  --cmake-args -DBUILD_TESTING=OFF

@@ -177,7 +177,7 @@ def test_finding13_feature_node_counts_minor_inputs_under_their_topic(context):
         rig.close()
 
 
-def test_finding14_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
+def test_fuzz_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
     rig = _run(rigs.SimPositionRig(context, 'joint_trajectory'))
     try:
         reference = rig.node.servo.reference.copy()
@@ -201,7 +201,7 @@ def test_finding14_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
         rig.close()
 
 
-def test_finding15_a_far_future_joint_state_does_not_stop_the_viz_tf(context):
+def test_fuzz_a_far_future_joint_state_does_not_stop_the_viz_tf(context):
     rig = _run(rigs.VizRig(context))
     try:
         far = joint_state(0, Q0, np.zeros(6))
@@ -218,7 +218,7 @@ def test_finding15_a_far_future_joint_state_does_not_stop_the_viz_tf(context):
         rig.close()
 
 
-def test_finding15_viz_counts_camera_inputs_under_their_topic(context):
+def test_fuzz_viz_counts_camera_inputs_under_their_topic(context):
     rig = _run(rigs.VizRig(context))
     try:
         left, _ = camera_infos(rig.camera.intrinsics, 0)

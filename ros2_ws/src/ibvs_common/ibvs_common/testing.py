@@ -24,6 +24,8 @@ import rclpy
 
 from . import dds
 
+#: Environment variable that says the process's ROS domain was chosen by :func:`isolate`.
+DOMAIN_SET_BY = 'IBVS_TEST_DOMAIN_SET_BY'
 #: Default deadline of :func:`spin_until` (seconds): only a guard against a hang.
 DEADLINE_S = 60.0
 
@@ -35,8 +37,22 @@ def isolate():
     Parallel test runs (two CI jobs, a developer's shell, other agents' graphs) must not
     hear each other. An explicit ``ROS_DOMAIN_ID`` in the environment wins. Also loads the
     graph's Fast DDS profiles (:mod:`ibvs_common.dds`), as every node does.
+
+    Under pytest-xdist (``make test`` runs two workers) the workers inherit the environment
+    of the controlling pytest process, which set its own domain here: each worker then takes
+    a domain of its own (:data:`DOMAIN_SET_BY` marks a domain chosen here, not by the
+    user), else the workers' nodes would hear each other and their graph runs would contend
+    for one domain's lock.
     """
-    os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    chosen_here = os.environ.get(DOMAIN_SET_BY) == 'isolate'
+    if 'ROS_DOMAIN_ID' not in os.environ or (worker and chosen_here):
+        index = int(worker[2:]) if worker.startswith('gw') and worker[2:].isdigit() else 0
+        # 1..100: inside the range ROS 2 documents as safe on Linux; two workers (gw0, gw1)
+        # of one run get neighbouring domains.
+        os.environ['ROS_DOMAIN_ID'] = str(1 + (2 * (os.getppid() % 50) + index) % 100
+                                          if worker else 1 + os.getpid() % 100)
+        os.environ[DOMAIN_SET_BY] = 'isolate'
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     dds.configure()
 
