@@ -76,14 +76,23 @@ class Flood:
 
 
 def start_sink(mode='normal'):
-    """Start the node process and wait until it has taken its first image."""
+    """
+    Start the node process and wait until it has taken its first image.
+
+    Lines before 'ready' are allowed: Fast DDS logs "Failed init_port ...:
+    open_and_lock_file failed" when another process on the machine holds the shared-memory
+    port it tried first, and goes on with the next one (eProsima/Fast-DDS#1095); with two
+    test workers that happens. The process ending before 'ready' fails the test.
+    """
     proc = subprocess.Popen([sys.executable, '-c', NODE_SCRIPT, mode], text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    line = proc.stdout.readline()
-    if line.strip() != 'ready':
-        proc.kill()
-        pytest.fail(f'node did not start: {line}{proc.stdout.read()}')
-    return proc
+    before = []
+    for line in proc.stdout:
+        if line.strip() == 'ready':
+            return proc
+        before.append(line)
+    proc.kill()
+    pytest.fail(f'node did not start: {"".join(before)}')
 
 
 def stop_and_collect(proc, timeout_s=10.0):

@@ -7,10 +7,15 @@ leaves them, about 68 MB per lockstep process, and nothing reclaims them. The ru
 DDS's own (``fastdds shm clean``, tools/fastdds/shm/clean.py of eProsima/Fast-DDS): each
 segment ``fastrtps_<16 characters>`` and each port ``fastrtps_port<N>`` has a lock file
 (``_el`` or ``_sl`` appended) that its owner holds with ``flock`` while it is alive; a lock
-file that can be locked belongs to a dead owner, and its segment (a port: also its mutex
-``sem.fastrtps_port<N>_mutex``) can go. Unlike that tool this module leaves alone files
-younger than :data:`MIN_AGE_S`, so that it cannot race a participant that has created its
-lock file but not yet locked it, and it reports what it freed.
+file that can be locked belongs to a dead owner, and its segment can go. Unlike that tool
+this module leaves alone files younger than :data:`MIN_AGE_S`, so that it cannot race a
+participant that has created its lock file but not yet locked it, and it removes
+participants' segments only, not ports: a segment has a name of its own, drawn at random by
+its one owner, and holds the memory (about 68 MB per killed lockstep process); a port
+(52 kB) is shared by the participants of its domain, and a participant that was opening a
+port while another graph's clean-up tested or removed its lock failed to start ("Failed
+init_port ...: open_and_lock_file failed", seen with two test workers at once). It reports
+what it freed.
 """
 
 import fcntl
@@ -21,8 +26,8 @@ import time
 
 #: Where Fast DDS keeps its shared memory on Linux.
 SHM_DIR = Path('/dev/shm')
-#: A segment's or a port's lock file (Fast DDS 2.x names).
-LOCK_FILE = re.compile(r'^fastrtps_(?:[0-9a-z]{16}|port\d{1,5})_(?:el|sl)$')
+#: A participant segment's lock file (Fast DDS 2.x names); ports are left (module docstring).
+LOCK_FILE = re.compile(r'^fastrtps_[0-9a-z]{16}_(?:el|sl)$')
 #: Files younger than this (s) are left alone: their owner may be starting.
 MIN_AGE_S = 10.0
 
@@ -49,7 +54,7 @@ def names(shm_dir=SHM_DIR):
 
 def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
     """
-    Return the files of the segments and ports whose owner is dead (module docstring).
+    Return the files of the segments whose owner is dead (module docstring).
 
     With ``new_since`` (a :func:`names` snapshot) only lock files created since count: what
     processes started and died since then left. Files younger than ``min_age_s`` are left
@@ -71,10 +76,7 @@ def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
             continue
         if _locked(lock):
             continue
-        segment = lock.with_name(name[:-3])
-        found += [lock, segment]
-        if '_port' in name:
-            found.append(lock.with_name(f'sem.{name[:-3]}_mutex'))
+        found += [lock, lock.with_name(name[:-3])]
     return found
 
 

@@ -14,16 +14,17 @@ def _files(tmp_path, *names, age_s=60.0):
         os.utime(tmp_path / name, (old, old))
 
 
-def test_finding11_dead_segments_and_ports_go_live_ones_stay(tmp_path):
+def test_finding11_dead_segments_go_live_ones_and_ports_stay(tmp_path):
     dead, live = 'fastrtps_0123456789abcdef', 'fastrtps_fedcba9876543210'
-    _files(tmp_path, dead, f'{dead}_el', live, f'{live}_el', 'fastrtps_port7411',
-           'fastrtps_port7411_el', 'sem.fastrtps_port7411_mutex', 'unrelated')
+    port = ['fastrtps_port7411', 'fastrtps_port7411_el', 'sem.fastrtps_port7411_mutex']
+    _files(tmp_path, dead, f'{dead}_el', live, f'{live}_el', *port, 'unrelated')
     with open(tmp_path / f'{live}_el', 'rb') as holder:  # its owner is alive
         fcntl.flock(holder, fcntl.LOCK_EX)
         count, freed = shm.clean(tmp_path)
-        assert count == 5 and freed == 5000
+        assert count == 2 and freed == 2000
         left = sorted(os.listdir(tmp_path))
-    assert left == sorted([live, f'{live}_el', 'unrelated'])
+    # A port is shared by its domain's participants: another graph may be opening it.
+    assert left == sorted([live, f'{live}_el', *port, 'unrelated'])
 
 
 def test_finding11_young_files_are_left_and_new_since_keeps_what_was_there(tmp_path):
