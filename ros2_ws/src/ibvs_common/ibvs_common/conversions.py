@@ -162,16 +162,27 @@ def travel_bounds(params=IRB4600):
             np.asarray(params.q_max, dtype=float) + POSITION_MARGIN_RAD)
 
 
+def _symmetric_bounds(limit):
+    """Return read-only (low, high) arrays of +-``limit`` for the six joints."""
+    high = np.full(len(contract.JOINT_NAMES), float(limit))
+    low = -high
+    low.flags.writeable = high.flags.writeable = False
+    return low, high
+
+
+# Built once: the joint controller reads both bounds on every /joint_states (1 kHz).
+_POSITION_BOUNDS = _symmetric_bounds(POSITION_BOUND_RAD)
+_VELOCITY_BOUNDS = _symmetric_bounds(SPEED_BOUND_RAD_S)
+
+
 def position_bounds():
     """Return (low, high) of a joint position that is read: +-POSITION_BOUND_RAD."""
-    q = np.full(len(contract.JOINT_NAMES), POSITION_BOUND_RAD)
-    return -q, q
+    return _POSITION_BOUNDS
 
 
 def velocity_bounds():
     """Return (low, high) of a joint velocity that can be meant: +-SPEED_BOUND_RAD_S."""
-    qd = np.full(len(contract.JOINT_NAMES), SPEED_BOUND_RAD_S)
-    return -qd, qd
+    return _VELOCITY_BOUNDS
 
 
 def check_finite(msg, fields):
