@@ -148,10 +148,12 @@ class VizNode(Node):
         self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
         self._tf_pub = self.create_publisher(TFMessage, contract.TF, 100)
         self._markers_pub = self.create_publisher(MarkerArray, contract.MARKERS, 10)
+        # The resolved names (the ZED wrapper's under a remap): rejections and waits name them.
+        self._info_topics = {}
         for side, topic in (('left', contract.LEFT_INFO), ('right', contract.RIGHT_INFO)):
-            self.create_subscription(CameraInfo, topic,
-                                     lambda msg, side=side: self._on_info(side, msg),
-                                     contract.RELIABLE)
+            self._info_topics[side] = self.create_subscription(
+                CameraInfo, topic, lambda msg, side=side: self._on_info(side, msg),
+                contract.RELIABLE).topic_name
         calibrated = shared_params.camera_pose_from(p)
         if calibrated is None:
             self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
@@ -170,7 +172,7 @@ class VizNode(Node):
     # --- camera and static frames ----------------------------------------------------------
 
     def _on_info(self, side, msg):
-        topic = contract.LEFT_INFO if side == 'left' else contract.RIGHT_INFO
+        topic = self._info_topics[side]
         try:
             check_camera_info(msg)
         except InputError as exc:
@@ -219,8 +221,8 @@ class VizNode(Node):
 
     def _say_waiting(self):
         if self._camera is None:
-            missing = [t for t, ok in ((contract.LEFT_INFO, 'left' in self._infos),
-                                       (contract.RIGHT_INFO, 'right' in self._infos),
+            missing = [t for t, ok in ((self._info_topics['left'], 'left' in self._infos),
+                                       (self._info_topics['right'], 'right' in self._infos),
                                        (contract.STEREO_POSE, self._pose_msg is not None))
                        if not ok]
             self.get_logger().info(f'waiting for {", ".join(missing)} to describe the camera')
