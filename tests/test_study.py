@@ -49,6 +49,9 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
     failed = records[3]
     assert 'omega_n' in failed['reason'] and 'exited with code 2' in failed['reason']
     assert (Path(failed['run_dir']) / 'runner.log').is_file()
+    # A study's runs write metrics and bag, not their own figures (run_figures: false).
+    assert (Path(records[0]['run_dir']) / 'metrics.json').is_file()
+    assert not list(Path(records[0]['run_dir']).glob('*.png'))
     assert any((Path(failed['run_dir']) / 'logs').glob('*.log'))
     assert len({r['domain_id'] for r in records}) >= 1
     assert all(DOMAINS[0] <= r['domain_id'] <= DOMAINS[1] for r in records)

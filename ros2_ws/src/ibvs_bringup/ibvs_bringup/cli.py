@@ -84,7 +84,8 @@ def cmd_run(args):
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
                                      record_images=args.images, stall_s=args.stall_s,
-                                     record_overlays=args.overlays or args.video)
+                                     record_overlays=args.overlays or args.video,
+                                     figures=args.figures)
     except domains.DomainBusy as exc:
         print(f'run not started: {exc}', file=sys.stderr)
         return 2
@@ -94,7 +95,8 @@ def cmd_run(args):
     except runner.RunStalled as exc:
         print(f'run stalled: {exc}', file=sys.stderr)
         return 4
-    print(f'wrote {out}/metrics.json, figures and the bag {result.bag_path}')
+    print(f'wrote {out}/metrics.json, {"figures " if args.figures else ""}and the bag '
+          f'{result.bag_path}')
     _print_summary(result.metrics)
     if args.video:
         return cmd_video(argparse.Namespace(run_dir=out, out=None))
@@ -190,6 +192,9 @@ def main(argv=None):
         p = sub.add_parser(name, help=func.__doc__)
         if name == 'run':
             p.add_argument('scenario', help='scenario1..3 or a parameter file')
+            p.add_argument('--no-figures', dest='figures', action='store_false',
+                           help='write the bag and metrics.json only (ibvs analyse draws '
+                           'the figures from the bag later)')
         p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
         p.add_argument('--duration', type=positive_seconds, help='sim time limit, s (> 0)')
         p.add_argument('--images', action='store_true', help='also record raw images')

@@ -246,14 +246,21 @@ class NodeProcess:
     def __init__(self, package, executable, params_file, log_dir, extra_args=(), spec=None):
         """Start ``package executable [spec.args] --ros-args --params-file params_file``."""
         spec = spec or ProcessSpec(package, executable)
-        self.name = spec.name
-        self.nodes = spec.nodes
-        self.log_path = Path(log_dir) / f'{spec.name}.log'
-        self._log = open(self.log_path, 'wb')
         cmd = executable_command(package, executable) + [
             *spec.args, '--ros-args', '--params-file', str(params_file), *extra_args]
-        self.command = cmd
-        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT,
+        self._launch(cmd, spec.name, spec.nodes, Path(log_dir) / f'{spec.name}.log')
+
+    @classmethod
+    def of_command(cls, command, name, log_path, nodes=()):
+        """Start any ``command`` supervised as a node's process is (tools, tests)."""
+        process = cls.__new__(cls)
+        process._launch(list(command), name, tuple(nodes), Path(log_path))
+        return process
+
+    def _launch(self, command, name, nodes, log_path):
+        self.name, self.nodes, self.log_path, self.command = name, nodes, log_path, command
+        self._log = open(self.log_path, 'wb')
+        self.proc = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
 
     def poll(self):
@@ -262,29 +269,46 @@ class NodeProcess:
 
     def stop(self, timeout_s=10.0):
         """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
-        try:  # a stopped (SIGSTOP) process handles no signal until it is continued
-            os.killpg(self.proc.pid, signal.SIGCONT)
-        except (ProcessLookupError, PermissionError):
-            pass
-        for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
-                          (signal.SIGKILL, 3.0)):
-            if self.proc.poll() is not None:
-                break
-            try:
-                os.killpg(self.proc.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                self.proc.wait(wait)
-            except subprocess.TimeoutExpired:
-                continue
-        # Whatever the node left in its group (ros2 run's child) goes too.
+        return stop_all([self], timeout_s)[self.name]
+
+    def _signal(self, sig):
+        """Send ``sig`` to the process group, if it is still there."""
         try:
-            os.killpg(self.proc.pid, signal.SIGKILL)
+            os.killpg(self.proc.pid, sig)
         except (ProcessLookupError, PermissionError):
             pass
-        self._log.close()
-        return self.proc.returncode
+
+
+def stop_all(procs, timeout_s=10.0):
+    """
+    Stop ``procs`` (:class:`NodeProcess`) together; return their exit codes by name.
+
+    Each escalation step (SIGINT, then SIGTERM after ``timeout_s``, then SIGKILL after 3 s)
+    goes to every process still running at once, and the waits overlap: five nodes take
+    as long to stop as the slowest of them, not the sum (about a second a node at the end
+    of every run, issue 26). A stopped (SIGSTOP) process handles no signal until it is
+    continued, so each first gets SIGCONT. Whatever a node left in its process group
+    (``ros2 run``'s child) is killed last.
+    """
+    for p in procs:
+        p._signal(signal.SIGCONT)
+    for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
+                      (signal.SIGKILL, 3.0)):
+        running = [p for p in procs if p.proc.poll() is None]
+        if not running:
+            break
+        for p in running:
+            p._signal(sig)
+        deadline = time.monotonic() + wait
+        for p in running:
+            try:
+                p.proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+    for p in procs:
+        p._signal(signal.SIGKILL)
+        p._log.close()
+    return {p.name: p.proc.returncode for p in procs}
 
 
 @dataclass
@@ -405,9 +429,13 @@ class Monitor:
 
 def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
                  wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
-                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False):
+                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False,
+                 figures=True):
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
+
+    ``figures=False`` writes the bag and metrics only (``ibvs analyse`` draws the figures
+    later); a study's runs save the few seconds of matplotlib each (issue 26).
 
     ``record_overlays`` records the feature node's overlay images (/ibvs/debug/*/image,
     which it then draws for every frame; ``ibvs video`` makes a film of them).
@@ -543,7 +571,11 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
             # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
             wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
         finally:
-            codes = {p.name: p.stop() for p in reversed(procs)}
+            # The simulator first, so that nothing is stepped or recorded past the run's
+            # end while the other nodes stop; then the others together.
+            codes = stop_all([p for p in procs if 'sim_node' in p.nodes])
+            codes.update(stop_all([p for p in procs if 'sim_node' not in p.nodes]))
+            codes = {p.name: codes[p.name] for p in reversed(procs)}
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': duration_s, 'wall_duration_s': wall_duration,
                 'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
@@ -557,7 +589,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         raise died
     if stalled:
         raise stalled
-    metrics = write_results(bag_path, out_dir, wall_duration)
+    metrics = write_results(bag_path, out_dir, wall_duration, figures)
     return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
 
 
@@ -630,7 +662,7 @@ def target_features(run):
     return CameraRobotModel(run.camera, IRB4600).features(q)
 
 
-def write_results(bag_path, out_dir, wall_duration_s=None):
+def write_results(bag_path, out_dir, wall_duration_s=None, figures=True):
     """Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics."""
     out_dir = Path(out_dir)
     run, metrics = analysis.analyse_bag(bag_path)
@@ -639,6 +671,8 @@ def write_results(bag_path, out_dir, wall_duration_s=None):
         metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
     metrics['bag'] = str(bag_path)
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    if not figures:
+        return metrics
     from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
     plots.write_all(run, out_dir, target_features(run))
     params = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),

@@ -99,12 +99,14 @@ def parse_domains(text):
         raise study_spec.StudyError(str(exc)) from None
 
 
-def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s):
+def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s,
+                figures=False):
     """
     Run ``ibvs run`` once in a subprocess on its own ROS domain; return what came of it.
 
     The domain is the first of ``domains`` (low, high) that no other run on this machine
-    holds (:func:`ibvs_bringup.domains.lock_domain`).
+    holds (:func:`ibvs_bringup.domains.lock_domain`). ``figures``: whether the run draws
+    its figures (the spec's ``run_figures``; else ``ibvs run --no-figures``).
 
     The body of the Ray task. Cancelled (KeyboardInterrupt from ``ray.cancel``), it sends
     SIGINT to the run, which stops its nodes cleanly, and waits for it.
@@ -115,7 +117,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s)
     (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
     domain, lock = lock_domain(*domains)
     cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', scenario_name, '-o', str(run_dir),
-           '--stall-s', repr(float(stall_s))]
+           '--stall-s', repr(float(stall_s))] + ([] if figures else ['--no-figures'])
     if duration_s is not None:
         cmd += ['--duration', repr(float(duration_s))]
     for name, value in overrides.items():
@@ -306,7 +308,7 @@ def _execute(todo, address, parallel, domains, stall_s, progress):
         refs = {}
         for spec, record in todo:
             ref = task.remote(domains, record['run_dir'], spec.scenario, record['overrides'],
-                              spec.duration_s, stall_s)
+                              spec.duration_s, stall_s, spec.run_figures)
             refs[ref] = record
         pending = list(refs)
         try:

@@ -10,6 +10,9 @@ A spec (``ibvs study SPEC.yaml``)::
     description: ...              # optional, free text
     scenario: scenario1           # a scenario name or parameter file (``ibvs run`` takes)
     duration_s: 3.0               # optional sim time per run; default: the scenario's
+    run_figures: false            # optional: each run's figures too (default: table, study
+                                  # figures and each run's metrics and bag only; ``ibvs
+                                  # analyse RUN/bag`` draws a run's figures later)
     parameters: {actuators: ideal}  # optional overrides common to every run
     grid:                         # optional: a product over value lists...
       l2_scale: [0.5, 1.0]
@@ -36,7 +39,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-KEYS = ('name', 'description', 'scenario', 'duration_s', 'parameters', 'grid', 'draws')
+KEYS = ('name', 'description', 'scenario', 'duration_s', 'parameters', 'grid', 'draws',
+        'run_figures')
 DRAW_KEYS = ('n', 'seed', 'parameters')
 #: Distribution name -> (what its two numbers are, check of the two numbers).
 DISTRIBUTIONS = {
@@ -70,6 +74,8 @@ class Spec:
     grid: tuple = ()
     draws: dict = None
     description: str = ''
+    #: Whether each run draws its figures (a few seconds each); not part of a run's key.
+    run_figures: bool = False
 
     def swept_names(self):
         """Return the names of the grid and draw parameters, grid first, in spec order."""
@@ -192,6 +198,9 @@ def parse(data, default_name='study'):
     if duration is not None and _number(duration, 'duration_s') <= 0:
         raise StudyError(f'duration_s: expected a number > 0, got {duration!r}')
     params = dict(_mapping(data.get('parameters') or {}, 'parameters'))
+    run_figures = data.get('run_figures', False)
+    if not isinstance(run_figures, bool):
+        raise StudyError(f'run_figures: expected true or false, got {run_figures!r}')
     grid = _grid(data['grid']) if 'grid' in data else ()
     draws = _draws(data['draws']) if 'draws' in data else None
     in_grid = [k for product in grid for k in product]
@@ -205,7 +214,7 @@ def parse(data, default_name='study'):
     return Spec(name=name, scenario=data['scenario'],
                 duration_s=None if duration is None else float(duration),
                 parameters=params, grid=grid, draws=draws,
-                description=str(data.get('description', '')))
+                description=str(data.get('description', '')), run_figures=run_figures)
 
 
 def load(path):

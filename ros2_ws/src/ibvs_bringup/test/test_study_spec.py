@@ -60,6 +60,7 @@ def test_draws_are_seeded_in_range_and_combined_with_every_grid_point():
     ({**BASE, 'grid': {'a': [1]},
       'draws': {'n': 2, 'seed': 1, 'parameters': {'a': {'normal': [0, 1]}}}}, ["'a'"]),
     ({**BASE, 'parameters': {'a': 1}, 'grid': {'a': [1, 2]}}, ["'a'", 'not both']),
+    ({**BASE, 'run_figures': 'yes'}, ['run_figures', 'true or false']),
 ])
 def test_a_bad_spec_is_refused_naming_the_key(data, names):
     with pytest.raises(StudyError) as info:
@@ -136,3 +137,13 @@ def test_a_held_domain_is_released_and_the_environment_restored_even_on_error():
     assert environ == {}
     with held(environ, pool=(196, 196)) as (domain, _):  # free again
         assert domain == 196
+
+
+def test_run_figures_are_off_unless_asked():
+    from pathlib import Path
+    assert parse(dict(BASE)).run_figures is False
+    assert parse({**BASE, 'run_figures': True}).run_figures is True
+    # The report shows the scenario runs' own figures; its other studies need none.
+    studies = Path(__file__).resolve().parents[1] / 'studies'
+    assert all(study_spec.load(studies / f'scenario{n}.yaml').run_figures for n in (1, 2, 3))
+    assert not study_spec.load(studies / 'fig13_link_lengths.yaml').run_figures
