@@ -174,7 +174,7 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         "Every number below was measured from the run's rosbag2 recording "
         '(`ros2 run ibvs_bringup ibvs analyse <bag>` reproduces it). Ideal actuators, '
         "the paper's tau_in = 0.01 s, omega_n = 10 rad/s, zeta = 1/sqrt(2). Defaults beyond "
-        'the paper (README, Parameters): the feedback evaluates C1 at the encoder angles '
+        'the paper (docs/errata.md): the feedback evaluates C1 at the encoder angles '
         '(`linearise_at`, the paper: at F^-1(p_hat)), its trust region clips each decoupled '
         'channel on its own, and the robot stands on a 0.5 m riser (`mount_height_m`), so '
         'that a tool below its base plane is not hidden by the floor.',
@@ -183,7 +183,8 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         '',
         'How each verdict is decided is in `ibvs_bringup.report.claims` (the paper gives '
         'words, not numbers, for some: "small" is read as at most '
-        f'{SMALL_OVERSHOOT_M * 1e3:g} mm). Machine timings are in the README, not here.',
+        f"{SMALL_OVERSHOOT_M * 1e3:g} mm). Machine timings are `make bench`'s "
+        '(docs/speed.md), not here.',
         '',
         '| claim (paper) | paper | measured here | verdict |',
         '|---|---|---|---|',

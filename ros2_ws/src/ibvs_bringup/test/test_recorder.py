@@ -66,7 +66,7 @@ def bag(tmp_path_factory):
 
 
 def test_the_bag_file_is_where_the_readme_says(bag):
-    # README, "Recordings": a run's bag/ holds bag/bag.mcap
+    # docs/visualisation.md, "Recordings": a run's bag/ holds bag/bag.mcap
     assert sorted(p.name for p in bag.iterdir()) == ['bag.mcap', 'metadata.yaml']
 
 

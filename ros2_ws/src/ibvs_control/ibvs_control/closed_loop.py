@@ -79,7 +79,7 @@ def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
-    The arguments named as node parameters (README) mean what those parameters mean.
+    The arguments named as node parameters (docs/parameters.md) mean what those parameters mean.
 
     ``model``: the controllers' F (default :func:`ibvs_model.default_model`);
     ``plant_params``: the true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)``

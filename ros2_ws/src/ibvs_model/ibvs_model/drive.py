@@ -16,8 +16,8 @@ PositionShaper`) and the simulator's drive model tracks the reference with them
 - ``EGM_BANDWIDTH_HZ`` = 20: the bandwidth of the position loop seen through EGM. EGM's
   RAPID instructions (EGMActJoint) take a low-pass filter bandwidth (``\LpFilter``, Hz)
   applied to the references; 20 Hz is the value of ABB's examples and the order of a large
-  arm's position-loop bandwidth. An assumption to measure on the cell (README "On a real
-  cell"): a step of 1 deg on one joint through EGM, time constant = 1 / (2 pi f).
+  arm's position-loop bandwidth. An assumption to measure on the cell (docs/real_cell.md):
+  a step of 1 deg on one joint through EGM, time constant = 1 / (2 pi f).
 - ``ACCELERATION_LIMITS`` (rad/s^2): ABB publishes the IRB 4600's axis speeds
   (``IRB4600.qd_max``) but not its accelerations. These are half of what the model's motor
   torques give against gravity at the paper's start poses for joints 1-3 (174, 28 and

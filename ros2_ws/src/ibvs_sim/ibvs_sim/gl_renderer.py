@@ -2,7 +2,7 @@
 A renderer of our own: the world's visual shapes drawn with OpenGL (moderngl), no PyBullet.
 
 Why. PyBullet's EGL plugin spends 5-9 ms of every ``getCameraImage`` call on llvmpipe in a
-shadow-map pass that no argument reaches, however small the image (README "Speed"). The same
+shadow-map pass that no argument reaches, however small the image (docs/speed.md). The same
 triangles drawn directly cost a fraction of that, so ``sim_node`` offers this renderer as
 ``renderer: opengl``; PyBullet's renderers stay the default.
 

@@ -53,8 +53,8 @@ class Simulator:
 
     Raises :class:`ConfigError` at construction for a configuration it cannot run: rates,
     scenario, unreachable start pose, camera pose, renderer. The arguments are the sim_node
-    parameters of the same names (README); ``render_parallel_lenses`` renders the right lens
-    in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
+    parameters of the same names (docs/parameters.md); ``render_parallel_lenses`` renders the
+    right lens in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
     """
 
     def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,

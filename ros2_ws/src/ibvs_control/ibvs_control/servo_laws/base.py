@@ -163,8 +163,8 @@ def guard_reference(q_ref, q_encoder, params, windup_horizon_s=WINDUP_HORIZON_S,
        (``joint_limit_margin_rad``): a clamp, the simpler of the two textbook options. The
        other, ViSP's avoidance term (vpServo::secondaryTaskJointLimitAvoidance, Marey &
        Chaumette, IROS 2010), adds a secondary task through a projection operator of the
-       main task; it is not implemented here. A clamped joint can stall the law (README,
-       "Servo laws").
+       main task; it is not implemented here. A clamped joint can stall the law
+       (docs/servo_laws.md).
     """
     q_ref = np.asarray(q_ref, dtype=float)
     lead = np.asarray(params.qd_max, dtype=float) * windup_horizon_s
