@@ -25,8 +25,23 @@ __all__ = [
 ]
 
 
-def default_model(resolution='HD720', params=IRB4600):
-    """Return F for the paper's robot and the ZED 2 at the default pose (docs/design.md §5)."""
+def default_model(resolution: str = 'HD720', params: RobotParams = IRB4600) -> CameraRobotModel:
+    """
+    Return F for the paper's robot and the ZED 2 at the default pose (docs/design.md §5).
+
+    Parameters
+    ----------
+    resolution : str
+        The ZED 2 mode: 'HD720', 'VGA' or 'HD1080'.
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    CameraRobotModel
+        F (eq. 30) of that robot seen by the camera at ``paper.CAMERA_EYE``.
+
+    """
     from . import paper
     camera = StereoCamera(StereoIntrinsics.zed2(resolution),
                           look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))

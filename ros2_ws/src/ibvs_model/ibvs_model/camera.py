@@ -17,10 +17,12 @@ Pixel coordinates follow OpenCV: the centre of pixel (i, j) is at u = i, v = j, 
 image W pixels wide spans u in [-0.5, W - 0.5] and its centre is c_u = (W - 1) / 2.
 """
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array, as_transform
 from .errors import BehindCameraError, InvalidInputError, TriangulationError
@@ -59,13 +61,30 @@ class StereoIntrinsics:
                 raise InvalidInputError(f'{name} must be finite')
 
     @classmethod
-    def from_fov(cls, width, height, hfov_deg=ZED2_HFOV_DEG, vfov_deg=ZED2_VFOV_DEG,
-                 baseline=ZED2_BASELINE_M, cu=None, cv=None):
+    def from_fov(cls, width: int, height: int, hfov_deg: float = ZED2_HFOV_DEG,
+                 vfov_deg: float = ZED2_VFOV_DEG, baseline: float = ZED2_BASELINE_M,
+                 cu: float | None = None, cv: float | None = None) -> 'StereoIntrinsics':
         """
         Pinhole intrinsics from the image size and the field of view (paper Appendix).
 
         f_u = (W / 2) / tan(alpha / 2), f_v = (H / 2) / tan(beta / 2); principal point at the
         image centre unless given. ZED 2 at HD720: f_u ~ 686 px.
+
+        Parameters
+        ----------
+        width, height : int
+            Image size (px).
+        hfov_deg, vfov_deg : float
+            Horizontal and vertical field of view alpha, beta (deg), in (0, 180).
+        baseline : float
+            Distance b between the lenses (m).
+        cu, cv : float, optional
+            Principal point (px); default the image centre ((W - 1) / 2, (H - 1) / 2).
+
+        Returns
+        -------
+        StereoIntrinsics
+
         """
         for name, value in (('hfov_deg', hfov_deg), ('vfov_deg', vfov_deg)):
             if not (math.isfinite(value) and 0.0 < value < 180.0):
@@ -77,25 +96,48 @@ class StereoIntrinsics:
                    (height - 1) / 2.0 if cv is None else float(cv), float(baseline))
 
     @classmethod
-    def zed2(cls, resolution='HD720'):
-        """ZED 2 intrinsics at one of its modes: 'HD720' (default), 'VGA' or 'HD1080'."""
+    def zed2(cls, resolution: str = 'HD720') -> 'StereoIntrinsics':
+        """
+        ZED 2 intrinsics at one of its modes.
+
+        Parameters
+        ----------
+        resolution : str
+            'HD720' (default), 'VGA' or 'HD1080'.
+
+        Returns
+        -------
+        StereoIntrinsics
+
+        """
         if resolution not in ZED2_RESOLUTIONS:
             raise InvalidInputError(
                 f'resolution must be one of {sorted(ZED2_RESOLUTIONS)}, got {resolution!r}')
         return cls.from_fov(*ZED2_RESOLUTIONS[resolution])
 
     @property
-    def K(self):  # noqa: N802 (the usual name of the camera matrix)
+    def K(self) -> NDArray[np.float64]:  # noqa: N802 (the usual name of the camera matrix)
         """Return the 3x3 camera matrix of either image (eq. 16 with s_c = 0)."""
         return np.array([[self.fu, 0.0, self.cu], [0.0, self.fv, self.cv], [0.0, 0.0, 1.0]])
 
 
-def merge_windows(windows):
+def merge_windows(windows: Iterable[Sequence[int]]) -> list[tuple[int, int, int, int]]:
     """
     Return pixel windows (u0, v0, u1, v1), u1 and v1 excluded, with overlapping ones merged.
 
     Two windows that share a pixel are replaced by their bounding box, until none overlap;
     the result is sorted. Windows that only touch stay apart.
+
+    Parameters
+    ----------
+    windows : iterable of (u0, v0, u1, v1)
+        The windows.
+
+    Returns
+    -------
+    list of tuple
+        The merged windows, sorted.
+
     """
     boxes = [list(w) for w in windows]
     merged = True
@@ -115,12 +157,26 @@ def merge_windows(windows):
     return [tuple(b) for b in sorted(boxes)]
 
 
-def look_at(eye, target, up=(0.0, 0.0, 1.0)):
+def look_at(eye: ArrayLike, target: ArrayLike,
+            up: ArrayLike = (0.0, 0.0, 1.0)) -> NDArray[np.float64]:
     """
     Return T_C^O (eq. 12) of a camera at ``eye`` whose optical axis points at ``target``.
 
     Columns of the rotation: x right (n), y down (s), z forward (a), with ``up`` pointing
     up in the image.
+
+    Parameters
+    ----------
+    eye, target : array_like, shape (3,)
+        The optical centre and the point looked at, in {O} (m).
+    up : array_like, shape (3,)
+        The direction in {O} that points up in the image.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        T_C^O.
+
     """
     eye = as_array(eye, (3,), 'eye')
     target = as_array(target, (3,), 'target')
@@ -142,8 +198,18 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)):
 class StereoCamera:
     """A calibrated stereo pair at a fixed pose T_C^O in the robot base frame {O}."""
 
-    def __init__(self, intrinsics, pose_C_O):
-        """Store the intrinsics and the pose T_C^O (eq. 12); T_O^C = (T_C^O)^-1 (eq. 13)."""
+    def __init__(self, intrinsics: StereoIntrinsics, pose_C_O: ArrayLike) -> None:
+        """
+        Store the intrinsics and the pose T_C^O (eq. 12); T_O^C = (T_C^O)^-1 (eq. 13).
+
+        Parameters
+        ----------
+        intrinsics : StereoIntrinsics
+            Intrinsics of both images and the baseline.
+        pose_C_O : array_like, shape (4, 4)
+            T_C^O, the pose of {C} in {O}.
+
+        """
         if not isinstance(intrinsics, StereoIntrinsics):
             raise InvalidInputError('intrinsics must be a StereoIntrinsics')
         self.intrinsics = intrinsics
@@ -151,21 +217,61 @@ class StereoCamera:
         self._rot_O_C = self.pose_C_O[:3, :3].T
         self._pos = self.pose_C_O[:3, 3]
 
-    def to_camera(self, points_O):
-        """Return points (N, 3) of {O} expressed in {C}, eq. (14)-(15)."""
+    def to_camera(self, points_O: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return points of {O} expressed in {C}, eq. (14)-(15).
+
+        Parameters
+        ----------
+        points_O : array_like, shape (N, 3)
+            Points in {O} (m).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            The same points in {C} (m).
+
+        """
         points_O = as_array(points_O, (None, 3), 'points_O')
         return (points_O - self._pos) @ self._rot_O_C.T
 
-    def to_base(self, points_C):
-        """Return points (N, 3) of {C} expressed in {O}."""
+    def to_base(self, points_C: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return points of {C} expressed in {O}.
+
+        Parameters
+        ----------
+        points_C : array_like, shape (N, 3)
+            Points in {C} (m).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            The same points in {O} (m).
+
+        """
         points_C = as_array(points_C, (None, 3), 'points_C')
         return points_C @ self._rot_O_C + self._pos
 
-    def project_camera(self, points_C):
+    def project_camera(self, points_C: ArrayLike) -> NDArray[np.float64]:
         """
-        Return (u_l, u_r, v) rows (N, 3) of points given in {C}, eq. (16)-(22), ROS signs.
+        Return (u_l, u_r, v) rows of points given in {C}, eq. (16)-(22), ROS signs.
 
-        Raises :class:`BehindCameraError` for a point with Z^C <= 0.
+        Parameters
+        ----------
+        points_C : array_like, shape (N, 3)
+            Points in {C} (m).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            Rows (u_l, u_r, v) (px).
+
+        Raises
+        ------
+        BehindCameraError
+            For a point with Z^C <= 0.
+
         """
         points_C = as_array(points_C, (None, 3), 'points_C')
         z = points_C[:, 2]
@@ -181,12 +287,38 @@ class StereoCamera:
         out[:, 2] = k.fv * points_C[:, 1] / z + k.cv
         return out
 
-    def project(self, points_O):
-        """Return (u_l, u_r, v) rows (N, 3) of points given in {O} (eq. 14-22)."""
+    def project(self, points_O: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return (u_l, u_r, v) rows of points given in {O} (eq. 14-22).
+
+        Parameters
+        ----------
+        points_O : array_like, shape (N, 3)
+            Points in {O} (m).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            Rows (u_l, u_r, v) (px).
+
+        """
         return self.project_camera(self.to_camera(points_O))
 
-    def projection_jacobian(self, point_O):
-        """Return d(u_l, u_r, v) / d p^O (3x3) at one point of {O}."""
+    def projection_jacobian(self, point_O: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return d(u_l, u_r, v) / d p^O at one point of {O}.
+
+        Parameters
+        ----------
+        point_O : array_like, shape (3,)
+            The point in {O} (m).
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+            The derivative of eq. (14)-(22) (px / m).
+
+        """
         point_C = self.to_camera(as_array(point_O, (3,), 'point_O')[None])[0]
         x, y, z = point_C
         if z <= 1e-9:
@@ -200,12 +332,27 @@ class StereoCamera:
         ])
         return d_dc @ self._rot_O_C
 
-    def triangulate_camera(self, coords):
+    def triangulate_camera(self, coords: ArrayLike) -> NDArray[np.float64]:
         """
-        Return points (N, 3) in {C} from (u_l, u_r, v) rows: the inverse of eq. (19)-(22).
+        Return points in {C} from (u_l, u_r, v) rows: the inverse of eq. (19)-(22).
 
         Z = f_u b / (u_l - u_r), X = (u_l - c_u) Z / f_u - b / 2, Y = (v - c_v) Z / f_v.
-        Raises :class:`TriangulationError` when the disparity is not positive.
+
+        Parameters
+        ----------
+        coords : array_like, shape (N, 3)
+            Rows (u_l, u_r, v) (px).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            The points in {C} (m).
+
+        Raises
+        ------
+        TriangulationError
+            When the disparity is not positive.
+
         """
         coords = as_array(coords, (None, 3), 'coords')
         k = self.intrinsics
@@ -221,16 +368,39 @@ class StereoCamera:
         out[:, 2] = z
         return out
 
-    def triangulate(self, coords):
-        """Return points (N, 3) in {O} from (u_l, u_r, v) rows."""
+    def triangulate(self, coords: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return points in {O} from (u_l, u_r, v) rows.
+
+        Parameters
+        ----------
+        coords : array_like, shape (N, 3)
+            Rows (u_l, u_r, v) (px).
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            The points in {O} (m).
+
+        """
         return self.to_base(self.triangulate_camera(coords))
 
-    def in_view(self, points_O, margin_px=0.0):
+    def in_view(self, points_O: ArrayLike, margin_px: float = 0.0) -> NDArray[np.bool_]:
         """
         Return a bool per point: in front of the camera and inside both images.
 
-        ``margin_px`` shrinks the image on every side (for example by a marker's radius in
-        pixels, so that the whole marker is visible).
+        Parameters
+        ----------
+        points_O : array_like, shape (N, 3)
+            Points in {O} (m).
+        margin_px : float
+            Shrinks the image on every side (for example by a marker's radius in pixels, so
+            that the whole marker is visible).
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+
         """
         points_C = self.to_camera(points_O)
         k = self.intrinsics

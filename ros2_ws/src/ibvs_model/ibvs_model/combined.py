@@ -9,6 +9,7 @@ features and takes q6 from the caller.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array
 from .camera import StereoCamera
@@ -19,8 +20,18 @@ from .robot import fiducial_points, ik_position_axis, IRB4600, joint_frames, Rob
 class CameraRobotModel:
     """F, C1 and F^-1 for one robot geometry and one calibrated stereo camera."""
 
-    def __init__(self, camera, params=IRB4600):
-        """Combine a :class:`StereoCamera` and :class:`RobotParams` (paper section 4.2)."""
+    def __init__(self, camera: StereoCamera, params: RobotParams = IRB4600) -> None:
+        """
+        Combine a :class:`StereoCamera` and :class:`RobotParams` (paper section 4.2).
+
+        Parameters
+        ----------
+        camera : StereoCamera
+            The calibrated stereo camera.
+        params : RobotParams
+            The robot's geometry.
+
+        """
         if not isinstance(camera, StereoCamera):
             raise InvalidInputError('camera must be a StereoCamera')
         if not isinstance(params, RobotParams):
@@ -28,20 +39,57 @@ class CameraRobotModel:
         self.camera = camera
         self.params = params
 
-    def markers(self, q):
-        """Return the two fiducial points in {O} (2, 3), eq. (8)-(10)."""
+    def markers(self, q: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return the two fiducial points in {O}, eq. (8)-(10).
+
+        Parameters
+        ----------
+        q : array_like, shape (6,)
+            Joint angles (rad).
+
+        Returns
+        -------
+        ndarray, shape (2, 3)
+            P1 and P2 in {O} (m).
+
+        """
         return fiducial_points(q, self.params)
 
-    def features(self, q):
-        """Return p_I = F(q) (6,), eq. (30): both fiducials projected in both images."""
+    def features(self, q: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return p_I = F(q), eq. (30): both fiducials projected in both images.
+
+        Parameters
+        ----------
+        q : array_like, shape (6,)
+            Joint angles (rad).
+
+        Returns
+        -------
+        ndarray, shape (6,)
+            p_I = [u_l1, u_r1, v1, u_l2, u_r2, v2] (px).
+
+        """
         return self.camera.project(self.markers(q)).reshape(6)
 
-    def jacobian(self, q):
+    def jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
         """
-        Return C1 = J(q) = dF/dq (6, 6), eq. (31), by the chain rule (no differencing).
+        Return C1 = J(q) = dF/dq, eq. (31), by the chain rule (no differencing).
 
         Rows of marker k: d(u_l, u_r, v)/dp^O at the marker times dp^O/dq, where column i
         of dp^O/dq is z_{i-1} x (p - o_{i-1}).
+
+        Parameters
+        ----------
+        q : array_like, shape (6,)
+            Joint angles (rad).
+
+        Returns
+        -------
+        ndarray, shape (6, 6)
+            C1 (px / rad); its last column is zero (joint 6 moves no feature).
+
         """
         frames = joint_frames(q, self.params)
         z_axes = frames[:6, :3, 2]
@@ -53,13 +101,29 @@ class CameraRobotModel:
             jac[3 * k:3 * k + 3] = self.camera.projection_jacobian(p) @ dp_dq
         return jac
 
-    def inverse(self, p_image, q6, seed=None):
+    def inverse(self, p_image: ArrayLike, q6: float,
+                seed: ArrayLike | None = None) -> NDArray[np.float64]:
         """
         Return q = F^-1(p_I) (eq. 42), with the unobservable q6 given.
 
         Triangulates both fiducials, takes the flange position from P1 and the tool axis
         from P2 - P1, and solves the inverse kinematics (eq. 43) for q1..q5 on the branch
-        nearest ``seed`` (default: zeros with q6).
+        nearest ``seed``.
+
+        Parameters
+        ----------
+        p_image : array_like, shape (6,)
+            p_I (px).
+        q6 : float
+            Joint 6's angle (rad), which p_I does not determine.
+        seed : array_like, shape (6,), optional
+            Joint angles the branch is chosen nearest to; default zeros with q6.
+
+        Returns
+        -------
+        ndarray, shape (6,)
+            q (rad).
+
         """
         p_image = as_array(p_image, (6,), 'p_image')
         points = self.camera.triangulate(p_image.reshape(2, 3))
@@ -68,6 +132,20 @@ class CameraRobotModel:
             raise InvalidInputError('p_image: both fiducials triangulate to the same point')
         return ik_position_axis(points[0], axis, float(q6), self.params, seed)
 
-    def in_view(self, q, margin_px=0.0):
-        """Return a bool per fiducial: in front of the camera and inside both images."""
+    def in_view(self, q: ArrayLike, margin_px: float = 0.0) -> NDArray[np.bool_]:
+        """
+        Return a bool per fiducial: in front of the camera and inside both images.
+
+        Parameters
+        ----------
+        q : array_like, shape (6,)
+            Joint angles (rad).
+        margin_px : float
+            Shrinks the images on every side (:meth:`StereoCamera.in_view`).
+
+        Returns
+        -------
+        ndarray of bool, shape (2,)
+
+        """
         return self.camera.in_view(self.markers(q), margin_px)

@@ -27,6 +27,7 @@ PositionShaper`) and the simulator's drive model tracks the reference with them
 """
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .robot import IRB4600
 
@@ -37,11 +38,28 @@ ACCELERATION_LIMITS = (10.0, 10.0, 10.0, 20.0, 20.0, 20.0)
 SPEED_LIMITS = tuple(float(v) for v in IRB4600.qd_max)
 
 
-def check_limits(speed_limits, acceleration_limits):
+def check_limits(speed_limits: ArrayLike, acceleration_limits: ArrayLike
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the speed and acceleration limits as two (6,) float arrays.
 
-    Raises ValueError unless both are six finite values > 0.
+    Parameters
+    ----------
+    speed_limits : array_like, shape (6,)
+        Joint speed limits (rad/s).
+    acceleration_limits : array_like, shape (6,)
+        Joint acceleration limits (rad/s^2).
+
+    Returns
+    -------
+    tuple of ndarray
+        Both, as float arrays of shape (6,).
+
+    Raises
+    ------
+    ValueError
+        Unless both are six finite values > 0.
+
     """
     out = []
     for name, values in (('speed limits', speed_limits),

@@ -17,12 +17,14 @@ link offsets, so the bound holds in every pose; for the vertical joint 1 the sam
 about 1 g at the centres of mass). :mod:`ibvs_model.urdf` writes all of it into the URDF.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-from .robot import IRB4600
+from .robot import IRB4600, RobotParams
 from .scene import MARKER_RADIUS_M
 
 #: Total mass of the IRB 4600-60/2.05 (ABB product specification), kg.
@@ -56,7 +58,7 @@ class Solid:
     xyz: tuple = (0.0, 0.0, 0.0)
     rpy: tuple = (0.0, 0.0, 0.0)
 
-    def volume(self):
+    def volume(self) -> float:
         """Return the volume, m^3."""
         if self.kind == 'box':
             return float(np.prod(self.size))
@@ -65,8 +67,21 @@ class Solid:
             return math.pi * r * r * length
         return 4.0 / 3.0 * math.pi * self.size[0] ** 3
 
-    def inertia(self, mass):
-        """Return the 3x3 inertia of a uniform solid of ``mass`` about its centre, link axes."""
+    def inertia(self, mass: float) -> NDArray[np.float64]:
+        """
+        Return the inertia of a uniform solid of ``mass`` about its centre, in link axes.
+
+        Parameters
+        ----------
+        mass : float
+            The solid's mass (kg).
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+            The inertia tensor (kg m^2).
+
+        """
         if self.kind == 'box':
             x, y, z = self.size
             own = mass / 12.0 * np.diag([y * y + z * z, x * x + z * z, x * x + y * y])
@@ -80,8 +95,21 @@ class Solid:
         return rot @ own @ rot.T
 
 
-def rpy_matrix(rpy):
-    """Return R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll), URDF's fixed-axis rpy."""
+def rpy_matrix(rpy: Sequence[float]) -> NDArray[np.float64]:
+    """
+    Return R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll), URDF's fixed-axis rpy.
+
+    Parameters
+    ----------
+    rpy : sequence of 3 float
+        Roll, pitch, yaw (rad).
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        R.
+
+    """
     r, p, y = rpy
     cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
                               math.cos(y), math.sin(y))
@@ -92,8 +120,21 @@ def rpy_matrix(rpy):
     ])
 
 
-def matrix_rpy(rot):
-    """Return URDF rpy of a rotation matrix (inverse of :func:`_rpy_matrix`)."""
+def matrix_rpy(rot: ArrayLike) -> tuple[float, float, float]:
+    """
+    Return URDF rpy of a rotation matrix (inverse of :func:`rpy_matrix`).
+
+    Parameters
+    ----------
+    rot : array_like, shape (3, 3)
+        A rotation matrix.
+
+    Returns
+    -------
+    tuple of 3 float
+        Roll, pitch, yaw (rad); roll = 0 at gimbal lock.
+
+    """
     pitch = math.atan2(-rot[2, 0], math.hypot(rot[0, 0], rot[1, 0]))
     if abs(math.cos(pitch)) < 1e-9:
         # Gimbal lock: put the whole rotation about z into yaw, roll = 0.
@@ -105,12 +146,23 @@ _ALONG_X = (0.0, math.pi / 2.0, 0.0)   # a cylinder's z turned onto the link's x
 _ALONG_Y = (-math.pi / 2.0, 0.0, 0.0)  # a cylinder's z turned onto the link's y
 
 
-def link_shapes(params):
+def link_shapes(params: RobotParams) -> dict[str, list[Solid]]:
     """
-    Return the solids of each link (dict name -> list of Solid), sized after ABB's drawing.
+    Return the solids of each link, sized after ABB's drawing.
 
     Lengths along the arm follow ``params`` (so scaled robots stretch their links); the
     cross-sections are rounded envelope dimensions of the IRB 4600 drawing.
+
+    Parameters
+    ----------
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    dict of str to list of Solid
+        Solids by link name, base_link and link_1..link_6.
+
     """
     a1, l1, l2, l3, l4, lt = params.a1, params.L1, params.L2, params.L3, params.L4, params.Lt
     base_h = 0.2  # height of the fixed foot; footprint about 0.5 m x 0.5 m
@@ -161,8 +213,21 @@ def link_shapes(params):
     }
 
 
-def tool_shapes(params):
-    """Return the screwdriver shaft and the two marker spheres, in the flange frame {E}."""
+def tool_shapes(params: RobotParams) -> dict[str, list[Solid]]:
+    """
+    Return the screwdriver shaft and the two marker spheres, in the flange frame {E}.
+
+    Parameters
+    ----------
+    params : RobotParams
+        The robot's geometry (``L_tool``).
+
+    Returns
+    -------
+    dict of str to list of Solid
+        Solids of 'screwdriver', 'marker_1' and 'marker_2'.
+
+    """
     return {
         'screwdriver': [Solid('cylinder', (SHAFT_RADIUS_M, params.L_tool),
                               (0.0, 0.0, params.L_tool / 2.0))],
@@ -184,12 +249,26 @@ def _mass_properties(solids, density):
     return mass, com, inertia
 
 
-def inertials(params=IRB4600, with_tool=True):
+def inertials(params: RobotParams = IRB4600, with_tool: bool = True
+              ) -> dict[str, tuple[float, NDArray[np.float64], NDArray[np.float64]]]:
     """
-    Return {link name: (mass kg, centre of mass (3,), inertia 3x3)} in each link's frame.
+    Return the mass properties of every link (and tool part) in its own frame.
 
     Robot links share one density, 425 kg / (total solid volume); tool parts are steel
     and ABS (module docstring).
+
+    Parameters
+    ----------
+    params : RobotParams
+        The robot's geometry.
+    with_tool : bool
+        Include the screwdriver and the two markers.
+
+    Returns
+    -------
+    dict of str to tuple
+        By link name: (mass (kg), centre of mass (3,) (m), inertia (3, 3) about it (kg m^2)).
+
     """
     shapes = link_shapes(params)
     density = ROBOT_MASS_KG / sum(s.volume() for solids in shapes.values() for s in solids)
@@ -207,12 +286,25 @@ def _joint_offsets(params):
     return [math.hypot(a, d) for a, _, d, _ in params.dh_table()]
 
 
-def joint_efforts(params=IRB4600, with_tool=True):
+def joint_efforts(params: RobotParams = IRB4600, with_tool: bool = True) -> list[float]:
     """
     Return the estimated torque limit of each joint, N m (module docstring).
 
     For joint j: 1.5 * g * sum over the links it carries of m_k * (bound on the distance from
     joint j's axis to link k's centre of mass), plus the rated payload beyond the flange.
+
+    Parameters
+    ----------
+    params : RobotParams
+        The robot's geometry.
+    with_tool : bool
+        Count the tool's mass.
+
+    Returns
+    -------
+    list of 6 float
+        Torque limits of joints 1..6 (N m).
+
     """
     props = inertials(params, with_tool)
     seg = _joint_offsets(params)

@@ -16,13 +16,24 @@ MARKER_MESH = 'marker_sphere.obj'
 MARKER_MESH_SUBDIVISIONS = 4
 
 
-def icosphere_obj(subdivisions=MARKER_MESH_SUBDIVISIONS):
+def icosphere_obj(subdivisions: int = MARKER_MESH_SUBDIVISIONS) -> str:
     """
     Return a Wavefront OBJ of the unit sphere: an icosahedron subdivided ``subdivisions`` times.
 
     Each subdivision splits every triangle into four, with the new vertices pushed out to
     the sphere; the vertex normals are the vertex positions (smooth shading). The faces are
     20 * 4^subdivisions, wound counter-clockwise seen from outside.
+
+    Parameters
+    ----------
+    subdivisions : int
+        In [0, 6].
+
+    Returns
+    -------
+    str
+        The OBJ text.
+
     """
     if not (isinstance(subdivisions, int) and 0 <= subdivisions <= 6):
         raise ValueError(f'subdivisions must be an int in [0, 6], got {subdivisions!r}')

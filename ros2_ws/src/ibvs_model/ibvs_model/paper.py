@@ -8,6 +8,7 @@ Poses are T_E^O of the flange {E}; the paper prints rotations with four digits, 
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ._validate import nearest_rotation
 from .errors import InvalidInputError
@@ -44,7 +45,8 @@ CAMERA_LOOK_AT = (0.3, 0.2, 0.5)
 TARGET_ROTATION_TOL = 1e-3
 
 
-def target_pose(position=TARGET_POSITION, rotation=TARGET_ROTATION, tol=TARGET_ROTATION_TOL):
+def target_pose(position: ArrayLike = TARGET_POSITION, rotation: ArrayLike = TARGET_ROTATION,
+                tol: float = TARGET_ROTATION_TOL) -> NDArray[np.float64]:
     """
     Return the target T_E^O (4x4) of a flange position (3,) and rotation (9 row-major or 3x3).
 
@@ -54,6 +56,21 @@ def target_pose(position=TARGET_POSITION, rotation=TARGET_ROTATION, tol=TARGET_R
     rotation given with few digits (within ``tol`` of orthonormal, det > 0) is projected
     onto the nearest rotation (:func:`nearest_rotation`); anything further, or a value that
     is not finite, raises :class:`InvalidInputError` (a ValueError).
+
+    Parameters
+    ----------
+    position : array_like, shape (3,)
+        The flange position in {O} (m).
+    rotation : array_like, shape (9,) or (3, 3)
+        The flange rotation, row-major.
+    tol : float
+        Largest |R^T R - I| projected onto a rotation.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        T_E^O.
+
     """
     position = np.asarray(position, dtype=float).reshape(3)
     rot = np.asarray(rotation, dtype=float).reshape(3, 3)
@@ -66,8 +83,21 @@ def target_pose(position=TARGET_POSITION, rotation=TARGET_ROTATION, tol=TARGET_R
     return pose_from(position, nearest_rotation(rot))
 
 
-def scenario_start_pose(scenario):
-    """Return the start T_E^O of scenario 1, 2 or 3 (the printed rotation orthonormalised)."""
+def scenario_start_pose(scenario: int) -> NDArray[np.float64]:
+    """
+    Return the start T_E^O of a scenario (the printed rotation orthonormalised).
+
+    Parameters
+    ----------
+    scenario : int
+        1, 2 or 3 (section 5).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        T_E^O at the start.
+
+    """
     if scenario == 1:
         return pose_from(SCENARIO1_POSITION,
                          nearest_rotation(np.array(SCENARIO1_ROTATION_PRINTED)))
@@ -76,8 +106,21 @@ def scenario_start_pose(scenario):
     raise ValueError(f'scenario must be 1, 2 or 3, got {scenario!r}')
 
 
-def scenario_disturbance(scenario):
-    """Return d_q (rad) of a scenario: the paper's in scenarios 1 and 3, zero in scenario 2."""
+def scenario_disturbance(scenario: int) -> NDArray[np.float64]:
+    """
+    Return d_q of a scenario: the paper's in scenarios 1 and 3, zero in scenario 2.
+
+    Parameters
+    ----------
+    scenario : int
+        1, 2 or 3 (section 5).
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        d_q (rad).
+
+    """
     if scenario not in (1, 2, 3):
         raise ValueError(f'scenario must be 1, 2 or 3, got {scenario!r}')
     return np.radians(DISTURBANCE_DEG) if scenario in (1, 3) else np.zeros(6)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array, as_transform
 from .errors import InvalidInputError, UnreachablePoseError
@@ -70,11 +71,23 @@ class RobotParams:
         if np.asarray(self.qd_max, float).shape != (6,):
             raise InvalidInputError('RobotParams: qd_max needs 6 values')
 
-    def scaled(self, l2_scale=1.0, l4_scale=1.0):
-        """Return a copy with L2 and L4 multiplied by factors: model uncertainty, Figure 13."""
+    def scaled(self, l2_scale: float = 1.0, l4_scale: float = 1.0) -> 'RobotParams':
+        """
+        Return a copy with L2 and L4 multiplied by factors: model uncertainty, Figure 13.
+
+        Parameters
+        ----------
+        l2_scale, l4_scale : float
+            Factors of L2 and L4.
+
+        Returns
+        -------
+        RobotParams
+
+        """
         return replace(self, L2=self.L2 * l2_scale, L4=self.L4 * l4_scale)
 
-    def dh_table(self):
+    def dh_table(self) -> NDArray[np.float64]:
         """Return Table 1 as rows (a_i, alpha_i, d_i, theta offset_i); theta_i = q_i + offset_i."""
         return np.array([
             [self.a1, -math.pi / 2, self.L1, 0.0],
@@ -86,12 +99,26 @@ class RobotParams:
         ])
 
     @property
-    def fiducials_E(self):
+    def fiducials_E(self) -> NDArray[np.float64]:
         """Fiducial points in {E}: P1 = [0, 0, 0], P2 = [0, 0, L_tool / 2] (section 3.1)."""
         return np.array([[0.0, 0.0, 0.0], [0.0, 0.0, self.L_tool / 2.0]])
 
-    def within_limits(self, q, tol=1e-9):
-        """Return True when every joint angle lies inside its range (with ``tol`` slack)."""
+    def within_limits(self, q: ArrayLike, tol: float = 1e-9) -> bool:
+        """
+        Return True when every joint angle lies inside its range (with ``tol`` slack).
+
+        Parameters
+        ----------
+        q : array_like, shape (6,)
+            Joint angles (rad).
+        tol : float
+            Slack beyond each limit (rad).
+
+        Returns
+        -------
+        bool
+
+        """
         q = np.asarray(q, float)
         return bool(np.all(q >= np.asarray(self.q_min) - tol)
                     and np.all(q <= np.asarray(self.q_max) + tol))
@@ -100,8 +127,23 @@ class RobotParams:
 IRB4600 = RobotParams()
 
 
-def dh_transform(a, alpha, d, theta):
-    """Return A_i^{i-1} = Rot_z(theta) Trans_z(d) Trans_x(a) Rot_x(alpha), eq. (5)."""
+def dh_transform(a: float, alpha: float, d: float, theta: float) -> NDArray[np.float64]:
+    """
+    Return A_i^{i-1} = Rot_z(theta) Trans_z(d) Trans_x(a) Rot_x(alpha), eq. (5).
+
+    Parameters
+    ----------
+    a, d : float
+        Link length and offset (m).
+    alpha, theta : float
+        Link twist and joint angle (rad).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        A_i^{i-1}.
+
+    """
     ct, st = math.cos(theta), math.sin(theta)
     ca, sa = math.cos(alpha), math.sin(alpha)
     return np.array([
@@ -116,8 +158,23 @@ def _check_q(q):
     return as_array(q, (6,), 'q')
 
 
-def joint_frames(q, params=IRB4600):
-    """Return T_i^0 for i = 0..6 as an array (7, 4, 4); T_6^0 = T_E^O (eq. 7)."""
+def joint_frames(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[np.float64]:
+    """
+    Return T_i^0 for i = 0..6; T_6^0 = T_E^O (eq. 7).
+
+    Parameters
+    ----------
+    q : array_like, shape (6,)
+        Joint angles (rad).
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    ndarray, shape (7, 4, 4)
+        T_0^0 = I, T_1^0, ..., T_6^0.
+
+    """
     q = _check_q(q)
     frames = np.empty((7, 4, 4))
     frames[0] = np.eye(4)
@@ -126,22 +183,68 @@ def joint_frames(q, params=IRB4600):
     return frames
 
 
-def forward_kinematics(q, params=IRB4600):
-    """Return T_E^O(q) = A_1^0 ... A_6^5, eq. (7)."""
+def forward_kinematics(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[np.float64]:
+    """
+    Return T_E^O(q) = A_1^0 ... A_6^5, eq. (7).
+
+    Parameters
+    ----------
+    q : array_like, shape (6,)
+        Joint angles (rad).
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        T_E^O.
+
+    """
     return joint_frames(q, params)[6]
 
 
-def fiducial_points(q, params=IRB4600):
-    """Return the two fiducial points in {O} as rows (2, 3), eq. (8)-(10)."""
+def fiducial_points(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[np.float64]:
+    """
+    Return the two fiducial points in {O}, eq. (8)-(10).
+
+    Parameters
+    ----------
+    q : array_like, shape (6,)
+        Joint angles (rad).
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    ndarray, shape (2, 3)
+        P1 and P2 in {O} (m).
+
+    """
     tf = forward_kinematics(q, params)
     return params.fiducials_E @ tf[:3, :3].T + tf[:3, 3]
 
 
-def point_jacobian(q, point_E, params=IRB4600):
+def point_jacobian(q: ArrayLike, point_E: ArrayLike,
+                   params: RobotParams = IRB4600) -> NDArray[np.float64]:
     """
-    Return d p^O / dq (3, 6) for a point fixed in {E}, p^O = T_E^O(q) p^E.
+    Return d p^O / dq for a point fixed in {E}, p^O = T_E^O(q) p^E.
 
     Column i is z_{i-1} x (p - o_{i-1}) for the revolute joint i (geometric Jacobian).
+
+    Parameters
+    ----------
+    q : array_like, shape (6,)
+        Joint angles (rad).
+    point_E : array_like, shape (3,)
+        The point in {E} (m).
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    ndarray, shape (3, 6)
+        d p^O / dq (m / rad).
+
     """
     frames = joint_frames(q, params)
     point_E = as_array(point_E, (3,), 'point_E')
@@ -151,8 +254,23 @@ def point_jacobian(q, point_E, params=IRB4600):
     return np.cross(z, p - o).T
 
 
-def geometric_jacobian(q, params=IRB4600):
-    """Return the 6x6 geometric Jacobian of the flange: rows (v, omega) in {O}."""
+def geometric_jacobian(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[np.float64]:
+    """
+    Return the geometric Jacobian of the flange: rows (v, omega) in {O}.
+
+    Parameters
+    ----------
+    q : array_like, shape (6,)
+        Joint angles (rad).
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    ndarray, shape (6, 6)
+        Linear (m / rad) over angular (rad / rad) velocity rows.
+
+    """
     frames = joint_frames(q, params)
     z = frames[:6, :3, 2]
     o = frames[:6, :3, 3]
@@ -264,13 +382,34 @@ def _seed(seed):
     return np.zeros(6) if seed is None else as_array(seed, (6,), 'seed')
 
 
-def ik_solutions(pose, params=IRB4600, seed=None):
+def ik_solutions(pose: ArrayLike, params: RobotParams = IRB4600,
+                 seed: ArrayLike | None = None) -> list[NDArray[np.float64]]:
     """
     Return every IK branch of T_E^O = ``pose`` within the joint limits (eq. 43).
 
     Up to 8 branches (shoulder x elbow x wrist); each angle is shifted by 2*pi multiples to
-    the value nearest ``seed`` inside its range. Raises :class:`UnreachablePoseError` when no
-    branch exists, with the reason (out of reach, or the joint limits that exclude it).
+    the value nearest ``seed`` inside its range.
+
+    Parameters
+    ----------
+    pose : array_like, shape (4, 4)
+        T_E^O.
+    params : RobotParams
+        The robot's geometry.
+    seed : array_like, shape (6,), optional
+        Joint angles (rad) the 2*pi shifts are chosen nearest to; default zeros.
+
+    Returns
+    -------
+    list of ndarray, shape (6,)
+        The branches' joint angles q (rad).
+
+    Raises
+    ------
+    UnreachablePoseError
+        When no branch exists, with the reason (out of reach, or the joint limits that
+        exclude it).
+
     """
     pose = as_transform(pose, 'pose')
     seed = _seed(seed)
@@ -300,20 +439,58 @@ def ik_solutions(pose, params=IRB4600, seed=None):
     return valid
 
 
-def inverse_kinematics(pose, params=IRB4600, seed=None):
-    """Return the IK branch of T_E^O = ``pose`` nearest ``seed`` (eq. 43); default seed q = 0."""
+def inverse_kinematics(pose: ArrayLike, params: RobotParams = IRB4600,
+                       seed: ArrayLike | None = None) -> NDArray[np.float64]:
+    """
+    Return the IK branch of T_E^O = ``pose`` nearest ``seed`` (eq. 43).
+
+    Parameters
+    ----------
+    pose : array_like, shape (4, 4)
+        T_E^O.
+    params : RobotParams
+        The robot's geometry.
+    seed : array_like, shape (6,), optional
+        Joint angles (rad); default q = 0.
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        q (rad).
+
+    """
     seed_arr = _seed(seed)
     solutions = ik_solutions(pose, params, seed_arr)
     return min(solutions, key=lambda q: float(np.sum((q - seed_arr) ** 2)))
 
 
-def ik_position_axis(position, axis, q6, params=IRB4600, seed=None):
+def ik_position_axis(position: ArrayLike, axis: ArrayLike, q6: float,
+                     params: RobotParams = IRB4600,
+                     seed: ArrayLike | None = None) -> NDArray[np.float64]:
     """
     Return q placing the flange origin at ``position`` with z6 along ``axis``; q6 given.
 
     This is the inverse (eq. 43) of the two fiducial points, which fix the flange position
     and tool axis but not the roll about it: q6 is unobservable and taken from the caller.
-    The branch nearest ``seed`` (default: zeros with q6) is returned.
+
+    Parameters
+    ----------
+    position : array_like, shape (3,)
+        The flange origin in {O} (m).
+    axis : array_like, shape (3,)
+        The tool axis z6 in {O} (any length > 0).
+    q6 : float
+        Joint 6's angle (rad).
+    params : RobotParams
+        The robot's geometry.
+    seed : array_like, shape (6,), optional
+        The branch nearest it is returned; default zeros with q6.
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        q (rad).
+
     """
     position = as_array(position, (3,), 'position')
     axis = as_array(axis, (3,), 'axis')
@@ -347,8 +524,21 @@ def ik_position_axis(position, axis, q6, params=IRB4600, seed=None):
     return best
 
 
-def pose_error(pose_a, pose_b):
-    """Return (position error in m, rotation angle error in rad) between two 4x4 poses."""
+def pose_error(pose_a: ArrayLike, pose_b: ArrayLike) -> tuple[float, float]:
+    """
+    Return the position and rotation errors between two poses.
+
+    Parameters
+    ----------
+    pose_a, pose_b : array_like, shape (4, 4)
+        Homogeneous transforms.
+
+    Returns
+    -------
+    tuple of (float, float)
+        Position error (m) and rotation angle error (rad).
+
+    """
     pa = np.asarray(pose_a, float)
     pb = np.asarray(pose_b, float)
     dpos = float(np.linalg.norm(pa[:3, 3] - pb[:3, 3]))
@@ -357,8 +547,22 @@ def pose_error(pose_a, pose_b):
     return dpos, float(2.0 * math.asin(min(1.0, chord)))
 
 
-def pose_from(position, rotation):
-    """Return the 4x4 transform with the given position (3,) and rotation (3, 3)."""
+def pose_from(position: ArrayLike, rotation: ArrayLike) -> NDArray[np.float64]:
+    """
+    Return the homogeneous transform with the given position and rotation.
+
+    Parameters
+    ----------
+    position : array_like, shape (3,)
+        Translation (m).
+    rotation : array_like, shape (3, 3)
+        Rotation matrix.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+
+    """
     tf = np.eye(4)
     tf[:3, :3] = as_array(rotation, (3, 3), 'rotation')
     tf[:3, 3] = as_array(position, (3,), 'position')

@@ -11,11 +11,16 @@ tests and benches of the renderer and the detector.
 """
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .errors import UnreachablePoseError
 from .robot import fiducial_points, ik_position_axis
+
+if TYPE_CHECKING:
+    from .combined import CameraRobotModel
 
 #: Radius of each spherical fiducial, m.
 MARKER_RADIUS_M = 0.025
@@ -24,7 +29,9 @@ MARKER_RADIUS_M = 0.025
 MARKER_RGB = ((220, 30, 30), (30, 70, 220))
 
 
-def in_view_poses(model, count, rng, min_depth_m=1.0, max_tilt_deg=35.0):
+def in_view_poses(model: 'CameraRobotModel', count: int, rng: np.random.Generator,
+                  min_depth_m: float = 1.0, max_tilt_deg: float = 35.0
+                  ) -> list[NDArray[np.float64]]:
     """
     Return ``count`` random joint angles with both markers wholly in both images of F's camera.
 
@@ -33,6 +40,25 @@ def in_view_poses(model, count, rng, min_depth_m=1.0, max_tilt_deg=35.0):
     ``max_tilt_deg`` (the task's attitude) and any roll; each marker at least
     ``min_depth_m`` deep, its disc (stretched off-axis) inside both images and clear of
     the other marker's.
+
+    Parameters
+    ----------
+    model : CameraRobotModel
+        F: the robot and the camera.
+    count : int
+        How many poses.
+    rng : numpy.random.Generator
+        The random source.
+    min_depth_m : float
+        Least depth Z^C of each marker (m).
+    max_tilt_deg : float
+        Largest angle between the tool axis and straight down (deg).
+
+    Returns
+    -------
+    list of ndarray, shape (6,)
+        Joint angles q (rad).
+
     """
     camera = model.camera
     k = camera.intrinsics

@@ -49,10 +49,11 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .mass_model import inertials, joint_efforts, link_shapes, matrix_rpy, tool_shapes
 from .mesh import icosphere_obj, MARKER_MESH
-from .robot import IRB4600
+from .robot import IRB4600, RobotParams
 from .scene import MARKER_RGB
 
 ROBOT_RGBA = (0.82, 0.82, 0.80, 1.0)
@@ -147,13 +148,24 @@ def _dh_matrix(a, alpha, d, theta):
                      [0.0, 0.0, 0.0, 1.0]])
 
 
-def joint_origins(params=IRB4600):
+def joint_origins(params: RobotParams = IRB4600) -> list[NDArray[np.float64]]:
     """
     Return the 4x4 origin of each URDF joint in its parent link: joint_1..joint_6, tool0.
 
     joint_1 sits at the base with Rot_z(offset_1); joint_{i+1} at Trans_z(d_i) Trans_x(a_i)
     Rot_x(alpha_i) Rot_z(offset_{i+1}) in link_i; tool0 at Trans_z(d_6) Trans_x(a_6)
     Rot_x(alpha_6) in link_6 (the DH transform of eq. 5 with theta = 0, split at the joint).
+
+    Parameters
+    ----------
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    list of 7 ndarray, shape (4, 4)
+        The origins of joint_1..joint_6 and tool0.
+
     """
     dh = params.dh_table()
     origins = []
@@ -169,7 +181,8 @@ def _material_xml(name, rgba):
     return [f'  <material name={quoteattr(name)}><color rgba="{_fmt(rgba)}"/></material>']
 
 
-def robot_urdf(params=IRB4600, with_tool=True, marker_mesh=True):
+def robot_urdf(params: RobotParams = IRB4600, with_tool: bool = True,
+               marker_mesh: bool = True) -> str:
     """
     Return the URDF text of the IRB 4600 of ``params`` (any RobotParams, e.g. scaled).
 
@@ -178,6 +191,21 @@ def robot_urdf(params=IRB4600, with_tool=True, marker_mesh=True):
     The markers' visuals refer to the mesh :data:`MARKER_MESH` beside the URDF (relative
     file name): :func:`write_urdf` writes both. ``marker_mesh=False`` draws them as URDF
     ``<sphere>`` instead, for a viewer (RViz, Foxglove) that cannot reach files beside it.
+
+    Parameters
+    ----------
+    params : RobotParams
+        The robot's geometry.
+    with_tool : bool
+        Add the screwdriver and the markers.
+    marker_mesh : bool
+        Draw the markers with :data:`MARKER_MESH` rather than URDF spheres.
+
+    Returns
+    -------
+    str
+        The URDF.
+
     """
     shapes = link_shapes(params)
     props = inertials(params, with_tool)
@@ -229,12 +257,28 @@ def robot_urdf(params=IRB4600, with_tool=True, marker_mesh=True):
     return '\n'.join(lines) + '\n'
 
 
-def write_urdf(path, params=IRB4600, with_tool=True):
+def write_urdf(path: str | Path, params: RobotParams = IRB4600,
+               with_tool: bool = True) -> Path:
     """
-    Write :func:`robot_urdf` to ``path`` and return the path (a :class:`pathlib.Path`).
+    Write :func:`robot_urdf` to ``path`` and return the path.
 
     With the tool, the marker mesh :data:`MARKER_MESH` (:func:`icosphere_obj`) is written
     into the same folder.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The URDF file to write.
+    params : RobotParams
+        The robot's geometry.
+    with_tool : bool
+        Add the screwdriver and the markers.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
     """
     path = Path(path)
     path.write_text(robot_urdf(params, with_tool))

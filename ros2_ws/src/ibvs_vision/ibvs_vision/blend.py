@@ -26,6 +26,7 @@ reaches ``blend_time_s``.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 MEASURED = 'measured'
 ESTIMATED = 'estimated'
@@ -35,13 +36,19 @@ BLENDING = 'blending'
 class BumplessSwitch:
     """Select the measured or the estimated p_I each frame and blend across switches."""
 
-    def __init__(self, blend_time_s, hold_model_error=False):
+    def __init__(self, blend_time_s: float, hold_model_error: bool = False) -> None:
         """
         Blend over ``blend_time_s`` seconds (0 switches outright).
 
-        ``hold_model_error``: at a switch from measured to estimated, keep the offset (the
-        model error the last measurement showed, carried by the model) for as long as the
-        estimate is used, instead of fading it out: the estimate is then F(q_T) + offset.
+        Parameters
+        ----------
+        blend_time_s : float
+            How long the offset fades out after a switch (s), >= 0.
+        hold_model_error : bool
+            At a switch from measured to estimated, keep the offset (the model error the
+            last measurement showed, carried by the model) for as long as the estimate is
+            used, instead of fading it out: the estimate is then F(q_T) + offset.
+
         """
         blend_time_s = float(blend_time_s)
         if not (np.isfinite(blend_time_s) and blend_time_s >= 0.0):
@@ -57,19 +64,49 @@ class BumplessSwitch:
         self._output = None
         self._estimate = None
 
-    def blend_weight(self, t_ns):
-        """Return the share (1 to 0) of the offset still applied at time ``t_ns``."""
+    def blend_weight(self, t_ns: int) -> float:
+        """
+        Return the share (1 to 0) of the offset still applied at time ``t_ns``.
+
+        Parameters
+        ----------
+        t_ns : int
+            Image stamp (ns of sim time).
+
+        Returns
+        -------
+        float
+
+        """
         if self.last_switch_ns is None:
             return 0.0
         left = self.blend_ns - (int(t_ns) - self.last_switch_ns)
         return left / self.blend_ns if left > 0 else 0.0
 
-    def update(self, t_ns, measured, estimate):
+    def update(self, t_ns: int, measured: ArrayLike | None,
+               estimate: ArrayLike | None) -> NDArray[np.float64]:
         """
-        Return the p_I (6,) to publish at time ``t_ns`` (integer ns) and set :attr:`mode`.
+        Return the p_I to publish at time ``t_ns`` and set :attr:`mode`.
 
-        ``measured`` is the detector's p_I or None; ``estimate`` is F(q_T) (may be None
-        while a measurement is available). Raises ValueError when neither is given.
+        Parameters
+        ----------
+        t_ns : int
+            Image stamp (ns of sim time).
+        measured : array_like, shape (6,), or None
+            The detector's p_I (eq. 2-3), or None.
+        estimate : array_like, shape (6,), or None
+            F(q_T) (eq. 46); may be None while a measurement is available.
+
+        Returns
+        -------
+        ndarray, shape (6,)
+            The p_I to publish (px).
+
+        Raises
+        ------
+        ValueError
+            When neither ``measured`` nor ``estimate`` is given.
+
         """
         if measured is not None:
             source, value = MEASURED, np.asarray(measured, dtype=float).reshape(6)

@@ -7,10 +7,16 @@ Readers raise :class:`ibvs_common.conversions.InputError` with a short reason, u
 the rejection reason on /diagnostics.
 """
 
+from typing import TYPE_CHECKING
+
 from ibvs_common.conversions import InputError
 import numpy as np
+from numpy.typing import NDArray
 
 from .detector import ENCODINGS
+
+if TYPE_CHECKING:
+    from sensor_msgs.msg import Image
 
 
 #: Encodings read besides the detector's own (rgb8, bgr8): channels per pixel, and the
@@ -21,14 +27,29 @@ from .detector import ENCODINGS
 CONVERTED = {'bgra8': (4, 'bgr8'), 'mono8': (1, 'rgb8')}
 
 
-def image_array(msg):
+def image_array(msg: 'Image') -> tuple[NDArray[np.uint8], str]:
     """
-    Return (array (H, W, 3) uint8, encoding rgb8 or bgr8) of an rgb8, bgr8, bgra8 or mono8 Image.
+    Return the pixels and detector encoding of an rgb8, bgr8, bgra8 or mono8 Image.
 
     rgb8 and bgr8 come without a copy; bgra8 loses its alpha channel (as bgr8) and mono8 is
-    repeated over three channels (as rgb8), in a copy. Raises :class:`InputError` for
-    another encoding, an empty image, a row step shorter than the row, or data whose length
-    is not step * height.
+    repeated over three channels (as rgb8), in a copy.
+
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.Image
+        The image message.
+
+    Returns
+    -------
+    tuple of (ndarray of uint8, shape (H, W, 3), str)
+        The pixels and their encoding, 'rgb8' or 'bgr8'.
+
+    Raises
+    ------
+    InputError
+        For another encoding, an empty image, a row step shorter than the row, or data
+        whose length is not step * height.
+
     """
     channels, encoding = CONVERTED.get(msg.encoding, (3, msg.encoding))
     if encoding not in ENCODINGS:

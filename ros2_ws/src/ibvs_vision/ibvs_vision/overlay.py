@@ -21,8 +21,11 @@ find a drawn cross by its colour (:func:`find_drawn_features`): the two markers'
 are kept apart, and each centres on its published feature within the pixel's rounding.
 """
 
+from collections.abc import Sequence
+
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 #: The published features' crosses, marker 1 and marker 2.
 FEATURE_RGB = ((0, 255, 0), (0, 170, 0))
@@ -56,20 +59,56 @@ def _cross(image, u, v, arm, colour, thickness):
              cv2.LINE_8, _SHIFT)
 
 
-def side_points(features, side):
-    """Return the (u, v) of both markers in image ``side`` from p_I rows (u_l, u_r, v)."""
+def side_points(features: ArrayLike, side: str) -> NDArray[np.float64]:
+    """
+    Return the (u, v) of both markers in one image from p_I rows (u_l, u_r, v).
+
+    Parameters
+    ----------
+    features : array_like, shape (6,)
+        p_I (px).
+    side : str
+        'left' or 'right'.
+
+    Returns
+    -------
+    ndarray, shape (2, 2)
+        (u, v) of marker 1 and marker 2 (px).
+
+    """
     p = np.asarray(features, dtype=float).reshape(2, 3)
     return p[:, [_SIDE_COLUMN[side], 2]]
 
 
-def draw(image, side, t_s, mode, reason='', features=None, estimate=None, target=None,
-         candidates=()):
+def draw(image: ArrayLike, side: str, t_s: float, mode: str, reason: str = '',
+         features: ArrayLike | None = None, estimate: ArrayLike | None = None,
+         target: ArrayLike | None = None, candidates: Sequence[Sequence] = ()
+         ) -> NDArray[np.uint8]:
     """
     Return a copy of the rgb8 ``image`` of lens ``side`` with the overlay drawn on it.
 
-    ``features`` (published p_I), ``estimate`` (F(q_T)) and ``target`` (p_bar): (6,) feature
-    vectors (u_l, u_r, v per marker) or None; ``candidates``: the detector's blobs of this
-    image, per marker a sequence of objects with ``u``, ``v`` and ``radius`` (px).
+    Parameters
+    ----------
+    image : array_like of uint8, shape (H, W, 3)
+        The rgb8 camera image.
+    side : str
+        'left' or 'right'.
+    t_s : float
+        The image's sim time (s), printed.
+    mode : str
+        measured, blending or estimated, printed.
+    reason : str
+        Why the markers were not measured, printed.
+    features, estimate, target : array_like, shape (6,), optional
+        The published p_I, F(q_T) (eq. 46) and p_bar: (u_l, u_r, v) per marker, or None.
+    candidates : sequence of sequences
+        The detector's blobs of this image, per marker objects with ``u``, ``v`` and
+        ``radius`` (px).
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+
     """
     out = np.array(image, dtype=np.uint8, copy=True)
     height, width = out.shape[:2]
@@ -115,7 +154,8 @@ def draw(image, side, t_s, mode, reason='', features=None, estimate=None, target
     return out
 
 
-def find_drawn_features(image, side, features, window_px=None):
+def find_drawn_features(image: ArrayLike, side: str, features: ArrayLike,
+                        window_px: float | None = None) -> NDArray[np.float64]:
     """
     Return the (u, v) centres of the :data:`FEATURE_RGB` crosses near each marker, or NaN.
 
@@ -124,6 +164,23 @@ def find_drawn_features(image, side, features, window_px=None):
     half as many of its pixels as the fullest row), its vertical arm u (likewise by
     column), so that the marker's number drawn beside it does not count. The check that an
     overlay draws what was published.
+
+    Parameters
+    ----------
+    image : array_like of uint8, shape (H, W, 3)
+        An image :func:`draw` returned.
+    side : str
+        'left' or 'right'.
+    features : array_like, shape (6,)
+        The p_I it was drawn with (px).
+    window_px : float, optional
+        Half size of the search window; default 1.5 cross arms.
+
+    Returns
+    -------
+    ndarray, shape (2, 2)
+        (u, v) of each marker's cross, NaN where none is found.
+
     """
     image = np.asarray(image)
     height, width = image.shape[:2]

@@ -10,27 +10,55 @@ occluders drawn in front, and Gaussian noise. Ground truth is the model projecti
 sphere centres, so the detector is judged against eq. (21)-(22) itself.
 """
 
+from collections.abc import Sequence
 import math
 
 import cv2
+from ibvs_model import StereoCamera
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 #: Clutter colours: none has much of the markers' chroma (R - max(G, B) or B - max(R, G)).
 CLUTTER_RGB = ((128, 128, 128), (40, 40, 40), (230, 230, 230), (90, 160, 90),
                (235, 150, 70), (170, 170, 120), (200, 200, 210), (120, 140, 150))
 
 
-def render_sphere_patch(camera, centre_O, lens, radius=MARKER_RADIUS_M, rgb=(220, 30, 30),
-                        supersample=4, light_C=(-0.4, -0.6, -1.0), ambient=0.35,
-                        specular=0.25):
+def render_sphere_patch(camera: StereoCamera, centre_O: ArrayLike, lens: str,
+                        radius: float = MARKER_RADIUS_M, rgb: ArrayLike = (220, 30, 30),
+                        supersample: int = 4, light_C: ArrayLike = (-0.4, -0.6, -1.0),
+                        ambient: float = 0.35, specular: float = 0.25
+                        ) -> tuple[int, int, NDArray[np.float64], NDArray[np.float64],
+                                   NDArray[np.float64]] | None:
     """
-    Ray-trace one sphere in one lens; return (x0, y0, colour (h, w, 3), cover, depth).
+    Ray-trace one sphere in one lens.
 
-    ``light_C`` points from the scene towards the light, in {C} (default: up and left of
-    the camera).
-    ``lens`` is 'left' or 'right'. ``cover`` is the covered fraction of each pixel,
-    ``depth`` the mean depth of the hits (inf where none), for compositing.
+    Parameters
+    ----------
+    camera : StereoCamera
+        The stereo camera.
+    centre_O : array_like, shape (3,)
+        The sphere's centre in {O} (m).
+    lens : str
+        'left' or 'right'.
+    radius : float
+        The sphere's radius (m).
+    rgb : array_like, shape (3,)
+        Its colour (0-255).
+    supersample : int
+        Rays per pixel along each axis.
+    light_C : array_like, shape (3,)
+        From the scene towards the light, in {C} (default: up and left of the camera).
+    ambient, specular : float
+        Shares of ambient light and of the specular highlight.
+
+    Returns
+    -------
+    tuple or None
+        (x0, y0, colour (h, w, 3), cover (h, w), depth (h, w)) of the patch at (x0, y0):
+        ``cover`` the covered fraction of each pixel, ``depth`` the mean depth of the hits
+        (inf where none), for compositing; None when the sphere is not in front of the lens.
+
     """
     k = camera.intrinsics
     centre_C = camera.to_camera(np.asarray(centre_O, dtype=float)[None])[0]
@@ -87,8 +115,27 @@ def render_sphere_patch(camera, centre_O, lens, radius=MARKER_RADIUS_M, rgb=(220
     return x0, y0, mean_colour, cover, depth
 
 
-def background(camera, rng, clutter=25, noise_free=False):
-    """Return an (H, W, 3) float background: grey gradient and clutter in other hues."""
+def background(camera: StereoCamera, rng: np.random.Generator, clutter: int = 25,
+               noise_free: bool = False) -> NDArray[np.float32]:
+    """
+    Return a background image: grey gradient and clutter in other hues.
+
+    Parameters
+    ----------
+    camera : StereoCamera
+        Gives the image size.
+    rng : numpy.random.Generator
+        Places the clutter.
+    clutter : int
+        How many rectangles and discs.
+    noise_free : bool
+        Unused.
+
+    Returns
+    -------
+    ndarray of float32, shape (H, W, 3)
+
+    """
     k = camera.intrinsics
     h, w = k.height, k.width
     ramp = np.linspace(90.0, 150.0, w)[None, :, None] + np.linspace(-20.0, 20.0, h)[:, None, None]
@@ -104,14 +151,44 @@ def background(camera, rng, clutter=25, noise_free=False):
     return img
 
 
-def render_stereo(camera, markers_O, rng=None, clutter=25, noise_sigma=2.0, supersample=4,
-                  occluders=(), colours=MARKER_RGB, radius=MARKER_RADIUS_M, **shading):
+def render_stereo(camera: StereoCamera, markers_O: ArrayLike,
+                  rng: np.random.Generator | None = None, clutter: int = 25,
+                  noise_sigma: float = 2.0, supersample: int = 4,
+                  occluders: Sequence[tuple] = (), colours: Sequence[ArrayLike] = MARKER_RGB,
+                  radius: float = MARKER_RADIUS_M, **shading: float
+                  ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     """
-    Return (left, right) (H, W, 3) uint8 RGB images of spheres at ``markers_O`` (N, 3).
+    Return the left and right RGB images of spheres at ``markers_O``.
 
-    ``occluders`` are polygons (lists of (u, v) in left-image pixels, drawn shifted by the
-    given disparity in the right image: ((points, disparity_px, rgb), ...)) painted in front
-    of everything, e.g. the arm hiding a marker.
+    Parameters
+    ----------
+    camera : StereoCamera
+        The stereo camera.
+    markers_O : array_like, shape (N, 3)
+        The spheres' centres in {O} (m).
+    rng : numpy.random.Generator, optional
+        For the clutter and the noise; default a fresh one.
+    clutter : int
+        How many clutter shapes in the background.
+    noise_sigma : float
+        Standard deviation of the Gaussian pixel noise (0-255 scale).
+    supersample : int
+        Rays per pixel along each axis.
+    occluders : sequence of (points, disparity_px, rgb)
+        Polygons (lists of (u, v) in left-image pixels, drawn shifted by ``disparity_px``
+        in the right image) painted in front of everything, e.g. the arm hiding a marker.
+    colours : sequence of rgb
+        The spheres' colours, in the order of ``markers_O``.
+    radius : float
+        The spheres' radius (m).
+    **shading : float
+        ``light_C``, ``ambient``, ``specular`` of :func:`render_sphere_patch`.
+
+    Returns
+    -------
+    tuple of ndarray of uint8, shape (H, W, 3)
+        The left and right images.
+
     """
     rng = np.random.default_rng() if rng is None else rng
     markers_O = np.asarray(markers_O, dtype=float).reshape(-1, 3)
@@ -146,13 +223,32 @@ def render_stereo(camera, markers_O, rng=None, clutter=25, noise_sigma=2.0, supe
     return images[0], images[1]
 
 
-def disc_occluder(camera, centre_O, margin_px=1.0, rgb=(128, 128, 128)):
+def disc_occluder(camera: StereoCamera, centre_O: ArrayLike, margin_px: float = 1.0,
+                  rgb: Sequence[float] = (128, 128, 128)
+                  ) -> tuple[NDArray[np.float64], float, Sequence[float]]:
     """
     Return an occluder for :func:`render_stereo` that hides the marker at ``centre_O``.
 
     A disc around the marker's image in the left image, as large as the silhouette's long
     axis (image radius times the off-axis stretch 1 / cos(theta)) plus ``margin_px``,
     shifted by the marker's disparity in the right image: an object just in front of it.
+
+    Parameters
+    ----------
+    camera : StereoCamera
+        The stereo camera.
+    centre_O : array_like, shape (3,)
+        The marker's centre in {O} (m).
+    margin_px : float
+        Added to the disc's radius (px).
+    rgb : sequence of 3 float
+        The occluder's colour.
+
+    Returns
+    -------
+    tuple
+        (outline (48, 2) in left-image pixels, disparity (px), rgb).
+
     """
     k = camera.intrinsics
     centre_O = np.asarray(centre_O, dtype=float)[None]

@@ -1,7 +1,9 @@
 """The detector's tuning (:class:`DetectorConfig`), and why a pair gives no p_I (Reason)."""
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 import enum
+from typing import Any
 
 from ibvs_common.params import Param, ParameterError
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
@@ -82,8 +84,20 @@ class DetectorConfig:
     marker_rgb: tuple = MARKER_RGB
 
     @classmethod
-    def from_parameters(cls, values):
-        """Return the config of the node parameter values ``values`` (a dict by name)."""
+    def from_parameters(cls, values: Mapping[str, Any]) -> 'DetectorConfig':
+        """
+        Return the config of the node parameter values ``values``.
+
+        Parameters
+        ----------
+        values : mapping of str to value
+            The values of :data:`NODE_PARAMS` by name (others are ignored).
+
+        Returns
+        -------
+        DetectorConfig
+
+        """
         return cls(**{spec.name: values[spec.name] for spec in NODE_PARAMS})
 
     def __post_init__(self):

@@ -12,9 +12,12 @@ from dataclasses import dataclass
 import math
 
 import cv2
+from ibvs_model import StereoIntrinsics
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .colour import colour_scores, ENCODINGS
+from .config import DetectorConfig
 
 _KERNEL3 = np.ones((3, 3), np.uint8)
 _KERNEL5 = np.ones((5, 5), np.uint8)
@@ -26,7 +29,9 @@ NOTCH_ITERATIONS = 3
 NOTCH_EDGE = 0.05
 
 
-def silhouette_to_centre(u, v, depth, intrinsics, radius_m):
+def silhouette_to_centre(u: ArrayLike, v: ArrayLike, depth: float,
+                         intrinsics: StereoIntrinsics, radius_m: float
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the projection of a sphere's centre from the centre of its silhouette ellipse.
 
@@ -34,14 +39,54 @@ def silhouette_to_centre(u, v, depth, intrinsics, radius_m):
     x^T (d d^T - (|d|^2 - R^2) I) x = 0 (d: the centre in the lens frame); its centre is
     d_xy d_z / (d_z^2 - R^2), i.e. (ellipse centre - c) = (centre projection - c) /
     (1 - (R / Z)^2) about the principal point c. This inverts that radial stretch.
+
+    Parameters
+    ----------
+    u, v : array_like
+        The silhouette centre (px).
+    depth : float
+        Z of the sphere's centre (m).
+    intrinsics : StereoIntrinsics
+        c_u, c_v of the image.
+    radius_m : float
+        The sphere's radius R (m).
+
+    Returns
+    -------
+    tuple of ndarray
+        (u, v) of the projection of the sphere's centre (px).
+
     """
     k = 1.0 - (radius_m / depth) ** 2
     return (intrinsics.cu + (np.asarray(u) - intrinsics.cu) * k,
             intrinsics.cv + (np.asarray(v) - intrinsics.cv) * k)
 
 
-def centre_to_silhouette(u, v, depth, intrinsics, radius_m):
-    """Return the silhouette ellipse centre of a sphere whose centre projects to (u, v)."""
+def centre_to_silhouette(u: ArrayLike, v: ArrayLike, depth: float,
+                         intrinsics: StereoIntrinsics, radius_m: float
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the silhouette ellipse centre of a sphere whose centre projects to (u, v).
+
+    The inverse of :func:`silhouette_to_centre`.
+
+    Parameters
+    ----------
+    u, v : array_like
+        The projection of the sphere's centre (px).
+    depth : float
+        Z of the sphere's centre (m).
+    intrinsics : StereoIntrinsics
+        c_u, c_v of the image.
+    radius_m : float
+        The sphere's radius R (m).
+
+    Returns
+    -------
+    tuple of ndarray
+        (u, v) of the silhouette centre (px).
+
+    """
     k = 1.0 - (radius_m / depth) ** 2
     return (intrinsics.cu + (np.asarray(u) - intrinsics.cu) / k,
             intrinsics.cv + (np.asarray(v) - intrinsics.cv) / k)
@@ -64,8 +109,25 @@ class Blob:
     hough: tuple
 
 
-def line_of_sight_stretch(intrinsics, u, v):
-    """Return (unit radial direction, 1/cos(theta)) of the line of sight through (u, v)."""
+def line_of_sight_stretch(intrinsics: StereoIntrinsics | None, u: float,
+                          v: float) -> tuple[NDArray[np.float64], float]:
+    """
+    Return the radial direction and the stretch of the line of sight through (u, v).
+
+    Parameters
+    ----------
+    intrinsics : StereoIntrinsics or None
+        The image's intrinsics; None: no stretch.
+    u, v : float
+        The pixel (px).
+
+    Returns
+    -------
+    tuple of (ndarray, shape (2,), float)
+        The unit radial direction in the image and 1 / cos(theta), theta the angle
+        between the line of sight and the optical axis.
+
+    """
     k = intrinsics
     if k is None:
         return np.array([1.0, 0.0]), 1.0
@@ -75,15 +137,36 @@ def line_of_sight_stretch(intrinsics, u, v):
     return direction, math.sqrt(1.0 + rho * rho)
 
 
-def refine_circle(image, encoding, k, u, v, r, bounds,
-                  config, intrinsics=None):
+def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: float,
+                  r: float, bounds: tuple[int, int, int, int], config: DetectorConfig,
+                  intrinsics: StereoIntrinsics | None = None
+                  ) -> tuple[Blob | None, str | None, tuple[int, int, int, int] | None]:
     """
     Refine one Hough circle of marker k to the area centroid of the marker's coverage.
 
-    (u, v, r) is the circle in full-image pixels; the window used stays inside
-    ``bounds`` (x0, y0, x1, y1); ``config`` is the :class:`DetectorConfig` and
-    ``intrinsics`` (optional) undo the off-axis stretch. Returns (:class:`Blob` or None,
-    rejection reason or None, bounding box (x0, y0, x1, y1) of the object or None).
+    Parameters
+    ----------
+    image : ndarray of uint8, shape (H, W, 3)
+        The whole image.
+    encoding : str
+        'rgb8' or 'bgr8'.
+    k : int
+        The marker, 0 (P1) or 1 (P2).
+    u, v, r : float
+        The Hough circle in full-image pixels.
+    bounds : tuple of 4 int
+        (x0, y0, x1, y1): the window used stays inside it.
+    config : DetectorConfig
+        The tuning.
+    intrinsics : StereoIntrinsics, optional
+        Undo the off-axis stretch with them.
+
+    Returns
+    -------
+    tuple
+        (:class:`Blob` or None, rejection reason or None, bounding box (x0, y0, x1, y1) of
+        the object or None).
+
     """
     cfg = config
     half = int(math.ceil(2.0 * r + 6.0))
@@ -155,7 +238,8 @@ def refine_circle(image, encoding, k, u, v, r, bounds,
     return Blob(u=cu, v=cv, radius=radius, roundness=roundness, hough=(u, v, r)), None, box
 
 
-def symmetric_centre(cover, cx, cy, area):
+def symmetric_centre(cover: NDArray[np.float64], cx: float, cy: float,
+                     area: float) -> tuple[float, float] | None:
     """
     Return the centre (x, y) of a disc's coverage with its notches filled, or None.
 
@@ -168,6 +252,21 @@ def symmetric_centre(cover, cx, cy, area):
     the centroid of that and the mirror are iterated from the area centroid (cx, cy).
     None when the notches hold more than NOTCH_SHARE of the ``area``: not a marker with a
     rod across it, but one partly hidden.
+
+    Parameters
+    ----------
+    cover : ndarray, shape (h, w)
+        The coverage of each pixel (:func:`coverage`).
+    cx, cy : float
+        Its area centroid (px, in ``cover``).
+    area : float
+        Its sum.
+
+    Returns
+    -------
+    tuple of (float, float) or None
+        The centre (x, y) in ``cover`` (px).
+
     """
     height, width = cover.shape
     xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
@@ -190,7 +289,8 @@ def symmetric_centre(cover, cx, cy, area):
     return cx, cy
 
 
-def coverage(patch, filled, linear, level, marker_rgb):
+def coverage(patch: NDArray[np.uint8], filled: NDArray[np.uint8], linear: NDArray[np.uint8],
+             level: float, marker_rgb: ArrayLike) -> NDArray[np.float64]:
     """
     Return the fraction of each pixel of an RGB ``patch`` covered by the marker.
 
@@ -200,6 +300,25 @@ def coverage(patch, filled, linear, level, marker_rgb):
     pixels within 2 px; its coverage is 1 - y. Where m and b are nearly parallel (a dark
     background) it falls back to s / (level of the interior pixels next to it), s being
     the linear colour channel.
+
+    Parameters
+    ----------
+    patch : ndarray of uint8, shape (h, w, 3)
+        The RGB pixels.
+    filled : ndarray of uint8, shape (h, w)
+        1 inside the object's outer contour, holes filled.
+    linear : ndarray of uint8, shape (h, w)
+        The linear colour channel s.
+    level : float
+        The median s inside the object.
+    marker_rgb : array_like, shape (3,)
+        The marker's colour m.
+
+    Returns
+    -------
+    ndarray, shape (h, w)
+        The coverage, 0 to 1.
+
     """
     interior = cv2.erode(filled, _KERNEL3)
     if not np.any(interior):

@@ -6,6 +6,7 @@ where the marker's hue is present; each circle refined (:mod:`.refine`); candida
 left and right image paired by the epipolar constraint, disparity sign and radius.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 import math
 
@@ -13,6 +14,7 @@ import cv2
 from ibvs_model import StereoIntrinsics
 from ibvs_model.camera import merge_windows
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .colour import check_image, colour_scores, ENCODINGS, MarkerColour
 from .config import DetectorConfig, MARKER_NAMES, Reason
@@ -47,7 +49,7 @@ class StereoDetection:
     search: str = 'full'
 
     @property
-    def ok(self):
+    def ok(self) -> bool:
         """Return True when p_I was measured."""
         return self.features is not None
 
@@ -61,8 +63,19 @@ class StereoDetector:
     are returned.
     """
 
-    def __init__(self, intrinsics=None, config=None):
-        """Keep the intrinsics and the :class:`DetectorConfig` (default if None)."""
+    def __init__(self, intrinsics: StereoIntrinsics | None = None,
+                 config: DetectorConfig | None = None) -> None:
+        """
+        Keep the intrinsics and the tuning.
+
+        Parameters
+        ----------
+        intrinsics : StereoIntrinsics, optional
+            The pair's intrinsics (class docstring).
+        config : DetectorConfig, optional
+            The tuning; default ``DetectorConfig()``.
+
+        """
         if intrinsics is not None and not isinstance(intrinsics, StereoIntrinsics):
             raise TypeError('intrinsics must be a StereoIntrinsics or None')
         self.intrinsics = intrinsics
@@ -72,12 +85,26 @@ class StereoDetector:
 
     # --- one image -------------------------------------------------------------------
 
-    def detect_image(self, image, encoding='rgb8', rois=None):
+    def detect_image(self, image: NDArray[np.uint8], encoding: str = 'rgb8',
+                     rois: Sequence[tuple[int, int, int, int] | None] | None = None
+                     ) -> ImageDetections:
         """
-        Return :class:`ImageDetections` of both markers in one (H, W, 3) uint8 image.
+        Return the refined candidates of both markers in one image.
 
-        ``rois`` is None (search the whole image) or, per marker, None or a window
-        (x0, y0, x1, y1) to search instead.
+        Parameters
+        ----------
+        image : ndarray of uint8, shape (H, W, 3)
+            The image.
+        encoding : str
+            'rgb8' or 'bgr8'.
+        rois : sequence of 2 (tuple of 4 int or None), optional
+            Per marker, None or a window (x0, y0, x1, y1) to search instead of the whole
+            image; None: the whole image for both.
+
+        Returns
+        -------
+        ImageDetections
+
         """
         check_image(image, encoding)
         cfg = self.config
@@ -196,13 +223,26 @@ class StereoDetector:
 
     # --- stereo ------------------------------------------------------------------------
 
-    def detect(self, left, right, encoding='rgb8', prior=None):
+    def detect(self, left: NDArray[np.uint8], right: NDArray[np.uint8],
+               encoding: str = 'rgb8', prior: ArrayLike | None = None) -> StereoDetection:
         """
-        Return the :class:`StereoDetection` of a rectified pair of (H, W, 3) uint8 images.
+        Return p_I (eq. 2-3) of a rectified stereo pair, or why not.
 
-        ``prior`` (optional) is a predicted p_I (6,), e.g. the last measurement or F(q_T):
-        both images are first searched in windows of ``roi_margin_px`` around it; if that
-        does not give both markers, the whole images are searched.
+        Parameters
+        ----------
+        left, right : ndarray of uint8, shape (H, W, 3)
+            The pair.
+        encoding : str
+            'rgb8' or 'bgr8'.
+        prior : array_like, shape (6,), optional
+            A predicted p_I, e.g. the last measurement or F(q_T): both images are first
+            searched in windows of ``roi_margin_px`` around it; if that does not give both
+            markers, the whole images are searched.
+
+        Returns
+        -------
+        StereoDetection
+
         """
         if left.shape != right.shape:
             raise ValueError(f'left and right images differ in size: {left.shape} vs '
