@@ -3,18 +3,31 @@ Parameters declared with descriptors (units, ranges) and validated when a node s
 
 A :class:`Param` and its :meth:`Param.check` are plain Python (only :meth:`Param.descriptor`
 needs ROS), so a pure module can hold the one definition of its tuning and check it.
+A pure core takes its configuration as a frozen dataclass (:class:`ParamConfig`) whose
+fields are Params (:func:`param_field`): name, default and allowed values are declared once,
+in the Param; a node builds it from its declared values (:meth:`ParamConfig.from_values`),
+a test directly.
 
 A bad value raises :class:`ParameterError` with a message that names the parameter and
 the allowed range; :func:`ibvs_common.node_main.run` turns it into a fatal log line and a
 non-zero exit code.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 import math
 
 
 class ParameterError(ValueError):
-    """A parameter has a value outside its allowed range or of the wrong kind."""
+    """
+    A parameter has a value outside its allowed range or of the wrong kind.
+
+    ``param``: the name of the parameter at fault, where one is (None otherwise).
+    """
+
+    def __init__(self, message, param=None):
+        """Keep the message and the parameter's name."""
+        super().__init__(message)
+        self.param = param
 
 
 @dataclass(frozen=True)
@@ -84,7 +97,7 @@ class Param:
         def fail(why):
             raise ParameterError(
                 f"parameter '{self.name}' = {value!r} is invalid: {why};"
-                f' allowed: {self.allowed()}')
+                f' allowed: {self.allowed()}', self.name)
 
         if self.choices is not None:
             if value not in self.choices:
@@ -163,3 +176,52 @@ def declare(node, specs):
                 from None
         values[spec.name] = spec.check(plain_value(param.value, spec.default))
     return values
+
+
+def param_field(spec):
+    """
+    Return a dataclass field named after ``spec`` that carries it and takes its default.
+
+    For the fields of a :class:`ParamConfig`; an array default becomes a tuple.
+    """
+    default = tuple(spec.default) if isinstance(spec.default, list) else spec.default
+    return field(default=default, metadata={'param': spec})
+
+
+class ParamConfig:
+    """
+    Base of a frozen dataclass whose fields are Params (:func:`param_field`).
+
+    Construction checks each such field with its :meth:`Param.check` (ParameterError
+    naming it; an integer for a float parameter becomes a float, an array a tuple), so a
+    core that takes the config checks no single value again. Fields without a Param are
+    left as given.
+    """
+
+    def __post_init__(self):
+        """Check every Param field and store it in plain Python (arrays as tuples)."""
+        for f in fields(self):
+            spec = f.metadata.get('param')
+            if spec is None:
+                continue
+            if spec.name != f.name:
+                raise TypeError(f'{type(self).__name__}.{f.name} carries the parameter '
+                                f"'{spec.name}': a field must be named after its parameter")
+            value = spec.check(plain_value(getattr(self, f.name), spec.default))
+            object.__setattr__(self, f.name, tuple(value) if isinstance(value, list) else value)
+
+    @classmethod
+    def params(cls):
+        """Return the :class:`Param` of each field that has one, in field order."""
+        return tuple(f.metadata['param'] for f in fields(cls) if 'param' in f.metadata)
+
+    @classmethod
+    def from_values(cls, values, **others):
+        """
+        Return the config of the parameter values ``values`` (a mapping by name).
+
+        Every Param field is taken from ``values`` (KeyError if one is missing: a node
+        declares them all, e.g. with ``declare(node, Config.params() + ...)``); ``others``
+        sets the fields without a Param.
+        """
+        return cls(**{spec.name: values[spec.name] for spec in cls.params()}, **others)

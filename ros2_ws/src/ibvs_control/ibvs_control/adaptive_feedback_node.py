@@ -62,9 +62,8 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
-                                       OMEGA_N, STALE_TIMEOUT_S,
-                                       TARGET_FEATURES_SOURCE, TARGET_POSITION,
-                                       TARGET_ROTATION, TAU_IN, ZETA)
+                                       STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
+                                       TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import FrameLockstep
 from ibvs_common.timing import period_ns
@@ -74,21 +73,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
-from .node_params import (check_gains, check_servo_law, FEATURE_FALLBACK, FEEDBACK_DESIGN,
-                          FEEDFORWARD_METHOD, HOLD_SPEED_FRACTION, JOINT_LIMIT_MARGIN_RAD,
-                          LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, LINEARISE_AT, MAX_CORRECTION_RAD,
-                          SERVO_LAW, SVD_DAMPING, SVD_RCOND, SWITCH_SETTLE_S, target_from,
-                          WINDUP_HORIZON_S)
+from .node_params import (check_gains, check_servo_law, FEEDFORWARD_METHOD, LAMBDA_0,
+                          LAMBDA_INF, LAMBDA_SLOPE, LAW_PARAMS, law_settings, SERVO_LAW,
+                          target_from)
 from .servo_laws import law_class
 
-#: The parameters that go to the law's :meth:`.servo_laws.ServoLaw.create` under their
-#: names (each law takes those it declares).
-LAW_PARAMS = (FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION_RAD, HOLD_SPEED_FRACTION,
-              LINEARISE_AT, SWITCH_SETTLE_S, FEATURE_FALLBACK, WINDUP_HORIZON_S,
-              JOINT_LIMIT_MARGIN_RAD)
-PARAMS = (TAU_IN, OMEGA_N, ZETA, CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
-          STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0,
-          LAMBDA_INF, LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
+PARAMS = (CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION, STALE_TIMEOUT_S,
+          TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0, LAMBDA_INF,
+          LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
 
 #: Steady-clock period of the 'waiting' log.
 WAIT_LOG_S = 1.0
@@ -225,9 +217,7 @@ class AdaptiveFeedbackNode(Node):
             camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
             self.feedback = self.law.create(
                 CameraRobotModel(camera, IRB4600), self.pose, self.camera_ns * 1e-9,
-                gain=self.gain, p_target=self._p_target,
-                **{spec.name: self.values[spec.name]
-                   for spec in (TAU_IN, OMEGA_N, ZETA) + LAW_PARAMS})
+                gain=self.gain, p_target=self._p_target, **law_settings(self.values))
         except (InputError, ModelError) as exc:
             # e.g. the target behind the camera: nothing to servo on; counted under the
             # input that completed the model, and the camera inputs are awaited again.

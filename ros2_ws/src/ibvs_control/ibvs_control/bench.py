@@ -15,7 +15,7 @@ from ibvs_common.bench import print_timing
 from ibvs_model import default_model, IRB4600, paper
 import numpy as np
 
-from .closed_loop import simulate
+from .closed_loop import LoopConfig, simulate
 from .controllers import AdaptiveFeedback, JointLoop
 from .dynamics import RobotDynamics
 
@@ -32,7 +32,7 @@ def _timed(fn, args_list):
 def run(report):
     """Time the feedback and joint-loop updates; ``report(name, seconds_list)`` each."""
     model = default_model()
-    run_ = simulate(scenario=1, duration_s=1.0)
+    run_ = simulate(LoopConfig(scenario=1), duration_s=1.0)
     frames = [(p, run_.q[int(round(t * 1000))], np.zeros(6))
               for p, t in zip(run_.features, run_.frame_t)]
     feedback = AdaptiveFeedback(model, paper.target_pose(), paper.TAU_IN, paper.OMEGA_N,

@@ -23,7 +23,7 @@ from ibvs_model import (CameraRobotModel, default_model, forward_kinematics, pap
                         StereoCamera, StereoIntrinsics)
 import numpy as np
 
-from .closed_loop import simulate
+from .closed_loop import LoopConfig, simulate
 from .servo_laws import SERVO_LAWS
 
 #: Camera position errors (m) and focal length errors (fraction) of the sweep.
@@ -66,8 +66,8 @@ def run_one(law, target, position_error_m=0.0, focal_error=0.0, duration_s=DURAT
     true = default_model()
     model = CameraRobotModel(calibrated_camera(true.camera, position_error_m, focal_error),
                              true.params)
-    r = simulate(1, duration_s, model=model, plant_camera=true.camera, servo_law=law,
-                 target_features_source=target, **options)
+    r = simulate(LoopConfig.for_law(law, target_features_source=target, **options),
+                 duration_s, model=model, plant_camera=true.camera)
     pose = paper.target_pose()
     flange = np.array([forward_kinematics(q, true.params) for q in r.q_true])
     error = np.linalg.norm(flange[:, :3, 3] - pose[:3, 3], axis=1)
@@ -96,7 +96,8 @@ def noise_sweep(laws=SERVO_LAWS, noise_px=NOISE_PX, duration_s=DURATION_S, seed=
     out = {}
     for law in laws:
         for sigma in noise_px:
-            r = simulate(1, duration_s, servo_law=law, feature_noise_px=sigma, seed=seed)
+            r = simulate(LoopConfig.for_law(law), duration_s, feature_noise_px=sigma,
+                         seed=seed)
             tail = r.t >= r.t[-1] - TAIL_S
             flange = np.array([forward_kinematics(q, r.model.params) for q in r.q_true[tail]])
             position = np.linalg.norm(flange[:, :3, 3] - pose[:3, 3], axis=1)

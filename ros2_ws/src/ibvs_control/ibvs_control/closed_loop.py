@@ -16,18 +16,84 @@ joint controller's own lockstep, :class:`ibvs_common.sync.FeedbackLockstep`.
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
+from ibvs_common import shared_params
+from ibvs_common.params import param_field, ParamConfig
 from ibvs_common.sync import FeedbackLockstep
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
-from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
-                          FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
-                          MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
-from .servo_laws import (FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, law_class, SERVO_LAWS,
-                         SWITCH_SETTLE_S, WINDUP_HORIZON_S)
+from . import node_params
+from .controllers import Feedforward, JointLoop
+from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
+
+
+@dataclass(frozen=True)
+class LoopConfig(ParamConfig):
+    """
+    The node parameters the model-only loop runs with, each declared once as a Param.
+
+    Each field means what the parameter of the same name means to the nodes (README); each
+    value is checked against its Param at construction, and the combinations the nodes
+    check at start are checked here too (ParameterError naming the parameter):
+    omega_n < 1 / tau_in (:func:`.node_params.check_gains`), a feedforward_method that goes
+    with the servo law and lambda_inf <= lambda_0 (:func:`.node_params.check_servo_law`).
+    ``torque_limits``: with 'limited' actuators and the bare double integrator (M = I,
+    h = 0), the acceleration limits (rad/s^2); 0 does not take the URDF's here.
+    """
+
+    scenario: int = param_field(shared_params.SCENARIO)
+    physics_rate_hz: float = param_field(shared_params.PHYSICS_RATE_HZ)
+    camera_rate_hz: float = param_field(shared_params.CAMERA_RATE_HZ)
+    feedback_latency_s: float = param_field(shared_params.FEEDBACK_LATENCY_S)
+    tau_in: float = param_field(shared_params.TAU_IN)
+    omega_n: float = param_field(shared_params.OMEGA_N)
+    zeta: float = param_field(shared_params.ZETA)
+    actuators: str = param_field(shared_params.ACTUATORS)
+    torque_limits: tuple[float, ...] = param_field(node_params.TORQUE_LIMITS)
+    speed_margin: float = param_field(node_params.SPEED_MARGIN)
+    acceleration_margin: float = param_field(node_params.ACCELERATION_MARGIN)
+    target_features_source: str = param_field(shared_params.TARGET_FEATURES_SOURCE)
+    servo_law: str = param_field(node_params.SERVO_LAW)
+    feedforward_method: str = param_field(node_params.FEEDFORWARD_METHOD)
+    feedforward_ratio: float = param_field(node_params.FEEDFORWARD_RATIO)
+    lambda_0: float = param_field(node_params.LAMBDA_0)
+    lambda_inf: float = param_field(node_params.LAMBDA_INF)
+    lambda_slope: float = param_field(node_params.LAMBDA_SLOPE)
+    feedback_design: str = param_field(node_params.FEEDBACK_DESIGN)
+    svd_rcond: float = param_field(node_params.SVD_RCOND)
+    svd_damping: float = param_field(node_params.SVD_DAMPING)
+    max_correction_rad: float = param_field(node_params.MAX_CORRECTION_RAD)
+    hold_speed_fraction: float = param_field(node_params.HOLD_SPEED_FRACTION)
+    linearise_at: str = param_field(node_params.LINEARISE_AT)
+    switch_settle_s: float = param_field(node_params.SWITCH_SETTLE_S)
+    feature_fallback: str = param_field(node_params.FEATURE_FALLBACK)
+    windup_horizon_s: float = param_field(node_params.WINDUP_HORIZON_S)
+    joint_limit_margin_rad: float = param_field(node_params.JOINT_LIMIT_MARGIN_RAD)
+
+    def __post_init__(self):
+        """Check each value against its Param, then the combinations (class docstring)."""
+        super().__post_init__()
+        values = asdict(self)
+        node_params.check_gains(values)
+        node_params.check_servo_law(values)
+
+    @property
+    def gain(self):
+        """Return the :class:`.servo_laws.AdaptiveGain` of lambda_0, lambda_inf, lambda_slope."""
+        return AdaptiveGain(self.lambda_0, self.lambda_inf, self.lambda_slope)
+
+    @classmethod
+    def for_law(cls, servo_law, **values):
+        """
+        Return the config of ``servo_law`` with the feedforward that goes with it.
+
+        As ``ibvs run`` sets it (:func:`.servo_laws.feedforward_overrides`: 'hold' for
+        'ibvs' and 'pbvs', ratio 2 for 'switching'); ``values`` override the rest.
+        """
+        return cls(servo_law=servo_law, **{**feedforward_overrides(servo_law), **values})
 
 
 @dataclass
@@ -63,88 +129,87 @@ def _accepted(rejection):
         raise RuntimeError(f'lockstep refused an input: {rejection.reason} ({rejection.detail})')
 
 
-def simulate(scenario=1, duration_s=2.0, physics_rate_hz=1000.0, camera_rate_hz=30.0,
-             tau_in=paper.TAU_IN, omega_n=paper.OMEGA_N, zeta=paper.ZETA,
-             feedback_latency_s=0.0, disturbance=None, actuators=ACTUATORS[0], model=None,
-             plant_params=None, torque_limits=None, estimate_out_of_view=True,
-             feedforward_method=FEEDFORWARD_METHODS[0], feedback_design=FEEDBACK_DESIGNS[0],
-             svd_rcond=SVD_RCOND, svd_damping=SVD_DAMPING,
-             max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
-             target=None, integration='exact', linearise_at=LINEARISE_AT,
-             servo_law=SERVO_LAWS[0], gain=None, switch_settle_s=SWITCH_SETTLE_S,
-             feedforward_ratio=None,
-             feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
-             joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD, plant_camera=None,
-             target_features_source='model', feature_noise_px=0.0, seed=0):
+def simulate(config=LoopConfig(), duration_s=2.0, *, model=None, plant_params=None,
+             plant_camera=None, disturbance=None, target=None, integration='exact',
+             estimate_out_of_view=True, feature_noise_px=0.0, seed=0):
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
-    The arguments named as node parameters (docs/parameters.md) mean what those parameters mean.
+    Parameters
+    ----------
+    config : LoopConfig
+        The node parameters (scenario, rates, gains, servo law, ...), checked there.
+    duration_s : float
+        Sim time to run (s).
+    model : CameraRobotModel, optional
+        The controllers' F (default :func:`ibvs_model.default_model`).
+    plant_params : RobotParams, optional
+        The true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)`` for Figure 13).
+    plant_camera : StereoCamera, optional
+        The true camera, which makes the features (default the model's; another one is a
+        calibration error).
+    disturbance : array_like, optional
+        d_q (rad), default the scenario's.
+    target : array_like, optional
+        The target flange pose T_E^O (default :func:`ibvs_model.paper.target_pose`).
+    integration : {'exact', 'semi-implicit'}
+        'exact': zero-order hold of the acceleration over a step (the continuous arm);
+        'semi-implicit': qd += a dt, then q += qd dt, how PyBullet steps the simulated arm
+        (use it to compare with the graph).
+    estimate_out_of_view : bool
+        Out of view, the features are the estimate F(encoder angles) (eq. 46).
+    feature_noise_px : float
+        Standard deviation of Gaussian noise added to each measured feature (px,
+        independent per value and frame; ``numpy.random.default_rng(seed)``), a stand-in
+        for the detector's error, not rendered image noise.
+    seed : int
+        Seed of that noise.
 
-    ``model``: the controllers' F (default :func:`ibvs_model.default_model`);
-    ``plant_params``: the true robot (default the model's; e.g. ``IRB4600.scaled(l2, l4)``
-    for Figure 13); ``plant_camera``: the true camera, which makes the features (default
-    the model's; another one is a calibration error). ``target_features_source``: 'model'
-    (p_bar = the model's F at the target, eq. 30) or 'taught' (p_bar = the true features
-    of the true robot at the target, as the feature node measures them on the teach
-    pair). ``feature_noise_px``: the standard deviation of Gaussian noise added to each
-    measured feature (px, independent per value and frame;
-    ``numpy.random.default_rng(seed)``), a stand-in for the detector's error, not rendered
-    image noise. ``disturbance``: d_q (rad), default the scenario's. The start is the
-    scenario pose (true angles: IK with seed 0, as the simulator does). Out of view, the
-    features are the estimate F(encoder angles) (eq. 46) when ``estimate_out_of_view``.
-    'limited' actuators with the bare double integrator (M = I, h = 0) take
-    ``torque_limits`` as the acceleration limits (rad/s^2). ``integration``: 'exact'
-    (zero-order hold of the acceleration over a step: the continuous arm) or 'semi-implicit'
-    (qd += a dt, then q += qd dt: how PyBullet steps the simulated arm; use it to compare
-    with the graph).
-    ``linearise_at``: where the feedback evaluates C1 (:class:`.controllers.AdaptiveFeedback`).
-    ``servo_law``: one of :data:`.servo_laws.SERVO_LAWS`; the law's class says its
-    feedforward (ibvs and pbvs: held at q(0), 'hold'); ``gain``
-    (:class:`.servo_laws.AdaptiveGain`), ``feature_fallback``, ``windup_horizon_s`` and
-    ``joint_limit_margin_rad`` are theirs, ``switch_settle_s`` the switching law's. A frame
-    is 'measured' when both markers are in view of the true robot. ``feedforward_ratio``:
-    T_forward's double pole in tau_in, default the law's (its ``feedforward``: 2 for
-    switching, else the paper's 0.1).
+    Notes
+    -----
+    ``target_features_source`` 'model': p_bar = the model's F at the target (eq. 30);
+    'taught': p_bar = the true features of the true robot at the target, as the feature
+    node measures them on the teach pair. The start is the scenario pose (true angles: IK
+    with seed 0, as the simulator does). A frame is 'measured' when both markers are in
+    view of the true robot. The feedforward runs with ``config.feedforward_method`` as the
+    law takes it (:meth:`.servo_laws.ServoLaw.feedforward_method`); the law (eq. 38-41 for
+    'paper') gets the gains and options of ``config``. Raises ValueError for a camera rate
+    above the physics rate (a combination no single Param refuses) or another
+    ``integration``.
+
     """
-    law = law_class(servo_law)
+    law = law_class(config.servo_law)
     model = default_model() if model is None else model
     plant = CameraRobotModel(model.camera if plant_camera is None else plant_camera,
                              model.params if plant_params is None else plant_params)
-    if target_features_source not in ('model', 'taught'):
-        raise ValueError("target_features_source must be 'model' or 'taught', got "
-                         f'{target_features_source!r}')
-    d_q = paper.scenario_disturbance(scenario) if disturbance is None \
+    d_q = paper.scenario_disturbance(config.scenario) if disturbance is None \
         else np.asarray(disturbance, dtype=float)
     pose = paper.target_pose() if target is None else np.asarray(target, dtype=float)
-    dt_ns = period_ns(physics_rate_hz)
-    cam_ns = period_ns(camera_rate_hz)
+    dt_ns = period_ns(config.physics_rate_hz)
+    cam_ns = period_ns(config.camera_rate_hz)
     if cam_ns < dt_ns:
         raise ValueError('the camera rate must not exceed the physics rate')
-    latency_ns = int(round(feedback_latency_s * 1e9))
+    latency_ns = int(round(config.feedback_latency_s * 1e9))
     if integration not in ('exact', 'semi-implicit'):
         raise ValueError(f"integration must be 'exact' or 'semi-implicit', got {integration!r}")
     semi_implicit = integration == 'semi-implicit'
     dt = dt_ns * 1e-9
 
-    q_true0 = inverse_kinematics(paper.scenario_start_pose(scenario), plant.params)
+    q_true0 = inverse_kinematics(paper.scenario_start_pose(config.scenario), plant.params)
     q = q_true0 - d_q
     qd = np.zeros(6)
-    joint = JointLoop(tau_in, dt, actuators, plant.params.qd_max, torque_limits)
-    if feedforward_ratio is None:
-        feedforward_ratio = law.feedforward.get('feedforward_ratio', FEEDFORWARD_RATIO)
-    ff = Feedforward(pose, tau_in, dt, model.params, feedforward_ratio=feedforward_ratio,
-                     feedforward_method=law.feedforward_method(feedforward_method))
+    joint = JointLoop(config.tau_in, dt, config.actuators, plant.params.qd_max,
+                      config.torque_limits, speed_margin=config.speed_margin,
+                      acceleration_margin=config.acceleration_margin)
+    ff = Feedforward(pose, config.tau_in, dt, model.params,
+                     feedforward_ratio=config.feedforward_ratio,
+                     feedforward_method=law.feedforward_method(config.feedforward_method))
     q_target = ff.start(q)
-    fb = law.create(model, pose, cam_ns * 1e-9, tau_in=tau_in, omega_n=omega_n, zeta=zeta,
-                    gain=gain, switch_settle_s=switch_settle_s, svd_rcond=svd_rcond,
-                    svd_damping=svd_damping, feedback_design=feedback_design,
-                    max_correction_rad=max_correction_rad,
-                    hold_speed_fraction=hold_speed_fraction, linearise_at=linearise_at,
-                    feature_fallback=feature_fallback, windup_horizon_s=windup_horizon_s,
-                    joint_limit_margin_rad=joint_limit_margin_rad,
-                    p_target=plant.features(inverse_kinematics(pose, plant.params, seed=q_target))
-                    if target_features_source == 'taught' else None)
+    taught = config.target_features_source == 'taught'
+    fb = law.create(model, pose, cam_ns * 1e-9, gain=config.gain,
+                    p_target=plant.features(inverse_kinematics(pose, plant.params,
+                                                               seed=q_target))
+                    if taught else None, **node_params.law_settings(asdict(config)))
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}

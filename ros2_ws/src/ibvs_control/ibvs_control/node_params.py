@@ -8,7 +8,7 @@ at start (exit code 2, ibvs_common.node_main.run) instead of misbehaving later.
 """
 
 from ibvs_common.params import Param, ParameterError
-from ibvs_common.shared_params import target_from_parameters
+from ibvs_common.shared_params import OMEGA_N, target_from_parameters, TAU_IN, ZETA
 from ibvs_model import IRB4600, ModelError
 
 from . import controllers, servo_laws, youla
@@ -92,6 +92,17 @@ SPEED_MARGIN = Param('speed_margin', controllers.SPEED_MARGIN, "'limited' actuat
 ACCELERATION_MARGIN = Param('acceleration_margin', controllers.ACCELERATION_MARGIN,
                             "'limited' actuators: share of the torque left after h(q, qdot) "
                             'that the governor may use', '-', low=0.0, high=1.0, low_open=True)
+
+#: The parameters that go to the servo law's :meth:`.servo_laws.ServoLaw.create` under their
+#: names (each law takes those it declares), besides its gain (:func:`check_servo_law`).
+LAW_PARAMS = (TAU_IN, OMEGA_N, ZETA, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION_RAD,
+              HOLD_SPEED_FRACTION, LINEARISE_AT, SWITCH_SETTLE_S, FEATURE_FALLBACK,
+              WINDUP_HORIZON_S, JOINT_LIMIT_MARGIN_RAD)
+
+
+def law_settings(values):
+    """Return the values of :data:`LAW_PARAMS` in ``values`` (a mapping by name), by name."""
+    return {spec.name: values[spec.name] for spec in LAW_PARAMS}
 
 
 def check_gains(values):

@@ -9,7 +9,8 @@ import subprocess
 import sys
 
 from ibvs_common import contract
-from ibvs_control.closed_loop import FeedbackLockstep, simulate
+from ibvs_common.params import ParameterError
+from ibvs_control.closed_loop import FeedbackLockstep, LoopConfig, simulate
 from ibvs_model import forward_kinematics, IRB4600, paper, pose_error
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ import pytest
 
 @pytest.fixture(scope='module')
 def scenario1():
-    return simulate(scenario=1, duration_s=2.0)
+    return simulate(LoopConfig(scenario=1), duration_s=2.0)
 
 
 def test_scenario1_reaches_the_target_features(scenario1):
@@ -55,24 +56,24 @@ def test_scenario1_transient(scenario1):
 
 @pytest.mark.parametrize('scenario', [2, 3])
 def test_scenarios_starting_out_of_view_converge(scenario):
-    r = simulate(scenario=scenario, duration_s=2.0)
+    r = simulate(LoopConfig(scenario=scenario), duration_s=2.0)
     assert not r.measured[0], 'the markers start out of view: features are estimated'
     assert r.measured[-1]
     assert r.final_image_error() < 0.01
 
 
 def test_limited_actuators_converge_within_the_speed_limits():
-    r = simulate(scenario=1, duration_s=3.0, actuators='limited', torque_limits=[30.0] * 6)
+    r = simulate(LoopConfig(actuators='limited', torque_limits=[30.0] * 6), duration_s=3.0)
     speeds = np.abs(np.diff(r.q, axis=0)) / np.diff(r.t)[:, None]
     assert np.all(speeds <= np.array(IRB4600.qd_max) + 1e-6)
     assert r.final_image_error() < 0.01
 
 
 def test_latency_and_model_error_still_converge():
-    r = simulate(scenario=1, duration_s=3.0, feedback_latency_s=0.02)
+    r = simulate(LoopConfig(feedback_latency_s=0.02), duration_s=3.0)
     assert r.final_image_error() < 0.01
     # Figure 13: a longer true link L2 than the model (controllers keep the nominal F)
-    r = simulate(scenario=1, duration_s=3.0, plant_params=IRB4600.scaled(1.05, 1.0))
+    r = simulate(LoopConfig(), duration_s=3.0, plant_params=IRB4600.scaled(1.05, 1.0))
     assert r.final_image_error() < 0.01
 
 
@@ -88,12 +89,25 @@ def test_figure13_ends_of_the_sweep_converge_and_need_both_choices(l2, l4):
     target = paper.target_pose()[:3, 3]
 
     def final_error(**kwargs):
-        r = simulate(scenario=1, duration_s=3.0, plant_params=plant, **kwargs)
+        r = simulate(LoopConfig(**kwargs), duration_s=3.0, plant_params=plant)
         return np.linalg.norm(forward_kinematics(r.q_true[-1], plant)[:3, 3] - target)
 
     assert final_error() < 1e-3
     if l4 < 1.0:
         assert final_error(linearise_at='features') > 1e-2
+
+
+def test_the_config_refuses_what_the_nodes_refuse_naming_the_parameter():
+    """Each value against its Param, and the combinations the nodes check at start."""
+    for values, name in (({'tau_in': 0.0}, 'tau_in'), ({'servo_law': 'nope'}, 'servo_law'),
+                         ({'omega_n': 200.0}, 'omega_n'),
+                         ({'servo_law': 'ibvs'}, 'feedforward_method'),
+                         ({'lambda_inf': 20.0, 'lambda_slope': 1.0}, 'lambda_inf')):
+        with pytest.raises(ParameterError, match=f"'{name}'"):
+            LoopConfig(**values)
+    assert LoopConfig.for_law('ibvs').feedforward_method == 'hold'
+    assert LoopConfig.for_law('switching').feedforward_ratio == 2.0
+    assert LoopConfig.for_law('switching', feedforward_ratio=1.0).feedforward_ratio == 1.0
 
 
 def test_model_only_loop_needs_neither_ros_nor_pybullet():
@@ -118,7 +132,7 @@ def test_timing_rule_is_the_contract_s():
 
 
 def test_semi_implicit_plant_as_pybullet_steps_it_also_converges():
-    r = simulate(scenario=1, duration_s=2.0, integration='semi-implicit')
+    r = simulate(LoopConfig(), duration_s=2.0, integration='semi-implicit')
     assert r.final_image_error() < 0.01
     with pytest.raises(ValueError, match='integration'):
         simulate(duration_s=0.01, integration='rk4')

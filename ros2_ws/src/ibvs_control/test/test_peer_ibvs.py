@@ -28,8 +28,7 @@ limit), and d_q = 0 (Corke's camera knows where it is).
 
 from dataclasses import replace
 
-from ibvs_control.closed_loop import simulate
-from ibvs_control.servo_laws import AdaptiveGain
+from ibvs_control.closed_loop import LoopConfig, simulate
 from ibvs_model import default_model, inverse_kinematics, IRB4600, paper
 import numpy as np
 import pytest
@@ -116,9 +115,10 @@ def runs():
     model = default_model(params=wide)
     ours = {}
     for scale in (1.0, 1.1):
-        ours[scale] = simulate(1, FRAMES / 30.0 - 1e-3, servo_law='ibvs', model=model,
-                               gain=AdaptiveGain(scale * LAMBDA, scale * LAMBDA, 0.0),
-                               disturbance=np.zeros(6))
+        gain = scale * LAMBDA
+        ours[scale] = simulate(LoopConfig.for_law('ibvs', lambda_0=gain, lambda_inf=gain,
+                                                  lambda_slope=0.0),
+                               FRAMES / 30.0 - 1e-3, model=model, disturbance=np.zeros(6))
     q_start = inverse_kinematics(paper.scenario_start_pose(1), wide)
     return model, q_start, ours
 

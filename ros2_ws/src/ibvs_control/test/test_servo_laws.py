@@ -11,7 +11,7 @@ Servo laws beside the paper's (no ROS): classic IBVS, PBVS, switching, by proper
 from dataclasses import replace
 
 from ibvs_control import controllers, servo_laws
-from ibvs_control.closed_loop import simulate
+from ibvs_control.closed_loop import LoopConfig, simulate
 from ibvs_control.controllers import Feedforward
 from ibvs_control.servo_laws import (AdaptiveGain, axis_error, ClassicIBVS, make_law, PBVS,
                                      Switching, tool_from_markers)
@@ -85,7 +85,8 @@ def test_feedforward_ratio_keeps_the_joint_line_and_scales_the_speed(scenario):
     """
     peaks = {}
     for ratio in (1.0, 2.0):
-        r = simulate(scenario, 0.15, servo_law='switching', feedforward_ratio=ratio)
+        r = simulate(LoopConfig.for_law('switching', scenario=scenario, feedforward_ratio=ratio),
+                     0.15)
         assert np.all(r.q_feedback == 0.0), 'still before the switch'
         q0, dq = r.q[0], r.q_target - r.q[0]
         big = np.abs(dq) > 0.05
@@ -120,7 +121,8 @@ def test_classic_ibvs_error_decays_at_rate_lambda(lam):
 def test_classic_ibvs_in_the_model_only_loop_decays_at_about_lambda():
     """Through the inner loop (eq. 29) and at 30 Hz: the tail still decays at ~lambda."""
     lam = 4.0
-    r = simulate(1, 3.0, servo_law='ibvs', gain=AdaptiveGain(lam, lam, 0.0))
+    r = simulate(LoopConfig.for_law('ibvs', lambda_0=lam, lambda_inf=lam, lambda_slope=0.0),
+                 3.0)
     e = r.image_error
     tail = (e < 20.0) & (e > 1e-3)
     rate = -np.polyfit(r.frame_t[tail], np.log(e[tail]), 1)[0]
@@ -129,13 +131,16 @@ def test_classic_ibvs_in_the_model_only_loop_decays_at_about_lambda():
     np.testing.assert_array_equal(r.q_feedforward, np.tile(r.q[0], (r.t.size, 1)))
 
 
+#: Position-based servo at the constant gain 1/s.
+PBVS_CONSTANT_GAIN = LoopConfig.for_law('pbvs', lambda_0=1.0, lambda_inf=1.0, lambda_slope=0.0)
+
+
 def test_pbvs_moves_the_flange_on_a_straight_line_unless_a_joint_limit_is_in_the_way():
     target = paper.target_pose()[:3, 3]
     # that line from scenario 1 takes joint 2 to -90.5 deg, past its -90 deg limit: with
     # the limits out of the way the flange follows it ...
     wide = replace(IRB4600, q_min=(-7.0,) * 6, q_max=(7.0,) * 6)
-    r = simulate(1, 5.0, servo_law='pbvs', gain=AdaptiveGain(1.0, 1.0, 0.0),
-                 model=default_model(params=wide))
+    r = simulate(PBVS_CONSTANT_GAIN, 5.0, model=default_model(params=wide))
     path = flange_path(r)
     travelled = np.linalg.norm(target - path[0])
     _, lateral, _ = path_metrics(r.t, path, target)
@@ -145,13 +150,13 @@ def test_pbvs_moves_the_flange_on_a_straight_line_unless_a_joint_limit_is_in_the
     assert r.q_true[:, 1].min() < low
     # ... with the IRB 4600's, the reference stops joint 2 at its limit (less the margin)
     # and the path bends round it, still to the target
-    limited = simulate(1, 5.0, servo_law='pbvs', gain=AdaptiveGain(1.0, 1.0, 0.0))
+    limited = simulate(PBVS_CONSTANT_GAIN, 5.0)
     bent = flange_path(limited)
     assert np.linalg.norm(bent[-1] - target) < 0.02 * travelled
     assert path_metrics(limited.t, bent, target)[1] > 0.05 * travelled
     assert (limited.q_feedforward + limited.q_feedback)[:, 1].min() >= low - 1e-12
     # the paper's law, for contrast, moves in joint space: far off the line
-    paper_path = flange_path(simulate(1, 0.5))
+    paper_path = flange_path(simulate(LoopConfig(), 0.5))
     assert path_metrics(r.t[:paper_path.shape[0]], paper_path, target)[1] > 0.1 * travelled
 
 
@@ -191,19 +196,19 @@ def test_pbvs_pose_error_of_the_target_is_zero():
 
 @pytest.mark.parametrize('law', ['ibvs', 'pbvs'])
 def test_vision_only_laws_hold_still_out_of_view_with_fallback_hold(law):
-    r = simulate(2, 0.3, servo_law=law, feature_fallback='hold')
+    r = simulate(LoopConfig.for_law(law, scenario=2, feature_fallback='hold'), 0.3)
     assert not np.any(r.measured)
     assert np.all(r.q_feedback == 0.0)
     np.testing.assert_allclose(r.q, np.tile(r.q[0], (r.t.size, 1)), atol=1e-12)
     # 'estimate' (the default): the model-estimated features move them, as the paper's law
-    moved = simulate(2, 0.3, servo_law=law)
+    moved = simulate(LoopConfig.for_law(law, scenario=2), 0.3)
     assert not moved.measured[0]
     assert np.abs(moved.q[-1] - moved.q[0]).max() > 0.1
 
 
 @pytest.mark.parametrize('scenario', [1, 2, 3])
 def test_switching_is_bumpless(scenario):
-    r = simulate(scenario, 1.0, servo_law='switching')
+    r = simulate(LoopConfig.for_law('switching', scenario=scenario), 1.0)
     moving = np.nonzero(np.any(r.q_feedback != 0.0, axis=1))[0]
     assert moving.size, 'the feedback switched on'
     k = moving[0]
@@ -219,13 +224,14 @@ def test_switching_is_bumpless(scenario):
     later = np.abs(np.diff(r.q_feedback[k:], axis=0)).max()
     assert jump <= later
     assert jump < 1e-3
-    held_by_paper = np.abs(simulate(scenario, r.t[k] + 1e-3).q_feedback[k]).max()
+    held_by_paper = np.abs(simulate(LoopConfig(scenario=scenario),
+                                    r.t[k] + 1e-3).q_feedback[k]).max()
     assert jump < 0.1 * held_by_paper
 
 
 @pytest.mark.parametrize('scenario', [2, 3])
 def test_switching_overshoots_little_and_is_fast(scenario):
-    r = simulate(scenario, 1.0, servo_law='switching')
+    r = simulate(LoopConfig.for_law('switching', scenario=scenario), 1.0)
     overshoot, _, t_1mm = path_metrics(r.t, flange_path(r), paper.target_pose()[:3, 3])
     assert overshoot <= 5e-3
     assert t_1mm is not None and t_1mm <= 0.6
@@ -249,11 +255,11 @@ def test_switching_waits_for_measured_features_and_for_the_settle_time():
 
 
 def test_paper_law_is_unchanged_by_the_new_signature():
-    a = simulate(1, 0.3)
-    b = simulate(1, 0.3, servo_law='paper')
+    a = simulate(LoopConfig(), 0.3)
+    b = simulate(LoopConfig.for_law('paper'), 0.3)
     np.testing.assert_array_equal(a.q, b.q)
     with pytest.raises(ValueError, match='servo_law'):
-        simulate(1, 0.1, servo_law='nope')
+        LoopConfig.for_law('nope')
 
 
 def test_parameters_of_the_laws_are_checked_at_start():

@@ -71,6 +71,7 @@ only break the physics) is rejected too; the step then happens with the holding 
 goes on and the arm holds its position. Each rejection is logged and counted on /diagnostics.
 """
 
+from dataclasses import replace
 import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -82,14 +83,12 @@ from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
-from ibvs_common.shared_params import (CAMERA_RATE_HZ, check_command_interface,
-                                       COMMAND_INTERFACE, COMMAND_RATE_HZ, DISTURBANCE_DEG,
-                                       JOINTS, L2_SCALE, L4_SCALE, LOCKSTEP, PHYSICS_RATE_HZ,
-                                       POSITION_COMMAND_TYPE, SCENARIO,
+from ibvs_common.shared_params import (check_command_interface, COMMAND_INTERFACE,
+                                       COMMAND_RATE_HZ, JOINTS, LOCKSTEP, POSITION_COMMAND_TYPE,
                                        TARGET_FEATURES_SOURCE, target_from_parameters,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.timing import period_ns
-from ibvs_model import IRB4600, paper
+from ibvs_model import IRB4600
 from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
 from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path
@@ -101,42 +100,10 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory
 
-from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
+from .config import SimConfig
 from .position_servo import PositionServo
-from .simulator import ConfigError, Simulator
-from .world import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M, DEFAULT_SUPERSAMPLING,
-                    MAX_FOCUS_SUPERSAMPLING, MAX_MOUNT_HEIGHT_M, MAX_SUPERSAMPLING, RENDERERS)
+from .simulator import Simulator
 
-RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
-                   'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
-CAMERA_EYE = Param('camera_eye', [float(v) for v in paper.CAMERA_EYE],
-                   'camera frame {C} origin (midway between the lenses) in {O}', 'm',
-                   low=-20.0, high=20.0, length=3)
-CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT],
-                       'point of {O} on the optical axis (image up = +z of {O})', 'm',
-                       low=-20.0, high=20.0, length=3)
-RENDERER = Param('renderer', 'auto', "PyBullet renderer: 'egl' (OpenGL without display), "
-                 "'tiny' (TinyRenderer, CPU) or 'auto' (EGL where it loads); or 'opengl': "
-                 'our own OpenGL renderer of the same shapes (ibvs_sim.gl_renderer), several '
-                 'times faster, no shadows', '-', choices=RENDERERS)
-RENDER_SUPERSAMPLING = Param(
-    'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
-    'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
-    'cost grows with its square)', '-', low=1, high=MAX_SUPERSAMPLING)
-RENDER_MARKER_SUPERSAMPLING = Param(
-    'render_marker_supersampling', DEFAULT_FOCUS_SUPERSAMPLING, 'samples per pixel along '
-    'each axis in small windows around the two markers, rendered again and pasted over the '
-    'image (their centres then move with the sub-pixel position by 0.005 px rms instead of '
-    '0.02-0.04 px; 1: off)', '-', low=1, high=MAX_FOCUS_SUPERSAMPLING)
-MOUNT_HEIGHT_M = Param(
-    'mount_height_m', DEFAULT_MOUNT_HEIGHT_M, 'height of the robot base above the floor (a '
-    'riser fills it; drawn only, nothing collides): a tool below the floor is hidden from the '
-    'camera; 0: robot on the floor', 'm', low=0.0, high=MAX_MOUNT_HEIGHT_M)
-RENDER_PARALLEL_LENSES = Param(
-    'render_parallel_lenses', True, 'render the right lens in a second process while this one '
-    'renders the left (ibvs_sim.lens_worker): the same images in about half the wall time on '
-    "two cores; false: both lenses in this process; renderer 'opengl' always draws both "
-    'lenses in this process, in one context (faster)', '-')
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
                        'source)', '-')
@@ -166,28 +133,6 @@ MIN_TOOL_PATH_SUBSCRIBERS = Param(
     'min_tool_path_subscribers', 0, 'the start waits until /ibvs/tool_path has this many '
     'subscribers (a recorder whose metrics start at step 0)', '-', low=0, high=1000)
 
-IMAGE_NOISE_STDDEV = Param(
-    'image_noise_stddev', 0.0, 'standard deviation of the Gaussian noise added to each pixel '
-    'and channel of the rendered images, intensity in [0, 1] (Gazebo camera noise); the sum '
-    'is clipped and rounded to 8 bits; 0: off', '-', low=0.0, high=MAX_NOISE_STDDEV)
-FRAME_DROP_PROBABILITY = Param(
-    'frame_drop_probability', 0.0, 'probability that a stereo frame is lost (both images), '
-    'each frame drawn on its own; 0: off', '-', low=0.0, high=MAX_DROP_PROBABILITY)
-CAMERA_SEED = Param('camera_seed', 0, 'seed of the Generator that draws image noise and '
-                    'frame drops', '-', low=0, high=2 ** 31 - 1)
-CAMERA_POSE_ERROR_XYZ_M = Param(
-    'camera_pose_error_xyz_m', [0.0, 0.0, 0.0], 'calibration error of the camera position: '
-    'the published /stereo/pose is the true one moved by this along the true camera axes '
-    '(x right, y down, z forward)', 'm', low=-0.5, high=0.5, length=3)
-CAMERA_POSE_ERROR_RPY_DEG = Param(
-    'camera_pose_error_rpy_deg', [0.0, 0.0, 0.0], 'calibration error of the camera '
-    'orientation: the published /stereo/pose is the true one turned by roll, pitch, yaw '
-    'about the true camera axes x, y, z (R = Rz Ry Rx)', 'deg', low=-10.0, high=10.0,
-    length=3)
-FOCAL_LENGTH_ERROR = Param(
-    'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
-    'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
-
 REAL_TIME_FACTOR = Param(
     'real_time_factor', 0.05, 'free-running (lockstep false): sim seconds per wall second '
     "(Gazebo's real_time_factor); 0.05 leaves margin on a loaded 2-core machine, where one "
@@ -209,14 +154,9 @@ CAMERA_TOPICS = Param(
     'for a camera named zed: /zed/zed_node/{left,right}/color/rect/image in bgra8 with '
     'their camera_info and frame ids, QoS depth 10)', '-', choices=('ibvs', 'zed_wrapper'))
 
-#: The parameters that go to :class:`.simulator.Simulator` as they are, under their names.
-SIMULATOR_PARAMS = (SCENARIO, DISTURBANCE_DEG, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, RESOLUTION,
-                    CAMERA_EYE, CAMERA_LOOK_AT, L2_SCALE, L4_SCALE, RENDER_SUPERSAMPLING,
-                    RENDER_MARKER_SUPERSAMPLING, MOUNT_HEIGHT_M, IMAGE_NOISE_STDDEV,
-                    FRAME_DROP_PROBABILITY, CAMERA_SEED, CAMERA_POSE_ERROR_XYZ_M,
-                    CAMERA_POSE_ERROR_RPY_DEG, FOCAL_LENGTH_ERROR)
-PARAMS = SIMULATOR_PARAMS + (
-    RENDERER, RENDER_PARALLEL_LENSES, PUBLISH_IMAGES, CLOCK_RATE_HZ,
+#: The simulator's own (:class:`.config.SimConfig`), then the node's.
+PARAMS = SimConfig.params() + (
+    PUBLISH_IMAGES, CLOCK_RATE_HZ,
     MIN_JOINT_STATE_SUBSCRIBERS, MIN_FRAME_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_PATH_SUBSCRIBERS,
     MIN_CAMERA_INFO_SUBSCRIBERS,
     TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION,
@@ -291,14 +231,10 @@ class SimNode(Node):
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')
         teach_pose = target_from_parameters(values) if teach else None
-        try:
-            self.sim = Simulator(
-                renderer=values['renderer'] if self._publish_images else 'tiny',
-                render_parallel_lenses=values['render_parallel_lenses'] and self._publish_images,
-                teach_pose=teach_pose,
-                **{spec.name: values[spec.name] for spec in SIMULATOR_PARAMS})
-        except ConfigError as exc:
-            raise ParameterError(str(exc)) from None
+        config = SimConfig.from_values(values)
+        if not self._publish_images:  # physics only: no renderer to load, no lens worker
+            config = replace(config, renderer='tiny', render_parallel_lenses=False)
+        self.sim = Simulator(config, teach_pose=teach_pose)
         log = self.get_logger()
         pos_err, rot_err = self.sim.start_residual
         log.info(f'scenario {self.sim.scenario}: true start angles '

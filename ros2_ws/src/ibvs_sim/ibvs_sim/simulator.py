@@ -23,117 +23,87 @@ camera and noise before the run, as a user teaches a target on the real cell.
 """
 
 from fractions import Fraction
-import math
 
+from ibvs_common.params import ParameterError
 from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, ModelError,
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
 
-from .camera_effects import (calibrated_intrinsics, calibrated_pose, CameraEffects,
-                             EffectError)
+from .camera_effects import calibrated_intrinsics, calibrated_pose, CameraEffects
+from .config import SimConfig
 from .lens_worker import LensWorkerError
-from .world import (check_mount_height, DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_MOUNT_HEIGHT_M,
-                    DEFAULT_SUPERSAMPLING, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING,
-                    RendererError, World)
+from .world import RendererError, World
 
 
-class ConfigError(ValueError):
-    """A configuration value cannot be used; ``param`` names the parameter at fault."""
+class ConfigError(ParameterError):
+    """A configuration the simulator cannot run; ``param`` names the parameter at fault."""
 
     def __init__(self, param, message):
         """Keep the parameter's name and the reason."""
-        super().__init__(f"parameter '{param}': {message}")
-        self.param = param
+        super().__init__(f"parameter '{param}': {message}", param)
 
 
 class Simulator:
     """
     The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
 
-    Raises :class:`ConfigError` at construction for a configuration it cannot run: rates,
-    scenario, unreachable start pose, camera pose, renderer. The arguments are the sim_node
-    parameters of the same names (docs/parameters.md); ``render_parallel_lenses`` renders the
-    right lens in a second process (:mod:`ibvs_sim.lens_worker`), the same images.
+    ``config``: the sim_node parameters (:class:`.config.SimConfig`, each value checked
+    there). ``render_parallel_lenses`` renders the right lens in a second process
+    (:mod:`ibvs_sim.lens_worker`), the same images. ``teach_pose``: a flange pose T_E^O whose
+    stereo pair to render before the run (module docstring), or None.
+
+    Raises :class:`ConfigError` at construction for what no single parameter's range
+    says: a camera rate above the physics rate, a start pose (or a pose to teach) the
+    simulated robot cannot reach, a camera eye and look-at point that give no camera pose,
+    and a renderer or lens worker that cannot start here.
     """
 
-    def __init__(self, scenario=1, disturbance_deg=(0.0,) * 6, physics_rate_hz=1000.0,
-                 camera_rate_hz=30.0, resolution='HD720', camera_eye=paper.CAMERA_EYE,
-                 camera_look_at=paper.CAMERA_LOOK_AT, l2_scale=1.0, l4_scale=1.0,
-                 renderer='auto', render_supersampling=DEFAULT_SUPERSAMPLING,
-                 render_marker_supersampling=DEFAULT_FOCUS_SUPERSAMPLING,
-                 mount_height_m=DEFAULT_MOUNT_HEIGHT_M, image_noise_stddev=0.0,
-                 frame_drop_probability=0.0, camera_seed=0, camera_pose_error_xyz_m=(0.0,) * 3,
-                 camera_pose_error_rpy_deg=(0.0,) * 3, focal_length_error=1.0, teach_pose=None,
-                 render_parallel_lenses=False):
-        """Check the configuration, solve the start pose and build the PyBullet world."""
-        for name, rate in (('physics_rate_hz', physics_rate_hz),
-                           ('camera_rate_hz', camera_rate_hz)):
-            if not (math.isfinite(rate) and rate > 0.0):
-                raise ConfigError(name, f'{rate} Hz: a rate must be finite and > 0')
-        self.dt_ns = period_ns(physics_rate_hz)
-        self.camera_period_ns = period_ns(camera_rate_hz)
+    def __init__(self, config: SimConfig = SimConfig(), teach_pose=None):
+        """Check the combinations, solve the start pose and build the PyBullet world."""
+        self.config = config
+        self.dt_ns = period_ns(config.physics_rate_hz)
+        self.camera_period_ns = period_ns(config.camera_rate_hz)
         try:
-            check_camera_rate(camera_rate_hz, physics_rate_hz)
+            check_camera_rate(config.camera_rate_hz, config.physics_rate_hz)
         except ValueError as exc:
             raise ConfigError('camera_rate_hz', str(exc)) from None
         self.frames_exact = self.camera_period_ns % self.dt_ns == 0
-        if scenario not in (1, 2, 3):
-            raise ConfigError('scenario', f'{scenario!r} is not a paper scenario (1, 2 or 3)')
-        self.scenario = scenario
-        d_q = np.radians(np.asarray(disturbance_deg, dtype=float))
-        if d_q.shape != (6,) or not np.all(np.isfinite(d_q)):
-            raise ConfigError('disturbance_deg', 'needs 6 finite values')
-        self.d_q = d_q
+        self.scenario = config.scenario
+        self.d_q = np.radians(np.asarray(config.disturbance_deg, dtype=float))
         try:
-            self.params = IRB4600.scaled(l2_scale, l4_scale)
+            self.params = IRB4600.scaled(config.l2_scale, config.l4_scale)
         except ModelError as exc:
             raise ConfigError('l2_scale', str(exc)) from None
-        target = paper.scenario_start_pose(scenario)
+        target = paper.scenario_start_pose(config.scenario)
         try:
             self.q_start = inverse_kinematics(target, self.params)
         except ModelError as exc:
-            raise ConfigError('scenario', f'start pose of scenario {scenario} is unreachable '
-                              f'by the simulated robot (l2_scale = {l2_scale}, l4_scale = '
-                              f'{l4_scale}): {exc}') from None
+            raise ConfigError('scenario', f'start pose of scenario {config.scenario} is '
+                              f'unreachable by the simulated robot (l2_scale = '
+                              f'{config.l2_scale}, l4_scale = {config.l4_scale}): '
+                              f'{exc}') from None
         self.start_residual = pose_error(forward_kinematics(self.q_start, self.params), target)
+        intrinsics = StereoIntrinsics.zed2(config.resolution)
         try:
-            intrinsics = StereoIntrinsics.zed2(resolution)
+            self.camera = StereoCamera(intrinsics,
+                                       look_at(config.camera_eye, config.camera_look_at))
         except ModelError as exc:
-            raise ConfigError('resolution', str(exc)) from None
+            raise ConfigError('camera_look_at', f'camera_eye = {list(config.camera_eye)}, '
+                              f'camera_look_at = {list(config.camera_look_at)}: {exc}') \
+                from None
+        self.effects = CameraEffects(config.image_noise_stddev, config.frame_drop_probability,
+                                     config.camera_seed)
+        self.calibrated_camera = StereoCamera(
+            calibrated_intrinsics(intrinsics, config.focal_length_error),
+            calibrated_pose(self.camera.pose_C_O, config.camera_pose_error_xyz_m,
+                            config.camera_pose_error_rpy_deg))
+        self.render_supersampling = config.render_supersampling
+        self.render_marker_supersampling = config.render_marker_supersampling
         try:
-            self.camera = StereoCamera(intrinsics, look_at(camera_eye, camera_look_at))
-        except ModelError as exc:
-            raise ConfigError('camera_look_at', f'camera_eye = {list(camera_eye)}, '
-                              f'camera_look_at = {list(camera_look_at)}: {exc}') from None
-        try:
-            self.effects = CameraEffects(image_noise_stddev, frame_drop_probability,
-                                         camera_seed)
-            self.calibrated_camera = StereoCamera(
-                calibrated_intrinsics(intrinsics, focal_length_error),
-                calibrated_pose(self.camera.pose_C_O, camera_pose_error_xyz_m,
-                                camera_pose_error_rpy_deg))
-        except EffectError as exc:
-            raise ConfigError(exc.param, str(exc)) from None
-        if render_supersampling not in range(1, MAX_SUPERSAMPLING + 1):
-            raise ConfigError('render_supersampling', f'{render_supersampling!r}: samples per '
-                              f'pixel along each axis must be an int in '
-                              f'[1, {MAX_SUPERSAMPLING}]')
-        self.render_supersampling = render_supersampling
-        if render_marker_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
-            raise ConfigError('render_marker_supersampling',
-                              f'{render_marker_supersampling!r}: samples per pixel along '
-                              f'each axis around the markers must be an int in '
-                              f'[1, {MAX_FOCUS_SUPERSAMPLING}]')
-        self.render_marker_supersampling = render_marker_supersampling
-        try:
-            mount_height_m = check_mount_height(mount_height_m)
-        except ValueError as exc:
-            raise ConfigError('mount_height_m', str(exc)) from None
-        try:
-            self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)), renderer,
-                               mount_height_m=mount_height_m,
-                               lens_worker=render_parallel_lenses)
+            self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)),
+                               config.renderer, mount_height_m=config.mount_height_m,
+                               lens_worker=config.render_parallel_lenses)
         except RendererError as exc:
             raise ConfigError('renderer', str(exc)) from None
         except LensWorkerError as exc:

@@ -22,12 +22,12 @@ plugin ignores that flag and always shades with its shadow map, so there the rob
 shadow on the ground (a one-sided square: :func:`ibvs_sim.rendering.ground_obj`).
 """
 
-import math
 import os
 from pathlib import Path
 import pkgutil
 import tempfile
 
+from ibvs_common.shared_params import PHYSICS_RATE_HZ
 from ibvs_model import IRB4600
 from ibvs_model.camera import StereoCamera
 from ibvs_model.scene import MARKER_RADIUS_M
@@ -35,6 +35,7 @@ from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
 import pybullet
 
+from .config import MOUNT_HEIGHT_M, RENDERER
 from .gl_renderer import (box_triangles, cylinder_triangles, GLRenderer, GLRendererError,
                           obj_triangles, Shape, transformed)
 from .lens_worker import LensWorker
@@ -50,17 +51,13 @@ from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F4
 GROUND_RGBA = (0.55, 0.55, 0.55, 1.0)
 GROUND_HALF_SIZE_M = 6.0
 #: The robot stands on a riser (a box under its base, this half size and colour) whose top is
-#: the base plane. The paper's model has no floor; its sweep (Figure 13) needs room below the
-#: base: with L2 at 50 % the tool ends 0.11 m (its lower marker 0.17 m) under z = 0.
-DEFAULT_MOUNT_HEIGHT_M = 0.5
-MAX_MOUNT_HEIGHT_M = 5.0
+#: the base plane (its height: :data:`.config.MOUNT_HEIGHT_M`).
 RISER_HALF_SIZE_M = (0.4, 0.4)
 RISER_RGBA = (0.35, 0.35, 0.38, 1.0)
 #: Light: mostly ambient, a little diffuse from above and behind the camera, no specular.
 LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
          'lightDistance': 10.0, 'shadow': 0, 'lightAmbientCoeff': 0.75,
          'lightDiffuseCoeff': 0.35, 'lightSpecularCoeff': 0.0}
-RENDERERS = ('auto', 'egl', 'tiny', 'opengl')
 #: PyBullet's renderers draw a URDF cylinder as the convex hull of a 32-gon prism with a
 #: collision margin of 1 mm (bullet3 EGLRendererVisualShapeConverter: setMargin(0.001)),
 #: i.e. 1 mm thicker and longer at each end than the URDF says; renderer 'opengl' draws the
@@ -72,14 +69,6 @@ PYBULLET_CYLINDER_MARGIN_M = 0.001
 LLVMPIPE_THREADS = 'LP_NUM_THREADS'
 #: The World that holds the process's EGL plugin, if any (one at a time: see World).
 _egl_owner = None
-
-
-def check_mount_height(mount_height_m):
-    """Return ``mount_height_m`` as a float, or raise ValueError outside [0, max] m."""
-    if not (math.isfinite(mount_height_m) and 0.0 <= mount_height_m <= MAX_MOUNT_HEIGHT_M):
-        raise ValueError(f'mount_height_m = {mount_height_m} m: the height of the base above '
-                         f'the floor must be in [0, {MAX_MOUNT_HEIGHT_M}] m')
-    return float(mount_height_m)
 
 
 class RendererError(RuntimeError):
@@ -97,7 +86,9 @@ class World:
     """
     One PyBullet physics client with the robot (``params``) on a riser and a ground plane.
 
-    ``mount_height_m``: height of the robot's base plane (z = 0 of {O}) above the floor,
+    ``physics_rate_hz``, ``renderer``, ``mount_height_m``: as the parameters of these names
+    (:class:`.config.SimConfig`, which checks them). ``mount_height_m``: height of the robot's
+    base plane (z = 0 of {O}) above the floor,
     which the riser fills under the base; 0 puts the robot on the floor (no riser). Riser
     and floor are drawn only: they are not in the paper's model and nothing collides with
     them, so a tool driven below the floor goes on moving but the camera no longer sees it.
@@ -117,14 +108,11 @@ class World:
     ms a VGA pair). Not with 'opengl', which draws both lenses in one context.
     """
 
-    def __init__(self, params=IRB4600, physics_rate_hz=1000.0, renderer='auto',
-                 with_tool=True, mount_height_m=DEFAULT_MOUNT_HEIGHT_M, lens_worker=False):
+    def __init__(self, params=IRB4600, physics_rate_hz=PHYSICS_RATE_HZ.default,
+                 renderer=RENDERER.default, with_tool=True,
+                 mount_height_m=MOUNT_HEIGHT_M.default, lens_worker=False):
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
-        self.mount_height_m = check_mount_height(mount_height_m)
-        if renderer not in RENDERERS:
-            raise ValueError(f'renderer must be one of {RENDERERS}, got {renderer!r}')
-        if not (math.isfinite(physics_rate_hz) and physics_rate_hz > 0.0):
-            raise ValueError(f'physics_rate_hz must be > 0, got {physics_rate_hz}')
+        self.mount_height_m = float(mount_height_m)
         self.params = params
         self.dt = 1.0 / physics_rate_hz
         self._client = pybullet.connect(pybullet.DIRECT)

@@ -2,10 +2,12 @@
 
 import math
 
+from ibvs_common.params import ParameterError
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.camera_effects import (add_image_noise, calibrated_intrinsics, calibrated_pose,
                                      CameraEffects, error_transform)
-from ibvs_sim.simulator import ConfigError, Simulator
+from ibvs_sim.config import SimConfig
+from ibvs_sim.simulator import Simulator
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -75,8 +77,9 @@ def test_drops_happen_at_the_set_rate_over_1000_frames(probability):
 
 
 def test_the_simulator_loses_frames_at_the_set_rate_and_keeps_its_schedule():
-    sim = Simulator(physics_rate_hz=100.0, camera_rate_hz=100.0, renderer='tiny',
-                    frame_drop_probability=0.1, camera_seed=5)
+    sim = Simulator(SimConfig(physics_rate_hz=100.0, camera_rate_hz=100.0, renderer='tiny',
+                              render_parallel_lenses=False, frame_drop_probability=0.1,
+                              camera_seed=5))
     try:
         lost = []
         for n in range(1000):
@@ -115,9 +118,11 @@ def test_focal_length_error_scales_f_only():
 
 
 def test_simulator_renders_true_and_publishes_calibrated_camera():
-    sim = Simulator(renderer='tiny', camera_pose_error_xyz_m=(0.002, 0.0, 0.0),
-                    camera_pose_error_rpy_deg=(0.0, 0.2, 0.0), focal_length_error=1.01)
-    plain = Simulator(renderer='tiny')
+    sim = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False,
+                              camera_pose_error_xyz_m=(0.002, 0.0, 0.0),
+                              camera_pose_error_rpy_deg=(0.0, 0.2, 0.0),
+                              focal_length_error=1.01))
+    plain = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False))
     try:
         np.testing.assert_array_equal(sim.camera.pose_C_O, plain.camera.pose_C_O)
         assert sim.camera.intrinsics == plain.camera.intrinsics
@@ -143,7 +148,7 @@ def test_simulator_renders_true_and_publishes_calibrated_camera():
     ({'camera_pose_error_xyz_m': (0.0, 0.0)}, 'camera_pose_error_xyz_m'),
     ({'camera_pose_error_rpy_deg': (0.0, math.inf, 0.0)}, 'camera_pose_error_rpy_deg'),
 ])
-def test_simulator_rejects_bad_camera_effects(kwargs, name):
-    with pytest.raises(ConfigError) as info:
-        Simulator(renderer='tiny', **kwargs)
+def test_the_config_refuses_bad_camera_effects_naming_the_parameter(kwargs, name):
+    with pytest.raises(ParameterError) as info:
+        SimConfig(**kwargs)
     assert info.value.param == name

@@ -16,6 +16,7 @@ from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_sim import markers
 from ibvs_sim.camera_effects import error_transform
+from ibvs_sim.config import SimConfig
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
 import numpy as np
@@ -28,6 +29,8 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 DEADLINE_S = 120.0
+#: The frames of the node's start pose without camera effects, drawn here.
+VGA_TINY = SimConfig(resolution='VGA', renderer='tiny', render_parallel_lenses=False)
 
 
 def _overrides(**values):
@@ -109,7 +112,7 @@ def test_published_images_carry_the_set_noise(graph):
     assert stamp_ns(msg.header.stamp) == 0
     published = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.width, 3)
     # The same frame without noise: frame 0 shows the start pose, rendered alike.
-    clean = Simulator(resolution='VGA', renderer='tiny')
+    clean = Simulator(VGA_TINY)
     try:
         _, (truth, _), _ = clean.take_frame()
     finally:
@@ -143,7 +146,7 @@ def test_renderer_opengl_is_a_choice_of_the_node_and_draws_both_lenses_in_proces
         assert sim.sim.world.renderer == 'opengl'
         assert sim.sim.world._lens_worker is None  # render_parallel_lenses does not apply
         _, (left, right), _ = sim.sim.take_frame()
-        clean = Simulator(resolution='VGA', renderer='tiny')
+        clean = Simulator(VGA_TINY)
         try:
             reference = clean.take_frame()[1]
         finally:

@@ -6,10 +6,12 @@ between assertions (module fixtures): 30 poses at HD720 with the default rendere
 the other one, and the paper's scenario starts and target.
 """
 
+from ibvs_common.params import ParameterError
 from ibvs_model import (CameraRobotModel, fiducial_points, inverse_kinematics, IRB4600, look_at,
                         paper, scene, StereoCamera, StereoIntrinsics)
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
+from ibvs_sim.config import SimConfig
 from ibvs_sim.rendering import (box_downsample, focus_windows, lens_poses, projection_matrix,
                                 supersampled, tiles, view_matrix)
 from ibvs_sim.world import World
@@ -341,5 +343,5 @@ def test_a_tool_below_the_base_plane_shows_on_the_riser_not_on_the_floor(camera)
         shares[height] = counts / areas[:, None]
     assert shares[0.5].min() >= VISIBLE_SHARE, shares
     assert shares[0.0].max() == 0.0, shares
-    with pytest.raises(ValueError, match='mount_height_m'):
-        World(renderer='tiny', mount_height_m=-0.1)
+    with pytest.raises(ParameterError, match='mount_height_m'):
+        SimConfig(mount_height_m=-0.1)

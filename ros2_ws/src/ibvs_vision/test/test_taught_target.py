@@ -17,6 +17,7 @@ from ibvs_common.conversions import (camera_infos, features_msg, joint_state, po
 from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_model import IRB4600, look_at, paper, StereoIntrinsics
+from ibvs_sim.config import SimConfig
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
 from ibvs_sim.world import World
@@ -50,8 +51,9 @@ def taught(sim):
                                     {'image_noise_stddev': 0.01, 'camera_seed': 4}])
 def test_taught_features_equal_the_model_ones_without_calibration_error(kwargs):
     target = paper.target_pose()
-    sim = Simulator(renderer='tiny', teach_pose=target,
-                    disturbance_deg=paper.DISTURBANCE_DEG, **kwargs)
+    sim = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False,
+                              disturbance_deg=paper.DISTURBANCE_DEG, **kwargs),
+                    teach_pose=target)
     try:
         # the true robot (link scales, d_q) was placed exactly at the target pose
         assert np.abs(taught(sim) - model_target(sim.calibrated_camera, target)).max() \
@@ -65,7 +67,8 @@ def test_taught_features_equal_the_model_ones_without_calibration_error(kwargs):
     {'focal_length_error': 1.01}])
 def test_with_calibration_error_taught_features_show_the_truth(kwargs):
     target = paper.target_pose()
-    sim = Simulator(renderer='tiny', teach_pose=target, **kwargs)
+    sim = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False, **kwargs),
+                    teach_pose=target)
     try:
         measured = taught(sim)
         truth = model_target(sim.camera, target)
