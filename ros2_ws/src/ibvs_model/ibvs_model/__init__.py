@@ -21,13 +21,17 @@ __all__ = [
     'inverse_kinematics', 'IRB4600', 'joint_frames', 'look_at', 'ModelError',
     'nearest_rotation', 'point_jacobian', 'pose_error', 'pose_from', 'RobotParams',
     'StereoCamera', 'StereoIntrinsics', 'TriangulationError', 'UnreachablePoseError',
-    'default_model',
+    'default_camera', 'default_model',
 ]
 
 
-def default_model(resolution='HD720', params=IRB4600):
-    """Return F for the paper's robot and the ZED 2 at the default pose (docs/design.md §5)."""
+def default_camera(resolution: str = 'HD720') -> StereoCamera:
+    """Return the ZED 2 at ``resolution`` at the default pose (docs/design.md §5)."""
     from . import paper
-    camera = StereoCamera(StereoIntrinsics.zed2(resolution),
-                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
-    return CameraRobotModel(camera, params)
+    return StereoCamera(StereoIntrinsics.zed2(resolution),
+                        look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+
+
+def default_model(resolution: str = 'HD720', params: RobotParams = IRB4600) -> CameraRobotModel:
+    """Return F for the paper's robot and the ZED 2 at the default pose (docs/design.md §5)."""
+    return CameraRobotModel(default_camera(resolution), params)

@@ -1,9 +1,27 @@
-"""Fixtures of the ibvs_sim tests: the shared ones (ibvs_common.testing), and a collector."""
+"""Fixtures of the ibvs_sim tests: the shared ones (ibvs_testing), the world, the camera."""
 
 import gc
 
-from ibvs_common.testing import camera, context, domain_id, executor_of, world  # noqa: F401
+from ibvs_model import default_camera
+from ibvs_sim.world import World
+from ibvs_testing.fixtures import context, domain_id, executor_of  # noqa: F401
 import pytest
+
+
+@pytest.fixture(scope='module')
+def world():
+    """Yield the paper's robot in a PyBullet world with the default renderer ('auto')."""
+    w = World()
+    try:
+        yield w
+    finally:
+        w.close()
+
+
+@pytest.fixture(scope='module')
+def camera():
+    """Return the ZED 2 at HD720 at the default pose (docs/design.md §5)."""
+    return default_camera('HD720')
 
 
 @pytest.fixture(scope='module', autouse=True)
