@@ -14,9 +14,7 @@ reports it to a callback (:class:`ibvs_common.diagnostics.Diagnostics` counts it
 from rclpy.time_source import TimeSource
 
 from . import contract
-
-#: Nanoseconds in a second: builtin_interfaces/Time.nanosec must be below this.
-NS_PER_S = 1_000_000_000
+from .timing import NS_PER_S
 
 
 def clock_problem(sec, nanosec):

@@ -11,14 +11,13 @@ nanosecond stamps, physics step
 k at k * dt, camera frame n due at n * camera_period, taken at the first physics step at or
 after it and stamped with that step's time, and its q_feedback acting from
 ``feedback_latency_s`` after the frame. Which q_feedback acts at a step is decided by the
-joint controller's own lockstep, :class:`ibvs_common.sync.FeedbackLockstep`.
+joint controller's own lockstep, :class:`.feedback_lockstep.FeedbackLockstep`.
 
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
 
 from dataclasses import dataclass
 
-from ibvs_common.sync import FeedbackLockstep
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
@@ -26,6 +25,7 @@ import numpy as np
 from .controllers import (ACTUATORS, FEEDBACK_DESIGNS, Feedforward, FEEDFORWARD_METHODS,
                           FEEDFORWARD_RATIO, HOLD_SPEED_FRACTION, JointLoop, LINEARISE_AT,
                           MAX_CORRECTION_RAD, SVD_DAMPING, SVD_RCOND)
+from .feedback_lockstep import FeedbackLockstep
 from .servo_laws import (FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, law_class, SERVO_LAWS,
                          SWITCH_SETTLE_S, WINDUP_HORIZON_S)
 
