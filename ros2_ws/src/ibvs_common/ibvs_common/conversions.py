@@ -6,9 +6,9 @@ Readers raise :class:`InputError` with a short reason (used as the rejection rea
 """
 
 import math
-from typing import NamedTuple, Union
+from typing import NamedTuple, Optional, Tuple, Union
 
-from builtin_interfaces.msg import Time
+from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
 from ibvs_model import IRB4600, StereoCamera, StereoIntrinsics
@@ -47,12 +47,13 @@ class InputError(ValueError):
         self.detail = detail
 
 
-def stamp_ns(stamp):
+def stamp_ns(stamp: Time) -> int:
     """Return a builtin_interfaces/Time as integer nanoseconds (exact)."""
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
-def read_stamp(stamp, now_ns=None, lead_ns=None, frames=None):
+def read_stamp(stamp: Time, now_ns: Optional[int] = None, lead_ns: Optional[int] = None,
+               frames: Optional[Tuple[int, int]] = None) -> int:
     """
     Return a header stamp as integer nanoseconds; :class:`InputError` if no node may use it.
 
@@ -100,7 +101,7 @@ def read_stamp(stamp, now_ns=None, lead_ns=None, frames=None):
     return t_ns
 
 
-def stamp_lead_ns(stale_timeout_s, input_period_ns):
+def stamp_lead_ns(stale_timeout_s: float, input_period_ns: int) -> int:
     """
     Return how far (ns) an input's stamp may lead the newest time its node knows.
 
@@ -111,7 +112,7 @@ def stamp_lead_ns(stale_timeout_s, input_period_ns):
     return seconds_to_ns(stale_timeout_s) + int(input_period_ns)
 
 
-def ns_stamp(ns):
+def ns_stamp(ns: int) -> Time:
     """Return integer nanoseconds as builtin_interfaces/Time."""
     ns = int(ns)
     return Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
@@ -203,7 +204,7 @@ def check_finite(msg, fields):
             raise InputError(f'non-finite {field}', f'{values.tolist()}')
 
 
-def duration_ns(duration):
+def duration_ns(duration: Duration) -> int:
     """Return a builtin_interfaces/Duration as integer nanoseconds (exact)."""
     return int(duration.sec) * NS_PER_S + int(duration.nanosec)
 

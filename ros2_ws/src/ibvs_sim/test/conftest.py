@@ -4,18 +4,11 @@ import gc
 
 from ibvs_model import default_camera
 from ibvs_sim.world import World
-from ibvs_testing.fixtures import context, domain_id, executor_of  # noqa: F401
+from ibvs_testing.fixtures import (closed_after_module, context, domain_id,  # noqa: F401
+                                   executor_of)
 import pytest
 
-
-@pytest.fixture(scope='module')
-def world():
-    """Yield the paper's robot in a PyBullet world with the default renderer ('auto')."""
-    w = World()
-    try:
-        yield w
-    finally:
-        w.close()
+world = closed_after_module(World, "The paper's robot in a PyBullet world (renderer 'auto').")
 
 
 @pytest.fixture(scope='module')

@@ -10,12 +10,14 @@ process's ROS domain is set before, by :func:`ibvs_testing.isolation.isolate` (t
 - :func:`executor_of`: executors of nodes in that context, torn down after the test;
 - :func:`domain_id`: that domain, for child processes;
 - :func:`proc_tools`: process inspection through /proc (:class:`.proc_tools.ProcTools`);
+- :func:`closed_after_module`: a module-scoped fixture of an object closed after the module
+  (e.g. ibvs_sim's PyBullet ``World``, which the conftests that use it name);
 - :func:`spin_until`: spin an executor until a condition holds (a deadline guards a hang;
   tests wait on conditions, never on wall-clock time).
 """
 
 import time
-from typing import Callable, Iterator, List, Tuple, Type
+from typing import Any, Callable, Iterator, List, Tuple, Type, TypeVar
 
 import pytest
 import rclpy
@@ -28,6 +30,8 @@ from .proc_tools import ProcTools
 
 #: Default deadline of :func:`spin_until` (seconds): only a guard against a hang.
 DEADLINE_S = 60.0
+
+T = TypeVar('T')
 
 
 @pytest.fixture(scope='session')
@@ -74,6 +78,34 @@ def executor_of(context: Context) -> Iterator[Callable[..., SingleThreadedExecut
 def proc_tools() -> Type[ProcTools]:
     """Return the /proc helpers."""
     return ProcTools
+
+
+def closed_after_module(make: Callable[[], T], doc: str = '') -> Any:
+    """
+    Return a module-scoped fixture that yields ``make()`` and calls its ``close()`` after.
+
+    Parameters
+    ----------
+    make : callable
+        Builds the object (no arguments), once per test module.
+    doc : str
+        The fixture's docstring (what ``pytest --fixtures`` shows).
+
+    Returns
+    -------
+    fixture
+        To be bound in a ``conftest.py`` under the name the tests ask for.
+
+    """
+    def fixture() -> Iterator[T]:
+        resource = make()
+        try:
+            yield resource
+        finally:
+            resource.close()  # type: ignore[attr-defined]
+
+    fixture.__doc__ = doc or f'Yield {getattr(make, "__name__", "the object")}(), closed after.'
+    return pytest.fixture(scope='module')(fixture)
 
 
 def spin_until(executor: Executor, condition: Callable[[], bool],

@@ -1,19 +1,11 @@
 """Fixtures of the ibvs_vision tests: the shared ones (ibvs_testing), the world, model F."""
 
 from ibvs_model import CameraRobotModel, default_camera, IRB4600
-from ibvs_testing.fixtures import context, executor_of  # noqa: F401
+from ibvs_sim.world import World  # a test dependency: the rendered images
+from ibvs_testing.fixtures import closed_after_module, context, executor_of  # noqa: F401
 import pytest
 
-
-@pytest.fixture(scope='module')
-def world():
-    """Yield the paper's robot in a PyBullet world with the default renderer ('auto')."""
-    from ibvs_sim.world import World  # a test dependency: the rendered images
-    w = World()
-    try:
-        yield w
-    finally:
-        w.close()
+world = closed_after_module(World, "The paper's robot in a PyBullet world (renderer 'auto').")
 
 
 @pytest.fixture(scope='module')
