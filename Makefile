@@ -53,7 +53,8 @@ build: $(BUILD_STAMP)
 # that holds rclpy objects from earlier node tests can crash in the child.
 # The rest in two worker processes (pytest-xdist, a file per worker at a time): the graph
 # tests are latency-bound (about 1.2 of 2 cores), so two files at once use the machine. Each
-# worker is its own process with its own ROS domain (ibvs_common.testing.isolate).
+# worker is its own process with its own ROS domain (ibvs_testing.isolation.isolate, called
+# from the root conftest.py).
 test: build
 	$(RUN) python -m pytest -m linter $(PYTEST_ARGS)
 	$(RUN) python -m pytest -m 'not linter' -n 2 --dist loadfile $(PYTEST_ARGS)

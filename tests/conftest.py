@@ -1,11 +1,12 @@
-"""Fixtures of the cross-package tests: the shared ones, the installed workspace, /proc."""
+"""Fixtures of the cross-package tests: the shared ones, the installed workspace, a hurt run."""
 
 import os
 import subprocess
 import sys
 import time
 
-from ibvs_common.testing import context  # noqa: F401 (the shared fixture)
+from ibvs_testing.fixtures import context, proc_tools  # noqa: F401 (the shared fixtures)
+from ibvs_testing.proc_tools import ProcTools
 import pytest
 
 
@@ -18,62 +19,8 @@ def installed_workspace():
     return prefix.split(os.pathsep)[0]
 
 
-class ProcTools:
-    """Process inspection through /proc (Linux), for tests that must leave nothing behind."""
-
-    @staticmethod
-    def children(pid):
-        """Return the PIDs of the direct children of ``pid``."""
-        out = []
-        try:
-            tasks = os.listdir(f'/proc/{pid}/task')
-        except FileNotFoundError:
-            return out
-        for task in tasks:
-            try:
-                with open(f'/proc/{pid}/task/{task}/children') as f:
-                    out += [int(c) for c in f.read().split()]
-            except FileNotFoundError:
-                pass
-        return out
-
-    @classmethod
-    def descendants(cls, pid):
-        """Return every PID below ``pid``."""
-        out, todo = [], [pid]
-        while todo:
-            kids = cls.children(todo.pop())
-            out += kids
-            todo += kids
-        return out
-
-    @staticmethod
-    def alive(pid):
-        """Return True while ``pid`` exists and is not a zombie."""
-        try:
-            with open(f'/proc/{pid}/stat') as f:
-                return f.read().rsplit(')', 1)[-1].split()[0] != 'Z'
-        except FileNotFoundError:
-            return False
-
-    @staticmethod
-    def cmdline(pid):
-        """Return the command line of ``pid`` as one string ('' if gone)."""
-        try:
-            with open(f'/proc/{pid}/cmdline', 'rb') as f:
-                return f.read().replace(b'\0', b' ').decode()
-        except FileNotFoundError:
-            return ''
-
-
 @pytest.fixture
-def proc_tools():
-    """Return the /proc helpers."""
-    return ProcTools
-
-
-@pytest.fixture
-def signalled_run(tmp_path, proc_tools):
+def signalled_run(tmp_path):
     """
     Return run(args, under_way, sig, timeout_s, settle_s=0): a scenario 1 run that is hurt.
 
@@ -95,11 +42,11 @@ def signalled_run(tmp_path, proc_tools):
             deadline = time.monotonic() + 120.0
             while time.monotonic() < deadline and victim is None:
                 assert runner.poll() is None, runner.communicate()
-                seen.update(proc_tools.descendants(runner.pid))
+                seen.update(ProcTools.descendants(runner.pid))
                 if under_way(log):
                     time.sleep(settle_s)
-                    victim = next(pid for pid in proc_tools.descendants(runner.pid)
-                                  if 'feature_node' in proc_tools.cmdline(pid))
+                    victim = next(pid for pid in ProcTools.descendants(runner.pid)
+                                  if 'feature_node' in ProcTools.cmdline(pid))
                     os.kill(victim, sig)
                 time.sleep(0.2)
             assert victim is not None, 'the run never got under way'
@@ -108,8 +55,8 @@ def signalled_run(tmp_path, proc_tools):
             if runner.poll() is None:
                 runner.kill()
                 runner.communicate()
-        seen.update(proc_tools.descendants(runner.pid))
-        leftovers = [pid for pid in seen if proc_tools.alive(pid)]
-        assert not leftovers, [proc_tools.cmdline(p) for p in leftovers]
+        seen.update(ProcTools.descendants(runner.pid))
+        leftovers = [pid for pid in seen if ProcTools.alive(pid)]
+        assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]
         return runner.returncode, out, err
     return run

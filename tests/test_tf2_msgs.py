@@ -1,6 +1,6 @@
 """The workspace's tf2_msgs is Jazzy's: the same TFMessage type hash on the wire and in bags."""
 
-from ibvs_common.testing import context  # noqa: F401
+from ibvs_testing.fixtures import context  # noqa: F401
 import rclpy
 from rosbags.typesys import get_typestore, Stores
 from tf2_msgs.msg import TFMessage

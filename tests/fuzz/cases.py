@@ -9,10 +9,11 @@ or encoding; for CameraInfo an impossible size or projection; for poses a non-fi
 non-unit quaternion, a camera looking away.
 """
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
-from ibvs_common.conversions import image_msg, joint_state, joint_trajectory, ns_stamp
+from ibvs_common.conversions import (feature_status_msg, FeatureStatus, image_msg, joint_state,
+                                     joint_trajectory, ns_stamp)
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo
@@ -160,16 +161,15 @@ def polygons(topic, next_ns, features):
 
 def status(t_ns, mode):
     """Return a /ibvs/feature_status of the frame stamped ``t_ns`` in ``mode``."""
-    msg = DiagnosticArray()
-    msg.header.stamp = ns_stamp(t_ns)
-    msg.status = [DiagnosticStatus(name='features', values=[KeyValue(key='mode', value=mode)])]
-    return msg
+    return feature_status_msg(FeatureStatus(mode, mode, mode, 0.0, 'full'), t_ns,
+                              name='features')
 
 
 def statuses(topic, next_ns):
-    """Bad /ibvs/feature_status: stamps (of a measured frame), no status."""
+    """Bad /ibvs/feature_status: stamps (of a measured frame), no status, an unknown mode."""
     cases = [('no status', topic, lambda: [DiagnosticArray(header=Header(
-        stamp=ns_stamp(next_ns())))])]
+        stamp=ns_stamp(next_ns())))]),
+             ('unknown mode', topic, lambda: [status(next_ns(), 'guessed')])]
     for name, s in bad_stamps(0):
         cases.append((name, topic, lambda s=s: [_stamped(status(0, 'measured'), s)]))
     return cases

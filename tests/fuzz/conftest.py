@@ -1,6 +1,6 @@
 """The fuzz suite's fixtures, and its table at the end of the session."""
 
-from ibvs_common.testing import context  # noqa: F401 (the shared fixture)
+from ibvs_testing.fixtures import context  # noqa: F401 (the shared fixture)
 
 from .harness import TABLES
 

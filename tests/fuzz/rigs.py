@@ -3,9 +3,9 @@
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, image_msg, joint_state,
                                      joint_trajectory, ns_stamp, pose_stamped, stamp_ns)
-from ibvs_common.testing import default_camera
 from ibvs_common.timing import feedback_frame_ns, frame_stamp_ns
-from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600, paper
+from ibvs_model import (CameraRobotModel, default_camera, inverse_kinematics, IRB4600,
+                        paper)
 import numpy as np
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock

@@ -1,3 +1,3 @@
-"""Fixtures of the ibvs_bringup tests: the shared ones (ibvs_common.testing)."""
+"""Fixtures of the ibvs_bringup tests: the shared ones (ibvs_testing)."""
 
-from ibvs_common.testing import context  # noqa: F401
+from ibvs_testing.fixtures import context  # noqa: F401

@@ -56,9 +56,23 @@ FRAME_LATENCY = '/ibvs/frame_latency'
 #: published in batches just before each /clock, so that when /clock says T every pose
 #: stamped before T is out. One pose message per step cost the lockstep 0.3 ms a step.
 TOOL_PATH = '/ibvs/tool_path'
-#: Per stereo frame, stamped with the image stamp: one DiagnosticStatus whose values say
-#: mode (measured / estimated / blending), the reason and the blend weight.
+#: Per stereo frame, stamped with the image stamp: one DiagnosticStatus whose values
+#: (:data:`FEATURE_STATUS_KEYS`) say what the feature node published for the frame. Written by
+#: :func:`ibvs_common.conversions.feature_status_msg` and read by
+#: :func:`ibvs_common.conversions.read_feature_status`, never key by key.
 FEATURE_STATUS = '/ibvs/feature_status'
+#: The keys of a /ibvs/feature_status: 'mode' (:data:`FEATURE_MODES`: what was published),
+#: 'source' (:data:`FEATURE_MEASURED` or :data:`FEATURE_ESTIMATED`: what the output follows),
+#: 'reason' (:data:`FEATURE_MEASURED` when the detector found both markers in both images,
+#: else why not), 'blend_weight' (the share of the switch offset still blended, 0 to 1) and
+#: 'search' (how the detector searched: 'roi' or 'full').
+FEATURE_STATUS_KEYS = ('mode', 'source', 'reason', 'blend_weight', 'search')
+#: The modes of a frame's features: measured (eq. 2-3), estimated (eq. 46), or blending
+#: from one to the other after a switch (section 2.3).
+FEATURE_MEASURED = 'measured'
+FEATURE_ESTIMATED = 'estimated'
+FEATURE_BLENDING = 'blending'
+FEATURE_MODES = (FEATURE_MEASURED, FEATURE_ESTIMATED, FEATURE_BLENDING)
 DIAGNOSTICS = '/diagnostics'
 #: For viewers (RViz, Foxglove; ibvs_viz.viz_node): the cell's URDF (std_msgs/String,
 #: latched), the frame tree (tf2_msgs/TFMessage; /tf_static latched) and the markers

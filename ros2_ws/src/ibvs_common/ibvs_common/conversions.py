@@ -5,7 +5,11 @@ Readers raise :class:`InputError` with a short reason (used as the rejection rea
 /diagnostics) and never return NaN.
 """
 
-from builtin_interfaces.msg import Time
+import math
+from typing import NamedTuple, Optional, Tuple, Union
+
+from builtin_interfaces.msg import Duration, Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
 from ibvs_model import IRB4600, StereoCamera, StereoIntrinsics
 from nav_msgs.msg import Path
@@ -17,7 +21,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
 from .sim_time import clock_problem
-from .timing import is_frame_stamp
+from .timing import is_frame_stamp, NS_PER_S, seconds_to_ns
 
 #: How far (rad) a start posture may lie outside its joint's travel (ibvs_model.IRB4600
 #: q_min, q_max) and still be read (:func:`travel_bounds`).
@@ -43,12 +47,13 @@ class InputError(ValueError):
         self.detail = detail
 
 
-def stamp_ns(stamp):
+def stamp_ns(stamp: Time) -> int:
     """Return a builtin_interfaces/Time as integer nanoseconds (exact)."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
-def read_stamp(stamp, now_ns=None, lead_ns=None, frames=None):
+def read_stamp(stamp: Time, now_ns: Optional[int] = None, lead_ns: Optional[int] = None,
+               frames: Optional[Tuple[int, int]] = None) -> int:
     """
     Return a header stamp as integer nanoseconds; :class:`InputError` if no node may use it.
 
@@ -96,7 +101,7 @@ def read_stamp(stamp, now_ns=None, lead_ns=None, frames=None):
     return t_ns
 
 
-def stamp_lead_ns(stale_timeout_s, input_period_ns):
+def stamp_lead_ns(stale_timeout_s: float, input_period_ns: int) -> int:
     """
     Return how far (ns) an input's stamp may lead the newest time its node knows.
 
@@ -104,13 +109,13 @@ def stamp_lead_ns(stale_timeout_s, input_period_ns):
     input (the next input of a stream is one period after the last): the ``lead_ns`` of
     :func:`read_stamp`.
     """
-    return int(round(float(stale_timeout_s) * 1e9)) + int(input_period_ns)
+    return seconds_to_ns(stale_timeout_s) + int(input_period_ns)
 
 
-def ns_stamp(ns):
+def ns_stamp(ns: int) -> Time:
     """Return integer nanoseconds as builtin_interfaces/Time."""
     ns = int(ns)
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    return Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
 
 
 def joint_state(stamp, position=None, velocity=None, effort=None, names=contract.JOINT_NAMES):
@@ -199,9 +204,9 @@ def check_finite(msg, fields):
             raise InputError(f'non-finite {field}', f'{values.tolist()}')
 
 
-def duration_ns(duration):
+def duration_ns(duration: Duration) -> int:
     """Return a builtin_interfaces/Duration as integer nanoseconds (exact)."""
-    return int(duration.sec) * 1_000_000_000 + int(duration.nanosec)
+    return int(duration.sec) * NS_PER_S + int(duration.nanosec)
 
 
 def joint_trajectory(start_ns, period_ns, positions, names=contract.JOINT_NAMES):
@@ -219,7 +224,7 @@ def joint_trajectory(start_ns, period_ns, positions, names=contract.JOINT_NAMES)
     for k, row in enumerate(np.asarray(positions, dtype=float)):
         point = JointTrajectoryPoint(positions=row.tolist())
         t = k * int(period_ns)
-        point.time_from_start.sec, point.time_from_start.nanosec = divmod(t, 1_000_000_000)
+        point.time_from_start.sec, point.time_from_start.nanosec = divmod(t, NS_PER_S)
         points.append(point)
     msg.points = points
     return msg
@@ -471,3 +476,101 @@ def read_features(msg):
     if not np.all(np.isfinite(values)):
         raise InputError('non-finite features', f'{values.tolist()}')
     return values
+
+
+class FeatureStatus(NamedTuple):
+    """
+    What the feature node published for one stereo frame (/ibvs/feature_status).
+
+    The fields are the contract's :data:`ibvs_common.contract.FEATURE_STATUS_KEYS`.
+
+    Attributes
+    ----------
+    mode : str
+        One of :data:`ibvs_common.contract.FEATURE_MODES`: what was published.
+    source : str
+        What the output follows: measured or estimated.
+    reason : str
+        :data:`ibvs_common.contract.FEATURE_MEASURED` when the detector found both markers
+        in both images, else why not.
+    blend_weight : float
+        Share of the switch offset still blended (0 to 1).
+    search : str
+        How the detector searched ('roi' or 'full').
+
+    """
+
+    mode: str
+    source: str
+    reason: str
+    blend_weight: float
+    search: str
+
+    @property
+    def measured(self) -> bool:
+        """Return whether the detector measured the frame (eq. 2-3), blended or not."""
+        return self.reason == contract.FEATURE_MEASURED
+
+
+def feature_status_msg(status: FeatureStatus, stamp: Union[int, Time], name: str = '',
+                       hardware_id: str = '',
+                       frame_id: str = contract.CAMERA_FRAME) -> DiagnosticArray:
+    """
+    Return ``status`` as the /ibvs/feature_status of the frame stamped ``stamp``.
+
+    One DiagnosticStatus (level OK, message the mode) whose values are the contract's
+    keys in their order; the blend weight is written with 6 significant digits.
+
+    Parameters
+    ----------
+    status : FeatureStatus
+        What was published for the frame.
+    stamp : int or builtin_interfaces.msg.Time
+        The frame's stamp (ns, or as a message).
+    name, hardware_id : str
+        The DiagnosticStatus's name and hardware id (the publishing node's).
+    frame_id : str
+        The header's frame.
+
+    Returns
+    -------
+    diagnostic_msgs.msg.DiagnosticArray
+        The message.
+
+    """
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
+    msg.header.frame_id = frame_id
+    text = status._replace(blend_weight=f'{status.blend_weight:.6g}')
+    msg.status = [DiagnosticStatus(
+        level=DiagnosticStatus.OK, name=name, message=str(status.mode), hardware_id=hardware_id,
+        values=[KeyValue(key=k, value=str(getattr(text, k)))
+                for k in contract.FEATURE_STATUS_KEYS])]
+    return msg
+
+
+def read_feature_status(msg: DiagnosticArray) -> FeatureStatus:
+    """
+    Return the :class:`FeatureStatus` of a /ibvs/feature_status; :class:`InputError` if bad.
+
+    Reads the first DiagnosticStatus. Refused: no status ('no status'), a key of the
+    contract missing, a mode not in :data:`ibvs_common.contract.FEATURE_MODES` or a blend
+    weight that is not a finite number ('malformed feature status').
+    """
+    if not msg.status:
+        raise InputError('no status')
+    values = {kv.key: kv.value for kv in msg.status[0].values}
+    missing = [k for k in contract.FEATURE_STATUS_KEYS if k not in values]
+    if missing:
+        raise InputError('malformed feature status', f'no {", ".join(missing)}')
+    if values['mode'] not in contract.FEATURE_MODES:
+        raise InputError('malformed feature status', f"mode {values['mode']!r}")
+    try:
+        weight = float(values['blend_weight'])
+    except ValueError:
+        weight = math.nan
+    if not math.isfinite(weight):
+        raise InputError('malformed feature status',
+                         f"blend_weight {values['blend_weight']!r}")
+    return FeatureStatus(values['mode'], values['source'], values['reason'], weight,
+                         values['search'])

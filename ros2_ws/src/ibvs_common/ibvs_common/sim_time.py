@@ -11,15 +11,15 @@ reports it to a callback (:class:`ibvs_common.diagnostics.Diagnostics` counts it
 /diagnostics and logs it, throttled) and keeps the last good time.
 """
 
+from typing import Optional, Tuple
+
 from rclpy.time_source import TimeSource
 
 from . import contract
-
-#: Nanoseconds in a second: builtin_interfaces/Time.nanosec must be below this.
-NS_PER_S = 1_000_000_000
+from .timing import NS_PER_S
 
 
-def clock_problem(sec, nanosec):
+def clock_problem(sec: int, nanosec: int) -> Optional[Tuple[str, str]]:
     """Return why (sec, nanosec) is not a valid builtin_interfaces/Time, or None."""
     if sec < 0:
         return 'negative time', f'sec = {sec}'

@@ -2,16 +2,39 @@
 The sim-time rules of docs/design.md §4, in integer nanoseconds; plain Python, no rclpy.
 
 Kept free of ROS so that the model-only closed loop (ibvs_control.closed_loop) and the
-simulator's core (ibvs_sim.simulator) use the very rule the nodes use.
+simulator's core (ibvs_sim.simulator) use the very rule the nodes use. Times are integer
+nanoseconds; a duration given in seconds (a parameter) becomes nanoseconds through
+:func:`seconds_to_ns` and a time goes back to seconds through :func:`ns_to_seconds`, the
+one rule for each.
 """
 
+from typing import Optional
 
-def period_ns(rate_hz):
+#: Nanoseconds in a second: builtin_interfaces/Time.nanosec must be below this.
+NS_PER_S = 1_000_000_000
+
+
+def seconds_to_ns(seconds: float) -> int:
+    """
+    Return a duration in seconds as integer nanoseconds, rounded to the nearest.
+
+    ``int(round(float(seconds) * 1e9))``: the product is a double, rounded half to even; a
+    parameter such as 0.5 s becomes exactly 500_000_000 ns.
+    """
+    return int(round(float(seconds) * 1e9))
+
+
+def ns_to_seconds(t_ns: int) -> float:
+    """Return integer nanoseconds as seconds (``t_ns * 1e-9``, a double)."""
+    return t_ns * 1e-9
+
+
+def period_ns(rate_hz: float) -> int:
     """Return the period of ``rate_hz`` in integer nanoseconds (rounded)."""
     return int(round(1e9 / float(rate_hz)))
 
 
-def check_camera_rate(camera_rate_hz, physics_rate_hz):
+def check_camera_rate(camera_rate_hz: float, physics_rate_hz: float) -> None:
     """
     Raise ValueError unless frames come no faster than physics steps (the one rate rule).
 
@@ -24,7 +47,7 @@ def check_camera_rate(camera_rate_hz, physics_rate_hz):
                          'physics_rate_hz')
 
 
-def frame_stamp_ns(n, camera_period_ns, step_ns):
+def frame_stamp_ns(n: int, camera_period_ns: int, step_ns: int) -> int:
     """
     Return the stamp (ns) of camera frame ``n``: the sim time of the step it is rendered from.
 
@@ -35,7 +58,7 @@ def frame_stamp_ns(n, camera_period_ns, step_ns):
     return -(-n * camera_period_ns // step_ns) * step_ns
 
 
-def is_frame_stamp(t_ns, camera_period_ns, step_ns):
+def is_frame_stamp(t_ns: int, camera_period_ns: int, step_ns: int) -> bool:
     """
     Return whether ``t_ns`` is the stamp of a camera frame (:func:`frame_stamp_ns`).
 
@@ -45,7 +68,8 @@ def is_frame_stamp(t_ns, camera_period_ns, step_ns):
     return t_ns >= 0 and frame_stamp_ns(n, camera_period_ns, step_ns) == t_ns
 
 
-def feedback_frame_ns(t_ns, camera_period_ns, latency_ns, step_ns):
+def feedback_frame_ns(t_ns: int, camera_period_ns: int, latency_ns: int,
+                      step_ns: int) -> Optional[int]:
     """
     Return the stamp (ns) of the camera frame whose q_feedback applies at sim time ``t_ns``.
 

@@ -5,10 +5,10 @@ from types import SimpleNamespace
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_common import contract, conversions
-from ibvs_common.conversions import InputError
+from ibvs_common.conversions import FeatureStatus, InputError
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.params import declare, Param, ParameterError
-from ibvs_common.timing import check_camera_rate
+from ibvs_common.timing import check_camera_rate, ns_to_seconds, seconds_to_ns
 from ibvs_model import default_model, forward_kinematics
 import numpy as np
 import pytest
@@ -252,6 +252,48 @@ def test_camera_info_mismatch_is_rejected():
     right.p[3] = 0.0
     with pytest.raises(InputError, match='P\\[3\\]'):
         conversions.intrinsics_from_infos(left, right)
+
+
+def test_feature_status_round_trip_and_rejection():
+    """The writer and the reader of /ibvs/feature_status agree; bad statuses are refused."""
+    for mode in contract.FEATURE_MODES:
+        for reason in (contract.FEATURE_MEASURED, 'not in view: marker 1 left'):
+            status = FeatureStatus(mode, contract.FEATURE_ESTIMATED, reason, 0.25, 'roi')
+            msg = conversions.feature_status_msg(status, 34_000_000, name='n: features')
+            assert conversions.stamp_ns(msg.header.stamp) == 34_000_000
+            assert [kv.key for kv in msg.status[0].values] == list(contract.FEATURE_STATUS_KEYS)
+            back = conversions.read_feature_status(msg)
+            assert back == status and back.measured == (reason == contract.FEATURE_MEASURED)
+    # the weight travels with 6 significant digits
+    status = FeatureStatus(contract.FEATURE_BLENDING, contract.FEATURE_MEASURED,
+                           contract.FEATURE_MEASURED, 1.0 / 3.0, 'full')
+    back = conversions.read_feature_status(conversions.feature_status_msg(status, 0))
+    assert back.blend_weight == 0.333333
+    assert back._replace(blend_weight=status.blend_weight) == status
+    with pytest.raises(InputError, match='no status'):
+        conversions.read_feature_status(DiagnosticArray())
+    for key, value, match in (('mode', 'guessed', 'mode'), ('blend_weight', 'nan', 'blend'),
+                              ('blend_weight', 'x', 'blend'), ('search', None, 'no search')):
+        msg = conversions.feature_status_msg(status, 0)
+        values = msg.status[0].values
+        if value is None:
+            msg.status[0].values = [kv for kv in values if kv.key != key]
+        else:
+            next(kv for kv in values if kv.key == key).value = value
+        with pytest.raises(InputError, match=match) as caught:
+            conversions.read_feature_status(msg)
+        assert caught.value.reason == 'malformed feature status'
+
+
+def test_seconds_and_nanoseconds_convert_by_one_rule():
+    """seconds_to_ns is int(round(s * 1e9)) (not a truncation), ns_to_seconds t * 1e-9."""
+    for seconds in (0.0, 0.5, 0.001, 1.0 / 30.0, 0.0335, 2.675, 123.456789, 1e-9, 7):
+        assert seconds_to_ns(seconds) == int(round(seconds * 1e9))
+        assert ns_to_seconds(seconds_to_ns(seconds)) == seconds_to_ns(seconds) * 1e-9
+    assert seconds_to_ns(0.5) == 500_000_000 and seconds_to_ns(np.float64(0.02)) == 20_000_000
+    # 4.1 * 1e9 = 4099999999.9999995: truncation would lose a nanosecond
+    assert int(4.1 * 1e9) == 4_099_999_999 and seconds_to_ns(4.1) == 4_100_000_000
+    assert isinstance(seconds_to_ns(np.float64(4.1)), int)
 
 
 def test_features_round_trip_and_rejection():

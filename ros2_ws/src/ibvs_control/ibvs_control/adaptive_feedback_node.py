@@ -17,7 +17,7 @@ Determinism (docs/design.md §4). The encoder joints of frame t_f are those of t
 /joint_states stamped at or after t_f (the simulator renders frame n from the first physics
 step at or after n * T_cam and publishes that step's joint state with it), kept in a short
 history by stamp. A frame waits until the camera model and that joint state have arrived;
-frames are processed in stamp order (the rule: :class:`ibvs_common.sync.FrameLockstep`, plain
+frames are processed in stamp order (the rule: :class:`.frame_lockstep.FrameLockstep`, plain
 Python, tested without rclpy).
 
 Every frame is answered by one /ibvs/q_feedback stamped t_f, so that the joint controller,
@@ -47,8 +47,9 @@ checked at start); 'switching' runs the paper's feedback from the first measured
 after the feedforward has settled. A law that needs to know whether a frame was measured
 or estimated (eq. 46) (:meth:`.servo_laws.ServoLaw.needs_measured`: 'switching', and
 'ibvs' / 'pbvs' with ``feature_fallback`` 'hold') also waits, per frame, for
-/ibvs/feature_status of the same stamp ('reason' 'measured': the detector found both
-markers in both images). The others do not subscribe to it.
+/ibvs/feature_status of the same stamp (read by
+:func:`ibvs_common.conversions.read_feature_status`; measured: the detector found both
+markers in both images, blended or not). The others do not subscribe to it.
 """
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -56,8 +57,8 @@ from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
                                      joint_state, pose_stamped, position_bounds,
-                                     read_camera_pose, read_features, read_joints, read_stamp,
-                                     stamp_lead_ns, velocity_bounds)
+                                     read_camera_pose, read_feature_status, read_features,
+                                     read_joints, read_stamp, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
@@ -65,14 +66,14 @@ from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RAT
                                        STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.sync import FrameLockstep
-from ibvs_common.timing import period_ns
+from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState
 
+from .frame_lockstep import FrameLockstep
 from .node_params import (check_gains, check_servo_law, FEEDFORWARD_METHOD, LAMBDA_0,
                           LAMBDA_INF, LAMBDA_SLOPE, LAW_PARAMS, law_settings, SERVO_LAW,
                           target_from)
@@ -101,7 +102,7 @@ class AdaptiveFeedbackNode(Node):
         self.needs_status = self.law.needs_measured(values)
         self.pose = target_from(values)
         self.camera_ns = period_ns(values['camera_rate_hz'])
-        self.timeout_ns = int(round(values['stale_timeout_s'] * 1e9))
+        self.stale_timeout_ns = seconds_to_ns(values['stale_timeout_s'])
         self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
         self.feedback = None
         self._infos = [None, None]
@@ -216,7 +217,7 @@ class AdaptiveFeedbackNode(Node):
         try:
             camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
             self.feedback = self.law.create(
-                CameraRobotModel(camera, IRB4600), self.pose, self.camera_ns * 1e-9,
+                CameraRobotModel(camera, IRB4600), self.pose, ns_to_seconds(self.camera_ns),
                 gain=self.gain, p_target=self._p_target, **law_settings(self.values))
         except (InputError, ModelError) as exc:
             # e.g. the target behind the camera: nothing to servo on; counted under the
@@ -278,12 +279,11 @@ class AdaptiveFeedbackNode(Node):
         """Keep whether the frame of this /ibvs/feature_status stamp was measured."""
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
+            status = read_feature_status(msg)
         except InputError as exc:
             self.diagnostics.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
             return
-        measured = any(kv.key == 'reason' and kv.value == 'measured'
-                       for status in msg.status for kv in status.values)
-        rejection = self._lockstep.offer_status(t_ns, measured)
+        rejection = self._lockstep.offer_status(t_ns, status.measured)
         if rejection is not None:
             self.diagnostics.reject(contract.FEATURE_STATUS, *rejection)
             return
@@ -304,16 +304,16 @@ class AdaptiveFeedbackNode(Node):
         now_ns = self._lockstep.joints.newest
         if isinstance(features, InputError):
             pass  # counted when it came; the held q_feedback answers it
-        elif now_ns - t_ns > self.timeout_ns:
+        elif now_ns - t_ns > self.stale_timeout_ns:
             self.diagnostics.reject(source, 'stale features',
                                     f'frame {t_ns} ns is {(now_ns - t_ns) * 1e-9:.3f} s old '
-                                    f'(> {self.timeout_ns * 1e-9:g} s): integrator frozen, '
+                                    f'(> {self.stale_timeout_ns * 1e-9:g} s): integrator frozen, '
                                     'q_feedback held')
         else:
             try:
                 with self.diagnostics.timing.section('feedback_update'):
                     update = self.feedback.update(features, joints[0], joints[1],
-                                                  measured=measured, t=t_ns * 1e-9)
+                                                  measured=measured, t=ns_to_seconds(t_ns))
             except ModelError as exc:
                 self.diagnostics.reject(source, type(exc).__name__,
                                         f'{exc}; q_feedback held')
@@ -339,7 +339,7 @@ class AdaptiveFeedbackNode(Node):
     def _watch_timeout(self, now_ns):
         """Mark the feedback frozen once no usable frame came for stale_timeout_s."""
         since = self.last_fresh_ns if self.last_fresh_ns is not None else self.first_joint_ns
-        if self.frozen or self.feedback is None or now_ns - since <= self.timeout_ns:
+        if self.frozen or self.feedback is None or now_ns - since <= self.stale_timeout_ns:
             return
         self.frozen = True
         message = (f'no usable features for {(now_ns - since) * 1e-9:.3f} s of sim time: '

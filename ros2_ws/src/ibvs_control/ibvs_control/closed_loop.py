@@ -11,7 +11,7 @@ nanosecond stamps, physics step
 k at k * dt, camera frame n due at n * camera_period, taken at the first physics step at or
 after it and stamped with that step's time, and its q_feedback acting from
 ``feedback_latency_s`` after the frame. Which q_feedback acts at a step is decided by the
-joint controller's own lockstep, :class:`ibvs_common.sync.FeedbackLockstep`.
+joint controller's own lockstep, :class:`.feedback_lockstep.FeedbackLockstep`.
 
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
@@ -20,13 +20,13 @@ from dataclasses import asdict, dataclass
 
 from ibvs_common import shared_params
 from ibvs_common.params import param_field, ParamConfig
-from ibvs_common.sync import FeedbackLockstep
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 
 from . import node_params
 from .controllers import Feedforward, JointLoop
+from .feedback_lockstep import FeedbackLockstep
 from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
 
 

@@ -35,7 +35,7 @@ from ibvs_common.params import declare
 from ibvs_common.shared_params import (PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
                                        TARGET_POSITION, TARGET_ROTATION, TAU_IN)
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.timing import period_ns
+from ibvs_common.timing import ns_to_seconds, period_ns
 from ibvs_model import ModelError
 import numpy as np
 from rclpy.node import Node
@@ -59,7 +59,7 @@ class FeedforwardNode(Node):
         self.pose = target_from(values)
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
-        self.ff = Feedforward(self.pose, values['tau_in'], self.dt_ns * 1e-9,
+        self.ff = Feedforward(self.pose, values['tau_in'], ns_to_seconds(self.dt_ns),
                               feedforward_ratio=values['feedforward_ratio'],
                               feedforward_method=values['feedforward_method'])
         self.t0_ns = None

@@ -20,7 +20,7 @@ last output until a new frame comes. A joint state whose inputs have not all arr
 buffered and answered as soon as they have, in stamp order; nothing is answered early or
 twice, so a run is the same however the executor interleaves the callbacks. While it waits
 it logs once a second (steady clock) what for. These rules are
-:class:`ibvs_common.sync.FeedbackLockstep` (plain Python, tested without rclpy); the node
+:class:`.feedback_lockstep.FeedbackLockstep` (plain Python, tested without rclpy); the node
 reads the messages, keeps the feedforward and answers.
 
 Bad input (rejected, logged, counted on /diagnostics, never raised): malformed messages
@@ -76,8 +76,7 @@ from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_
                                        PHYSICS_RATE_HZ, POSITION_COMMAND_TYPE,
                                        STALE_TIMEOUT_S, TAU_IN)
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.sync import FeedbackLockstep
-from ibvs_common.timing import check_camera_rate, period_ns
+from ibvs_common.timing import check_camera_rate, ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import IRB4600
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -88,6 +87,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .controllers import JointLoop
 from .dynamics import RobotDynamics
+from .feedback_lockstep import FeedbackLockstep
 from .node_params import ACCELERATION_MARGIN, SPEED_MARGIN, TORQUE_LIMITS
 from .position_interface import FeedbackHold, joint_permutation, PositionShaper
 
@@ -118,7 +118,7 @@ class JointControllerNode(Node):
             return
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.camera_ns = period_ns(values['camera_rate_hz'])
-        self.latency_ns = int(round(values['feedback_latency_s'] * 1e9))
+        self.latency_ns = seconds_to_ns(values['feedback_latency_s'])
         self.state_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
         self.frame_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
         self._frames = (self.camera_ns, self.dt_ns)
@@ -130,7 +130,7 @@ class JointControllerNode(Node):
         self.dynamics = RobotDynamics(IRB4600, with_tool=True)
         limits = np.asarray(values['torque_limits'], dtype=float)
         self.torque_limits = np.where(limits > 0.0, limits, self.dynamics.torque_limits)
-        self.loop = JointLoop(values['tau_in'], self.dt_ns * 1e-9, values['actuators'],
+        self.loop = JointLoop(values['tau_in'], ns_to_seconds(self.dt_ns), values['actuators'],
                               IRB4600.qd_max, self.torque_limits,
                               speed_margin=values['speed_margin'],
                               acceleration_margin=values['acceleration_margin'])
@@ -201,7 +201,7 @@ class JointControllerNode(Node):
                                  self._on_trajectory, contract.LATCHED)
         self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
                                  contract.RELIABLE)
-        self.create_timer(1e-9 * self.command_period_ns, self._command)
+        self.create_timer(ns_to_seconds(self.command_period_ns), self._command)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._progress = True
         self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
@@ -250,7 +250,7 @@ class JointControllerNode(Node):
             self._last_command_ns = now_ns - self.command_period_ns
         q_feedback, first_frame_ns = self._hold.use()
         q_command = self.shaper.step(self.q_feedforward(now_ns) + q_feedback,
-                                     1e-9 * (now_ns - self._last_command_ns))
+                                     ns_to_seconds(now_ns - self._last_command_ns))
         self._last_command_ns = now_ns
         values = [float(v) for v in q_command[self._order]]
         if self._pub.msg_type is Float64MultiArray:

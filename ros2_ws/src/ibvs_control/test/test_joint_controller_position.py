@@ -9,9 +9,9 @@ forward_command_controller or a joint_trajectory_controller would get.
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, joint_trajectory, ns_stamp, stamp_ns
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import spin_until
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_model import inverse_kinematics, paper
+from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor

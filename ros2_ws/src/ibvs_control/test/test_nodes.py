@@ -10,13 +10,13 @@ against a hang), never on wall-clock time.
 from contextlib import contextmanager
 
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_infos, features_msg, joint_state, joint_trajectory,
-                                     pose_stamped, read_joints, read_trajectory, stamp_ns)
+from ibvs_common.conversions import (camera_infos, feature_status_msg, features_msg,
+                                     FeatureStatus, joint_state, joint_trajectory, pose_stamped,
+                                     read_joints, read_trajectory, stamp_ns)
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import spin_until
 from ibvs_common.timing import frame_stamp_ns
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_control.controllers import AdaptiveFeedback, Feedforward, JointLoop
@@ -25,6 +25,7 @@ from ibvs_control.feedforward_node import FeedforwardNode
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_control.servo_laws import ClassicIBVS
 from ibvs_model import default_model, inverse_kinematics, paper
+from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -275,11 +276,9 @@ def test_feedback_answers_each_frame_like_the_pure_controller(context):
 
 
 def feature_status(t_ns, measured):
-    msg = DiagnosticArray()
-    msg.header.stamp = joint_state(t_ns).header.stamp
-    msg.status = [DiagnosticStatus(name='feature_node: features', values=[
-        KeyValue(key='reason', value='measured' if measured else 'not found: test')])]
-    return msg
+    mode = contract.FEATURE_MEASURED if measured else contract.FEATURE_ESTIMATED
+    return feature_status_msg(FeatureStatus(mode, mode, mode if measured else 'not found: test',
+                                            0.0, 'full'), t_ns)
 
 
 def test_ibvs_feedback_waits_for_the_feature_status_and_holds_unmeasured(context):

@@ -21,8 +21,28 @@ __all__ = [
     'inverse_kinematics', 'IRB4600', 'joint_frames', 'look_at', 'ModelError',
     'nearest_rotation', 'point_jacobian', 'pose_error', 'pose_from', 'RobotParams',
     'StereoCamera', 'StereoIntrinsics', 'TriangulationError', 'UnreachablePoseError',
-    'default_model',
+    'default_camera', 'default_model',
 ]
+
+
+def default_camera(resolution: str = 'HD720') -> StereoCamera:
+    """
+    Return the ZED 2 at ``resolution`` at the default pose (docs/design.md §5).
+
+    Parameters
+    ----------
+    resolution : str
+        The ZED 2 mode: 'HD720', 'VGA' or 'HD1080'.
+
+    Returns
+    -------
+    StereoCamera
+        The paper's camera at ``paper.CAMERA_EYE``, looking at ``paper.CAMERA_LOOK_AT``.
+
+    """
+    from . import paper
+    return StereoCamera(StereoIntrinsics.zed2(resolution),
+                        look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
 
 
 def default_model(resolution: str = 'HD720', params: RobotParams = IRB4600) -> CameraRobotModel:
@@ -39,10 +59,7 @@ def default_model(resolution: str = 'HD720', params: RobotParams = IRB4600) -> C
     Returns
     -------
     CameraRobotModel
-        F (eq. 30) of that robot seen by the camera at ``paper.CAMERA_EYE``.
+        F (eq. 30) of that robot seen by :func:`default_camera`.
 
     """
-    from . import paper
-    camera = StereoCamera(StereoIntrinsics.zed2(resolution),
-                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
-    return CameraRobotModel(camera, params)
+    return CameraRobotModel(default_camera(resolution), params)

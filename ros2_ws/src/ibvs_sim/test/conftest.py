@@ -1,9 +1,20 @@
-"""Fixtures of the ibvs_sim tests: the shared ones (ibvs_common.testing), and a collector."""
+"""Fixtures of the ibvs_sim tests: the shared ones (ibvs_testing), the world, the camera."""
 
 import gc
 
-from ibvs_common.testing import camera, context, domain_id, executor_of, world  # noqa: F401
+from ibvs_model import default_camera
+from ibvs_sim.world import World
+from ibvs_testing.fixtures import (closed_after_module, context, domain_id,  # noqa: F401
+                                   executor_of)
 import pytest
+
+world = closed_after_module(World, "The paper's robot in a PyBullet world (renderer 'auto').")
+
+
+@pytest.fixture(scope='module')
+def camera():
+    """Return the ZED 2 at HD720 at the default pose (docs/design.md §5)."""
+    return default_camera('HD720')
 
 
 @pytest.fixture(scope='module', autouse=True)

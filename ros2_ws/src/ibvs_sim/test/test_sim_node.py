@@ -15,10 +15,10 @@ from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, pose_matrix, stamp_ns
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import spin_until
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.world import World
+from ibvs_testing.fixtures import spin_until
 from nav_msgs.msg import Path
 import numpy as np
 import pytest

@@ -12,13 +12,13 @@ from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, joint_trajectory, pose_matrix, stamp_ns
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_sim import markers
 from ibvs_sim.camera_effects import error_transform
 from ibvs_sim.config import SimConfig
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
+from ibvs_testing.fixtures import spin_until as shared_spin_until
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor

@@ -8,8 +8,8 @@ and no assertion depends on wall-clock time).
 
 from ibvs_common import contract
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import spin_until
 from ibvs_sim.sim_node import SimNode
+from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
 from rclpy.node import Node

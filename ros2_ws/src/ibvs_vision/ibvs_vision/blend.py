@@ -25,12 +25,12 @@ nanoseconds of sim time (never the wall clock), so the blend ends exactly on the
 reaches ``blend_time_s``.
 """
 
+from ibvs_common.contract import (FEATURE_BLENDING as BLENDING,
+                                  FEATURE_ESTIMATED as ESTIMATED,
+                                  FEATURE_MEASURED as MEASURED)
+from ibvs_common.timing import seconds_to_ns
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-MEASURED = 'measured'
-ESTIMATED = 'estimated'
-BLENDING = 'blending'
 
 
 class BumplessSwitch:
@@ -53,7 +53,7 @@ class BumplessSwitch:
         blend_time_s = float(blend_time_s)
         if not (np.isfinite(blend_time_s) and blend_time_s >= 0.0):
             raise ValueError(f'blend_time_s must be finite and >= 0, got {blend_time_s}')
-        self.blend_ns = int(round(blend_time_s * 1e9))
+        self.blend_ns = seconds_to_ns(blend_time_s)
         self.source = None
         self.mode = None
         self.last_switch_ns = None

@@ -11,9 +11,10 @@ PolygonStamped on /ibvs/features, stamped with the image stamp (docs/design.md Â
   stamp; the camera comes from both CameraInfo and /stereo/pose, never from constants;
 - across a switch between the two the output is blended (:mod:`.blend`, section 2.3).
 
-With each features message goes one /ibvs/feature_status (DiagnosticArray, same stamp) whose
-values say the mode (measured / blending / estimated), the source, the reason when the
-markers were not measured, and the share of the switch offset still blended. /diagnostics
+With each features message goes one /ibvs/feature_status (DiagnosticArray, same stamp,
+written by :func:`ibvs_common.conversions.feature_status_msg`) whose values say the mode
+(measured / blending / estimated), the source, the reason when the markers were not
+measured, and the share of the switch offset still blended. /diagnostics
 (once a second, and at each switch) carries the counts, the last switch time, the rejected
 inputs by reason and the processing time.
 
@@ -26,7 +27,7 @@ published (bad encoding, size that disagrees with CameraInfo, left and right sta
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
 newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
 frame the camera lost (/stereo/frame_lost) brings no images: nothing is published for it.
-The pairing, matching and dropping rules are :class:`ibvs_common.sync.StereoPairer` (plain
+The pairing, matching and dropping rules are :class:`.stereo_pairing.StereoPairer` (plain
 Python, tested without rclpy); the node decodes, detects, publishes and counts. Every stamp
 goes through the one stamp rule (:func:`ibvs_common.conversions.read_stamp`) before the
 pairer sees it: a malformed one, or one more than ``stale_timeout_s`` and a camera period
@@ -57,19 +58,19 @@ from functools import partial
 import time
 
 import cv2
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, shared_params
-from ibvs_common.conversions import (camera_from_msgs, check_camera_info, features_msg,
-                                     image_msg, InputError, ns_stamp, pose_stamped,
-                                     position_bounds, read_camera_pose, read_joints,
-                                     read_stamp, stamp_lead_ns)
+from ibvs_common.conversions import (camera_from_msgs, check_camera_info, feature_status_msg,
+                                     features_msg, FeatureStatus, image_msg, InputError,
+                                     ns_stamp, pose_stamped, position_bounds,
+                                     read_camera_pose, read_joints, read_stamp, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.sync import Drop, Ready, Rejection, StereoPairer
-from ibvs_common.timing import period_ns
+from ibvs_common.sync import Rejection
+from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
@@ -80,6 +81,7 @@ from .blend import BumplessSwitch
 from .detector import DetectorConfig, StereoDetector
 from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
 from .imageconv import image_array
+from .stereo_pairing import Drop, Ready, StereoPairer
 
 PARAMS = (
     Param('blend_time_s', 0.2, 'time over which the published features move from the '
@@ -123,9 +125,9 @@ class FeatureNode(Node):
         cv2.setNumThreads(OPENCV_THREADS)
         self._config = DetectorConfig.from_parameters(p)
         self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
-        self._stereo = StereoPairer(stale_ns=int(round(p['stale_timeout_s'] * 1e9)),
+        self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(p['stale_timeout_s']),
                                     window_ns=period_ns(p['physics_rate_hz']),
-                                    history_ns=int(round(p['joint_history_s'] * 1e9)),
+                                    history_ns=seconds_to_ns(p['joint_history_s']),
                                     sides=_SIDES)
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         self._topics = {'left': contract.LEFT_IMAGE, 'right': contract.RIGHT_IMAGE,
@@ -373,7 +375,7 @@ class FeatureNode(Node):
         for side in sides:
             image = images[side] if encoding == 'rgb8' else images[side][:, :, ::-1]
             found = getattr(detection, side)
-            drawn = overlay.draw(image, side, t_ns * 1e-9, mode, reason, output, estimate,
+            drawn = overlay.draw(image, side, ns_to_seconds(t_ns), mode, reason, output, estimate,
                                  target, found.blobs if found is not None else ())
             self._debug_pubs[side].publish(image_msg(drawn, ns_stamp(t_ns), 'rgb8',
                                                      _LENS_FRAMES[side]))
@@ -381,18 +383,13 @@ class FeatureNode(Node):
     def _publish_status(self, t_ns, detection):
         """Publish this frame's mode on /ibvs/feature_status, stamped with the image stamp."""
         switch = self._switch
-        reason = 'measured' if detection.ok else f'{detection.reason.value}: {detection.detail}'
-        values = {'mode': switch.mode, 'source': switch.source, 'reason': reason,
-                  'blend_weight': f'{switch.blend_weight(t_ns):.6g}',
-                  'search': detection.search}
-        msg = DiagnosticArray()
-        msg.header.stamp = ns_stamp(t_ns)
-        msg.header.frame_id = contract.CAMERA_FRAME
-        msg.status = [DiagnosticStatus(
-            level=DiagnosticStatus.OK, name=f'{self.get_name()}: features',
-            message=switch.mode, hardware_id=self.get_fully_qualified_name(),
-            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])]
-        self._status_pub.publish(msg)
+        reason = (contract.FEATURE_MEASURED if detection.ok
+                  else f'{detection.reason.value}: {detection.detail}')
+        status = FeatureStatus(switch.mode, switch.source, reason, switch.blend_weight(t_ns),
+                               detection.search)
+        self._status_pub.publish(feature_status_msg(
+            status, t_ns, name=f'{self.get_name()}: features',
+            hardware_id=self.get_fully_qualified_name()))
 
     def _record(self, detection, previous, elapsed_ms):
         d = self._diag
@@ -417,7 +414,7 @@ class FeatureNode(Node):
             d.values[f'estimated_because[{key}]'] = n
         if switch.last_switch_ns is not None and switch.source != previous \
                 and previous is not None:
-            t_s = switch.last_switch_ns * 1e-9
+            t_s = ns_to_seconds(switch.last_switch_ns)
             d.update(last_switch_time_s=t_s,
                      last_switch=f'{previous} -> {switch.source} at {t_s:.9f} s')
             d.publish()

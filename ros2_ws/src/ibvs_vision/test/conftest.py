@@ -1,8 +1,11 @@
-"""Fixtures of the ibvs_vision tests: the shared ones (ibvs_common.testing) and model F."""
+"""Fixtures of the ibvs_vision tests: the shared ones (ibvs_testing), the world, model F."""
 
-from ibvs_common.testing import context, default_camera, executor_of, world  # noqa: F401
-from ibvs_model import CameraRobotModel, IRB4600
+from ibvs_model import CameraRobotModel, default_camera, IRB4600
+from ibvs_sim.world import World  # a test dependency: the rendered images
+from ibvs_testing.fixtures import closed_after_module, context, executor_of  # noqa: F401
 import pytest
+
+world = closed_after_module(World, "The paper's robot in a PyBullet world (renderer 'auto').")
 
 
 @pytest.fixture(scope='module')

@@ -17,8 +17,8 @@ from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, joint_state, ns_stamp,
                                      pose_stamped, read_features, stamp_ns)
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import spin_until
 from ibvs_model import fiducial_points, inverse_kinematics, paper, scene
+from ibvs_testing.fixtures import spin_until
 from ibvs_vision import overlay, synthetic
 from ibvs_vision.feature_node import DEBUG_IMAGES, FeatureNode
 import numpy as np

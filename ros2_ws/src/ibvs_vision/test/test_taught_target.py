@@ -14,13 +14,13 @@ from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_stamped,
                                      read_features, read_joints)
-from ibvs_common.testing import spin_until as shared_spin_until
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_model import IRB4600, look_at, paper, StereoIntrinsics
 from ibvs_sim.config import SimConfig
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
 from ibvs_sim.world import World
+from ibvs_testing.fixtures import spin_until as shared_spin_until
 from ibvs_vision.detector import DetectorConfig, StereoDetector
 from ibvs_vision.feature_node import FeatureNode
 import numpy as np

@@ -41,8 +41,8 @@ from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamp
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
                                      matrix_poses, pose_stamped, position_bounds,
-                                     read_camera_pose, read_features, read_joints, read_stamp,
-                                     stamp_lead_ns)
+                                     read_camera_pose, read_feature_status, read_features,
+                                     read_joints, read_stamp, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
@@ -123,7 +123,7 @@ class VizNode(Node):
         self._params = IRB4600.scaled(p['l2_scale'], p['l4_scale'])
         self._d_q = np.radians(p['disturbance_deg'])
         self._target = shared_params.target_from_parameters(p)
-        self._marker_period_ns = int(round(1e9 / p['marker_rate_hz']))
+        self._marker_period_ns = period_ns(p['marker_rate_hz'])
         self._frustum_depth = p['frustum_depth_m']
         self._path_points = p['tool_path_points']
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
@@ -245,20 +245,17 @@ class VizNode(Node):
             self._features.popitem(last=False)
 
     def _on_status(self, msg):
-        if not msg.status:
-            self._diag.reject(contract.FEATURE_STATUS, 'no status')
-            return
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            mode = read_feature_status(msg).mode
         except InputError as exc:
             self._diag.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
             return
-        mode = {kv.key: kv.value for kv in msg.status[0].values}.get('mode')
         features = self._features.pop(t_ns, None)
         if features is None or self._camera is None:
             return
         self.measured = None
-        if mode == 'measured':
+        if mode == contract.FEATURE_MEASURED:
             try:
                 self.measured = self._camera.triangulate(features.reshape(2, 3))
             except ValueError as exc:

@@ -1,3 +1,3 @@
-"""Fixtures of the ibvs_viz tests: the shared ones (ibvs_common.testing)."""
+"""Fixtures of the ibvs_viz tests: the shared ones (ibvs_testing)."""
 
-from ibvs_common.testing import context, default_camera, executor_of  # noqa: F401
+from ibvs_testing.fixtures import context, executor_of  # noqa: F401

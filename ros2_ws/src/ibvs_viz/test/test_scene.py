@@ -6,8 +6,7 @@ from pathlib import Path
 import re
 
 from ibvs_common import contract
-from ibvs_common.testing import default_camera
-from ibvs_model import forward_kinematics, IRB4600
+from ibvs_model import default_camera, forward_kinematics, IRB4600
 from ibvs_model.robot import fiducial_points
 from ibvs_viz import scene
 import numpy as np

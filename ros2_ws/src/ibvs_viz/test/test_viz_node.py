@@ -6,16 +6,16 @@ A driver node publishes the simulator's and the feature node's topics; the viz n
 """
 
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
 from ibvs_common.contract import MARKERS, ROBOT_DESCRIPTION, TF, TF_STATIC
-from ibvs_common.conversions import (camera_infos, features_msg, joint_state, pose_matrix,
-                                     pose_stamped)
+from ibvs_common.conversions import (camera_infos, feature_status_msg, features_msg,
+                                     FeatureStatus, joint_state, pose_matrix, pose_stamped)
 from ibvs_common.params import ParameterError
-from ibvs_common.testing import default_camera, spin_until
-from ibvs_model import CameraRobotModel, forward_kinematics, IRB4600, paper
+from ibvs_model import CameraRobotModel, default_camera, forward_kinematics, IRB4600, paper
 from ibvs_model.robot import fiducial_points
+from ibvs_testing.fixtures import spin_until
 from ibvs_viz import scene
 from ibvs_viz.viz_node import NS_ESTIMATED, NS_MEASURED, NS_PATH, VizNode
 import numpy as np
@@ -68,11 +68,8 @@ class Driver(Node):
         self.pub['pose'].publish(pose_stamped(camera.pose_C_O, 0))
 
     def status(self, t_ns, mode):
-        msg = DiagnosticArray()
-        msg.header.stamp = joint_state(t_ns).header.stamp
-        msg.status = [DiagnosticStatus(name='feature_node: features',
-                                       values=[KeyValue(key='mode', value=mode)])]
-        self.pub['status'].publish(msg)
+        self.pub['status'].publish(feature_status_msg(
+            FeatureStatus(mode, mode, mode, 0.0, 'full'), t_ns, name='feature_node: features'))
 
 
 @pytest.fixture

@@ -1,0 +1,111 @@
+"""
+The adaptive feedback's lockstep rule (docs/design.md §4), plain code without rclpy.
+
+Frames are answered in stamp order, each with the first joint state at or after its stamp
+and, for a law that needs it, the frame's feature status (was it measured?). Used by
+:mod:`.adaptive_feedback_node`.
+"""
+
+from typing import Any, Dict, List, Optional, Tuple
+
+from ibvs_common.sync import PendingQueue, Rejection, StampHistory
+
+
+class FrameLockstep:
+    """
+    Frames answered in stamp order, each with the first joint state at or after its stamp.
+
+    The simulator renders frame n from the first physics step at or after n * T_cam and
+    publishes that step's joint state with it, so the joints of a frame are those of the
+    first state stamped at or after it. Optionally a frame also waits for its status (was it
+    measured?). The node's own preconditions (the camera model) are its business: it pops
+    only once they are met.
+
+    Parameters
+    ----------
+    history : int
+        Joint states kept, most frames pending and most statuses kept.
+    needs_status : bool
+        Whether a frame waits for its status (:meth:`offer_status`).
+    joints_name, status_name : str
+        How :meth:`waiting_for` names the joint-state and the status inputs.
+    full_note : str
+        Said when a frame is rejected for a full buffer (why frames pile up).
+
+    """
+
+    def __init__(self, history: int = 2000, needs_status: bool = False, *,
+                 joints_name: str = 'joint_states', status_name: str = 'feature_status',
+                 full_note: str = '') -> None:
+        """Create the lockstep with nothing received (see the class docstring)."""
+        self.history = history
+        self.needs_status = needs_status
+        self.joints_name = joints_name
+        self.status_name = status_name
+        self.joints: StampHistory[Any] = StampHistory(max_len=history)
+        self.frames: PendingQueue[Any] = PendingQueue(history, full_note)
+        self._measured: Dict[int, bool] = {}
+
+    @property
+    def last_answered_ns(self) -> Optional[int]:
+        """Return the stamp of the last frame answered, None before the first."""
+        return self.frames.last_popped_ns
+
+    def offer_joints(self, t_ns: int, joints: Any) -> Optional[Rejection]:
+        """Keep the joint state at ``t_ns``; 'stale stamp' unless after the newest one."""
+        return self.joints.add(t_ns, joints)
+
+    def offer_frame(self, t_ns: int, item: Any) -> Optional[Rejection]:
+        """Queue the frame at ``t_ns``; 'stale stamp' unless after the newest, 'buffer full'."""
+        return self.frames.offer(t_ns, item)
+
+    def offer_status(self, t_ns: int, measured: bool) -> Optional[Rejection]:
+        """
+        Keep whether the frame at ``t_ns`` was measured; return why not, or None.
+
+        A status of a frame already answered is dropped without a word (None).
+        """
+        last = self.last_answered_ns
+        if last is not None and t_ns <= last:
+            return None
+        if len(self._measured) >= self.history:
+            return Rejection('buffer full', f'{t_ns} ns')
+        self._measured[t_ns] = measured
+        return None
+
+    def waiting_for(self, t_ns: Optional[int] = None) -> List[str]:
+        """
+        Return what the frame at ``t_ns`` still waits for (empty when it has it all).
+
+        ``t_ns`` defaults to the oldest frame pending (nothing pending: empty).
+        """
+        t_ns = self.frames.first_ns if t_ns is None else t_ns
+        if t_ns is None:
+            return []
+        missing = []
+        if self.joints.at_or_after(t_ns) is None:
+            missing.append(f'{self.joints_name} at or after {t_ns} ns')
+        if self.needs_status and t_ns not in self._measured:
+            missing.append(f'{self.status_name} of frame {t_ns} ns')
+        return missing
+
+    def pop_ready(self) -> Optional[Tuple[int, Any, Any, bool]]:
+        """
+        Take the oldest pending frame if its inputs are here.
+
+        Returns
+        -------
+        tuple of (int, item, joints, bool) or None
+            The frame's stamp and item, the joint state matched to it and whether it was
+            measured (True without statuses); None while nothing is pending or the oldest
+            frame still waits.
+
+        """
+        if not self.frames or self.waiting_for():
+            return None
+        t_ns, item = self.frames.pop()
+        joints = self.joints.at_or_after(t_ns)[1]
+        measured = self._measured.pop(t_ns, True)
+        for old in [s for s in self._measured if s < t_ns]:
+            del self._measured[old]
+        return t_ns, item, joints, measured
