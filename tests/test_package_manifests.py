@@ -48,12 +48,7 @@ PYTHON_KEYS = {
 }
 
 #: Imports that cannot be declared, (package, module): why. Each entry must still be needed.
-UNDECLARABLE = {
-    ('ibvs_common', 'ibvs_sim'):
-        'ibvs_common.testing builds an ibvs_sim World for the tests; ibvs_sim depends on '
-        'ibvs_common, so either dependency tag would be a cycle (issue 23 moves the fixtures '
-        'to a test-only place)',
-}
+UNDECLARABLE = {}
 
 #: What a string constant names when it names a ROS interface type.
 INTERFACE_TYPE = re.compile(r'([a-z][a-z0-9_]*)/(?:msg|srv|action)/[A-Z][A-Za-z0-9]*')
