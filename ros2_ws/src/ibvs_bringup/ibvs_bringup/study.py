@@ -37,6 +37,7 @@ import sys
 import tempfile
 import time
 
+from ibvs_common.process import supervised_child
 import matplotlib
 
 matplotlib.use('Agg')
@@ -46,7 +47,7 @@ import numpy as np  # noqa: E402
 
 from . import graph_params, scenario, study_spec  # noqa: E402
 from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
-from .runner import _die_with_parent, STALL_S  # noqa: E402
+from .runner import STALL_S  # noqa: E402
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
 CPUS_PER_RUN = 1
@@ -131,7 +132,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s,
         with open(run_dir / 'runner.log', 'wb') as log:
             proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
                                     stdin=subprocess.DEVNULL, env=env,
-                                    preexec_fn=_die_with_parent)
+                                    preexec_fn=supervised_child)
             try:
                 code = proc.wait()
             except KeyboardInterrupt:
