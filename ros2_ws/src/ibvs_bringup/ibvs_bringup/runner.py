@@ -1,18 +1,19 @@
 """
 Run one scenario through the node graph: start the nodes, record, watch, stop, analyse.
 
-Each process is started exactly as
-``ros2 run <package> <executable> --ros-args --params-file <params.yaml>`` would start it:
-with ``ros2 run`` itself when the CLI is installed, otherwise with the same installed
-executable that ``ros2 run`` would resolve (``<prefix>/lib/<package>/<executable>`` from the
-ament index). Every node has a process of its own but the joint controller, which runs in
-the simulator's (:data:`PROCESSES`, :mod:`ibvs_bringup.compose`). The runner records the
-run, prints progress, stops when the sim time limit is reached or the tool has converged,
-and stops every process cleanly (SIGINT, then SIGTERM, then SIGKILL). If a node dies, the
-run stops and :class:`NodeDied` names it and its exit code; no process is left behind in
-any case (children also get SIGKILL if the runner dies). The Fast DDS shared memory that a
-killed process leaves in /dev/shm is removed, and the runner says so (:mod:`.shm`): at the
-end of a run what its dead processes left, at the start what earlier dead processes left.
+Each process is started exactly as ``ros2 run <package> <executable> --ros-args
+--params-file <params.yaml>`` would start it: with ``ros2 run`` itself when the CLI is
+installed, otherwise with the same installed executable that ``ros2 run`` would resolve
+(``<prefix>/lib/<package>/<executable>`` from the ament index), in the processes of the
+graph's description (:mod:`ibvs_bringup.graph`): every node has a process of its own but the
+joint controller, which runs in the simulator's (:mod:`ibvs_bringup.compose`);
+:mod:`ibvs_bringup.supervision` starts and stops them. The runner records the run, prints
+progress, stops when the sim time limit is reached or the tool has converged, and stops
+every process cleanly (SIGINT, then SIGTERM, then SIGKILL). If a node dies, the run stops
+and :class:`NodeDied` names it and its exit code; no process is left behind in any case
+(children also get SIGKILL if the runner dies). The Fast DDS shared memory that a killed
+process leaves in /dev/shm is removed, and the runner says so (:mod:`.shm`): at the end of a
+run what its dead processes left, at the start what earlier dead processes left.
 
 No silent hang: a configuration that cannot advance sim time is refused before any node
 starts (:func:`scenario.check_progress`), and a run whose sim time stops advancing for
@@ -21,18 +22,13 @@ said it waits for (its once-a-second "waiting ..." log line and the ``waiting_fo
 it publishes on /diagnostics).
 """
 
-import ctypes
 from dataclasses import dataclass
 import json
-import os
 from pathlib import Path
 import re
 import shutil
-import signal
-import subprocess
 import time
 
-from ament_index_python.packages import get_package_prefix
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
@@ -48,87 +44,28 @@ from rclpy.task import Future
 import yaml
 
 from . import analysis, domains, graph_params, scenario, shm
+from .graph import GRAPH, ZED_TOPICS
 from .recorder import Recorder
-
-#: The nodes of docs/design.md §1, each with its own executable (package, executable).
-NODES = (
-    ('ibvs_vision', 'feature_node'),
-    ('ibvs_control', 'adaptive_feedback_node'),
-    ('ibvs_control', 'feedforward_node'),
-    ('ibvs_control', 'joint_controller_node'),
-    ('ibvs_sim', 'sim_node'),
-)
-#: Remappings per node. The feature and feedback nodes need the joint state of each frame's
-#: stamp only: from /stereo/joint_states they get those (30 a second) instead of being woken
-#: by every physics step's /joint_states (1000 a second), which the lockstep would wait for.
-REMAPS = {
-    'feature_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
-    'adaptive_feedback_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
-    'viz_node': {contract.JOINT_STATES: contract.FRAME_JOINT_STATES},
-}
-#: sim_node camera_topics 'zed_wrapper': the ZED wrapper's names, which the camera's readers
-#: take by remapping alone, as on a real cell.
-ZED_TOPICS = {contract.LEFT_IMAGE: contract.ZED_LEFT_IMAGE,
-              contract.RIGHT_IMAGE: contract.ZED_RIGHT_IMAGE,
-              contract.LEFT_INFO: contract.ZED_LEFT_INFO,
-              contract.RIGHT_INFO: contract.ZED_RIGHT_INFO}
-ZED_REMAPS = {
-    'feature_node': ZED_TOPICS,
-    'adaptive_feedback_node': {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
-                               contract.RIGHT_INFO: contract.ZED_RIGHT_INFO},
-    'viz_node': {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
-                 contract.RIGHT_INFO: contract.ZED_RIGHT_INFO},
-}
+from .supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
 
 
-def remaps(params):
-    """Return {node: {topic: remapped}} of a run with the parameters ``params``."""
-    if params.get('camera_topics', 'ibvs') != 'zed_wrapper':
-        return REMAPS
-    return {node: {**REMAPS.get(node, {}), **ZED_REMAPS.get(node, {})}
-            for node in set(REMAPS) | set(ZED_REMAPS)}
+def process_plan(params, graph=GRAPH):
+    """
+    Return [(ProcessSpec, its remapping arguments)] of a run with ``params``, in start order.
+
+    The processes and remappings are the graph's (:mod:`ibvs_bringup.graph`), with the ZED
+    wrapper's names when the simulator publishes them (``camera_topics: zed_wrapper``).
+    """
+    run_remaps = graph.remaps(zed=_zed(params))
+    return [(spec, tuple(arg for node in spec.nodes
+                         for topic, remapped in run_remaps.get(node, {}).items()
+                         for arg in ('-r', f'{topic}:={remapped}')))
+            for spec in graph.processes()]
 
 
-@dataclass(frozen=True)
-class ProcessSpec:
-    """One process of a run: ``ros2 run package executable *args``, holding ``nodes``."""
-
-    package: str
-    executable: str
-    args: tuple = ()
-    nodes: tuple = ()
-    #: Its name in logs (``logs/<name>.log``), exit codes and error messages.
-    name: str = ''
-
-    def __post_init__(self):
-        """Fill the defaults: one node, named as its executable."""
-        if not self.nodes:
-            object.__setattr__(self, 'nodes', (self.executable,))
-        if not self.name:
-            object.__setattr__(self, 'name', self.executable)
-
-    def start(self, params_file, log_dir, extra_args=()):
-        """Start this process (:class:`NodeProcess`) with the run's parameters file."""
-        return NodeProcess(self.package, self.executable, params_file, log_dir, extra_args,
-                           self)
-
-
-#: The processes of a run, in start order: the simulator last, so that every subscriber is
-#: up before the first /joint_states. The joint controller runs in the simulator's process
-#: (ibvs_bringup.compose): the lockstep's two messages per physics step then stay in one
-#: process (0.1 instead of 0.4 ms a step on two cores), as gazebo_ros2_control runs the
-#: controllers inside the simulator.
-LOCKSTEP = ('joint_controller_node', 'sim_node')
-#: ibvs_viz's viz_node is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and
-#: the bag /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint
-#: states (REMAPS), so nothing in the lockstep waits for it.
-PROCESSES = (
-    ProcessSpec('ibvs_viz', 'viz_node'),
-    ProcessSpec('ibvs_vision', 'feature_node'),
-    ProcessSpec('ibvs_control', 'adaptive_feedback_node'),
-    ProcessSpec('ibvs_control', 'feedforward_node'),
-    ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'),
-)
+def _zed(params):
+    """Whether the simulator of a run with ``params`` publishes the ZED wrapper's names."""
+    return params.get('camera_topics', 'ibvs') == 'zed_wrapper'
 
 
 #: Default wall time without sim-time progress after which a run is declared stalled (s).
@@ -150,23 +87,6 @@ SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics wai
 HEARTBEAT_S = 3.0
 #: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
 _WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[([^\]]+)\]: (waiting .*)$')
-
-
-class NodeDied(RuntimeError):
-    """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
-
-    def __init__(self, node, returncode, log_path):
-        """Keep which node died, its exit code and where its log is; quote its last line."""
-        try:
-            lines = Path(log_path).read_text(errors='replace').strip().splitlines()
-        except OSError:
-            lines = []
-        last = f'; its last words: {lines[-1].strip()}' if lines else ''
-        super().__init__(f'node {node} exited with code {returncode} during the run '
-                         f'(log: {log_path}){last}')
-        self.node = node
-        self.returncode = returncode
-        self.log_path = log_path
 
 
 class RunStalled(RuntimeError):
@@ -210,105 +130,6 @@ def last_waiting_line(log_path, since_epoch_s, node=None):
                 node in (None, match.group(2)):
             found = match.group(3)
     return found
-
-
-def executable_command(package, executable):
-    """Return the command that ``ros2 run <package> <executable>`` stands for."""
-    if shutil.which('ros2'):
-        return ['ros2', 'run', package, executable]
-    path = Path(get_package_prefix(package)) / 'lib' / package / executable
-    if not os.access(path, os.X_OK):
-        raise FileNotFoundError(f'{package} {executable}: no executable at {path}')
-    return [str(path)]
-
-
-def _die_with_parent():
-    """
-    Child-side: own process group, no blocked signal, and SIGKILL when the runner dies.
-
-    A blocked signal mask is inherited across ``exec``: a Ray worker blocks SIGINT, and the
-    nodes of a study's runs then never saw the runner's SIGINT; each stopped only at SIGTERM,
-    10 s later (measured: 60 s of a 0.3 s run's 64 s, and the simulator's lens worker killed
-    mid-frame). Linux's prctl asks for SIGKILL when the parent dies.
-    """
-    os.setpgid(0, 0)
-    signal.pthread_sigmask(signal.SIG_SETMASK, [])
-    try:
-        libc = ctypes.CDLL('libc.so.6', use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except OSError:
-        pass
-
-
-class NodeProcess:
-    """One process of the graph (one node, or several: ``spec``), its output in a log file."""
-
-    def __init__(self, package, executable, params_file, log_dir, extra_args=(), spec=None):
-        """Start ``package executable [spec.args] --ros-args --params-file params_file``."""
-        spec = spec or ProcessSpec(package, executable)
-        cmd = executable_command(package, executable) + [
-            *spec.args, '--ros-args', '--params-file', str(params_file), *extra_args]
-        self._launch(cmd, spec.name, spec.nodes, Path(log_dir) / f'{spec.name}.log')
-
-    @classmethod
-    def of_command(cls, command, name, log_path, nodes=()):
-        """Start any ``command`` supervised as a node's process is (tools, tests)."""
-        process = cls.__new__(cls)
-        process._launch(list(command), name, tuple(nodes), Path(log_path))
-        return process
-
-    def _launch(self, command, name, nodes, log_path):
-        self.name, self.nodes, self.log_path, self.command = name, nodes, log_path, command
-        self._log = open(self.log_path, 'wb')
-        self.proc = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent)
-
-    def poll(self):
-        """Return the exit code, or None while running."""
-        return self.proc.poll()
-
-    def stop(self, timeout_s=10.0):
-        """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
-        return stop_all([self], timeout_s)[self.name]
-
-    def _signal(self, sig):
-        """Send ``sig`` to the process group, if it is still there."""
-        try:
-            os.killpg(self.proc.pid, sig)
-        except (ProcessLookupError, PermissionError):
-            pass
-
-
-def stop_all(procs, timeout_s=10.0):
-    """
-    Stop ``procs`` (:class:`NodeProcess`) together; return their exit codes by name.
-
-    Each escalation step (SIGINT, then SIGTERM after ``timeout_s``, then SIGKILL after 3 s)
-    goes to every process still running at once, and the waits overlap: five nodes take
-    as long to stop as the slowest of them, not the sum (about a second a node at the end
-    of every run, issue 26). A stopped (SIGSTOP) process handles no signal until it is
-    continued, so each first gets SIGCONT. Whatever a node left in its process group
-    (``ros2 run``'s child) is killed last.
-    """
-    for p in procs:
-        p._signal(signal.SIGCONT)
-    for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
-                      (signal.SIGKILL, 3.0)):
-        running = [p for p in procs if p.proc.poll() is None]
-        if not running:
-            break
-        for p in running:
-            p._signal(sig)
-        deadline = time.monotonic() + wait
-        for p in running:
-            try:
-                p.proc.wait(max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
-    for p in procs:
-        p._signal(signal.SIGKILL)
-        p._log.close()
-    return {p.name: p.proc.returncode for p in procs}
 
 
 @dataclass
@@ -495,21 +316,18 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         wall_duration = None
         wall_start = time.monotonic()
         try:
-            run_remaps = remaps(params)
-            topic_of = ZED_TOPICS if run_remaps is not REMAPS else {}
-            for spec in PROCESSES:
-                extra = tuple(arg for node in spec.nodes
-                              for topic, remapped in run_remaps.get(node, {}).items()
-                              for arg in ('-r', f'{topic}:={remapped}'))
-                if 'sim_node' in spec.nodes:
-                    _wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes],
-                                    procs)
+            topic_of = ZED_TOPICS if _zed(params) else {}
+            for spec, extra in process_plan(params):
+                if GRAPH.simulator in spec.nodes:
+                    wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes],
+                                   procs)
                     # Every reader of step 0 must be matched before the simulator publishes it
                     # (volatile topics): a node that misses the first /joint_states or CameraInfo
                     # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
                     # The simulator waits for as many subscribers as the runner sees once each
                     # node's own subscriptions are in the graph, recorder and monitor included.
-                    counts = _wait_for_readers(executor, watcher, procs, spec.nodes, topic_of)
+                    counts = wait_for_readers(executor, watcher, procs, GRAPH.step0_readers(),
+                                              spec.nodes, topic_of)
                     extra += ('-p', 'min_joint_state_subscribers:='
                               f'{counts[contract.JOINT_STATES]}',
                               '-p', 'min_frame_joint_state_subscribers:='
@@ -573,8 +391,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
         finally:
             # The simulator first, so that nothing is stepped or recorded past the run's
             # end while the other nodes stop; then the others together.
-            codes = stop_all([p for p in procs if 'sim_node' in p.nodes])
-            codes.update(stop_all([p for p in procs if 'sim_node' not in p.nodes]))
+            codes = stop_all([p for p in procs if GRAPH.simulator in p.nodes])
+            codes.update(stop_all([p for p in procs if GRAPH.simulator not in p.nodes]))
             codes = {p.name: codes[p.name] for p in reversed(procs)}
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': duration_s, 'wall_duration_s': wall_duration,
@@ -599,59 +417,6 @@ def _clean_shm(progress, whose, new_since=None):
     if count:
         progress(f'  removed {count} Fast DDS shared-memory files ({freed / 1e6:.0f} MB) in '
                  f'{shm.SHM_DIR} that {whose} left')
-
-
-#: The nodes that read each topic of step 0 (docs/design.md §1); the runner's recorder and
-#: monitor subscribe in this process, so they are in the graph from the start.
-STEP0_READERS = {
-    contract.JOINT_STATES: ('feedforward_node', 'joint_controller_node'),
-    contract.FRAME_JOINT_STATES: ('feature_node', 'adaptive_feedback_node'),
-    contract.LEFT_INFO: ('feature_node', 'adaptive_feedback_node'),
-    contract.RIGHT_INFO: ('feature_node', 'adaptive_feedback_node'),
-    contract.TOOL_PATH: (),
-}
-
-
-def _wait_for_readers(executor, node, procs, alongside=(), topic_of=None, timeout_s=60.0):
-    """
-    Spin until each node of STEP0_READERS subscribes its topic; return subscriber counts.
-
-    ``alongside``: the nodes that start in the simulator's process, with it: not waited for,
-    and counted as the readers STEP0_READERS says they are. ``topic_of``: the name each
-    contract topic is remapped to in this run (by contract name in the result).
-    """
-    topic_of = topic_of or {}
-    deadline = time.monotonic() + timeout_s
-    while True:
-        executor.spin_once(timeout_sec=0.05)
-        for p in procs:
-            if p.poll() is not None:
-                raise NodeDied(p.name, p.poll(), p.log_path)
-        infos = {topic: node.get_subscriptions_info_by_topic(topic_of.get(topic, topic))
-                 for topic in STEP0_READERS}
-        missing = [f'{name} on {topic}' for topic, names in STEP0_READERS.items()
-                   for name in names if name not in alongside
-                   and name not in {i.node_name for i in infos[topic]}]
-        if not missing:
-            return {topic: max(1, len(found) + sum(n in alongside for n in STEP0_READERS[topic]))
-                    for topic, found in infos.items()}
-        if time.monotonic() > deadline:
-            raise TimeoutError(f'subscriptions not in the graph after {timeout_s:.0f} s: '
-                               + ', '.join(missing))
-
-
-def _wait_for_nodes(executor, node, names, procs, timeout_s=60.0):
-    """Spin until every node in ``names`` is in the graph; fail if one of them exits."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.1)
-        for p in procs:
-            if p.poll() is not None:
-                raise NodeDied(p.name, p.poll(), p.log_path)
-        if set(names) <= set(node.get_node_names()):
-            return
-    raise TimeoutError(f'nodes not up after {timeout_s:.0f} s: '
-                       f'{sorted(set(names) - set(node.get_node_names()))}')
 
 
 def target_features(run):
