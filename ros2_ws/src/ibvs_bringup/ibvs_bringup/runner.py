@@ -248,6 +248,32 @@ class Monitor:
         return (self.sim_ns - self.within_since_ns) * 1e-9
 
 
+@dataclass
+class Prepared:
+    """A run ready to start (:func:`prepare`): its parameters and its files."""
+
+    params: dict
+    #: The sim time limit (s).
+    duration_s: float
+    out_dir: Path
+    log_dir: Path
+    params_file: Path
+    bag_path: Path
+    #: The target pose (4x4), from the parameters.
+    target: np.ndarray
+
+
+@dataclass
+class Outcome:
+    """How :func:`watch` saw a run end: converged, a node's death, a stall, or the time."""
+
+    converged: bool = False
+    died: NodeDied = None
+    stalled: RunStalled = None
+    #: Wall time from step 0 to the end (s); None if the run never got to :func:`watch`'s end.
+    wall_duration_s: float = None
+
+
 def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
                  wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
                  stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False,
@@ -270,6 +296,67 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
     simulator has not taken its first step ``start_timeout_s`` after it was launched).
+
+    The parts, in order: :func:`prepare`, :func:`start`, :func:`watch`, :func:`stop`,
+    :func:`write_results`.
+    """
+    run = prepare(name, out_dir, overrides, duration_s)
+    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    shm_before = shm.names()
+
+    # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
+    with domains.held() as (domain, chosen):
+        busy = chosen and domain != domains.FREE_POOL[0]
+        progress(f'  ROS_DOMAIN_ID {domain}'
+                 + (': the first free one, lower domains are used by other runs' if busy
+                    else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
+        dds.configure()  # before rclpy.init here, and inherited by the node processes
+        context = rclpy.context.Context()
+        rclpy.init(context=context)
+        executor = make_executor(context)
+        recorder = Recorder(run.bag_path, include_images=record_images, context=context,
+                            include_overlays=record_overlays,
+                            custom_data={analysis.PARAMS_KEY: yaml.safe_dump(run.params)})
+        watcher = rclpy.create_node('ibvs_run_monitor', context=context,
+                                    parameter_overrides=[])
+        monitor = Monitor(watcher, recorder, run.target)
+        executor.add_node(recorder)
+        executor.add_node(watcher)
+        procs = []
+        outcome = Outcome()
+        wall_start = time.monotonic()
+        try:
+            start(run, executor, watcher, procs)
+            outcome = watch(run, executor, monitor, procs, wall_start, progress,
+                            converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
+                            stall_s=stall_s, start_timeout_s=start_timeout_s)
+        finally:
+            codes = stop(procs)
+            recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
+                'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
+                'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
+            recorder.close()
+            executor.shutdown()
+            recorder.destroy_node()
+            watcher.destroy_node()
+            rclpy.shutdown(context=context)
+            _clean_shm(progress, 'node processes of this run that died', shm_before)
+    if outcome.died:
+        raise outcome.died
+    if outcome.stalled:
+        raise outcome.stalled
+    metrics = write_results(run.bag_path, run.out_dir, outcome.wall_duration_s, figures)
+    return RunResult(run.out_dir, run.bag_path, metrics, outcome.converged,
+                     recorder.timing.values())
+
+
+def prepare(name, out_dir, overrides=None, duration_s=None):
+    """
+    Check the parameters of scenario ``name`` with ``overrides``; write its parameters file.
+
+    Return the :class:`Prepared` run. Nothing is started: the checks of
+    :func:`run_scenario` that come before any node (:func:`graph_params.check`,
+    :func:`scenario.check_progress`) raise here.
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
@@ -287,128 +374,115 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
     bag_path = out_dir / 'bag'
     if bag_path.exists():
         shutil.rmtree(bag_path)
-    target = target_from_parameters(params)
-    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
-    shm_before = shm.names()
+    return Prepared(params, duration_s, out_dir, log_dir, params_file, bag_path,
+                    target_from_parameters(params))
 
-    # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
-    with domains.held() as (domain, chosen):
-        busy = chosen and domain != domains.FREE_POOL[0]
-        progress(f'  ROS_DOMAIN_ID {domain}'
-                 + (': the first free one, lower domains are used by other runs' if busy
-                    else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
-        dds.configure()  # before rclpy.init here, and inherited by the node processes
-        context = rclpy.context.Context()
-        rclpy.init(context=context)
-        executor = make_executor(context)
-        recorder = Recorder(bag_path, include_images=record_images, context=context,
-                            include_overlays=record_overlays,
-                            custom_data={analysis.PARAMS_KEY: yaml.safe_dump(params)})
-        watcher = rclpy.create_node('ibvs_run_monitor', context=context,
-                                    parameter_overrides=[])
-        monitor = Monitor(watcher, recorder, target)
-        executor.add_node(recorder)
-        executor.add_node(watcher)
-        procs = []
-        converged = False
-        died = None
-        stalled = None
-        wall_duration = None
-        wall_start = time.monotonic()
-        try:
-            topic_of = ZED_TOPICS if _zed(params) else {}
-            for spec, extra in process_plan(params):
-                if GRAPH.simulator in spec.nodes:
-                    wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes],
-                                   procs)
-                    # Every reader of step 0 must be matched before the simulator publishes it
-                    # (volatile topics): a node that misses the first /joint_states or CameraInfo
-                    # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
-                    # The simulator waits for as many subscribers as the runner sees once each
-                    # node's own subscriptions are in the graph, recorder and monitor included.
-                    counts = wait_for_readers(executor, watcher, procs, GRAPH.step0_readers(),
-                                              spec.nodes, topic_of)
-                    extra += ('-p', 'min_joint_state_subscribers:='
-                              f'{counts[contract.JOINT_STATES]}',
-                              '-p', 'min_frame_joint_state_subscribers:='
-                              f'{counts[contract.FRAME_JOINT_STATES]}',
-                              '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
-                              '-p', 'min_camera_info_subscribers:='
-                              f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
-                procs.append(spec.start(params_file, log_dir, extra))
-            last_print = 0.0
-            last_sim_ns, last_advance = -1, time.monotonic()
-            never = Future()
-            while True:
-                # Every callback due in the next POLL_S, then one look at the run.
-                executor.spin_until_future_complete(never, timeout_sec=POLL_S)
-                monitor.poll()
-                for p in procs:
-                    code = p.poll()
-                    if code is not None:
-                        died = NodeDied(p.name, code, p.log_path)
-                        break
-                if died:
-                    break
-                sim_s = monitor.sim_ns * 1e-9
-                now = time.monotonic()
-                if now - last_print >= 2.0:
-                    last_print = now
-                    rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
-                    # Before the first tool pose there is no error to print yet.
-                    error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)
-                             else '        - mm')
-                    axis = (f'{monitor.axis_deg:7.3f} deg' if np.isfinite(monitor.axis_deg)
-                            else '      - deg')
-                    progress(f'  [{params["scenario_name"]}] sim {sim_s:6.3f}/{duration_s:.2f} s'
-                             f'  position error {error}  axis error {axis}  RTF {rtf:5.3f}')
-                if converge_hold_s is not None and \
-                        monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
-                    converged = True
-                    break
-                if sim_s >= duration_s:
-                    converged = monitor.error_m <= 1e-3
-                    break
-                if now - wall_start > wall_timeout_s:
-                    progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim '
-                             f'{sim_s:.3f} s')
-                    break
-                if monitor.sim_ns > last_sim_ns and monitor.started_wall is not None:
-                    last_sim_ns, last_advance = monitor.sim_ns, now
-                limit = stall_s if monitor.started_wall is not None else start_timeout_s
-                if now - last_advance > limit:
-                    window_start = time.time() - min(limit, 3.0)
-                    what = (f'no sim-time progress for {limit:.0f} s of wall time'
-                            if monitor.started_wall is not None
-                            else f'the simulator took no step within {limit:.0f} s of its launch')
-                    nodes = [n for p in procs for n in p.nodes]
-                    stalled = RunStalled(what, monitor.stalled_sim_s(),
+
+def start(run, executor, watcher, procs, graph=GRAPH):
+    """
+    Start the processes of ``graph`` for ``run`` (:func:`process_plan`), appending to ``procs``.
+
+    The simulator's process starts last, once every other node is in the graph and every
+    reader of step 0 has subscribed (the start handshake); ``procs`` holds what has started
+    even when a wait fails (:class:`NodeDied`, TimeoutError), for :func:`stop`.
+    """
+    topic_of = ZED_TOPICS if _zed(run.params) else {}
+    for spec, extra in process_plan(run.params, graph):
+        if graph.simulator in spec.nodes:
+            wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes], procs)
+            # Every reader of step 0 must be matched before the simulator publishes it
+            # (volatile topics): a node that misses the first /joint_states or CameraInfo
+            # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
+            # The simulator waits for as many subscribers as the runner sees once each
+            # node's own subscriptions are in the graph, recorder and monitor included.
+            counts = wait_for_readers(executor, watcher, procs, graph.step0_readers(),
+                                      spec.nodes, topic_of)
+            extra += ('-p', 'min_joint_state_subscribers:='
+                      f'{counts[contract.JOINT_STATES]}',
+                      '-p', 'min_frame_joint_state_subscribers:='
+                      f'{counts[contract.FRAME_JOINT_STATES]}',
+                      '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
+                      '-p', 'min_camera_info_subscribers:='
+                      f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
+        procs.append(spec.start(run.params_file, run.log_dir, extra))
+
+
+def watch(run, executor, monitor, procs, wall_start, progress=print, converge_hold_s=None,
+          wall_timeout_s=1800.0, stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S):
+    """
+    Spin and look at the run every ``POLL_S`` until it ends; return its :class:`Outcome`.
+
+    It ends when a process exits (``died``), the tool has converged (``converge_hold_s``),
+    sim time reaches ``run.duration_s``, ``wall_timeout_s`` has passed since
+    ``wall_start``, or sim time has not advanced for ``stall_s`` (``start_timeout_s``
+    before step 0: ``stalled``). Progress is printed every 2 s of wall time.
+    """
+    outcome = Outcome()
+    last_print = 0.0
+    last_sim_ns, last_advance = -1, time.monotonic()
+    never = Future()
+    while True:
+        # Every callback due in the next POLL_S, then one look at the run.
+        executor.spin_until_future_complete(never, timeout_sec=POLL_S)
+        monitor.poll()
+        for p in procs:
+            code = p.poll()
+            if code is not None:
+                outcome.died = NodeDied(p.name, code, p.log_path)
+                break
+        if outcome.died:
+            break
+        sim_s = monitor.sim_ns * 1e-9
+        now = time.monotonic()
+        if now - last_print >= 2.0:
+            last_print = now
+            rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
+            # Before the first tool pose there is no error to print yet.
+            error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)
+                     else '        - mm')
+            axis = (f'{monitor.axis_deg:7.3f} deg' if np.isfinite(monitor.axis_deg)
+                    else '      - deg')
+            progress(f'  [{run.params["scenario_name"]}] sim {sim_s:6.3f}/{run.duration_s:.2f} s'
+                     f'  position error {error}  axis error {axis}  RTF {rtf:5.3f}')
+        if converge_hold_s is not None and \
+                monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
+            outcome.converged = True
+            break
+        if sim_s >= run.duration_s:
+            outcome.converged = monitor.error_m <= 1e-3
+            break
+        if now - wall_start > wall_timeout_s:
+            progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim '
+                     f'{sim_s:.3f} s')
+            break
+        if monitor.sim_ns > last_sim_ns and monitor.started_wall is not None:
+            last_sim_ns, last_advance = monitor.sim_ns, now
+        limit = stall_s if monitor.started_wall is not None else start_timeout_s
+        if now - last_advance > limit:
+            window_start = time.time() - min(limit, 3.0)
+            what = (f'no sim-time progress for {limit:.0f} s of wall time'
+                    if monitor.started_wall is not None
+                    else f'the simulator took no step within {limit:.0f} s of its launch')
+            nodes = [n for p in procs for n in p.nodes]
+            outcome.stalled = RunStalled(what, monitor.stalled_sim_s(),
                                          monitor.waits(procs, window_start),
                                          monitor.silent(nodes))
-                    break
-            # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
-            wall_duration = time.monotonic() - (monitor.started_wall or wall_start)
-        finally:
-            # The simulator first, so that nothing is stepped or recorded past the run's
-            # end while the other nodes stop; then the others together.
-            codes = stop_all([p for p in procs if GRAPH.simulator in p.nodes])
-            codes.update(stop_all([p for p in procs if GRAPH.simulator not in p.nodes]))
-            codes = {p.name: codes[p.name] for p in reversed(procs)}
-            recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
-                'duration_s': duration_s, 'wall_duration_s': wall_duration,
-                'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
-            recorder.close()
-            executor.shutdown()
-            recorder.destroy_node()
-            watcher.destroy_node()
-            rclpy.shutdown(context=context)
-            _clean_shm(progress, 'node processes of this run that died', shm_before)
-    if died:
-        raise died
-    if stalled:
-        raise stalled
-    metrics = write_results(bag_path, out_dir, wall_duration, figures)
-    return RunResult(out_dir, bag_path, metrics, converged, recorder.timing.values())
+            break
+    # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
+    outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
+    return outcome
+
+
+def stop(procs, graph=GRAPH):
+    """
+    Stop ``procs``; return their exit codes by name, in reverse start order.
+
+    The simulator first, so that nothing is stepped or recorded past the run's end while
+    the other nodes stop; then the others together (:func:`supervision.stop_all`).
+    """
+    codes = stop_all([p for p in procs if graph.simulator in p.nodes])
+    codes.update(stop_all([p for p in procs if graph.simulator not in p.nodes]))
+    return {p.name: codes[p.name] for p in reversed(procs)}
 
 
 def _clean_shm(progress, whose, new_since=None):
