@@ -43,7 +43,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
-from . import analysis, domains, graph_params, scenario, shm
+from . import analysis, convergence, domains, graph_params, scenario, shm
 from .graph import GRAPH, ZED_TOPICS
 from .recorder import Recorder
 from .supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
@@ -237,9 +237,13 @@ class Monitor:
                                  + out[node])
         return out
 
-    def update_convergence(self, pos_tol_m, axis_tol_deg):
-        """Track since when the tool has been within tolerance; return that duration (s)."""
-        inside = self.error_m <= pos_tol_m and self.axis_deg <= axis_tol_deg
+    def update_convergence(self, tolerance):
+        """
+        Track since when the tool has been within ``tolerance``; return that duration (s).
+
+        ``tolerance``: a :class:`~.convergence.Convergence`.
+        """
+        inside = tolerance.within(self.error_m, self.axis_deg)
         if not inside:
             self.within_since_ns = None
             return 0.0
@@ -289,7 +293,7 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
 
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
-    0.1 mm and 0.01 deg of the target for that long (sim time). Raises
+    0.1 mm and 0.01 deg of the target for that long (sim time: :data:`.convergence.HOLD`). Raises
     :class:`scenario.ScenarioError` for a parameter no node declares or out of its range
     (:func:`graph_params.check`) or a configuration that cannot make progress (before
     starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
@@ -445,11 +449,11 @@ def watch(run, executor, monitor, procs, wall_start, progress=print, converge_ho
             progress(f'  [{run.params["scenario_name"]}] sim {sim_s:6.3f}/{run.duration_s:.2f} s'
                      f'  position error {error}  axis error {axis}  RTF {rtf:5.3f}')
         if converge_hold_s is not None and \
-                monitor.update_convergence(1e-4, 0.01) >= converge_hold_s:
+                monitor.update_convergence(convergence.HOLD) >= converge_hold_s:
             outcome.converged = True
             break
         if sim_s >= run.duration_s:
-            outcome.converged = monitor.error_m <= 1e-3
+            outcome.converged = convergence.AT_END.within(monitor.error_m)
             break
         if now - wall_start > wall_timeout_s:
             progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim '

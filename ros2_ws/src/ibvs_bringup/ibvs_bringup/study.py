@@ -46,6 +46,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import graph_params, scenario, study_spec  # noqa: E402
+from .convergence import ACCEPTANCE  # noqa: E402
 from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
 from .runner import STALL_S  # noqa: E402
 
@@ -61,9 +62,6 @@ PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_contro
 #: that a change to the study or report layer keeps the runs cached.
 NOT_IN_A_RUN = ('ibvs_bringup/study.py', 'ibvs_bringup/study_spec.py',
                 'ibvs_bringup/report.py', 'ibvs_bringup/bench.py')
-#: Success: final position error and final tool-axis error within these.
-SUCCESS_POSITION_M = 1e-3
-SUCCESS_AXIS_DEG = 0.1
 #: Metrics in the study table, in this order.
 TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
                  'max_overshoot_m')
@@ -345,11 +343,8 @@ def _load_record(run_dir, key):
 
 
 def succeeded(record):
-    """Return whether a run finished within 1 mm and 0.1 deg of the target."""
-    metrics = record.get('metrics') or {}
-    return record.get('status') == 'ok' and \
-        metrics.get('final_position_error_m', np.inf) <= SUCCESS_POSITION_M and \
-        metrics.get('final_tool_axis_error_deg', np.inf) <= SUCCESS_AXIS_DEG
+    """Return whether a run finished within 1 mm and 0.1 deg of the target (ACCEPTANCE)."""
+    return record.get('status') == 'ok' and ACCEPTANCE.final(record.get('metrics') or {})
 
 
 def table_rows(spec, records):
@@ -390,7 +385,8 @@ def write_results(spec, records, study_dir):
     lines = [f'# Study {spec.name}', '', spec.description, '',
              f'Scenario {spec.scenario}, {len(rows)} runs, '
              f"{sum(r['status'] != 'ok' for r in rows)} failed, success (final error within "
-             f'{1e3 * SUCCESS_POSITION_M:g} mm and {SUCCESS_AXIS_DEG:g} deg): {ok}/{len(rows)}.',
+             f'{1e3 * ACCEPTANCE.position_m:g} mm and {ACCEPTANCE.axis_deg:g} deg): '
+             f'{ok}/{len(rows)}.',
              '', '| ' + ' | '.join(columns) + ' |', '|' + '---|' * len(columns)]
     lines += ['| ' + ' | '.join(_cell(r[c]) for c in columns) + ' |' for r in rows]
     figures = write_figures(spec, rows, study_dir)
@@ -415,7 +411,7 @@ def write_figures(spec, rows, study_dir):
             top = max([1e3 * r['final_position_error_m'] for r in good] + [1.0])
             ax.plot([r[name] for r in bad], [top] * len(bad), 'x', color='tab:red',
                     ms=10, label='failed run')
-        ax.axhline(1e3 * SUCCESS_POSITION_M, color='tab:green', ls='--', label='1 mm')
+        ax.axhline(1e3 * ACCEPTANCE.position_m, color='tab:green', ls='--', label='1 mm')
         ax.set_yscale('log')
         ax.set_xlabel(name)
         ax.set_ylabel('final position error [mm]')
@@ -427,7 +423,7 @@ def write_figures(spec, rows, study_dir):
     if spec.draws and errors.size:
         fig, ax = plt.subplots(figsize=(6, 4))
         ax.step(errors, np.arange(1, errors.size + 1) / len(rows), where='post')
-        ax.axvline(1e3 * SUCCESS_POSITION_M, color='tab:green', ls='--', label='1 mm')
+        ax.axvline(1e3 * ACCEPTANCE.position_m, color='tab:green', ls='--', label='1 mm')
         ax.set_xscale('log')
         ax.set_xlabel('final position error [mm]')
         ax.set_ylabel('fraction of all runs')
