@@ -2,10 +2,10 @@
 The node graph in one place: nodes, processes, remappings, the readers of step 0, start order.
 
 :data:`GRAPH` describes the graph of docs/design.md §1; everything that needs to know the
-graph reads it: the runner's process plan (:meth:`Graph.processes`), its remappings
-(:meth:`Graph.remaps`) and its start handshake (:meth:`Graph.step0_readers`),
+graph reads it: the runner's process plan (:func:`process_plan`: :meth:`Graph.processes`
+with :meth:`Graph.remaps`) and its start handshake (:meth:`Graph.step0_readers`),
 ``compose``'s node table (:meth:`Graph.compose_table`), and the table of docs/design.md
-§1 (:func:`markdown_table`, checked against the file by a test). Adding a node to the graph
+§1 (:meth:`Graph.markdown_table`, checked against the file by a test). Adding a node to the graph
 is one :class:`Node` entry here plus its module (and its executable in its package's
 ``setup.py``, which ``ros2 run`` needs; a test checks that each node has one).
 """
@@ -200,3 +200,22 @@ GRAPH = Graph(
     step0_topics=(contract.JOINT_STATES, contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                   contract.RIGHT_INFO, contract.TOOL_PATH),
 )
+
+
+def process_plan(params, graph=GRAPH):
+    """
+    Return [(ProcessSpec, its remapping arguments)] of a run with ``params``, in start order.
+
+    The processes and remappings are the graph's (:mod:`ibvs_bringup.graph`), with the ZED
+    wrapper's names when the simulator publishes them (``camera_topics: zed_wrapper``).
+    """
+    run_remaps = graph.remaps(zed=uses_zed_names(params))
+    return [(spec, tuple(arg for node in spec.nodes
+                         for topic, remapped in run_remaps.get(node, {}).items()
+                         for arg in ('-r', f'{topic}:={remapped}')))
+            for spec in graph.processes()]
+
+
+def uses_zed_names(params):
+    """Whether the simulator of a run with ``params`` publishes the ZED wrapper's names."""
+    return params.get('camera_topics', 'ibvs') == 'zed_wrapper'

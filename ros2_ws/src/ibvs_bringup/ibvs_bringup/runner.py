@@ -44,28 +44,9 @@ from rclpy.task import Future
 import yaml
 
 from . import analysis, convergence, domains, graph_params, scenario, shm
-from .graph import GRAPH, ZED_TOPICS
+from .graph import GRAPH, process_plan, uses_zed_names, ZED_TOPICS
 from .recorder import Recorder
 from .supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
-
-
-def process_plan(params, graph=GRAPH):
-    """
-    Return [(ProcessSpec, its remapping arguments)] of a run with ``params``, in start order.
-
-    The processes and remappings are the graph's (:mod:`ibvs_bringup.graph`), with the ZED
-    wrapper's names when the simulator publishes them (``camera_topics: zed_wrapper``).
-    """
-    run_remaps = graph.remaps(zed=_zed(params))
-    return [(spec, tuple(arg for node in spec.nodes
-                         for topic, remapped in run_remaps.get(node, {}).items()
-                         for arg in ('-r', f'{topic}:={remapped}')))
-            for spec in graph.processes()]
-
-
-def _zed(params):
-    """Whether the simulator of a run with ``params`` publishes the ZED wrapper's names."""
-    return params.get('camera_topics', 'ibvs') == 'zed_wrapper'
 
 
 #: Default wall time without sim-time progress after which a run is declared stalled (s).
@@ -390,7 +371,7 @@ def start(run, executor, watcher, procs, graph=GRAPH):
     reader of step 0 has subscribed (the start handshake); ``procs`` holds what has started
     even when a wait fails (:class:`NodeDied`, TimeoutError), for :func:`stop`.
     """
-    topic_of = ZED_TOPICS if _zed(run.params) else {}
+    topic_of = ZED_TOPICS if uses_zed_names(run.params) else {}
     for spec, extra in process_plan(run.params, graph):
         if graph.simulator in spec.nodes:
             wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes], procs)

@@ -5,7 +5,7 @@ import os
 from pathlib import Path
 
 from ament_index_python.packages import get_package_prefix
-from ibvs_bringup import compose, graph, runner
+from ibvs_bringup import compose, graph
 from ibvs_bringup.graph import GRAPH, Node
 from ibvs_bringup.supervision import ProcessSpec
 from ibvs_common import contract
@@ -21,7 +21,7 @@ def _remaps(*pairs):
 
 
 def test_the_process_plan_is_the_runners_of_before():
-    plan = runner.process_plan({})
+    plan = graph.process_plan({})
     assert plan == [
         (ProcessSpec('ibvs_viz', 'viz_node'), _remaps(*FRAME)),
         (ProcessSpec('ibvs_vision', 'feature_node'), _remaps(*FRAME)),
@@ -29,7 +29,7 @@ def test_the_process_plan_is_the_runners_of_before():
         (ProcessSpec('ibvs_control', 'feedforward_node'), ()),
         (ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'), ()),
     ]
-    zed = dict(runner.process_plan({'camera_topics': 'zed_wrapper'}))
+    zed = dict(graph.process_plan({'camera_topics': 'zed_wrapper'}))
     info = (f'{contract.LEFT_INFO}:={contract.ZED_LEFT_INFO}',
             f'{contract.RIGHT_INFO}:={contract.ZED_RIGHT_INFO}')
     images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
@@ -75,7 +75,7 @@ def test_adding_a_node_is_one_entry_of_the_description():
                  step0_reads=(contract.JOINT_STATES,), doc_reads='/joint_states')
     at = [n.name for n in GRAPH.nodes].index('feedforward_node') + 1
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (dummy,) + GRAPH.nodes[at:])
-    plan = runner.process_plan({}, bigger)
+    plan = graph.process_plan({}, bigger)
     assert [spec.name for spec, _ in plan] == [
         'viz_node', 'feature_node', 'adaptive_feedback_node', 'feedforward_node',
         'dummy_node', 'lockstep']
@@ -89,7 +89,7 @@ def test_adding_a_node_is_one_entry_of_the_description():
     # Into the simulator's process: one field more.
     shared = dataclasses.replace(dummy, process='lockstep')
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (shared,) + GRAPH.nodes[at:])
-    assert runner.process_plan({}, bigger)[-1][0].nodes == ('dummy_node', *LOCKSTEP)
+    assert graph.process_plan({}, bigger)[-1][0].nodes == ('dummy_node', *LOCKSTEP)
 
 
 def test_the_simulator_starts_last():
