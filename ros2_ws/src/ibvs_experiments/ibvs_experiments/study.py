@@ -37,6 +37,8 @@ import sys
 import tempfile
 import time
 
+from ibvs_bringup import graph_params, scenario
+from ibvs_bringup.domains import HELD_ENV, lock_domain, parse_pool, pool
 from ibvs_common.process import supervised_child
 import matplotlib
 
@@ -45,9 +47,8 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import graph_params, scenario, study_spec  # noqa: E402
+from . import study_spec  # noqa: E402
 from .convergence import ACCEPTANCE  # noqa: E402
-from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
 from .runner import STALL_S  # noqa: E402
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
@@ -57,11 +58,11 @@ CPUS_PER_RUN = 1
 DOMAIN_IDS = pool()
 #: The packages whose sources make up the code version of a run.
 PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_control',
-            'ibvs_bringup')
+            'ibvs_bringup', 'ibvs_experiments')
 #: Modules that organise runs but take no part in one: left out of the code version, so
 #: that a change to the study or report layer keeps the runs cached.
-NOT_IN_A_RUN = ('ibvs_bringup/study.py', 'ibvs_bringup/study_spec.py',
-                'ibvs_bringup/report.py', 'ibvs_bringup/bench.py')
+NOT_IN_A_RUN = ('ibvs_experiments/study.py', 'ibvs_experiments/study_spec.py',
+                'ibvs_experiments/report.py', 'ibvs_experiments/bench.py')
 #: Metrics in the study table, in this order.
 TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
                  'max_overshoot_m')
@@ -73,7 +74,7 @@ def code_version():
     """
     Return a hash of the installed sources (``*.py``) that take part in a run.
 
-    The six packages, by path, all but :data:`NOT_IN_A_RUN`.
+    The seven packages, by path, all but :data:`NOT_IN_A_RUN`.
 
     The same in a fresh clone, a colcon install and on every node of a cluster that runs
     the same code, and different as soon as one line changes: no git needed.
@@ -115,7 +116,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s,
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
     domain, lock = lock_domain(*domains)
-    cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', scenario_name, '-o', str(run_dir),
+    cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'run', scenario_name, '-o', str(run_dir),
            '--stall-s', repr(float(stall_s))] + ([] if figures else ['--no-figures'])
     if duration_s is not None:
         cmd += ['--duration', repr(float(duration_s))]
@@ -459,7 +460,7 @@ def study_path(name_or_path):
         if not path.is_file():
             raise study_spec.StudyError(f'study spec {path} does not exist')
         return path
-    directory = scenario.share_directory() / 'studies'
+    directory = scenario.share_directory('ibvs_experiments') / 'studies'
     candidate = directory / f'{name_or_path}.yaml'
     if not candidate.is_file():
         known = sorted(p.stem for p in directory.glob('*.yaml'))

@@ -30,6 +30,10 @@ import shutil
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from ibvs_bringup import domains, graph_params, scenario, shm
+from ibvs_bringup.graph import GRAPH, process_plan, uses_zed_names, ZED_TOPICS
+from ibvs_bringup.recorder import Recorder
+from ibvs_bringup.supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
@@ -43,10 +47,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
-from . import analysis, convergence, domains, graph_params, scenario, shm
-from .graph import GRAPH, process_plan, uses_zed_names, ZED_TOPICS
-from .recorder import Recorder
-from .supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
+from . import analysis, convergence
 
 
 #: Default wall time without sim-time progress after which a run is declared stalled (s).

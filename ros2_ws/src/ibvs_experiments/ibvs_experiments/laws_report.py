@@ -14,7 +14,7 @@ overshoot past the target along the approach, peak joint speed (rad/s, and as a 
 IRB 4600's limit qd_max), and converged: within :data:`.convergence.LAW_TABLE` of the
 target at the end and within 1 mm from ``time_to_1mm_s`` on.
 
-``python -m ibvs_bringup.laws_report DIR`` writes ``DIR/laws.md`` and one figure of the
+``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and one figure of the
 tool's path per law from the run folders under ``DIR``; ``ibvs report --laws`` runs them.
 """
 

@@ -3,9 +3,9 @@
 from pathlib import Path
 import time
 
-from ibvs_bringup import runner
 from ibvs_bringup.scenario import ScenarioError
 from ibvs_bringup.supervision import NodeDied
+from ibvs_experiments import runner
 import numpy as np
 import pytest
 import yaml

@@ -53,11 +53,11 @@ AT_END = Convergence(1e-3)
 #: Issue 6's acceptance of a reproduction: the final pose within 1 mm and 0.1 deg, what the
 #: paper's "exact (IBVS)" final pose is checked against. A study run succeeds with it.
 ACCEPTANCE = Convergence(1e-3, 0.1)
-#: The servo-law table (:mod:`ibvs_bringup.laws_report`): converged when 1 mm was reached
+#: The servo-law table (:mod:`ibvs_experiments.laws_report`): converged when 1 mm was reached
 #: and the run ended within 1 mm and 0.5 deg. Not :data:`ACCEPTANCE`: the table compares
 #: servo laws (which of them get there at all), it does not accept a reproduction, and its
 #: published "converged" column was made with 0.5 deg.
 LAW_TABLE = Convergence(1e-3, 0.5)
-#: ``time_to_1mm_s`` (:mod:`ibvs_bringup.analysis`): the first time the position error is
+#: ``time_to_1mm_s`` (:mod:`ibvs_experiments.analysis`): the first time the position error is
 #: within 1 mm, the paper's "1 mm" milestone.
 REACHED = Convergence(1e-3)

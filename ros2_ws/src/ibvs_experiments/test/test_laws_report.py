@@ -1,8 +1,8 @@
-"""The servo-law table (ibvs_bringup.laws_report) from synthetic runs: no graph, no bag."""
+"""The servo-law table (ibvs_experiments.laws_report) from synthetic runs: no graph, no bag."""
 
-from ibvs_bringup import laws_report
-from ibvs_bringup.analysis import compute_metrics
 from ibvs_control.servo_laws import SERVO_LAWS
+from ibvs_experiments import laws_report
+from ibvs_experiments.analysis import compute_metrics
 from ibvs_model import IRB4600
 import numpy as np
 import pytest
@@ -79,7 +79,7 @@ def test_specs_put_every_law_of_a_case_and_scenario_in_one_study():
 
 def test_convergence_definitions_keep_their_tolerances():
     # The numbers the table, the studies, the report and the runner were made with.
-    from ibvs_bringup import convergence as c
+    from ibvs_experiments import convergence as c
     assert (c.HOLD.position_m, c.HOLD.axis_deg) == (1e-4, 0.01)
     assert (c.AT_END.position_m, c.AT_END.axis_deg) == (1e-3, float('inf'))
     assert (c.ACCEPTANCE.position_m, c.ACCEPTANCE.axis_deg) == (1e-3, 0.1)
