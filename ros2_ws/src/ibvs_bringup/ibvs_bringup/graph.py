@@ -103,7 +103,7 @@ class Graph:
                 shared[n.process] = len(out)
                 out.append(None)
         for name, index in shared.items():
-            members = tuple(n.name for n in self.nodes if n.process == name)
+            members = self.shared(name)
             out[index] = ProcessSpec(*self.host, members, members, name)
         if self.simulator not in out[-1].nodes:
             raise ValueError(f'the simulator {self.simulator} must start last')
