@@ -64,13 +64,13 @@ fuzz: build
 	$(RUN) python -m pytest tests/fuzz $(PYTEST_ARGS)
 
 demo: build
-	$(RUN) python -m ibvs_bringup.cli demo
+	$(RUN) python -m ibvs_experiments.cli demo
 
 report: build
-	$(RUN) python -m ibvs_bringup.cli report
+	$(RUN) python -m ibvs_experiments.cli report
 
 bench: build
-	$(RUN) python -m ibvs_bringup.bench
+	$(RUN) python -m ibvs_experiments.bench
 
 lint: build
 	$(RUN) python -m pytest -m linter

@@ -31,7 +31,7 @@ def signalled_run(tmp_path):
     and returns (exit code, stdout, stderr).
     """
     def run(args, under_way, sig, timeout_s, settle_s=0.0):
-        cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', 'scenario1', '-o',
+        cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'run', 'scenario1', '-o',
                str(tmp_path), '--duration', '30', *args]
         runner = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                   text=True)

@@ -11,14 +11,16 @@ import time
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from ibvs_bringup import runner, scenario
+from ibvs_bringup import scenario
+from ibvs_bringup.graph import GRAPH
+from ibvs_bringup.supervision import NodeProcess
 from ibvs_common import contract
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 
 #: The nodes that follow /clock (the simulator publishes it).
-SIM_TIME_NODES = [node for node in runner.NODES if node[1] != 'sim_node']
+SIM_TIME_NODES = [node for node in GRAPH.paper_nodes() if node[1] != 'sim_node']
 DEADLINE_S = 90.0
 
 
@@ -38,7 +40,7 @@ def test_sim_time_nodes_survive_a_negative_clock(context, installed_workspace, t
     talker.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, on_diagnostics, 50)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(talker)
-    procs = [runner.NodeProcess(package, executable, params_file, tmp_path)
+    procs = [NodeProcess(package, executable, params_file, tmp_path)
              for package, executable in SIM_TIME_NODES]
     names = {executable for _, executable in SIM_TIME_NODES}
     try:

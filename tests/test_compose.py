@@ -10,10 +10,14 @@ import signal
 import subprocess
 import time
 
-from ibvs_bringup import compose, runner, scenario
+from ibvs_bringup import compose, scenario, supervision
+from ibvs_bringup.graph import GRAPH
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
+
+#: The nodes of the simulator's process in a run.
+LOCKSTEP = GRAPH.shared('lockstep')
 
 
 def test_node_classes_are_checked_before_anything_starts():
@@ -26,26 +30,26 @@ def test_node_classes_are_checked_before_anything_starts():
 
 
 def test_every_node_of_the_graph_can_be_composed():
-    assert set(compose.NODES) == {executable for _, executable in runner.NODES}
-    assert set(runner.LOCKSTEP) <= set(compose.NODES)
+    assert set(compose.NODES) == {n.name for n in GRAPH.nodes}
+    assert set(LOCKSTEP) <= set(compose.NODES)
 
 
 def _start(args, tmp_path, name):
     params_file = scenario.write_parameters(scenario.load_parameters('scenario1'),
                                             tmp_path / 'params.yaml')
-    spec = runner.ProcessSpec('ibvs_bringup', 'compose', tuple(args), tuple(args), name)
+    spec = supervision.ProcessSpec('ibvs_bringup', 'compose', tuple(args), tuple(args), name)
     return spec.start(params_file, tmp_path, ('-p', 'publish_images:=false'))
 
 
 def test_composed_nodes_share_a_process_and_stop_on_sigint(context, installed_workspace,
                                                            tmp_path):
-    proc = _start(runner.LOCKSTEP, tmp_path, 'lockstep')
+    proc = _start(LOCKSTEP, tmp_path, 'lockstep')
     observer = rclpy.create_node('compose_observer', context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(observer)
     try:
         deadline = time.monotonic() + 60.0
-        while not set(runner.LOCKSTEP) <= set(observer.get_node_names()):
+        while not set(LOCKSTEP) <= set(observer.get_node_names()):
             assert proc.poll() is None, proc.log_path.read_text()[-2000:]
             assert time.monotonic() < deadline, 'the composed nodes never joined the graph'
             executor.spin_once(timeout_sec=0.2)
@@ -67,8 +71,8 @@ def test_a_bad_parameter_of_one_composed_node_ends_the_process_with_code_2(
         installed_workspace, tmp_path):
     params_file = scenario.write_parameters(scenario.load_parameters('scenario1'),
                                             tmp_path / 'params.yaml')
-    cmd = runner.executable_command('ibvs_bringup', 'compose') + [
-        *runner.LOCKSTEP, '--ros-args', '--params-file', str(params_file),
+    cmd = supervision.executable_command('ibvs_bringup', 'compose') + [
+        *LOCKSTEP, '--ros-args', '--params-file', str(params_file),
         '-p', 'clock_rate_hz:=-1.0']
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stdout + done.stderr
@@ -76,7 +80,7 @@ def test_a_bad_parameter_of_one_composed_node_ends_the_process_with_code_2(
 
 
 def test_an_unknown_node_is_refused_with_the_usage(installed_workspace):
-    cmd = runner.executable_command('ibvs_bringup', 'compose') + ['sim_node', 'nobody']
+    cmd = supervision.executable_command('ibvs_bringup', 'compose') + ['sim_node', 'nobody']
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert done.returncode == 2
     assert 'unknown node(s) nobody' in done.stderr and 'usage:' in done.stderr

@@ -8,7 +8,9 @@ counts) would show, then a clean shutdown of every process on SIGINT.
 import signal
 import time
 
-from ibvs_bringup import runner, scenario
+from ibvs_bringup import scenario
+from ibvs_bringup.graph import GRAPH
+from ibvs_bringup.supervision import NodeProcess
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -52,8 +54,8 @@ def test_executables_form_the_contract_graph_and_stop_on_sigint(context, install
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(observer)
     try:
-        for package, executable in runner.NODES:
-            procs.append(runner.NodeProcess(package, executable, params_file, tmp_path))
+        for package, executable in GRAPH.paper_nodes():
+            procs.append(NodeProcess(package, executable, params_file, tmp_path))
         deadline = time.monotonic() + 90.0
         topics = {}
         while time.monotonic() < deadline:

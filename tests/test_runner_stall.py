@@ -8,7 +8,7 @@ import sys
 def test_runner_refuses_a_graph_without_images(installed_workspace, tmp_path):
     """``-p publish_images:=false`` cannot advance sim time: refused before any node starts."""
     proc = subprocess.run(
-        [sys.executable, '-m', 'ibvs_bringup.cli', 'run', 'scenario1', '-o', str(tmp_path),
+        [sys.executable, '-m', 'ibvs_experiments.cli', 'run', 'scenario1', '-o', str(tmp_path),
          '--duration', '0.5', '-p', 'publish_images:=false'],
         capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)

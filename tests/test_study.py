@@ -9,7 +9,7 @@ import subprocess
 import sys
 import time
 
-from ibvs_bringup import study, study_spec
+from ibvs_experiments import study, study_spec
 import pytest
 import yaml
 
@@ -94,7 +94,7 @@ def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
     """SIGINT to the study's process group, as a terminal's Ctrl-C sends it, mid-run."""
     spec_path = grid_spec(tmp_path, 'two', 0.2, {'l2_scale': [1.0, 0.9, 0.8]})
     out = tmp_path / 'studies'
-    cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'study', str(spec_path), '-o', str(out),
+    cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'study', str(spec_path), '-o', str(out),
            '--parallel', '1', '--domains', f'{DOMAINS[0]}-{DOMAINS[1]}']
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)

@@ -9,9 +9,9 @@ makes a film of every frame. One short run of scenario 1 through the installed g
 from pathlib import Path
 
 import cv2
-from ibvs_bringup import cli, runner, video
 from ibvs_common import contract
 from ibvs_common.conversions import pose_matrix, stamp_ns
+from ibvs_experiments import cli, runner, video
 from ibvs_vision import overlay
 import numpy as np
 import pytest

@@ -1,1 +1,1 @@
-"""Scenarios, runner, recorder, metrics, plots and report of the paper's section 5."""
+"""Bring up the node graph of the paper's section 5: its description, processes, recorder."""

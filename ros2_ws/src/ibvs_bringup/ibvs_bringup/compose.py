@@ -24,14 +24,10 @@ import sys
 from ibvs_common.node_main import run
 import rclpy.utilities
 
-#: The nodes this executable can hold: name -> (module, class).
-NODES = {
-    'sim_node': ('ibvs_sim.sim_node', 'SimNode'),
-    'joint_controller_node': ('ibvs_control.joint_controller_node', 'JointControllerNode'),
-    'feedforward_node': ('ibvs_control.feedforward_node', 'FeedforwardNode'),
-    'adaptive_feedback_node': ('ibvs_control.adaptive_feedback_node', 'AdaptiveFeedbackNode'),
-    'feature_node': ('ibvs_vision.feature_node', 'FeatureNode'),
-}
+from .graph import GRAPH
+
+#: The nodes this executable can hold: name -> (module, class), every node of the graph.
+NODES = GRAPH.compose_table()
 
 USAGE = ('usage: ros2 run ibvs_bringup compose NODE [NODE ...] [--ros-args ...]\n'
          f'  NODE: one of {", ".join(NODES)}, each at most once')

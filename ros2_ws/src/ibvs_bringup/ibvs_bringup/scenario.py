@@ -5,6 +5,7 @@ A scenario file is a ROS 2 parameter file whose parameters sit under ``/**`` so 
 node started with ``--ros-args --params-file <file>`` sees them.
 """
 
+import importlib.util
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
@@ -18,12 +19,12 @@ class ScenarioError(ValueError):
     """A scenario cannot be found or its file is malformed."""
 
 
-def share_directory():
-    """Return the installed share directory of ibvs_bringup (the source tree if not built)."""
+def share_directory(package='ibvs_bringup'):
+    """Return the installed share directory of ``package`` (its source tree if not built)."""
     try:
-        return Path(get_package_share_directory('ibvs_bringup'))
+        return Path(get_package_share_directory(package))
     except (PackageNotFoundError, OSError):  # not installed: the source tree
-        return Path(__file__).resolve().parents[1]
+        return Path(importlib.util.find_spec(package).origin).resolve().parents[1]
 
 
 def scenario_path(name_or_path):

@@ -3,7 +3,7 @@
 import signal
 import subprocess
 
-from ibvs_bringup.runner import _die_with_parent
+from ibvs_common.process import supervised_child
 
 
 def _blocked_mask(preexec_fn):
@@ -18,6 +18,6 @@ def test_a_child_does_not_inherit_a_blocked_sigint():
     old = signal.pthread_sigmask(signal.SIG_BLOCK, [signal.SIGINT])
     try:
         assert _blocked_mask(None) & (1 << (signal.SIGINT - 1))  # the check can fail
-        assert _blocked_mask(_die_with_parent) == 0
+        assert _blocked_mask(supervised_child) == 0
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)

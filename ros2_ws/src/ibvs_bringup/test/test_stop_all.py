@@ -2,7 +2,7 @@
 
 import sys
 
-from ibvs_bringup.runner import NodeProcess, stop_all
+from ibvs_bringup.supervision import NodeProcess, stop_all
 
 #: A process that, on SIGINT, says so in ``<dir>/<name>`` and exits 0 once every process of
 #: the group has said so, or exits 1 if that does not happen within 20 s. Stopped one after

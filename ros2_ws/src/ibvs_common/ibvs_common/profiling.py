@@ -13,7 +13,7 @@ from collections import defaultdict
 from contextlib import contextmanager
 import time
 
-#: Key prefixes on /diagnostics (ibvs_bringup.bench reads them back).
+#: Key prefixes on /diagnostics (ibvs_experiments.bench reads them back).
 WALL_KEY = 'wall[{}]_s'
 COUNT_KEY = 'count[{}]'
 SIM_TIME_KEY = 'profiled_sim_time_s'

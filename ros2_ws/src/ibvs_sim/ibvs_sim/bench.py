@@ -1,5 +1,5 @@
 """
-Cost of the simulator's hot paths, for ``make bench`` (``ibvs_bringup.bench``).
+Cost of the simulator's hot paths, for ``make bench`` (``ibvs_experiments.bench``).
 
 ``run(report)`` calls ``report(name, seconds_list)`` with per-iteration wall times of: one
 physics step (torque control at 1 kHz, computed torque from PyBullet's inverse dynamics

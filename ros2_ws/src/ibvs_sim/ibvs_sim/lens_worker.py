@@ -19,7 +19,6 @@ mid-frame would make the simulator fail its last render (exit code 1) instead of
 cleanly; the simulator stops and closes it.
 """
 
-import ctypes
 from multiprocessing.connection import Connection
 import signal
 import socket
@@ -27,6 +26,7 @@ import subprocess
 import sys
 import traceback
 
+from ibvs_common.process import die_with_parent
 import numpy as np
 
 #: How long to wait for the worker to start (spawn, imports, PyBullet and EGL), s.
@@ -39,17 +39,9 @@ class LensWorkerError(RuntimeError):
     """The lens worker could not start, failed to render, or is gone."""
 
 
-def _die_with_parent():
-    try:
-        libc = ctypes.CDLL('libc.so.6', use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except OSError:
-        pass
-
-
 def _serve(conn):
     """Worker side: build the World it is sent, then answer render requests until told to stop."""
-    _die_with_parent()
+    die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the simulator ends it (module docstring)
     from .world import World  # in the child only: the parent imported it already
     try:

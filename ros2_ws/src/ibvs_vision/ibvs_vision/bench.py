@@ -1,5 +1,5 @@
 """
-Cost of the detector per stereo pair, for ``make bench`` (``ibvs_bringup.bench``).
+Cost of the detector per stereo pair, for ``make bench`` (``ibvs_experiments.bench``).
 
 ``run(report)`` calls ``report(name, seconds_list)`` with the wall time of
 :meth:`StereoDetector.detect` per stereo pair, OpenCV on one thread, at HD720 and VGA:

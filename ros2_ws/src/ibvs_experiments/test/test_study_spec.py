@@ -1,7 +1,7 @@
 """Study specs: checking, expansion into runs, seeded draws and cache keys (no rclpy, no Ray)."""
 
-from ibvs_bringup import study_spec
-from ibvs_bringup.study_spec import parse, run_key, StudyError
+from ibvs_experiments import study_spec
+from ibvs_experiments.study_spec import parse, run_key, StudyError
 import numpy as np
 import pytest
 

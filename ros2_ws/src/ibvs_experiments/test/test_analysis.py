@@ -2,7 +2,8 @@
 
 import math
 
-from ibvs_bringup import analysis, scenario
+from ibvs_bringup import scenario
+from ibvs_experiments import analysis
 import numpy as np
 import pytest
 
@@ -132,7 +133,7 @@ def test_mean_and_max_error_over_the_last_half_second():
 
 
 def test_report_verdicts_follow_the_papers_words():
-    from ibvs_bringup.report import claims
+    from ibvs_experiments.report import claims
     good = {'time_to_1mm_s': 0.25, 'settling_time_2pct_s': 0.2, 'max_overshoot_m': 0.002,
             'final_position_error_m': 2e-4, 'final_tool_axis_error_deg': 0.05,
             'time_estimated_s': 0.3, 'initial_position_error_m': 2.5}

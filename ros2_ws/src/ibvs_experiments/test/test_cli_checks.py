@@ -7,8 +7,9 @@ traceback and not a graph started for nothing.
 
 from pathlib import Path
 
-from ibvs_bringup import cli, domains, graph_params, study
+from ibvs_bringup import domains, graph_params
 from ibvs_bringup.scenario import ScenarioError
+from ibvs_experiments import cli, study
 import pytest
 
 

@@ -37,6 +37,9 @@ import sys
 import tempfile
 import time
 
+from ibvs_bringup import graph_params, scenario
+from ibvs_bringup.domains import HELD_ENV, lock_domain, parse_pool, pool
+from ibvs_common.process import supervised_child
 import matplotlib
 
 matplotlib.use('Agg')
@@ -44,9 +47,9 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import graph_params, scenario, study_spec  # noqa: E402
-from .domains import HELD_ENV, lock_domain, parse_pool, pool  # noqa: E402
-from .runner import _die_with_parent, STALL_S  # noqa: E402
+from . import study_spec  # noqa: E402
+from .convergence import ACCEPTANCE  # noqa: E402
+from .runner import STALL_S  # noqa: E402
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
 CPUS_PER_RUN = 1
@@ -55,14 +58,11 @@ CPUS_PER_RUN = 1
 DOMAIN_IDS = pool()
 #: The packages whose sources make up the code version of a run.
 PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_control',
-            'ibvs_bringup')
+            'ibvs_bringup', 'ibvs_experiments')
 #: Modules that organise runs but take no part in one: left out of the code version, so
 #: that a change to the study or report layer keeps the runs cached.
-NOT_IN_A_RUN = ('ibvs_bringup/study.py', 'ibvs_bringup/study_spec.py',
-                'ibvs_bringup/report.py', 'ibvs_bringup/bench.py')
-#: Success: final position error and final tool-axis error within these.
-SUCCESS_POSITION_M = 1e-3
-SUCCESS_AXIS_DEG = 0.1
+NOT_IN_A_RUN = ('ibvs_experiments/study.py', 'ibvs_experiments/study_spec.py',
+                'ibvs_experiments/report.py', 'ibvs_experiments/bench.py')
 #: Metrics in the study table, in this order.
 TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
                  'max_overshoot_m')
@@ -74,7 +74,7 @@ def code_version():
     """
     Return a hash of the installed sources (``*.py``) that take part in a run.
 
-    The six packages, by path, all but :data:`NOT_IN_A_RUN`.
+    The seven packages, by path, all but :data:`NOT_IN_A_RUN`.
 
     The same in a fresh clone, a colcon install and on every node of a cluster that runs
     the same code, and different as soon as one line changes: no git needed.
@@ -116,7 +116,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s,
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
     domain, lock = lock_domain(*domains)
-    cmd = [sys.executable, '-m', 'ibvs_bringup.cli', 'run', scenario_name, '-o', str(run_dir),
+    cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'run', scenario_name, '-o', str(run_dir),
            '--stall-s', repr(float(stall_s))] + ([] if figures else ['--no-figures'])
     if duration_s is not None:
         cmd += ['--duration', repr(float(duration_s))]
@@ -131,7 +131,7 @@ def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s,
         with open(run_dir / 'runner.log', 'wb') as log:
             proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
                                     stdin=subprocess.DEVNULL, env=env,
-                                    preexec_fn=_die_with_parent)
+                                    preexec_fn=supervised_child)
             try:
                 code = proc.wait()
             except KeyboardInterrupt:
@@ -344,11 +344,8 @@ def _load_record(run_dir, key):
 
 
 def succeeded(record):
-    """Return whether a run finished within 1 mm and 0.1 deg of the target."""
-    metrics = record.get('metrics') or {}
-    return record.get('status') == 'ok' and \
-        metrics.get('final_position_error_m', np.inf) <= SUCCESS_POSITION_M and \
-        metrics.get('final_tool_axis_error_deg', np.inf) <= SUCCESS_AXIS_DEG
+    """Return whether a run finished within 1 mm and 0.1 deg of the target (ACCEPTANCE)."""
+    return record.get('status') == 'ok' and ACCEPTANCE.final(record.get('metrics') or {})
 
 
 def table_rows(spec, records):
@@ -389,7 +386,8 @@ def write_results(spec, records, study_dir):
     lines = [f'# Study {spec.name}', '', spec.description, '',
              f'Scenario {spec.scenario}, {len(rows)} runs, '
              f"{sum(r['status'] != 'ok' for r in rows)} failed, success (final error within "
-             f'{1e3 * SUCCESS_POSITION_M:g} mm and {SUCCESS_AXIS_DEG:g} deg): {ok}/{len(rows)}.',
+             f'{1e3 * ACCEPTANCE.position_m:g} mm and {ACCEPTANCE.axis_deg:g} deg): '
+             f'{ok}/{len(rows)}.',
              '', '| ' + ' | '.join(columns) + ' |', '|' + '---|' * len(columns)]
     lines += ['| ' + ' | '.join(_cell(r[c]) for c in columns) + ' |' for r in rows]
     figures = write_figures(spec, rows, study_dir)
@@ -414,7 +412,7 @@ def write_figures(spec, rows, study_dir):
             top = max([1e3 * r['final_position_error_m'] for r in good] + [1.0])
             ax.plot([r[name] for r in bad], [top] * len(bad), 'x', color='tab:red',
                     ms=10, label='failed run')
-        ax.axhline(1e3 * SUCCESS_POSITION_M, color='tab:green', ls='--', label='1 mm')
+        ax.axhline(1e3 * ACCEPTANCE.position_m, color='tab:green', ls='--', label='1 mm')
         ax.set_yscale('log')
         ax.set_xlabel(name)
         ax.set_ylabel('final position error [mm]')
@@ -426,7 +424,7 @@ def write_figures(spec, rows, study_dir):
     if spec.draws and errors.size:
         fig, ax = plt.subplots(figsize=(6, 4))
         ax.step(errors, np.arange(1, errors.size + 1) / len(rows), where='post')
-        ax.axvline(1e3 * SUCCESS_POSITION_M, color='tab:green', ls='--', label='1 mm')
+        ax.axvline(1e3 * ACCEPTANCE.position_m, color='tab:green', ls='--', label='1 mm')
         ax.set_xscale('log')
         ax.set_xlabel('final position error [mm]')
         ax.set_ylabel('fraction of all runs')
@@ -462,7 +460,7 @@ def study_path(name_or_path):
         if not path.is_file():
             raise study_spec.StudyError(f'study spec {path} does not exist')
         return path
-    directory = scenario.share_directory() / 'studies'
+    directory = scenario.share_directory('ibvs_experiments') / 'studies'
     candidate = directory / f'{name_or_path}.yaml'
     if not candidate.is_file():
         known = sorted(p.stem for p in directory.glob('*.yaml'))

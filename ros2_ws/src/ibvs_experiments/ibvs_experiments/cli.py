@@ -1,5 +1,5 @@
 """
-Command line of the bringup: ``ros2 run ibvs_bringup ibvs <command>``.
+Command line of the experiments: ``ros2 run ibvs_experiments ibvs <command>``.
 
 Commands:
 
@@ -9,7 +9,7 @@ Commands:
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
   ``--overlays`` also records the feature node's overlay images, ``--video`` then writes
-  ``video.mp4`` of them (:mod:`ibvs_bringup.video`);
+  ``video.mp4`` of them (:mod:`ibvs_experiments.video`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
 - ``video <run dir> [-o FILE]``: the MP4 of a run recorded with ``--overlays``;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, then a
@@ -17,7 +17,7 @@ Commands:
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
   of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
 - ``report [--quick]``: scenarios 1-3, the L2/L4 robustness sweep and each servo law on
-  scenarios 1-3 with ideal and with limited actuators (:mod:`ibvs_bringup.laws_report`),
+  scenarios 1-3 with ideal and with limited actuators (:mod:`ibvs_experiments.laws_report`),
   as studies on Ray, into ``results/report.md``; ``--quick`` keeps the sweep's endpoints
   and skips the servo laws.
 """
@@ -30,8 +30,9 @@ import re
 import sys
 import time
 
+from ibvs_bringup import domains, graph_params, scenario
 
-from . import domains, graph_params, runner, scenario, study_spec
+from . import runner, study_spec
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
                 'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',

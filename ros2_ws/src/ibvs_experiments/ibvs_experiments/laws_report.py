@@ -11,10 +11,10 @@ ordinary ``ibvs run`` into its own folder, as studies on Ray with the report's o
 Per run (:class:`LawRun`, the metrics of :mod:`.analysis` plus the joint speeds of the bag):
 final position and tool-axis error, time to 1 mm (after which the tool stays within 1 mm),
 overshoot past the target along the approach, peak joint speed (rad/s, and as a share of the
-IRB 4600's limit qd_max), and converged: within :data:`CONVERGED_M` and
-:data:`CONVERGED_DEG` of the target at the end and within 1 mm from ``time_to_1mm_s`` on.
+IRB 4600's limit qd_max), and converged: within :data:`.convergence.LAW_TABLE` of the
+target at the end and within 1 mm from ``time_to_1mm_s`` on.
 
-``python -m ibvs_bringup.laws_report DIR`` writes ``DIR/laws.md`` and one figure of the
+``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and one figure of the
 tool's path per law from the run folders under ``DIR``; ``ibvs report --laws`` runs them.
 """
 
@@ -37,6 +37,7 @@ from rosbags.typesys import get_typestore, Stores  # noqa: E402
 import yaml  # noqa: E402
 
 from . import analysis  # noqa: E402
+from .convergence import LAW_TABLE  # noqa: E402
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
 #: Actuator cases: name -> parameter overrides. With 0.067 s latency the velocity laws'
@@ -45,9 +46,6 @@ SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
 #: model-only loop oscillates and diverges from scenario 1; at 6 / s it converges.
 CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
          'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
-#: Converged: at the end within this far (m) and this angle (deg) of the target.
-CONVERGED_M = 1e-3
-CONVERGED_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -65,11 +63,8 @@ class LawRun:
 
     @property
     def converged(self):
-        """Return True when the run ended within CONVERGED_M / CONVERGED_DEG and stayed."""
-        m = self.metrics
-        return (m.get('time_to_1mm_s') is not None
-                and m['final_position_error_m'] <= CONVERGED_M
-                and m['final_tool_axis_error_deg'] <= CONVERGED_DEG)
+        """Return True when the run reached 1 mm and ended within :data:`LAW_TABLE`."""
+        return self.metrics.get('time_to_1mm_s') is not None and LAW_TABLE.final(self.metrics)
 
 
 def overrides_for(law, case):
@@ -237,7 +232,8 @@ def section(runs, out_dir, figure_prefix=''):
              f'Ideal actuators (the paper), and limited actuators with '
              f"{CASES['limited']['feedback_latency_s']} s latency (there lambda_0 "
              f"{CASES['limited']['lambda_0']:g} / s for ibvs and pbvs). Converged: within "
-             f'{CONVERGED_M * 1e3:g} mm and {CONVERGED_DEG:g} deg at the end, and within 1 mm '
+             f'{LAW_TABLE.position_m * 1e3:g} mm and {LAW_TABLE.axis_deg:g} deg at the '
+             'end, and within 1 mm '
              'from the time to 1 mm on.', '']
     lines += table(runs) + ['']
     for law in dict.fromkeys(r.law for r in runs):

@@ -50,6 +50,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 import yaml
 
+from .convergence import REACHED
+
 #: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
 PARAMS_KEY = 'ibvs.parameters'
 RUN_KEY = 'ibvs.run'
@@ -135,7 +137,7 @@ def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_dur
         'max_tool_axis_error_last_0_5s_deg': float(axis_err[last].max()),
         'initial_position_error_m': float(error[0]),
         'settling_time_2pct_s': _relative(_settle_time(t, error <= 0.02 * error[0]), t),
-        'time_to_1mm_s': _relative(_settle_time(t, error <= 1e-3), t),
+        'time_to_1mm_s': _relative(_settle_time(t, REACHED.within(error)), t),
         'max_overshoot_m': float(max(past.max(), 0.0)),
         'max_lateral_excursion_m': float(lateral.max()),
         'overshoot_xyz_m': [float(v) for v in overshoot_axes],

@@ -2,7 +2,7 @@
 Study specifications: read and check a study's YAML, expand it into runs, key each run.
 
 Pure Python and numpy (no rclpy, no Ray): what a study *is* lives here; how its runs are
-executed lives in :mod:`ibvs_bringup.study`.
+executed lives in :mod:`ibvs_experiments.study`.
 
 A spec (``ibvs study SPEC.yaml``)::
 
@@ -236,7 +236,7 @@ def run_key(scenario_params, overrides, duration_s, code_version):
 
     ``scenario_params`` are the base scenario's parameters as read from its file, so that
     an edited scenario file is a new run; ``code_version`` names the code (see
-    :func:`ibvs_bringup.study.code_version`).
+    :func:`ibvs_experiments.study.code_version`).
     """
     blob = json.dumps({'scenario': scenario_params, 'overrides': overrides,
                        'duration_s': duration_s, 'code': code_version},

@@ -3,7 +3,7 @@
 from types import SimpleNamespace
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from ibvs_bringup.runner import HEARTBEAT_S, Monitor, RunStalled
+from ibvs_experiments.runner import HEARTBEAT_S, Monitor, RunStalled
 
 
 class _Node:

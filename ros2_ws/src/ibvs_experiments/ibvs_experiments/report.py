@@ -4,8 +4,8 @@ The reproduction report: scenarios 1-3 and the L2/L4 robustness sweep (paper Fig
 Every number in ``results/report.md`` comes from a run's ``metrics.json``, which comes from
 its bag; the table puts each claim of the paper next to what we measured.
 
-Every run is part of a study (:mod:`ibvs_bringup.study`): the studies named in
-:data:`REPORT_STUDIES` (spec files in ``ibvs_bringup/studies/``, installed to the package's
+Every run is part of a study (:mod:`ibvs_experiments.study`): the studies named in
+:data:`REPORT_STUDIES` (spec files in ``ibvs_experiments/studies/``, installed to the package's
 share directory) run together on one Ray session, cached, into ``<out>/studies/<name>/``.
 To add a study to the report, add its spec file there and its name to
 :data:`EXTRA_STUDIES`: the report then shows its table and figures.
@@ -23,6 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import laws_report, study, study_spec  # noqa: E402
+from .convergence import ACCEPTANCE  # noqa: E402
 
 SCENARIO_STUDIES = ('scenario1', 'scenario2', 'scenario3')
 SWEEP_STUDY = 'fig13_link_lengths'
@@ -71,8 +72,7 @@ def claims(s1, s2, s3, worst):
         ('scenario 1 final pose', 'exact (IBVS)',
          f'{_fmt(s1["final_position_error_m"], " mm", 1e3, 4)}, axis '
          f'{_fmt(s1["final_tool_axis_error_deg"], " deg", 1.0, 4)}',
-         _verdict(s1['final_position_error_m'] <= 1e-3
-                  and s1['final_tool_axis_error_deg'] <= 0.1, 'within 1 mm and 0.1 deg')),
+         _verdict(ACCEPTANCE.final(s1), 'within 1 mm and 0.1 deg')),
     ]
     for name, s in (('scenario 2', s2), ('scenario 3 (with d_q)', s3)):
         t = s['time_to_1mm_s']
@@ -172,7 +172,7 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         '# Reproduction of Li & Assadian, adaptive IBVS of a 6-DoF IRB 4600',
         '',
         "Every number below was measured from the run's rosbag2 recording "
-        '(`ros2 run ibvs_bringup ibvs analyse <bag>` reproduces it). Ideal actuators, '
+        '(`ros2 run ibvs_experiments ibvs analyse <bag>` reproduces it). Ideal actuators, '
         "the paper's tau_in = 0.01 s, omega_n = 10 rad/s, zeta = 1/sqrt(2). Defaults beyond "
         'the paper (docs/errata.md): the feedback evaluates C1 at the encoder angles '
         '(`linearise_at`, the paper: at F^-1(p_hat)), its trust region clips each decoupled '
@@ -181,7 +181,7 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
         '',
         "## The paper's claims next to our measurements",
         '',
-        'How each verdict is decided is in `ibvs_bringup.report.claims` (the paper gives '
+        'How each verdict is decided is in `ibvs_experiments.report.claims` (the paper gives '
         'words, not numbers, for some: "small" is read as at most '
         f"{SMALL_OVERSHOOT_M * 1e3:g} mm). Machine timings are `make bench`'s "
         '(docs/speed.md), not here.',
@@ -217,7 +217,7 @@ def build_report(out_dir, quick=False, address=None, parallel=None, domains=stud
     lines += [f"Every sweep point within 1 cm: {'yes' if within else 'NO'}.", '']
     lines += ['## Studies', '',
               'Each study of this report, with its table (CSV beside it) and figures; '
-              '`ros2 run ibvs_bringup ibvs study <name>` runs one on its own.', '']
+              '`ros2 run ibvs_experiments ibvs study <name>` runs one on its own.', '']
     for spec in specs:
         lines += [f'- [{spec.name}](studies/{spec.name}/table.md): {len(records[spec.name])} '
                   f'run(s). {spec.description}']

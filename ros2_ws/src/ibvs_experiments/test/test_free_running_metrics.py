@@ -1,6 +1,6 @@
 """The free-running metrics from their records (pure; no bag, no rclpy)."""
 
-from ibvs_bringup.analysis import free_running_metrics
+from ibvs_experiments.analysis import free_running_metrics
 import numpy as np
 import pytest
 

@@ -11,7 +11,7 @@ publishes the totals on /diagnostics, which the run records; the recorder times 
 The graph runs with renderer 'opengl' (issue 24) ``--runs`` times per resolution (medians
 against the targets, the load average printed before each run), then once with the
 default renderer for reference (issue 11's targets). The accuracy of the features
-(:func:`ibvs_bringup.analysis.feature_errors`) of the 'opengl' runs, and the wall time of a
+(:func:`ibvs_experiments.analysis.feature_errors`) of the 'opengl' runs, and the wall time of a
 0.3 s ``ibvs run`` from start to exit (start-up, run, analysis, figures), are printed
 against their targets too. Figures go to stdout and ``bench/results.json``. Benchmarks
 print numbers; no test asserts on time.
@@ -151,8 +151,8 @@ def short_run(runs):
         with tempfile.TemporaryDirectory(prefix='ibvs_bench_') as tmp:
             load = _load()
             start = time.perf_counter()
-            done = subprocess.run([sys.executable, '-m', 'ibvs_bringup.cli', 'run', 'scenario1',
-                                   '--duration', str(SHORT_RUN_S), '-o', tmp],
+            done = subprocess.run([sys.executable, '-m', 'ibvs_experiments.cli', 'run',
+                                   'scenario1', '--duration', str(SHORT_RUN_S), '-o', tmp],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             walls.append(time.perf_counter() - start)
         print(f'short run: {SHORT_RUN_S} s ibvs run in {walls[-1]:.1f} s of wall time '

@@ -1,8 +1,8 @@
-"""The servo-law table (ibvs_bringup.laws_report) from synthetic runs: no graph, no bag."""
+"""The servo-law table (ibvs_experiments.laws_report) from synthetic runs: no graph, no bag."""
 
-from ibvs_bringup import laws_report
-from ibvs_bringup.analysis import compute_metrics
 from ibvs_control.servo_laws import SERVO_LAWS
+from ibvs_experiments import laws_report
+from ibvs_experiments.analysis import compute_metrics
 from ibvs_model import IRB4600
 import numpy as np
 import pytest
@@ -58,6 +58,7 @@ def test_table_and_figures(tmp_path):
     rows = [line for line in lines if line.startswith('| ideal') or line.startswith('| lim')]
     assert len(rows) == len(runs)
     assert rows[-1].endswith('| not reached | 20.0 | 1 (0.33) | no |')
+    assert '1 mm and 0.5 deg at the end' in ' '.join(lines)
     assert all(row.endswith('| yes |') for row in rows[:-1])
     for law in ('paper', 'ibvs'):
         assert (tmp_path / f'law_path_{law}.png').stat().st_size > 0
@@ -74,3 +75,16 @@ def test_specs_put_every_law_of_a_case_and_scenario_in_one_study():
         assert [r.overrides['servo_law'] for r in runs] == list(SERVO_LAWS)
         for run in runs:
             assert run.overrides == laws_report.overrides_for(run.overrides['servo_law'], case)
+
+
+def test_convergence_definitions_keep_their_tolerances():
+    # The numbers the table, the studies, the report and the runner were made with.
+    from ibvs_experiments import convergence as c
+    assert (c.HOLD.position_m, c.HOLD.axis_deg) == (1e-4, 0.01)
+    assert (c.AT_END.position_m, c.AT_END.axis_deg) == (1e-3, float('inf'))
+    assert (c.ACCEPTANCE.position_m, c.ACCEPTANCE.axis_deg) == (1e-3, 0.1)
+    assert (c.LAW_TABLE.position_m, c.LAW_TABLE.axis_deg) == (1e-3, 0.5)
+    assert c.REACHED.position_m == 1e-3
+    assert not c.ACCEPTANCE.final({'final_position_error_m': 1e-4})  # no axis: not within
+    assert c.ACCEPTANCE.final({'final_position_error_m': 1e-3, 'final_tool_axis_error_deg': 0.1})
+    assert not c.HOLD.within(float('nan'), 0.0)

@@ -1,0 +1,221 @@
+"""
+The node graph in one place: nodes, processes, remappings, the readers of step 0, start order.
+
+:data:`GRAPH` describes the graph of docs/design.md §1; everything that needs to know the
+graph reads it: the runner's process plan (:func:`process_plan`: :meth:`Graph.processes`
+with :meth:`Graph.remaps`) and its start handshake (:meth:`Graph.step0_readers`),
+``compose``'s node table (:meth:`Graph.compose_table`), and the table of docs/design.md
+§1 (:meth:`Graph.markdown_table`, checked against the file by a test). Adding a node to the graph
+is one :class:`Node` entry here plus its module (and its executable in its package's
+``setup.py``, which ``ros2 run`` needs; a test checks that each node has one).
+"""
+
+from dataclasses import dataclass, field
+
+from ibvs_common import contract
+
+from .supervision import ProcessSpec
+
+#: sim_node camera_topics 'zed_wrapper': the ZED wrapper's names, which the camera's readers
+#: take by remapping alone, as on a real cell.
+ZED_TOPICS = {contract.LEFT_IMAGE: contract.ZED_LEFT_IMAGE,
+              contract.RIGHT_IMAGE: contract.ZED_RIGHT_IMAGE,
+              contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+              contract.RIGHT_INFO: contract.ZED_RIGHT_INFO}
+#: The camera_info part of :data:`ZED_TOPICS`, for the nodes that read no image.
+ZED_INFO = {contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+            contract.RIGHT_INFO: contract.ZED_RIGHT_INFO}
+#: The feature and feedback nodes (and the viewers' node) need the joint state of each
+#: frame's stamp only: from /stereo/joint_states they get those (30 a second) instead of
+#: being woken by every physics step's /joint_states (1000 a second), which the lockstep
+#: would wait for.
+FRAME_STATES = {contract.JOINT_STATES: contract.FRAME_JOINT_STATES}
+
+
+@dataclass(frozen=True)
+class Node:
+    """
+    One node of the graph: its executable, its class, its process and its topics.
+
+    ``name`` is the node's name and its executable's (``ros2 run package name``);
+    ``module``.``cls`` is its class (what ``compose`` builds). ``process``: the name of the
+    process it shares with the other nodes of that name (``ros2 run ibvs_bringup compose
+    ...``, in the order of the description), '' for a process of its own. ``remaps``: the
+    remappings every run gives it; ``zed_remaps``: those added when the simulator publishes
+    the ZED wrapper's names (``camera_topics: zed_wrapper``). ``step0_reads``: the topics of
+    step 0 it must be subscribed to before the simulator publishes them (volatile: a node
+    that misses them waits for ever). ``paper``: one of the paper's nodes (the viewers' node
+    is not). The ``doc_*`` fields are its row of docs/design.md §1.
+    """
+
+    name: str
+    package: str
+    module: str
+    cls: str
+    process: str = ''
+    remaps: dict = field(default_factory=dict)
+    zed_remaps: dict = field(default_factory=dict)
+    step0_reads: tuple = ()
+    paper: bool = True
+    doc_module: str = ''
+    doc_reads: str = ''
+    doc_writes: str = ''
+    doc_rate: str = ''
+
+
+@dataclass(frozen=True)
+class Graph:
+    """
+    The nodes of a run in start order, the simulator among them.
+
+    ``step0_topics``: what the simulator publishes at step 0, in the order the runner
+    counts their readers. ``host``: the (package, executable) that holds several nodes in
+    one process.
+    """
+
+    nodes: tuple
+    simulator: str
+    step0_topics: tuple
+    host: tuple = ('ibvs_bringup', 'compose')
+
+    def node(self, name):
+        """Return the :class:`Node` called ``name``."""
+        return next(n for n in self.nodes if n.name == name)
+
+    def paper_nodes(self):
+        """Return (package, executable) of the paper's nodes, in start order."""
+        return tuple((n.package, n.name) for n in self.nodes if n.paper)
+
+    def processes(self):
+        """
+        Return the processes of a run (:class:`~.supervision.ProcessSpec`), in start order.
+
+        A node of its own process starts where it stands in :attr:`nodes`; the nodes that
+        share a process start together (``compose``, in their order) where the first of them
+        stands. The simulator's process must come last, so that every subscriber is up
+        before the first /joint_states.
+        """
+        out, shared = [], {}
+        for n in self.nodes:
+            if not n.process:
+                out.append(ProcessSpec(n.package, n.name))
+            elif n.process not in shared:
+                shared[n.process] = len(out)
+                out.append(None)
+        for name, index in shared.items():
+            members = self.shared(name)
+            out[index] = ProcessSpec(*self.host, members, members, name)
+        if self.simulator not in out[-1].nodes:
+            raise ValueError(f'the simulator {self.simulator} must start last')
+        return tuple(out)
+
+    def shared(self, process):
+        """Return the names of the nodes of the shared process ``process``, in order."""
+        return tuple(n.name for n in self.nodes if n.process == process)
+
+    def remaps(self, zed=False):
+        """Return {node: {topic: remapped}}, with the ZED wrapper's names if ``zed``."""
+        out = {n.name: {**n.remaps, **(n.zed_remaps if zed else {})} for n in self.nodes}
+        return {name: m for name, m in out.items() if m}
+
+    def step0_readers(self):
+        """Return {topic: nodes that must read it} for each topic of step 0."""
+        return {t: tuple(n.name for n in self.nodes if t in n.step0_reads)
+                for t in self.step0_topics}
+
+    def compose_table(self):
+        """Return {node: (module, class)}: the nodes ``compose`` can hold."""
+        return {n.name: (n.module, n.cls) for n in self.nodes}
+
+    def markdown_table(self):
+        """Return the node table of docs/design.md §1 (markdown)."""
+        rows = ['| node | package, module | process | reads | writes | rate |',
+                '|---|---|---|---|---|---|']
+        for n in self.nodes:
+            remapped = ''.join(f'; {t} read as {r} (`ibvs run`)' for t, r in n.remaps.items())
+            where = (f'`{n.process}` ({", ".join(self.shared(n.process))})' if n.process
+                     else 'its own')
+            rows.append(f'| `{n.name}` | `{n.module}`'
+                        f'{" (" + n.doc_module + ")" if n.doc_module else ""} | {where} | '
+                        f'{n.doc_reads}{remapped} | {n.doc_writes} | {n.doc_rate} |')
+        rows.append('| recorder (in the runner) | `ibvs_bringup.recorder.Recorder` | the '
+                    "runner's | every topic (images on request) | the MCAP bag | as messages "
+                    'arrive |')
+        return '\n'.join(rows) + '\n'
+
+
+#: The graph of docs/design.md §1, in start order. The joint controller runs in the
+#: simulator's process (``lockstep``, ibvs_bringup.compose): the lockstep's two messages per
+#: physics step then stay in one process (0.1 instead of 0.4 ms a step on two cores), as
+#: gazebo_ros2_control runs the controllers inside the simulator. ibvs_viz's viz_node is
+#: not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
+#: /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint states, so
+#: nothing in the lockstep waits for it.
+GRAPH = Graph(
+    nodes=(
+        Node('viz_node', 'ibvs_viz', 'ibvs_viz.viz_node', 'VizNode',
+             remaps=FRAME_STATES, zed_remaps=ZED_INFO, paper=False,
+             doc_module="pure: `ibvs_viz.scene`; not one of the paper's nodes, §12",
+             doc_reads='/joint_states, camera_info, /stereo/pose, /ibvs/features, '
+                       '/ibvs/feature_status',
+             doc_writes='/robot_description, /tf, /tf_static, /ibvs/markers',
+             doc_rate='one per frame; nothing waits for it'),
+        Node('feature_node', 'ibvs_vision', 'ibvs_vision.feature_node', 'FeatureNode',
+             remaps=FRAME_STATES, zed_remaps=ZED_TOPICS,
+             step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
+                          contract.RIGHT_INFO),
+             doc_module='pure: `detector`, `blend`',
+             doc_reads='images, camera_info, /stereo/pose, /joint_states',
+             doc_writes='/ibvs/features, /ibvs/feature_status',
+             doc_rate='one message each per stereo frame'),
+        Node('adaptive_feedback_node', 'ibvs_control', 'ibvs_control.adaptive_feedback_node',
+             'AdaptiveFeedbackNode', remaps=FRAME_STATES, zed_remaps=ZED_INFO,
+             step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
+                          contract.RIGHT_INFO),
+             doc_module='pure: `controllers.AdaptiveFeedback`',
+             doc_reads='/ibvs/features, /joint_states, camera_info, /stereo/pose',
+             doc_writes='/ibvs/q_feedback', doc_rate='one per frame'),
+        Node('feedforward_node', 'ibvs_control', 'ibvs_control.feedforward_node',
+             'FeedforwardNode', step0_reads=(contract.JOINT_STATES,),
+             doc_module='pure: `controllers.Feedforward`',
+             doc_reads='the first good /joint_states', doc_writes='/ibvs/feedforward_trajectory',
+             doc_rate='once, then it unsubscribes'),
+        Node('joint_controller_node', 'ibvs_control', 'ibvs_control.joint_controller_node',
+             'JointControllerNode', process='lockstep', step0_reads=(contract.JOINT_STATES,),
+             doc_module='pure: `controllers.JointLoop`, `dynamics.RobotDynamics`',
+             doc_reads='/joint_states, the trajectory, /ibvs/q_feedback',
+             doc_writes='/joint_effort_commands', doc_rate='one per /joint_states'),
+        Node('sim_node', 'ibvs_sim', 'ibvs_sim.sim_node', 'SimNode', process='lockstep',
+             doc_module='core: `ibvs_sim.simulator.Simulator`, `ibvs_sim.world.World`',
+             doc_reads='/joint_effort_commands',
+             doc_writes='/joint_states: every physics step (`physics_rate_hz`, 1 kHz); '
+                        '/ibvs/tool_path (the poses of every step) and /clock: '
+                        '`clock_rate_hz` (10 Hz); /stereo/joint_states: every camera frame; '
+                        'images and camera_info: every camera frame (`camera_rate_hz`, '
+                        '30 Hz); /stereo/pose: once',
+             doc_rate='one step per effort command (lockstep, §4)'),
+    ),
+    simulator='sim_node',
+    # The runner's recorder and monitor also read /ibvs/tool_path, in its own process.
+    step0_topics=(contract.JOINT_STATES, contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
+                  contract.RIGHT_INFO, contract.TOOL_PATH),
+)
+
+
+def process_plan(params, graph=GRAPH):
+    """
+    Return [(ProcessSpec, its remapping arguments)] of a run with ``params``, in start order.
+
+    The processes and remappings are the graph's (:mod:`ibvs_bringup.graph`), with the ZED
+    wrapper's names when the simulator publishes them (``camera_topics: zed_wrapper``).
+    """
+    run_remaps = graph.remaps(zed=uses_zed_names(params))
+    return [(spec, tuple(arg for node in spec.nodes
+                         for topic, remapped in run_remaps.get(node, {}).items()
+                         for arg in ('-r', f'{topic}:={remapped}')))
+            for spec in graph.processes()]
+
+
+def uses_zed_names(params):
+    """Whether the simulator of a run with ``params`` publishes the ZED wrapper's names."""
+    return params.get('camera_topics', 'ibvs') == 'zed_wrapper'

@@ -1,0 +1,188 @@
+"""
+Supervise the processes of a run: start each as ``ros2 run`` would, watch them, stop them.
+
+:class:`ProcessSpec` says what to start, :class:`NodeProcess` runs it with its output in a
+log file and dies with the runner (:func:`ibvs_common.process.supervised_child`),
+:func:`stop_all` stops several at once (SIGINT, then SIGTERM, then SIGKILL), and
+:func:`wait_for_nodes` / :func:`wait_for_readers` are the start handshake: the nodes in the
+graph, then the readers of step 0 subscribed. A process that exits meanwhile raises
+:class:`NodeDied`, which names it, its exit code and its last log line.
+"""
+
+from dataclasses import dataclass
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import time
+
+from ament_index_python.packages import get_package_prefix
+from ibvs_common.process import supervised_child
+
+
+@dataclass(frozen=True)
+class ProcessSpec:
+    """One process of a run: ``ros2 run package executable *args``, holding ``nodes``."""
+
+    package: str
+    executable: str
+    args: tuple = ()
+    nodes: tuple = ()
+    #: Its name in logs (``logs/<name>.log``), exit codes and error messages.
+    name: str = ''
+
+    def __post_init__(self):
+        """Fill the defaults: one node, named as its executable."""
+        if not self.nodes:
+            object.__setattr__(self, 'nodes', (self.executable,))
+        if not self.name:
+            object.__setattr__(self, 'name', self.executable)
+
+    def start(self, params_file, log_dir, extra_args=()):
+        """Start this process (:class:`NodeProcess`) with the run's parameters file."""
+        return NodeProcess(self.package, self.executable, params_file, log_dir, extra_args,
+                           self)
+
+
+class NodeDied(RuntimeError):
+    """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
+
+    def __init__(self, node, returncode, log_path):
+        """Keep which node died, its exit code and where its log is; quote its last line."""
+        try:
+            lines = Path(log_path).read_text(errors='replace').strip().splitlines()
+        except OSError:
+            lines = []
+        last = f'; its last words: {lines[-1].strip()}' if lines else ''
+        super().__init__(f'node {node} exited with code {returncode} during the run '
+                         f'(log: {log_path}){last}')
+        self.node = node
+        self.returncode = returncode
+        self.log_path = log_path
+
+
+def executable_command(package, executable):
+    """Return the command that ``ros2 run <package> <executable>`` stands for."""
+    if shutil.which('ros2'):
+        return ['ros2', 'run', package, executable]
+    path = Path(get_package_prefix(package)) / 'lib' / package / executable
+    if not os.access(path, os.X_OK):
+        raise FileNotFoundError(f'{package} {executable}: no executable at {path}')
+    return [str(path)]
+
+
+class NodeProcess:
+    """One process of the graph (one node, or several: ``spec``), its output in a log file."""
+
+    def __init__(self, package, executable, params_file, log_dir, extra_args=(), spec=None):
+        """Start ``package executable [spec.args] --ros-args --params-file params_file``."""
+        spec = spec or ProcessSpec(package, executable)
+        cmd = executable_command(package, executable) + [
+            *spec.args, '--ros-args', '--params-file', str(params_file), *extra_args]
+        self._launch(cmd, spec.name, spec.nodes, Path(log_dir) / f'{spec.name}.log')
+
+    @classmethod
+    def of_command(cls, command, name, log_path, nodes=()):
+        """Start any ``command`` supervised as a node's process is (tools, tests)."""
+        process = cls.__new__(cls)
+        process._launch(list(command), name, tuple(nodes), Path(log_path))
+        return process
+
+    def _launch(self, command, name, nodes, log_path):
+        self.name, self.nodes, self.log_path, self.command = name, nodes, log_path, command
+        self._log = open(self.log_path, 'wb')
+        self.proc = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, preexec_fn=supervised_child)
+
+    def poll(self):
+        """Return the exit code, or None while running."""
+        return self.proc.poll()
+
+    def stop(self, timeout_s=10.0):
+        """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
+        return stop_all([self], timeout_s)[self.name]
+
+    def _signal(self, sig):
+        """Send ``sig`` to the process group, if it is still there."""
+        try:
+            os.killpg(self.proc.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
+def stop_all(procs, timeout_s=10.0):
+    """
+    Stop ``procs`` (:class:`NodeProcess`) together; return their exit codes by name.
+
+    Each escalation step (SIGINT, then SIGTERM after ``timeout_s``, then SIGKILL after 3 s)
+    goes to every process still running at once, and the waits overlap: five nodes take
+    as long to stop as the slowest of them, not the sum (about a second a node at the end
+    of every run, issue 26). A stopped (SIGSTOP) process handles no signal until it is
+    continued, so each first gets SIGCONT. Whatever a node left in its process group
+    (``ros2 run``'s child) is killed last.
+    """
+    for p in procs:
+        p._signal(signal.SIGCONT)
+    for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
+                      (signal.SIGKILL, 3.0)):
+        running = [p for p in procs if p.proc.poll() is None]
+        if not running:
+            break
+        for p in running:
+            p._signal(sig)
+        deadline = time.monotonic() + wait
+        for p in running:
+            try:
+                p.proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+    for p in procs:
+        p._signal(signal.SIGKILL)
+        p._log.close()
+    return {p.name: p.proc.returncode for p in procs}
+
+
+def wait_for_readers(executor, node, procs, readers, alongside=(), topic_of=None,
+                     timeout_s=60.0):
+    """
+    Spin until each node of ``readers`` subscribes its topic; return subscriber counts.
+
+    ``readers``: {topic: the nodes that must read it} (the graph's readers of step 0,
+    :meth:`ibvs_bringup.graph.Graph.step0_readers`). ``alongside``: the nodes that start in
+    the simulator's process, with it: not waited for, and counted as the readers
+    ``readers`` says they are. ``topic_of``: the name each contract topic is remapped to in
+    this run (by contract name in the result).
+    """
+    topic_of = topic_of or {}
+    deadline = time.monotonic() + timeout_s
+    while True:
+        executor.spin_once(timeout_sec=0.05)
+        for p in procs:
+            if p.poll() is not None:
+                raise NodeDied(p.name, p.poll(), p.log_path)
+        infos = {topic: node.get_subscriptions_info_by_topic(topic_of.get(topic, topic))
+                 for topic in readers}
+        missing = [f'{name} on {topic}' for topic, names in readers.items()
+                   for name in names if name not in alongside
+                   and name not in {i.node_name for i in infos[topic]}]
+        if not missing:
+            return {topic: max(1, len(found) + sum(n in alongside for n in readers[topic]))
+                    for topic, found in infos.items()}
+        if time.monotonic() > deadline:
+            raise TimeoutError(f'subscriptions not in the graph after {timeout_s:.0f} s: '
+                               + ', '.join(missing))
+
+
+def wait_for_nodes(executor, node, names, procs, timeout_s=60.0):
+    """Spin until every node in ``names`` is in the graph; fail if one of them exits."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.1)
+        for p in procs:
+            if p.poll() is not None:
+                raise NodeDied(p.name, p.poll(), p.log_path)
+        if set(names) <= set(node.get_node_names()):
+            return
+    raise TimeoutError(f'nodes not up after {timeout_s:.0f} s: '
+                       f'{sorted(set(names) - set(node.get_node_names()))}')

@@ -1,0 +1,99 @@
+"""The graph's one description (ibvs_bringup.graph) and what reads it; nothing is started."""
+
+import dataclasses
+import os
+from pathlib import Path
+
+from ament_index_python.packages import get_package_prefix
+from ibvs_bringup import compose, graph
+from ibvs_bringup.graph import GRAPH, Node
+from ibvs_bringup.supervision import ProcessSpec
+from ibvs_common import contract
+import pytest
+
+#: The graph as the runner started it before it had one description (issue 23).
+LOCKSTEP = ('joint_controller_node', 'sim_node')
+FRAME = (f'{contract.JOINT_STATES}:={contract.FRAME_JOINT_STATES}',)
+
+
+def _remaps(*pairs):
+    return tuple(arg for pair in pairs for arg in ('-r', pair))
+
+
+def test_the_process_plan_is_the_runners_of_before():
+    plan = graph.process_plan({})
+    assert plan == [
+        (ProcessSpec('ibvs_viz', 'viz_node'), _remaps(*FRAME)),
+        (ProcessSpec('ibvs_vision', 'feature_node'), _remaps(*FRAME)),
+        (ProcessSpec('ibvs_control', 'adaptive_feedback_node'), _remaps(*FRAME)),
+        (ProcessSpec('ibvs_control', 'feedforward_node'), ()),
+        (ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'), ()),
+    ]
+    zed = dict(graph.process_plan({'camera_topics': 'zed_wrapper'}))
+    info = (f'{contract.LEFT_INFO}:={contract.ZED_LEFT_INFO}',
+            f'{contract.RIGHT_INFO}:={contract.ZED_RIGHT_INFO}')
+    images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
+              f'{contract.RIGHT_IMAGE}:={contract.ZED_RIGHT_IMAGE}')
+    assert zed[ProcessSpec('ibvs_viz', 'viz_node')] == _remaps(*FRAME, *info)
+    assert zed[ProcessSpec('ibvs_vision', 'feature_node')] == \
+        _remaps(*FRAME, images[0], images[1], *info)
+    assert zed[ProcessSpec('ibvs_control', 'adaptive_feedback_node')] == _remaps(*FRAME, *info)
+
+
+def test_the_step0_readers_are_the_runners_of_before():
+    assert GRAPH.step0_readers() == {
+        contract.JOINT_STATES: ('feedforward_node', 'joint_controller_node'),
+        contract.FRAME_JOINT_STATES: ('feature_node', 'adaptive_feedback_node'),
+        contract.LEFT_INFO: ('feature_node', 'adaptive_feedback_node'),
+        contract.RIGHT_INFO: ('feature_node', 'adaptive_feedback_node'),
+        contract.TOOL_PATH: (),
+    }
+    assert GRAPH.paper_nodes() == (
+        ('ibvs_vision', 'feature_node'), ('ibvs_control', 'adaptive_feedback_node'),
+        ('ibvs_control', 'feedforward_node'), ('ibvs_control', 'joint_controller_node'),
+        ('ibvs_sim', 'sim_node'))
+
+
+def test_compose_holds_every_node_of_the_graph():
+    assert set(compose.NODES) == {n.name for n in GRAPH.nodes}
+    assert [c.__name__ for c in compose.node_classes([n.name for n in GRAPH.nodes])] == \
+        [n.cls for n in GRAPH.nodes]
+
+
+def test_every_node_has_its_executable():
+    # ros2 run <package> <node>: the console script in the node package's setup.py.
+    for n in GRAPH.nodes:
+        path = Path(get_package_prefix(n.package)) / 'lib' / n.package / n.name
+        assert os.access(path, os.X_OK), f'{n.package} {n.name}: no executable at {path}'
+
+
+def test_adding_a_node_is_one_entry_of_the_description():
+    # Issue 23's acceptance: a dummy node between the feedforward and the lockstep, reading
+    # /joint_states at step 0 and a remapped camera_info, with no other edit.
+    dummy = Node('dummy_node', 'ibvs_dummy', 'ibvs_dummy.dummy_node', 'DummyNode',
+                 remaps={contract.LEFT_INFO: '/elsewhere/camera_info'},
+                 step0_reads=(contract.JOINT_STATES,), doc_reads='/joint_states')
+    at = [n.name for n in GRAPH.nodes].index('feedforward_node') + 1
+    bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (dummy,) + GRAPH.nodes[at:])
+    plan = graph.process_plan({}, bigger)
+    assert [spec.name for spec, _ in plan] == [
+        'viz_node', 'feature_node', 'adaptive_feedback_node', 'feedforward_node',
+        'dummy_node', 'lockstep']
+    assert plan[4] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
+                       ('-r', f'{contract.LEFT_INFO}:=/elsewhere/camera_info'))
+    assert bigger.step0_readers()[contract.JOINT_STATES] == \
+        ('feedforward_node', 'dummy_node', 'joint_controller_node')
+    assert bigger.compose_table()['dummy_node'] == ('ibvs_dummy.dummy_node', 'DummyNode')
+    assert '| `dummy_node` | `ibvs_dummy.dummy_node` | its own | /joint_states; ' \
+        f'{contract.LEFT_INFO} read as /elsewhere/camera_info' in bigger.markdown_table()
+    # Into the simulator's process: one field more.
+    shared = dataclasses.replace(dummy, process='lockstep')
+    bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (shared,) + GRAPH.nodes[at:])
+    assert graph.process_plan({}, bigger)[-1][0].nodes == ('dummy_node', *LOCKSTEP)
+
+
+def test_the_simulator_starts_last():
+    first = dataclasses.replace(GRAPH.node('sim_node'), process='')
+    with pytest.raises(ValueError, match='must start last'):
+        dataclasses.replace(GRAPH, nodes=(first,) + GRAPH.nodes[:-1]).processes()
+    assert graph.GRAPH.processes()[-1].nodes[-1] == GRAPH.simulator

@@ -1,0 +1,1 @@
+"""Experiments on the node graph: run, analyse, study, report, bench (above ibvs_bringup)."""

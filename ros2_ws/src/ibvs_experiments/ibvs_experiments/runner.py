@@ -1,0 +1,509 @@
+"""
+Run one scenario through the node graph: start the nodes, record, watch, stop, analyse.
+
+Each process is started exactly as ``ros2 run <package> <executable> --ros-args
+--params-file <params.yaml>`` would start it: with ``ros2 run`` itself when the CLI is
+installed, otherwise with the same installed executable that ``ros2 run`` would resolve
+(``<prefix>/lib/<package>/<executable>`` from the ament index), in the processes of the
+graph's description (:mod:`ibvs_bringup.graph`): every node has a process of its own but the
+joint controller, which runs in the simulator's (:mod:`ibvs_bringup.compose`);
+:mod:`ibvs_bringup.supervision` starts and stops them. The runner records the run, prints
+progress, stops when the sim time limit is reached or the tool has converged, and stops
+every process cleanly (SIGINT, then SIGTERM, then SIGKILL). If a node dies, the run stops
+and :class:`NodeDied` names it and its exit code; no process is left behind in any case
+(children also get SIGKILL if the runner dies). The Fast DDS shared memory that a killed
+process leaves in /dev/shm is removed, and the runner says so (:mod:`.shm`): at the end of a
+run what its dead processes left, at the start what earlier dead processes left.
+
+No silent hang: a configuration that cannot advance sim time is refused before any node
+starts (:func:`scenario.check_progress`), and a run whose sim time stops advancing for
+``stall_s`` of wall time ends with :class:`RunStalled`, which quotes what each node last
+said it waits for (its once-a-second "waiting ..." log line and the ``waiting_for`` values
+it publishes on /diagnostics).
+"""
+
+from dataclasses import dataclass
+import json
+from pathlib import Path
+import re
+import shutil
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from ibvs_bringup import domains, graph_params, scenario, shm
+from ibvs_bringup.graph import GRAPH, process_plan, uses_zed_names, ZED_TOPICS
+from ibvs_bringup.recorder import Recorder
+from ibvs_bringup.supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
+from ibvs_common import contract, dds
+from ibvs_common.conversions import pose_matrix
+from ibvs_common.node_main import make_executor
+from ibvs_common.shared_params import target_from_parameters
+from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
+from ibvs_model.mass_model import joint_efforts
+from nav_msgs.msg import Path as PathMsg
+import numpy as np
+import rclpy
+from rclpy.serialization import deserialize_message
+from rclpy.task import Future
+import yaml
+
+from . import analysis, convergence
+
+
+#: Default wall time without sim-time progress after which a run is declared stalled (s).
+#: Long enough for the slowest single step seen on a loaded 2-core machine (the
+#: feedforward's trajectory at t = 0 took 11 s with a load average of 17); the runner then
+#: names who waits for what.
+STALL_S = 60.0
+#: Default wall time from the last node's launch to the simulator's first step (s):
+#: start-up (PyBullet, EGL, discovery) takes seconds, more on a loaded machine.
+START_TIMEOUT_S = 120.0
+#: Wall time between two looks of the runner at the run (progress, stall, end, node exits).
+POLL_S = 0.02
+#: What the stall report says of a node that reported no wait: busy, frozen, or a node that
+#: does not report its waits.
+SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
+#: Wall time (s) without a /diagnostics from a node after which its heartbeat counts as
+#: stopped: every node publishes its status once a second on a steady clock, also while it
+#: waits (ibvs_common.diagnostics), so only a frozen or hung node falls silent that long.
+HEARTBEAT_S = 3.0
+#: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
+_WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[([^\]]+)\]: (waiting .*)$')
+
+
+class RunStalled(RuntimeError):
+    """
+    Sim time stopped advancing; ``waits`` maps each node to what it said it waits for.
+
+    ``silent`` names the nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`):
+    a frozen or hung node, the likely cause, named first.
+    """
+
+    def __init__(self, what, sim_s, waits, silent=()):
+        """Keep the sim time reached and each node's wait; the message lists them."""
+        lines = [f'  {node}: {text}' for node, text in waits.items()]
+        head = (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
+                f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
+        super().__init__(f'{what} at sim time {sim_s:.3f} s{head}; what each node waits '
+                         'for:\n' + '\n'.join(lines))
+        self.sim_s = sim_s
+        self.waits = waits
+        self.silent = tuple(silent)
+
+
+def last_waiting_line(log_path, since_epoch_s, node=None):
+    """
+    Return the last "waiting ..." line a node logged at or after ``since_epoch_s``, or None.
+
+    ``node``: only the lines of that node's logger (a process that holds several nodes).
+
+    Every node of the graph logs what it waits for once a second while it makes no progress
+    (``sim_node``, ``joint_controller_node``; DESIGN section 4): a line from within the
+    stall window is what the node waits for now.
+    """
+    try:
+        text = Path(log_path).read_text(errors='replace')
+    except FileNotFoundError:
+        return None
+    found = None
+    for line in text.splitlines():
+        match = _WAITING_LINE.match(line.strip())
+        if match and float(match.group(1)) >= since_epoch_s and \
+                node in (None, match.group(2)):
+            found = match.group(3)
+    return found
+
+
+@dataclass
+class RunResult:
+    """What a run produced: where, its metrics, and whether it converged."""
+
+    out_dir: Path
+    bag_path: Path
+    metrics: dict
+    converged: bool
+    #: The recorder's own cost: ibvs_common.profiling.Stopwatch values (``make bench``).
+    recording: dict = None
+
+
+class Monitor:
+    """
+    Sim time and tool pose of the running graph, for progress, convergence and stalls.
+
+    Read from what the recorder (same process) receives: no subscription of its own to the
+    per-step topics, so the graph does not deliver each step twice to this process, and the
+    newest tool pose is decoded only when :meth:`poll` is called (every ``POLL_S`` of wall
+    time), not at each step.
+    """
+
+    def __init__(self, node, recorder, target, clock=time.monotonic):
+        """Follow ``recorder``'s /clock and /ibvs/tool_path; /diagnostics on ``node``."""
+        self._clock = clock
+        #: Wall time (``clock``) of the latest /diagnostics of each node, by node name.
+        self.heard = {}
+        self.target = target
+        self._recorder = recorder
+        self._pose_raw = None
+        self.sim_ns = 0
+        self.error_m = float('nan')
+        self.axis_deg = float('nan')
+        self.within_since_ns = None
+        #: Wall time (time.monotonic) at which the first /clock was seen: the run's start.
+        self.started_wall = None
+        #: Latest /diagnostics status values of each node, by node name.
+        self.diagnostics = {}
+        node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diagnostics,
+                                 10)
+
+    def poll(self):
+        """Take the newest sim time and tool pose the recorder has received."""
+        recorder = self._recorder
+        if self.started_wall is None and recorder.counts.get(contract.CLOCK):
+            self.started_wall = time.monotonic()
+        self.sim_ns = max(self.sim_ns, recorder.clock_ns)
+        raw = recorder.latest.get(contract.TOOL_PATH)
+        if raw is None or raw is self._pose_raw:
+            return
+        self._pose_raw = raw
+        poses = deserialize_message(raw, PathMsg).poses
+        if poses:
+            tf = pose_matrix(poses[-1].pose)
+            self.error_m = float(np.linalg.norm(tf[:3, 3] - self.target[:3, 3]))
+            self.axis_deg = float(analysis.axis_angle_deg(tf[None, :3, :3],
+                                                          self.target[:3, :3])[0])
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            node = status.name.split(':', 1)[0]
+            self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
+            self.heard[node] = self._clock()
+
+    def silent(self, nodes):
+        """Return those of ``nodes`` whose heartbeat stopped (none for :data:`HEARTBEAT_S`)."""
+        now = self._clock()
+        return [n for n in nodes if n in self.heard and now - self.heard[n] > HEARTBEAT_S]
+
+    def stalled_sim_s(self):
+        """Return the sim time of the stall: the simulator's own status if newer than /clock."""
+        sim = self.diagnostics.get('sim_node', {}).get('sim_time_s')
+        try:
+            return max(self.sim_ns * 1e-9, float(sim))
+        except (TypeError, ValueError):
+            return self.sim_ns * 1e-9
+
+    def waits(self, procs, since_epoch_s):
+        """
+        Return, per node, what it last said it waits for (log line, /diagnostics).
+
+        Each /diagnostics value is quoted with the age of the status it comes from; a node
+        whose heartbeat stopped is said to be so first.
+        """
+        out = {}
+        now = self._clock()
+        for p in procs:
+            for node in p.nodes:
+                said = []
+                line = last_waiting_line(p.log_path, since_epoch_s,
+                                         node if len(p.nodes) > 1 else None)
+                if line:
+                    said.append(line)
+                age = (f' (status {now - self.heard[node]:.1f} s old)'
+                       if node in self.heard else '')
+                said += [f'/diagnostics {k} = {v}{age}'
+                         for k, v in self.diagnostics.get(node, {}).items()
+                         if k.startswith('waiting') and v not in ('', '-1')]
+                out[node] = '; '.join(said) or SILENT
+                if node in self.silent([node]):
+                    out[node] = (f'HEARTBEAT STOPPED: last /diagnostics '
+                                 f'{now - self.heard[node]:.1f} s ago (frozen or hung); '
+                                 + out[node])
+        return out
+
+    def update_convergence(self, tolerance):
+        """
+        Track since when the tool has been within ``tolerance``; return that duration (s).
+
+        ``tolerance``: a :class:`~.convergence.Convergence`.
+        """
+        inside = tolerance.within(self.error_m, self.axis_deg)
+        if not inside:
+            self.within_since_ns = None
+            return 0.0
+        if self.within_since_ns is None:
+            self.within_since_ns = self.sim_ns
+        return (self.sim_ns - self.within_since_ns) * 1e-9
+
+
+@dataclass
+class Prepared:
+    """A run ready to start (:func:`prepare`): its parameters and its files."""
+
+    params: dict
+    #: The sim time limit (s).
+    duration_s: float
+    out_dir: Path
+    log_dir: Path
+    params_file: Path
+    bag_path: Path
+    #: The target pose (4x4), from the parameters.
+    target: np.ndarray
+
+
+@dataclass
+class Outcome:
+    """How :func:`watch` saw a run end: converged, a node's death, a stall, or the time."""
+
+    converged: bool = False
+    died: NodeDied = None
+    stalled: RunStalled = None
+    #: Wall time from step 0 to the end (s); None if the run never got to :func:`watch`'s end.
+    wall_duration_s: float = None
+
+
+def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
+                 wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
+                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False,
+                 figures=True):
+    """
+    Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
+
+    ``figures=False`` writes the bag and metrics only (``ibvs analyse`` draws the figures
+    later); a study's runs save the few seconds of matplotlib each (issue 26).
+
+    ``record_overlays`` records the feature node's overlay images (/ibvs/debug/*/image,
+    which it then draws for every frame; ``ibvs video`` makes a film of them).
+
+    ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
+    else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
+    0.1 mm and 0.01 deg of the target for that long (sim time: :data:`.convergence.HOLD`). Raises
+    :class:`scenario.ScenarioError` for a parameter no node declares or out of its range
+    (:func:`graph_params.check`) or a configuration that cannot make progress (before
+    starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
+    (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
+    :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
+    simulator has not taken its first step ``start_timeout_s`` after it was launched).
+
+    The parts, in order: :func:`prepare`, :func:`start`, :func:`watch`, :func:`stop`,
+    :func:`write_results`.
+    """
+    run = prepare(name, out_dir, overrides, duration_s)
+    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    shm_before = shm.names()
+
+    # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
+    with domains.held() as (domain, chosen):
+        busy = chosen and domain != domains.FREE_POOL[0]
+        progress(f'  ROS_DOMAIN_ID {domain}'
+                 + (': the first free one, lower domains are used by other runs' if busy
+                    else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
+        dds.configure()  # before rclpy.init here, and inherited by the node processes
+        context = rclpy.context.Context()
+        rclpy.init(context=context)
+        executor = make_executor(context)
+        recorder = Recorder(run.bag_path, include_images=record_images, context=context,
+                            include_overlays=record_overlays,
+                            custom_data={analysis.PARAMS_KEY: yaml.safe_dump(run.params)})
+        watcher = rclpy.create_node('ibvs_run_monitor', context=context,
+                                    parameter_overrides=[])
+        monitor = Monitor(watcher, recorder, run.target)
+        executor.add_node(recorder)
+        executor.add_node(watcher)
+        procs = []
+        outcome = Outcome()
+        wall_start = time.monotonic()
+        try:
+            start(run, executor, watcher, procs)
+            outcome = watch(run, executor, monitor, procs, wall_start, progress,
+                            converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
+                            stall_s=stall_s, start_timeout_s=start_timeout_s)
+        finally:
+            codes = stop(procs)
+            recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
+                'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
+                'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
+            recorder.close()
+            executor.shutdown()
+            recorder.destroy_node()
+            watcher.destroy_node()
+            rclpy.shutdown(context=context)
+            _clean_shm(progress, 'node processes of this run that died', shm_before)
+    if outcome.died:
+        raise outcome.died
+    if outcome.stalled:
+        raise outcome.stalled
+    metrics = write_results(run.bag_path, run.out_dir, outcome.wall_duration_s, figures)
+    return RunResult(run.out_dir, run.bag_path, metrics, outcome.converged,
+                     recorder.timing.values())
+
+
+def prepare(name, out_dir, overrides=None, duration_s=None):
+    """
+    Check the parameters of scenario ``name`` with ``overrides``; write its parameters file.
+
+    Return the :class:`Prepared` run. Nothing is started: the checks of
+    :func:`run_scenario` that come before any node (:func:`graph_params.check`,
+    :func:`scenario.check_progress`) raise here.
+    """
+    params = scenario.load_parameters(name)
+    params.update(overrides or {})
+    graph_params.check(params)
+    scenario.check_progress(params)
+    params.setdefault('scenario_name', Path(str(name)).stem)
+    duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log_dir = out_dir / 'logs'
+    log_dir.mkdir(exist_ok=True)
+    runner_only = ('scenario_name', 'run_duration_s')
+    node_params = {k: v for k, v in params.items() if k not in runner_only}
+    params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
+    bag_path = out_dir / 'bag'
+    if bag_path.exists():
+        shutil.rmtree(bag_path)
+    return Prepared(params, duration_s, out_dir, log_dir, params_file, bag_path,
+                    target_from_parameters(params))
+
+
+def start(run, executor, watcher, procs, graph=GRAPH):
+    """
+    Start the processes of ``graph`` for ``run`` (:func:`process_plan`), appending to ``procs``.
+
+    The simulator's process starts last, once every other node is in the graph and every
+    reader of step 0 has subscribed (the start handshake); ``procs`` holds what has started
+    even when a wait fails (:class:`NodeDied`, TimeoutError), for :func:`stop`.
+    """
+    topic_of = ZED_TOPICS if uses_zed_names(run.params) else {}
+    for spec, extra in process_plan(run.params, graph):
+        if graph.simulator in spec.nodes:
+            wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes], procs)
+            # Every reader of step 0 must be matched before the simulator publishes it
+            # (volatile topics): a node that misses the first /joint_states or CameraInfo
+            # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
+            # The simulator waits for as many subscribers as the runner sees once each
+            # node's own subscriptions are in the graph, recorder and monitor included.
+            counts = wait_for_readers(executor, watcher, procs, graph.step0_readers(),
+                                      spec.nodes, topic_of)
+            extra += ('-p', 'min_joint_state_subscribers:='
+                      f'{counts[contract.JOINT_STATES]}',
+                      '-p', 'min_frame_joint_state_subscribers:='
+                      f'{counts[contract.FRAME_JOINT_STATES]}',
+                      '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
+                      '-p', 'min_camera_info_subscribers:='
+                      f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
+        procs.append(spec.start(run.params_file, run.log_dir, extra))
+
+
+def watch(run, executor, monitor, procs, wall_start, progress=print, converge_hold_s=None,
+          wall_timeout_s=1800.0, stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S):
+    """
+    Spin and look at the run every ``POLL_S`` until it ends; return its :class:`Outcome`.
+
+    It ends when a process exits (``died``), the tool has converged (``converge_hold_s``),
+    sim time reaches ``run.duration_s``, ``wall_timeout_s`` has passed since
+    ``wall_start``, or sim time has not advanced for ``stall_s`` (``start_timeout_s``
+    before step 0: ``stalled``). Progress is printed every 2 s of wall time.
+    """
+    outcome = Outcome()
+    last_print = 0.0
+    last_sim_ns, last_advance = -1, time.monotonic()
+    never = Future()
+    while True:
+        # Every callback due in the next POLL_S, then one look at the run.
+        executor.spin_until_future_complete(never, timeout_sec=POLL_S)
+        monitor.poll()
+        for p in procs:
+            code = p.poll()
+            if code is not None:
+                outcome.died = NodeDied(p.name, code, p.log_path)
+                break
+        if outcome.died:
+            break
+        sim_s = monitor.sim_ns * 1e-9
+        now = time.monotonic()
+        if now - last_print >= 2.0:
+            last_print = now
+            rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
+            # Before the first tool pose there is no error to print yet.
+            error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)
+                     else '        - mm')
+            axis = (f'{monitor.axis_deg:7.3f} deg' if np.isfinite(monitor.axis_deg)
+                    else '      - deg')
+            progress(f'  [{run.params["scenario_name"]}] sim {sim_s:6.3f}/{run.duration_s:.2f} s'
+                     f'  position error {error}  axis error {axis}  RTF {rtf:5.3f}')
+        if converge_hold_s is not None and \
+                monitor.update_convergence(convergence.HOLD) >= converge_hold_s:
+            outcome.converged = True
+            break
+        if sim_s >= run.duration_s:
+            outcome.converged = convergence.AT_END.within(monitor.error_m)
+            break
+        if now - wall_start > wall_timeout_s:
+            progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim '
+                     f'{sim_s:.3f} s')
+            break
+        if monitor.sim_ns > last_sim_ns and monitor.started_wall is not None:
+            last_sim_ns, last_advance = monitor.sim_ns, now
+        limit = stall_s if monitor.started_wall is not None else start_timeout_s
+        if now - last_advance > limit:
+            window_start = time.time() - min(limit, 3.0)
+            what = (f'no sim-time progress for {limit:.0f} s of wall time'
+                    if monitor.started_wall is not None
+                    else f'the simulator took no step within {limit:.0f} s of its launch')
+            nodes = [n for p in procs for n in p.nodes]
+            outcome.stalled = RunStalled(what, monitor.stalled_sim_s(),
+                                         monitor.waits(procs, window_start),
+                                         monitor.silent(nodes))
+            break
+    # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
+    outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
+    return outcome
+
+
+def stop(procs, graph=GRAPH):
+    """
+    Stop ``procs``; return their exit codes by name, in reverse start order.
+
+    The simulator first, so that nothing is stepped or recorded past the run's end while
+    the other nodes stop; then the others together (:func:`supervision.stop_all`).
+    """
+    codes = stop_all([p for p in procs if graph.simulator in p.nodes])
+    codes.update(stop_all([p for p in procs if graph.simulator not in p.nodes]))
+    return {p.name: codes[p.name] for p in reversed(procs)}
+
+
+def _clean_shm(progress, whose, new_since=None):
+    """Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so."""
+    count, freed = shm.clean(new_since=new_since)
+    if count:
+        progress(f'  removed {count} Fast DDS shared-memory files ({freed / 1e6:.0f} MB) in '
+                 f'{shm.SHM_DIR} that {whose} left')
+
+
+def target_features(run):
+    """Return F(q_target) with the recorded camera and the nominal robot (None w/o camera)."""
+    if run.camera is None:
+        return None
+    q = inverse_kinematics(run.target)
+    return CameraRobotModel(run.camera, IRB4600).features(q)
+
+
+def write_results(bag_path, out_dir, wall_duration_s=None, figures=True):
+    """Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics."""
+    out_dir = Path(out_dir)
+    run, metrics = analysis.analyse_bag(bag_path)
+    if wall_duration_s is not None:
+        metrics['wall_duration_s'] = wall_duration_s
+        metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
+    metrics['bag'] = str(bag_path)
+    (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    if not figures:
+        return metrics
+    from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
+    plots.write_all(run, out_dir, target_features(run))
+    params = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
+                            float(run.params.get('l4_scale', 1.0)))
+    series = analysis.load_joints(bag_path, run.run_info.get('duration_s'))
+    if len(series[0]):
+        plots.joints(series, (params.q_min, params.q_max, params.qd_max, joint_efforts(params)),
+                     out_dir / 'joints.png', plots.title_of(run))
+    return metrics

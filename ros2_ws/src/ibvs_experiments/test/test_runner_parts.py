@@ -1,0 +1,89 @@
+"""The runner's parts without a graph: prepare a run, and watch one made of stand-ins."""
+
+from pathlib import Path
+import time
+
+from ibvs_bringup.scenario import ScenarioError
+from ibvs_bringup.supervision import NodeDied
+from ibvs_experiments import runner
+import numpy as np
+import pytest
+import yaml
+
+
+def test_prepare_checks_and_writes_before_anything_starts(tmp_path):
+    run = runner.prepare('scenario1', tmp_path / 'run', {'lambda_0': 6.0}, duration_s=0.25)
+    assert run.duration_s == 0.25 and run.params['scenario_name'] == 'scenario1'
+    written = yaml.safe_load(Path(run.params_file).read_text())['/**']['ros__parameters']
+    assert written['lambda_0'] == 6.0
+    assert 'scenario_name' not in written and 'run_duration_s' not in written
+    assert run.log_dir.is_dir() and run.bag_path == tmp_path / 'run' / 'bag'
+    assert run.target.shape == (4, 4)
+    with pytest.raises(ScenarioError):
+        runner.prepare('scenario1', tmp_path / 'refused', {'no_such_parameter': 1})
+    assert not (tmp_path / 'refused').exists()
+
+
+class _Monitor:
+    """What watch reads of a Monitor: sim time advanced by the executor, a fixed error."""
+
+    def __init__(self, error_m, step_ns):
+        self.sim_ns, self.error_m, self.axis_deg = 0, error_m, 0.0
+        self.started_wall, self.step_ns = 0.0, step_ns
+        self.within_since_ns = None
+
+    def poll(self):
+        self.sim_ns += self.step_ns
+
+    update_convergence = runner.Monitor.update_convergence
+
+    def stalled_sim_s(self):
+        return self.sim_ns * 1e-9
+
+    def waits(self, procs, since):
+        return {'sim_node': 'waiting for /joint_effort_commands'}
+
+    def silent(self, nodes):
+        return ()
+
+
+class _Executor:
+
+    def spin_until_future_complete(self, future, timeout_sec):
+        pass
+
+
+class _Process:
+
+    def __init__(self, code=None):
+        self.name, self.nodes, self.log_path, self.code = 'lockstep', ('sim_node',), '/x', code
+
+    def poll(self):
+        return self.code
+
+
+def _watch(monitor, procs=(), **kwargs):
+    run = runner.Prepared({'scenario_name': 's'}, 0.5, None, None, None, None, None)
+    return runner.watch(run, _Executor(), monitor, list(procs), time.monotonic(), lambda _: None,
+                        **kwargs)
+
+
+def test_watch_ends_at_the_time_limit_and_says_whether_it_converged():
+    done = _watch(_Monitor(0.9e-3, 100_000_000), [_Process()])
+    assert done.converged and done.died is None and done.stalled is None
+    assert done.wall_duration_s is not None
+    assert not _watch(_Monitor(1.1e-3, 100_000_000)).converged
+
+
+def test_watch_ends_early_once_the_tool_has_held_still():
+    monitor = _Monitor(0.5e-4, 10_000_000)
+    assert _watch(monitor, converge_hold_s=0.1).converged
+    assert np.isclose(monitor.sim_ns * 1e-9, 0.11)  # 0.1 s held from 0.01 s, not 0.5 s
+
+
+def test_watch_names_a_node_that_died_and_a_stall():
+    died = _watch(_Monitor(0.0, 1), [_Process(code=-9)]).died
+    assert isinstance(died, NodeDied) and died.node == 'lockstep' and died.returncode == -9
+    stalled = _watch(_Monitor(0.0, 0), stall_s=0.0).stalled
+    assert isinstance(stalled, runner.RunStalled)
+    assert stalled.waits == {'sim_node': 'waiting for /joint_effort_commands'}
