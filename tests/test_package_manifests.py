@@ -179,6 +179,12 @@ def used_keys(package):
             key = rosdep_key(module, package)
             if key is not None:
                 uses.setdefault(key, set()).add(str(relative))
+    if package == 'ibvs_bringup':
+        # compose imports each node's module by the name the graph description gives, and
+        # the supervisor runs each node's executable: a dependency no import statement shows.
+        from ibvs_bringup.graph import GRAPH
+        for node in GRAPH.nodes:
+            runtime.setdefault(node.package, set()).add('ibvs_bringup/graph.py')
     return runtime, tests
 
 
