@@ -88,6 +88,18 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
         'failed'
 
 
+def _as_from_a_terminal():
+    """
+    Child-side: SIGINT unblocked and at its default, as a terminal's shell starts a command.
+
+    A blocked or ignored signal survives exec, and the pytest worker that starts the study
+    has run other tests' rclpy contexts and signal handling before: under ``make test``
+    the study then never saw the SIGINT (seen: it ran to the end and exited 0).
+    """
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.slow
 def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
         installed_workspace, tmp_path, proc_tools):
@@ -97,7 +109,7 @@ def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
     cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'study', str(spec_path), '-o', str(out),
            '--parallel', '1', '--domains', f'{DOMAINS[0]}-{DOMAINS[1]}']
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_as_from_a_terminal)
     seen = set()
     try:
         deadline = time.monotonic() + 600.0
@@ -120,7 +132,9 @@ def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
-    assert proc.returncode == 130, output
+    assert proc.returncode == 130, (output, 'this process: SIGINT',
+                                    signal.getsignal(signal.SIGINT), 'blocked',
+                                    signal.pthread_sigmask(signal.SIG_BLOCK, []))
     assert 'interrupted' in output
     leftovers = [pid for pid in seen if proc_tools.alive(pid)]
     assert not leftovers, [proc_tools.cmdline(p) for p in leftovers]

@@ -21,15 +21,22 @@ from .scenario import ScenarioError
 NOT_NODES = ('use_sim_time', 'scenario_name', 'run_duration_s')
 
 
-def declared():
-    """Return ``{name: Param}`` of every parameter a node of the graph declares."""
-    from ibvs_control import adaptive_feedback_node, feedforward_node, joint_controller_node
-    from ibvs_sim import sim_node
-    from ibvs_vision import feature_node
+def declared(graph=None):
+    """
+    Return ``{name: Param}`` of every parameter a node of ``graph`` declares.
+
+    ``graph``: a :class:`.graph.Graph` (default :data:`.graph.GRAPH`); each node's module
+    declares its parameters as ``PARAMS``. A parameter several nodes declare is one
+    :class:`Param` (:mod:`ibvs_common.shared_params`); the simulator's declaration is taken
+    first, as the one that owns the physical meaning.
+    """
+    import importlib
+    from .graph import GRAPH
+    graph = graph or GRAPH
+    nodes = sorted(graph.nodes, key=lambda n: n.name != graph.simulator)
     specs = {}
-    for module in (sim_node, feature_node, adaptive_feedback_node, feedforward_node,
-                   joint_controller_node):
-        for spec in module.PARAMS:
+    for node in nodes:
+        for spec in importlib.import_module(node.module).PARAMS:
             specs.setdefault(spec.name, spec)
     return specs
 

@@ -5,6 +5,7 @@ Each bad command ends with one ``error:`` line and exit code 2 within a second, 
 traceback and not a graph started for nothing.
 """
 
+import dataclasses
 from pathlib import Path
 
 from ibvs_bringup import domains, graph_params
@@ -48,6 +49,18 @@ def test_finding10_the_pre_check_uses_the_nodes_parser(capsys):
         code, err = run(capsys, 'run', 'scenario1', '-p', f'publish_images:={value}')
         assert code == 2 and "parameter 'publish_images'" in err and 'not a boolean' in err
     graph_params.check({'publish_images': True, 'camera_rate_hz': 30})  # a float takes an int
+
+
+def test_every_node_of_the_graph_description_has_its_parameters_checked():
+    # viz_node's own parameters were once refused as "no node declares it".
+    graph_params.check({'marker_rate_hz': 5.0, 'frustum_depth_m': 2.0})
+    with pytest.raises(ScenarioError, match='marker_rate_hz'):
+        graph_params.check({'marker_rate_hz': -1.0})
+    from ibvs_bringup.graph import GRAPH
+    assert 'marker_rate_hz' in graph_params.declared(GRAPH)
+    without_viz = dataclasses.replace(
+        GRAPH, nodes=tuple(n for n in GRAPH.nodes if n.name != 'viz_node'))
+    assert 'marker_rate_hz' not in graph_params.declared(without_viz)
 
 
 def test_shipped_scenarios_pass_the_check():
