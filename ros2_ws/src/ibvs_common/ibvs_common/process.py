@@ -3,7 +3,7 @@ A child process that dies with its parent: the one place of Linux's parent-death
 
 Two kinds of children use it: the processes a runner supervises (the nodes of a run, a
 study's runs: :func:`supervised_child`, their ``preexec_fn``) and the simulator's lens
-worker (:mod:`ibvs_sim.lens_worker`, which calls :func:`die_with_parent` itself and stays in
+worker (:mod:`ibvs_sim.lens_server`, which calls :func:`die_with_parent` itself and stays in
 the simulator's process group, so that it is stopped with it).
 """
 

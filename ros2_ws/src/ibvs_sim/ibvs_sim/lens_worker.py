@@ -3,8 +3,9 @@ A second process that renders one lens of the stereo pair while the simulator re
 
 Rendering is most of a frame's cost and one lens does not need the other, so the two can be
 drawn at once on two cores: :class:`LensWorker` starts a process (``python -m
-ibvs_sim.lens_worker``: a fresh interpreter, nothing of the parent's ROS, DDS or OpenGL state
-is inherited, and the parent's ``__main__`` is not imported again) that builds its own
+ibvs_sim.lens_server``, :mod:`ibvs_sim.lens_server`: a fresh interpreter, nothing of the
+parent's ROS, DDS or OpenGL state is inherited, and the parent's ``__main__`` is not
+imported again) that builds its own
 :class:`ibvs_sim.world.World` with the same robot, floor and renderer. For each frame the
 simulator sends the true joint angles and the lens to draw; the worker sets its robot to
 those angles (``resetJointState``: a copy of the state, no dynamics), renders, and sends the
@@ -20,13 +21,10 @@ cleanly; the simulator stops and closes it.
 """
 
 from multiprocessing.connection import Connection
-import signal
 import socket
 import subprocess
 import sys
-import traceback
 
-from ibvs_common.process import die_with_parent
 import numpy as np
 
 #: How long to wait for the worker to start (spawn, imports, PyBullet and EGL), s.
@@ -37,38 +35,6 @@ RENDER_TIMEOUT_S = 60.0
 
 class LensWorkerError(RuntimeError):
     """The lens worker could not start, failed to render, or is gone."""
-
-
-def _serve(conn):
-    """Worker side: build the World it is sent, then answer render requests until told to stop."""
-    die_with_parent()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the simulator ends it (module docstring)
-    from .world import World  # in the child only: the parent imported it already
-    try:
-        world = World(**conn.recv())
-    except Exception:
-        conn.send(('error', traceback.format_exc()))
-        return
-    conn.send(('ready', world.renderer))
-    try:
-        while True:
-            try:
-                request = conn.recv()
-            except EOFError:
-                return
-            if request is None:
-                return
-            q, args = request
-            try:
-                world.reset(q)
-                image = world.render_lens(*args)
-            except Exception:
-                conn.send(('error', traceback.format_exc()))
-                continue
-            conn.send(('image', image.shape))
-            conn.send_bytes(np.ascontiguousarray(image).reshape(-1))
-    finally:
-        world.close()
 
 
 class LensWorker:
@@ -83,7 +49,7 @@ class LensWorker:
         """Start the worker and wait until its World is built; raise LensWorkerError if not."""
         ours, theirs = socket.socketpair()
         self._process = subprocess.Popen(
-            [sys.executable, '-m', 'ibvs_sim.lens_worker', str(theirs.fileno())],
+            [sys.executable, '-m', 'ibvs_sim.lens_server', str(theirs.fileno())],
             pass_fds=(theirs.fileno(),))
         theirs.close()
         self._conn = Connection(ours.detach())
@@ -145,7 +111,3 @@ class LensWorker:
             self._process.wait(timeout=5.0)
         self._conn.close()
         self._process = None
-
-
-if __name__ == '__main__':
-    _serve(Connection(int(sys.argv[1])))
