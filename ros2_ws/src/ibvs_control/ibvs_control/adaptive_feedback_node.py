@@ -52,6 +52,8 @@ or estimated (eq. 46) (:meth:`.servo_laws.ServoLaw.needs_measured`: 'switching',
 markers in both images, blended or not). The others do not subscribe to it.
 """
 
+from typing import Any
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract
@@ -92,7 +94,7 @@ HISTORY = 2000
 class AdaptiveFeedbackNode(Node):
     """F^-1, C1, SVD and the Youla controller per frame (module docstring)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters and create the interfaces."""
         super().__init__('adaptive_feedback_node', **kwargs)
         self.values = values = declare(self, PARAMS)
@@ -234,7 +236,7 @@ class AdaptiveFeedbackNode(Node):
             f'{np.round(self.feedback.p_target, 2).tolist()} px')
         self._drain()
 
-    def now_ns(self):
+    def now_ns(self) -> int:
         """Return the newest time the node knows: its clock and its newest joint state."""
         return node_time_ns(self, self._lockstep.joints.newest)
 
@@ -349,7 +351,7 @@ class AdaptiveFeedbackNode(Node):
         self.diagnostics.update(state='frozen (features timed out)')
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
     """Run the adaptive feedback node (``ros2 run ibvs_control adaptive_feedback_node``)."""
     run(AdaptiveFeedbackNode, args=args, name='adaptive_feedback_node')
 

@@ -9,6 +9,7 @@ Benchmarks of the controllers' hot paths (``make bench`` calls :func:`run`).
 No assertion on time: numbers to read. ``python -m ibvs_control.bench`` prints median/p95.
 """
 
+from collections.abc import Callable
 import time
 
 from ibvs_common.bench import print_timing
@@ -29,7 +30,7 @@ def _timed(fn, args_list):
     return out
 
 
-def run(report):
+def run(report: Callable[[str, list[float]], None]) -> None:
     """Time the feedback and joint-loop updates; ``report(name, seconds_list)`` each."""
     model = default_model()
     run_ = simulate(LoopConfig(scenario=1), duration_s=1.0)
@@ -62,7 +63,7 @@ def run(report):
         dynamics.close()
 
 
-def main():
+def main() -> None:
     """Print median and p95 of each benchmark."""
     run(print_timing)
 

@@ -17,7 +17,9 @@ markdown tables.
 """
 
 import argparse
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from ibvs_model import (CameraRobotModel, default_model, forward_kinematics, paper,
                         StereoCamera, StereoIntrinsics)
@@ -49,7 +51,8 @@ class SweepRun:
     time_to_1mm_s: float
 
 
-def calibrated_camera(camera, position_error_m=0.0, focal_error=0.0):
+def calibrated_camera(camera: StereoCamera, position_error_m: float = 0.0,
+                      focal_error: float = 0.0) -> StereoCamera:
     """Return ``camera`` as a calibration with these errors gives it (module docstring)."""
     k = camera.intrinsics
     scale = 1.0 + float(focal_error)
@@ -60,8 +63,8 @@ def calibrated_camera(camera, position_error_m=0.0, focal_error=0.0):
     return StereoCamera(intrinsics, camera.pose_C_O @ shift)
 
 
-def run_one(law, target, position_error_m=0.0, focal_error=0.0, duration_s=DURATION_S,
-            **options):
+def run_one(law: str, target: str, position_error_m: float = 0.0, focal_error: float = 0.0,
+            duration_s: float = DURATION_S, **options: Any) -> SweepRun:
     """Return the :class:`SweepRun` of one law with one calibration error (scenario 1)."""
     true = default_model()
     model = CameraRobotModel(calibrated_camera(true.camera, position_error_m, focal_error),
@@ -85,7 +88,9 @@ NOISE_PX = (0.0, 0.1, 0.3, 1.0)
 TAIL_S = 1.0
 
 
-def noise_sweep(laws=SERVO_LAWS, noise_px=NOISE_PX, duration_s=DURATION_S, seed=0):
+def noise_sweep(laws: Iterable[str] = SERVO_LAWS, noise_px: Iterable[float] = NOISE_PX,
+                duration_s: float = DURATION_S, seed: int = 0
+                ) -> dict[tuple[str, float], tuple[float, float]]:
     """
     Return {(law, noise): (RMS position error, RMS axis error)} over the last TAIL_S.
 
@@ -107,7 +112,7 @@ def noise_sweep(laws=SERVO_LAWS, noise_px=NOISE_PX, duration_s=DURATION_S, seed=
     return out
 
 
-def noise_table(results):
+def noise_table(results: dict[tuple[str, float], tuple[float, float]]) -> list[str]:
     """Return the markdown lines of :func:`noise_sweep`: one row per law."""
     noise = sorted({sigma for _, sigma in results})
     lines = ['| law | ' + ' | '.join(f'noise {sigma:g} px' for sigma in noise) + ' |',
@@ -119,19 +124,21 @@ def noise_table(results):
     return lines
 
 
-def settings():
+def settings() -> list[tuple[float, float]]:
     """Return the (position error, focal error) of every sweep point: one error at a time."""
     return ([(d, 0.0) for d in POSITION_ERRORS_M] + [(0.0, f) for f in FOCAL_ERRORS])
 
 
-def sweep(laws=SERVO_LAWS, targets=TARGET_SOURCES, points=None, **options):
+def sweep(laws: Iterable[str] = SERVO_LAWS, targets: Iterable[str] = TARGET_SOURCES,
+          points: Iterable[tuple[float, float]] | None = None, **options: Any
+          ) -> list[SweepRun]:
     """Return the :class:`SweepRun` of every law, target source and sweep point."""
     points = settings() if points is None else points
     return [run_one(law, target, d, f, **options)
             for target in targets for law in laws for d, f in points]
 
 
-def table(runs):
+def table(runs: Sequence[SweepRun]) -> list[str]:
     """Return the markdown lines: one row per law and target, one column per sweep point."""
     points = list(dict.fromkeys((r.position_error_m, r.focal_error) for r in runs))
     head = ['no error' if d == f == 0.0 else f'camera position {1e3 * d:.1f} mm' if f == 0.0
@@ -151,7 +158,7 @@ def table(runs):
     return lines
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Print the sweep's table (final position / axis error of the true flange)."""
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument('--duration', type=float, default=DURATION_S, help='sim time, s')

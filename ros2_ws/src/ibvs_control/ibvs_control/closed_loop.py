@@ -17,17 +17,23 @@ This is the reference the node graph (PyBullet, rendering, Hough) is compared ag
 """
 
 from dataclasses import asdict, dataclass
+from typing import Any, TYPE_CHECKING
 
 from ibvs_common import shared_params
 from ibvs_common.params import param_field, ParamConfig
 from ibvs_common.timing import period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from . import node_params
 from .controllers import Feedforward, JointLoop
 from .feedback_lockstep import FeedbackLockstep
 from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
+
+if TYPE_CHECKING:
+    from ibvs_model.camera import StereoCamera
+    from ibvs_model.robot import RobotParams
 
 
 @dataclass(frozen=True)
@@ -81,12 +87,12 @@ class LoopConfig(ParamConfig):
         node_params.check_servo_law(values)
 
     @property
-    def gain(self):
+    def gain(self) -> AdaptiveGain:
         """Return the :class:`.servo_laws.AdaptiveGain` of lambda_0, lambda_inf, lambda_slope."""
         return AdaptiveGain(self.lambda_0, self.lambda_inf, self.lambda_slope)
 
     @classmethod
-    def for_law(cls, servo_law, **values):
+    def for_law(cls, servo_law: str, **values: Any) -> 'LoopConfig':
         """
         Return the config of ``servo_law`` with the feedforward that goes with it.
 
@@ -114,11 +120,11 @@ class LoopResult:
     rejected_frames: int = 0
 
     @property
-    def image_error(self):
+    def image_error(self) -> NDArray[np.float64]:
         """Return |p_bar - p_hat| (px) at each frame (Euclidean norm over the 6 values)."""
         return np.linalg.norm(self.features - self.p_target, axis=1)
 
-    def final_image_error(self):
+    def final_image_error(self) -> float:
         """Return the image error (px) of F(true angles) at the end of the run."""
         return float(np.linalg.norm(self.model.features(self.q_true[-1]) - self.p_target))
 
@@ -129,9 +135,12 @@ def _accepted(rejection):
         raise RuntimeError(f'lockstep refused an input: {rejection.reason} ({rejection.detail})')
 
 
-def simulate(config=LoopConfig(), duration_s=2.0, *, model=None, plant_params=None,
-             plant_camera=None, disturbance=None, target=None, integration='exact',
-             estimate_out_of_view=True, feature_noise_px=0.0, seed=0):
+def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
+             model: CameraRobotModel | None = None, plant_params: 'RobotParams | None' = None,
+             plant_camera: 'StereoCamera | None' = None, disturbance: ArrayLike | None = None,
+             target: ArrayLike | None = None, integration: str = 'exact',
+             estimate_out_of_view: bool = True, feature_noise_px: float = 0.0,
+             seed: int = 0) -> LoopResult:
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 

@@ -13,17 +13,23 @@ The ROS nodes and the model-only closed loop (:mod:`.closed_loop`) both use thes
 """
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ibvs_common import shared_params
 from ibvs_model import (forward_kinematics, ik_solutions, InvalidInputError,
                         inverse_kinematics, IRB4600, pose_error)
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from . import youla
 from .decoupling import decouple, SVD_RCOND
 from .filters import StateSpaceFilter
 from .governor import ReferenceGovernor
 from .youla import FEEDFORWARD_RATIO
+
+if TYPE_CHECKING:
+    from ibvs_model.combined import CameraRobotModel
+    from ibvs_model.robot import RobotParams
 
 #: Each default and set of choices below is also that of the control node parameter of
 #: the same name (:mod:`.node_params`): one definition.
@@ -45,7 +51,8 @@ LINEARISATION_POINTS = ('encoders', 'features')
 LINEARISE_AT = 'encoders'
 
 
-def check_inputs(p_hat, q_encoder):
+def check_inputs(p_hat: ArrayLike, q_encoder: ArrayLike
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return features p_hat and encoder angles as (6,) arrays; InvalidInputError if not."""
     p_hat = np.asarray(p_hat, dtype=float)
     q_encoder = np.asarray(q_encoder, dtype=float)
@@ -56,7 +63,8 @@ def check_inputs(p_hat, q_encoder):
     return p_hat, q_encoder
 
 
-def feature_error(s, s_target):
+def feature_error(s: NDArray[np.float64], s_target: NDArray[np.float64]
+                  ) -> NDArray[np.float64]:
     """
     Return the error e = s - s* of every servo law (ViSP vpServo, Chaumette & Hutchinson 2006).
 
@@ -65,7 +73,7 @@ def feature_error(s, s_target):
     return s - s_target
 
 
-def check_reachable(pose, params=IRB4600):
+def check_reachable(pose: ArrayLike, params: 'RobotParams' = IRB4600) -> None:
     """Raise ibvs_model.UnreachablePoseError when no IK branch reaches ``pose`` (eq. 43)."""
     ik_solutions(pose, params)
 
@@ -89,9 +97,10 @@ class JointLoop:
        the controller state (Hanus, :class:`.filters.StateSpaceFilter`).
     """
 
-    def __init__(self, tau_in, dt, actuators=ACTUATORS[0], qd_max=IRB4600.qd_max,
-                 torque_limits=None, speed_margin=SPEED_MARGIN,
-                 acceleration_margin=ACCELERATION_MARGIN):
+    def __init__(self, tau_in: float, dt: float, actuators: str = ACTUATORS[0],
+                 qd_max: ArrayLike = IRB4600.qd_max, torque_limits: ArrayLike | None = None,
+                 speed_margin: float = SPEED_MARGIN,
+                 acceleration_margin: float = ACCELERATION_MARGIN) -> None:
         """Design G_c,d at sample time ``dt``; limits are needed in 'limited' mode only."""
         if actuators not in ACTUATORS:
             raise ValueError(f'actuators must be one of {ACTUATORS}, got {actuators!r}')
@@ -113,7 +122,7 @@ class JointLoop:
         self.saturated = np.zeros(6, dtype=bool)
         self.reference = None
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the controller state (the governor restarts from the next q)."""
         self.filter.reset()
         self.saturated[:] = False
@@ -121,7 +130,9 @@ class JointLoop:
         if self.governor is not None:
             self.governor.r = None
 
-    def step(self, q_ref, q, qdot, mass=None, bias=None):
+    def step(self, q_ref: ArrayLike, q: ArrayLike, qdot: ArrayLike,
+             mass: ArrayLike | None = None, bias: ArrayLike | None = None
+             ) -> NDArray[np.float64]:
         """
         Return the joint torques u (6,) for this step and advance G_c one sample.
 
@@ -184,8 +195,10 @@ class Feedforward:
     target is still checked reachable.
     """
 
-    def __init__(self, pose, tau_in, dt, params=IRB4600, feedforward_ratio=FEEDFORWARD_RATIO,
-                 feedforward_method=FEEDFORWARD_METHODS[0]):
+    def __init__(self, pose: ArrayLike, tau_in: float, dt: float,
+                 params: 'RobotParams' = IRB4600,
+                 feedforward_ratio: float = FEEDFORWARD_RATIO,
+                 feedforward_method: str = FEEDFORWARD_METHODS[0]) -> None:
         """Check the target is reachable (eq. 43) and design T_forward at ``dt``."""
         self.pose = np.asarray(pose, dtype=float)
         self.params = params
@@ -204,18 +217,18 @@ class Feedforward:
         self.q_start = None
 
     @property
-    def started(self):
+    def started(self) -> bool:
         """Return True once :meth:`start` has fixed the IK branch."""
         return self.q_target is not None
 
-    def start(self, q0):
+    def start(self, q0: ArrayLike) -> NDArray[np.float64]:
         """Choose the IK branch nearest ``q0`` (eq. 43), rest the filter at q0; return it."""
         self.q_start = np.asarray(q0, dtype=float).copy()
         self.q_target = inverse_kinematics(self.pose, self.params, seed=self.q_start)
         self.filter.reset(rest_input=self.q_start)
         return self.q_target
 
-    def step(self):
+    def step(self) -> NDArray[np.float64]:
         """Return q_feedforward for the next sample (the first one is q0; 'hold': all)."""
         if not self.started:
             raise RuntimeError('Feedforward.start(q0) first')
@@ -224,8 +237,8 @@ class Feedforward:
             return self.q_start.copy()
         return self.filter.step(self.q_start if self.filter.steps == 0 else self.q_target)
 
-    def trajectory(self, max_samples=MAX_FEEDFORWARD_SAMPLES, atol=SETTLED_RAD,
-                   settled_samples=SETTLED_SAMPLES):
+    def trajectory(self, max_samples: int = MAX_FEEDFORWARD_SAMPLES, atol: float = SETTLED_RAD,
+                   settled_samples: int = SETTLED_SAMPLES) -> NDArray[np.float64]:
         """
         Return q_feedforward at every physics step from t = 0 until it has settled.
 
@@ -247,7 +260,7 @@ class Feedforward:
             still = still + 1 if np.max(np.abs(rows[-1] - rows[-2])) <= atol else 0
         return np.array(rows)
 
-    def pose_error(self):
+    def pose_error(self) -> tuple[float, float]:
         """Return (m, rad) between FK(q_target) and the target pose: the IK residual."""
         return pose_error(forward_kinematics(self.q_target, self.params), self.pose)
 
@@ -322,10 +335,12 @@ class AdaptiveFeedback:
       slew takes ~1 s; integrating it overshoots by 0.2 m (model-only loop).
     """
 
-    def __init__(self, model, pose, tau_in, omega_n, zeta, dt, svd_rcond=SVD_RCOND,
-                 svd_damping=SVD_DAMPING, feedback_design=FEEDBACK_DESIGNS[0],
-                 max_correction_rad=MAX_CORRECTION_RAD, hold_speed_fraction=HOLD_SPEED_FRACTION,
-                 linearise_at=LINEARISE_AT, p_target=None):
+    def __init__(self, model: 'CameraRobotModel', pose: ArrayLike, tau_in: float,
+                 omega_n: float, zeta: float, dt: float, svd_rcond: float = SVD_RCOND,
+                 svd_damping: float = SVD_DAMPING, feedback_design: str = FEEDBACK_DESIGNS[0],
+                 max_correction_rad: float = MAX_CORRECTION_RAD,
+                 hold_speed_fraction: float = HOLD_SPEED_FRACTION,
+                 linearise_at: str = LINEARISE_AT, p_target: ArrayLike | None = None) -> None:
         """
         Set p_bar and design k.
 
@@ -361,11 +376,13 @@ class AdaptiveFeedback:
         self.last = None
 
     @property
-    def q_feedback(self):
+    def q_feedback(self) -> NDArray[np.float64]:
         """Return the latest output of k (zeros before the first frame)."""
         return self.filter.last_output.copy()
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
+    def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,
+               qdot_encoder: ArrayLike | None = None, measured: bool = True,
+               t: float | None = None) -> 'FeedbackUpdate':
         """
         Return the :class:`FeedbackUpdate` of one frame and advance k one sample.
 
@@ -393,7 +410,7 @@ class AdaptiveFeedback:
                                    float(np.linalg.norm(error)), correction, clipped, held)
         return self.last
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the integrator: q_feedback back to 0."""
         self.filter.reset()
         self.last = None

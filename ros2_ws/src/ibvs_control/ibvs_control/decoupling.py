@@ -19,6 +19,7 @@ slower channel there; the default 0 is the paper's exact inverse.
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 #: Default of ``svd_rcond`` (the adaptive feedback node's parameter of the same name).
 SVD_RCOND = 1e-6
@@ -41,26 +42,27 @@ class Decoupling:
     gain_inv: np.ndarray
 
     @property
-    def condition(self):
+    def condition(self) -> float:
         """Return sigma_1 / sigma_rank, the condition number of the inverted part."""
         return float(self.s[0] / self.s[self.rank - 1]) if self.rank else float('inf')
 
-    def channels(self, error):
+    def channels(self, error: ArrayLike) -> NDArray[np.float64]:
         """Return the joint corrections of the decoupled channels, diag(gain_inv) U^T e."""
         n = self.s.size
         return self.gain_inv * (self.U[:, :n].T @ np.asarray(error, dtype=float))
 
-    def joints(self, channels):
+    def joints(self, channels: ArrayLike) -> NDArray[np.float64]:
         """Return the joint-space vector V c of channel values ``channels`` (rad)."""
         return self.Vt[:self.s.size].T @ np.asarray(channels, dtype=float)
 
     @property
-    def observable(self):
+    def observable(self) -> NDArray[np.float64]:
         """Return the columns of U spanning the observable image directions (6, rank)."""
         return self.U[:, :self.rank]
 
 
-def decouple(c1, svd_rcond=SVD_RCOND, svd_damping=0.0):
+def decouple(c1: ArrayLike, svd_rcond: float = SVD_RCOND, svd_damping: float = 0.0
+             ) -> Decoupling:
     """
     Return the :class:`Decoupling` of C1 (eq. 34) with the inverse used by eq. (37)-(41).
 

@@ -17,17 +17,23 @@ joints). Torque limits are the URDF's joint ``effort`` (ibvs_model.mass_model.jo
 
 from pathlib import Path
 import tempfile
+from typing import TYPE_CHECKING
 
 from ibvs_model import IRB4600
 from ibvs_model.urdf import write_urdf
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 import pybullet
+
+if TYPE_CHECKING:
+    from ibvs_model.robot import RobotParams
 
 
 class RobotDynamics:
     """M(q), h(q, qdot) and the torque limits of the robot, in a private DIRECT client."""
 
-    def __init__(self, params=IRB4600, with_tool=True, urdf_path=None, gravity=9.81):
+    def __init__(self, params: 'RobotParams' = IRB4600, with_tool: bool = True,
+                 urdf_path: str | Path | None = None, gravity: float = 9.81) -> None:
         """Write the URDF of ``params`` (unless ``urdf_path`` is given) and load it."""
         self._tmp = None
         if urdf_path is None:
@@ -55,18 +61,18 @@ class RobotDynamics:
         self.speed_limits = np.array([info[11] for info in movable], dtype=float)
         self._zeros = [0.0] * 6
 
-    def mass_matrix(self, q):
+    def mass_matrix(self, q: ArrayLike) -> NDArray[np.float64]:
         """Return M(q) (6, 6), eq. (24)."""
         return np.array(pybullet.calculateMassMatrix(
             self.body, [float(v) for v in q], physicsClientId=self.client))
 
-    def bias(self, q, qdot):
+    def bias(self, q: ArrayLike, qdot: ArrayLike) -> NDArray[np.float64]:
         """Return h(q, qdot) = C(q, qdot) qdot + g(q) (6,), eq. (25)."""
         return np.array(pybullet.calculateInverseDynamics(
             self.body, [float(v) for v in q], [float(v) for v in qdot], self._zeros,
             physicsClientId=self.client))
 
-    def close(self):
+    def close(self) -> None:
         """Disconnect the client and remove the temporary URDF."""
         if self.client is not None and self.client >= 0:
             try:

@@ -26,6 +26,8 @@ next one: the trajectory starts at the stamp of the state it comes from, and one
 publisher would hold the arm at its start until then.
 """
 
+from typing import Any
+
 from ibvs_common import contract
 from ibvs_common.conversions import (InputError, joint_trajectory, read_joints, read_stamp,
                                      stamp_lead_ns, travel_bounds)
@@ -52,7 +54,7 @@ PARAMS = (TAU_IN, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
 class FeedforwardNode(Node):
     """IK of the target (eq. 43) filtered by T_forward (eq. 44-45) (module docstring)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, design the filter, create the interfaces."""
         super().__init__('feedforward_node', **kwargs)
         values = declare(self, PARAMS)
@@ -108,7 +110,7 @@ class FeedforwardNode(Node):
                                 trajectory_points=len(positions))
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
     """Run the feedforward node (``ros2 run ibvs_control feedforward_node``)."""
     run(FeedforwardNode, args=args, name='feedforward_node')
 

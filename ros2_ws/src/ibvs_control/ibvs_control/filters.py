@@ -13,6 +13,7 @@ input and does not wind up. This needs a biproper filter (D != 0).
 """
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .transfer_function import TransferFunction
 
@@ -20,7 +21,7 @@ from .transfer_function import TransferFunction
 class StateSpaceFilter:
     """A discrete SISO filter run on ``channels`` signals, one sample per :meth:`step`."""
 
-    def __init__(self, tf, channels=6):
+    def __init__(self, tf: TransferFunction, channels: int = 6) -> None:
         """Realise the discrete :class:`TransferFunction` ``tf`` (controllable form)."""
         if not isinstance(tf, TransferFunction) or tf.dt is None:
             raise ValueError('StateSpaceFilter needs a discrete TransferFunction')
@@ -45,18 +46,18 @@ class StateSpaceFilter:
             raise ValueError(f'expected {self.channels} inputs, got shape {u.shape}')
         return u
 
-    def output(self, u):
+    def output(self, u: ArrayLike) -> NDArray[np.float64]:
         """Return y = C x + D u for the input ``u`` now, without changing the state."""
         u = self._input(u)
         return self.C @ self.x + self.D * u
 
-    def update(self, u):
+    def update(self, u: ArrayLike) -> None:
         """Advance the state one sample with input ``u``: x <- A x + B u."""
         u = self._input(u)
         self.x = self.A @ self.x + np.outer(self.B, u)
         self.steps += 1
 
-    def step(self, u, applied=None):
+    def step(self, u: ArrayLike, applied: ArrayLike | None = None) -> NDArray[np.float64]:
         """
         Return the output for input ``u`` and advance the state one sample.
 
@@ -76,7 +77,7 @@ class StateSpaceFilter:
         self.last_output = y
         return y
 
-    def reset(self, rest_input=None):
+    def reset(self, rest_input: ArrayLike | None = None) -> None:
         """
         Reset the state: zero, or at rest for a constant input ``rest_input``.
 
@@ -96,7 +97,7 @@ class StateSpaceFilter:
         self.x = np.linalg.solve(lhs, np.outer(self.B, u))
         self.last_output = self.output(u)
 
-    def copy(self):
+    def copy(self) -> 'StateSpaceFilter':
         """Return an independent filter with the same coefficients and state."""
         other = StateSpaceFilter.__new__(StateSpaceFilter)
         other.__dict__.update(self.__dict__)

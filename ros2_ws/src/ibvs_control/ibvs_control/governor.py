@@ -18,12 +18,14 @@ step); the speed then moves toward it by at most a dt per step.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 
 class ReferenceGovernor:
     """Shape a reference into a trajectory with bounded speed and acceleration, per joint."""
 
-    def __init__(self, dt, speed_limits, acceleration_limits=None):
+    def __init__(self, dt: float, speed_limits: ArrayLike,
+                 acceleration_limits: ArrayLike | None = None) -> None:
         """
         Sample time ``dt`` (s); limits (6,) in rad/s and rad/s^2, all > 0.
 
@@ -40,13 +42,14 @@ class ReferenceGovernor:
         self.r = None
         self.rd = None
 
-    def reset(self, position, velocity=None):
+    def reset(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
         """Start at ``position`` with ``velocity`` (default at rest)."""
         self.r = np.asarray(position, dtype=float).copy()
         self.rd = np.zeros_like(self.r) if velocity is None \
             else np.asarray(velocity, dtype=float).copy()
 
-    def step(self, target, acceleration_limits=None):
+    def step(self, target: ArrayLike, acceleration_limits: ArrayLike | None = None
+             ) -> NDArray[np.float64]:
         """Advance one sample toward ``target``; return the shaped reference r."""
         target = np.asarray(target, dtype=float)
         a_max = self.a_max if acceleration_limits is None \

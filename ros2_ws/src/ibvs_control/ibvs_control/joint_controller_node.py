@@ -62,6 +62,8 @@ message. A rejected q_feedback is not stored, so a good one with the same stamp 
 and the loop goes on as if the bad one had never come.
 """
 
+from typing import Any
+
 from builtin_interfaces.msg import Duration
 from ibvs_common import contract
 from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
@@ -79,6 +81,7 @@ from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import check_camera_rate, ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import IRB4600
 import numpy as np
+from numpy.typing import NDArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState, TimeReference
@@ -106,7 +109,7 @@ FEEDBACK_BOUND_RAD = np.asarray(IRB4600.q_max) - np.asarray(IRB4600.q_min)
 class JointControllerNode(Node):
     """Computed torque with the sampled Youla G_c, in lockstep (module docstring)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, load the dynamics model, create interfaces."""
         super().__init__('joint_controller_node', **kwargs)
         values = declare(self, PARAMS)
@@ -210,7 +213,7 @@ class JointControllerNode(Node):
             f'{self._pub.topic_name} ({values["position_command_type"]}), joints '
             f'{self.joints}')
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Release the PyBullet client with the node."""
         if self.dynamics is not None:
             self.dynamics.close()
@@ -271,7 +274,7 @@ class JointControllerNode(Node):
                                 last_command_ns=now_ns)
 
     # -- inputs ----------------------------------------------------------------------------
-    def now_ns(self):
+    def now_ns(self) -> int:
         """Return the newest time the node knows: its clock and its last answered stamp."""
         if self.command_interface == 'position':
             return node_time_ns(self, self._measured[0] if self._measured else None)
@@ -346,7 +349,7 @@ class JointControllerNode(Node):
         self.diagnostics.update(frames_lost=self.frames_lost)
         self._drain()
 
-    def q_feedforward(self, t_ns):
+    def q_feedforward(self, t_ns: int) -> NDArray[np.float64]:
         """Return the feedforward at ``t_ns``: the trajectory's point, held past its ends."""
         start_ns, positions = self._trajectory
         k = (t_ns - start_ns) // self.dt_ns
@@ -402,7 +405,7 @@ class JointControllerNode(Node):
         self._progress = False
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
     """Run the joint controller node (``ros2 run ibvs_control joint_controller_node``)."""
     run(JointControllerNode, args=args, name='joint_controller_node')
 

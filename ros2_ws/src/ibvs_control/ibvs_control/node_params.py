@@ -7,11 +7,19 @@ package. The checks turn a configuration the controllers cannot work with into a
 at start (exit code 2, ibvs_common.node_main.run) instead of misbehaving later.
 """
 
+from collections.abc import Mapping
+from typing import Any, TYPE_CHECKING
+
 from ibvs_common.params import Param, ParameterError
 from ibvs_common.shared_params import OMEGA_N, target_from_parameters, TAU_IN, ZETA
 from ibvs_model import IRB4600, ModelError
+import numpy as np
+from numpy.typing import NDArray
 
 from . import controllers, servo_laws, youla
+
+if TYPE_CHECKING:
+    from ibvs_model.robot import RobotParams
 
 FEEDFORWARD_METHOD = Param(
     'feedforward_method', controllers.FEEDFORWARD_METHODS[0],
@@ -100,12 +108,12 @@ LAW_PARAMS = (TAU_IN, OMEGA_N, ZETA, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MA
               WINDUP_HORIZON_S, JOINT_LIMIT_MARGIN_RAD)
 
 
-def law_settings(values):
+def law_settings(values: Mapping[str, Any]) -> dict[str, Any]:
     """Return the values of :data:`LAW_PARAMS` in ``values`` (a mapping by name), by name."""
     return {spec.name: values[spec.name] for spec in LAW_PARAMS}
 
 
-def check_gains(values):
+def check_gains(values: Mapping[str, Any]) -> None:
     """Raise ParameterError naming 'omega_n' unless 1 / omega_n > tau_in (paper, eq. 36)."""
     try:
         youla.check_bandwidth_rule(values['tau_in'], values['omega_n'])
@@ -115,7 +123,7 @@ def check_gains(values):
             f"{values['tau_in']!r}: {exc}; allowed: omega_n < 1 / tau_in") from None
 
 
-def check_servo_law(values):
+def check_servo_law(values: Mapping[str, Any]) -> servo_laws.AdaptiveGain:
     """
     Raise ParameterError unless the servo law, its gains and the feedforward agree.
 
@@ -138,7 +146,8 @@ def check_servo_law(values):
             'lambda_inf <= lambda_0, or lambda_slope 0') from None
 
 
-def target_from(values, params=IRB4600):
+def target_from(values: Mapping[str, Any], params: 'RobotParams' = IRB4600
+                ) -> NDArray[np.float64]:
     """
     Return the target pose of 'target_position' / 'target_rotation', checked reachable.
 

@@ -10,14 +10,17 @@ which command is the first to use a frame (the latency measurement), is
 :class:`FeedbackHold`.
 """
 
+from collections.abc import Iterable
+
 from ibvs_model import IRB4600
 from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, SPEED_LIMITS
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .governor import ReferenceGovernor
 
 
-def joint_permutation(joints, names):
+def joint_permutation(joints: Iterable[str], names: Iterable[str]) -> NDArray[np.int_]:
     """
     Return the indices that reorder values given in ``names`` order into ``joints`` order.
 
@@ -49,9 +52,11 @@ class PositionShaper:
     and the reference must keep the pace of the arm, not of the ticks.
     """
 
-    def __init__(self, command_rate_hz, speed_limits=SPEED_LIMITS,
-                 acceleration_limits=ACCELERATION_LIMITS, speed_margin=1.0,
-                 position_limits=(IRB4600.q_min, IRB4600.q_max), range_margin=0.02):
+    def __init__(self, command_rate_hz: float, speed_limits: ArrayLike = SPEED_LIMITS,
+                 acceleration_limits: ArrayLike = ACCELERATION_LIMITS,
+                 speed_margin: float = 1.0,
+                 position_limits: tuple[ArrayLike, ArrayLike] = (IRB4600.q_min, IRB4600.q_max),
+                 range_margin: float = 0.02) -> None:
         """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2 and rad."""
         if not (np.isfinite(command_rate_hz) and command_rate_hz > 0.0):
             raise ValueError(f'command_rate_hz must be > 0, got {command_rate_hz}')
@@ -64,15 +69,15 @@ class PositionShaper:
         self.high = np.asarray(position_limits[1], dtype=float) - range_margin
 
     @property
-    def started(self):
+    def started(self) -> bool:
         """Return whether :meth:`start` was called."""
         return self.governor.r is not None
 
-    def start(self, q):
+    def start(self, q: ArrayLike) -> None:
         """Start from the measured joints ``q`` (6,), at rest."""
         self.governor.reset(q)
 
-    def step(self, q_ref, dt=None):
+    def step(self, q_ref: ArrayLike, dt: float | None = None) -> NDArray[np.float64]:
         """
         Advance ``dt`` seconds (default one nominal period) toward ``q_ref`` (6,).
 
@@ -98,13 +103,13 @@ class FeedbackHold:
     node can report the latency from exposure to the command that first acts on it.
     """
 
-    def __init__(self, initial):
+    def __init__(self, initial: ArrayLike) -> None:
         """Hold ``initial`` (6,) until the first q_feedback."""
         self.q = np.asarray(initial, dtype=float).copy()
         self.stamp_ns = None
         self._used = True
 
-    def offer(self, stamp_ns, q):
+    def offer(self, stamp_ns: int, q: ArrayLike) -> tuple[str, str] | None:
         """
         Take the q_feedback of the frame stamped ``stamp_ns``.
 
@@ -119,7 +124,7 @@ class FeedbackHold:
         self._used = False
         return None
 
-    def use(self):
+    def use(self) -> tuple[NDArray[np.float64], int | None]:
         """Return (q_feedback, stamp ns of the frame used for the first time, or None)."""
         first = None if self._used else self.stamp_ns
         self._used = True

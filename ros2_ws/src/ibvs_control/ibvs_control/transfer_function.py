@@ -9,6 +9,7 @@ continuous-time (Laplace, s) transfer function; ``dt > 0`` a discrete-time (z) o
 """
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 
@@ -30,7 +31,7 @@ class TransferFunction:
     return new objects; nothing is modified in place.
     """
 
-    def __init__(self, num, den, dt=None):
+    def __init__(self, num: ArrayLike, den: ArrayLike, dt: float | None = None) -> None:
         """Store num/den (highest power first), normalised so that den is monic."""
         num, den = _trim(num), _trim(den)
         if not np.any(den):
@@ -43,12 +44,13 @@ class TransferFunction:
 
     # -- construction -----------------------------------------------------------------
     @classmethod
-    def s(cls):
+    def s(cls) -> 'TransferFunction':
         """Return the Laplace variable s as a transfer function."""
         return cls([1.0, 0.0], [1.0])
 
     @classmethod
-    def from_roots(cls, zeros, poles, gain=1.0, dt=None):
+    def from_roots(cls, zeros: ArrayLike, poles: ArrayLike, gain: float = 1.0,
+                   dt: float | None = None) -> 'TransferFunction':
         """Return gain * prod(x - zeros) / prod(x - poles)."""
         return cls(gain * np.real_if_close(np.poly(zeros)), np.real_if_close(np.poly(poles)),
                    dt)
@@ -102,14 +104,14 @@ class TransferFunction:
         """Return other - self."""
         return self._coerce(other) - self
 
-    def feedback(self, other=1.0):
+    def feedback(self, other: 'TransferFunction | float' = 1.0) -> 'TransferFunction':
         """Return the negative-feedback loop self / (1 + self * other)."""
         other = self._coerce(other)
         return TransferFunction(np.polymul(self.num, other.den),
                                 np.polyadd(np.polymul(self.den, other.den),
                                            np.polymul(self.num, other.num)), self.dt)
 
-    def minreal(self, tol=1e-6):
+    def minreal(self, tol: float = 1e-6) -> 'TransferFunction':
         """
         Return the transfer function with common roots of num and den cancelled.
 
@@ -130,11 +132,11 @@ class TransferFunction:
         return TransferFunction.from_roots(kept_zeros, poles, gain, self.dt)
 
     # -- properties ---------------------------------------------------------------------
-    def poles(self):
+    def poles(self) -> NDArray[np.complex128]:
         """Return the roots of the denominator."""
         return np.roots(self.den) if self.den.size > 1 else np.zeros(0)
 
-    def zeros(self):
+    def zeros(self) -> NDArray[np.complex128]:
         """Return the roots of the numerator."""
         return np.roots(self.num) if self.num.size > 1 else np.zeros(0)
 
@@ -142,7 +144,7 @@ class TransferFunction:
         """Evaluate at a complex frequency s (or z)."""
         return np.polyval(self.num, x) / np.polyval(self.den, x)
 
-    def dc_gain(self):
+    def dc_gain(self) -> float:
         """Return the gain at s = 0 (continuous) or z = 1 (discrete); inf for a pole there."""
         x = 0.0 if self.dt is None else 1.0
         den = np.polyval(self.den, x)
@@ -151,11 +153,11 @@ class TransferFunction:
             return np.inf if abs(num) > 0.0 else np.nan
         return float(num / den)
 
-    def is_proper(self):
+    def is_proper(self) -> bool:
         """Return True when deg(num) <= deg(den) (realisable)."""
         return self.num.size <= self.den.size
 
-    def is_stable(self, margin=0.0):
+    def is_stable(self, margin: float = 0.0) -> bool:
         """Return True when every pole has Re < -margin (continuous) or |z| < 1 - margin."""
         poles = self.poles()
         if poles.size == 0:
@@ -164,7 +166,7 @@ class TransferFunction:
             return bool(np.all(poles.real < -margin))
         return bool(np.all(np.abs(poles) < 1.0 - margin))
 
-    def same_as(self, other, rtol=1e-6):
+    def same_as(self, other: 'TransferFunction | float', rtol: float = 1e-6) -> bool:
         """Return True when both have the same coefficients once padded (monic den)."""
         other = self._coerce(other)
 
@@ -176,14 +178,15 @@ class TransferFunction:
         return bool(np.allclose(a, b, rtol=rtol, atol=rtol * np.max(np.abs(a))))
 
     # -- conversion ---------------------------------------------------------------------
-    def to_ss(self):
+    def to_ss(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                             NDArray[np.float64]]:
         """Return (A, B, C, D) of a state-space realisation (scipy.signal.tf2ss)."""
         if not self.is_proper():
             raise ValueError('an improper transfer function has no state-space realisation')
         a, b, c, d = signal.tf2ss(self.num, self.den)
         return a, b, c, d
 
-    def discretise(self, dt, method='bilinear'):
+    def discretise(self, dt: float, method: str = 'bilinear') -> 'TransferFunction':
         """
         Return the discrete-time equivalent at sample time ``dt`` (scipy cont2discrete).
 
@@ -195,7 +198,7 @@ class TransferFunction:
         num, den, _ = signal.cont2discrete((self.num, self.den), dt, method=method)
         return TransferFunction(np.ravel(num), den, dt)
 
-    def step(self, t):
+    def step(self, t: ArrayLike) -> NDArray[np.float64]:
         """
         Return the unit step response at the times ``t`` (s).
 

@@ -52,7 +52,7 @@ from .transfer_function import TransferFunction
 FEEDFORWARD_RATIO = 0.1
 
 
-def check_bandwidth_rule(tau_in, omega_n):
+def check_bandwidth_rule(tau_in: float, omega_n: float) -> None:
     """
     Raise ValueError unless 1 / omega_n > tau_in (the paper's rule after eq. 36).
 
@@ -65,7 +65,8 @@ def check_bandwidth_rule(tau_in, omega_n):
                          f'tau_in = {tau_in:.6g} s (paper, after eq. 36)')
 
 
-def youla_controller(plant, closed_loop, tol=1e-6):
+def youla_controller(plant: TransferFunction, closed_loop: TransferFunction,
+                     tol: float = 1e-6) -> TransferFunction:
     """
     Return G = Y / (1 - T) with Y = T / P: the controller that makes T the closed loop.
 
@@ -77,42 +78,45 @@ def youla_controller(plant, closed_loop, tol=1e-6):
 
 # -- continuous designs ---------------------------------------------------------------------
 
-def double_integrator():
+def double_integrator() -> TransferFunction:
     """Return 1 / s^2: the joint dynamics after feedback linearisation, eq. (27)."""
     return TransferFunction([1.0], [1.0, 0.0, 0.0])
 
 
-def inner_closed_loop(tau_in):
+def inner_closed_loop(tau_in: float) -> TransferFunction:
     """Return T_inner = (3 tau s + 1) / (tau s + 1)^3, eq. (29)."""
     return TransferFunction([3.0 * tau_in, 1.0], np.poly([-1.0 / tau_in] * 3) * tau_in ** 3)
 
 
-def inner_controller(tau_in):
+def inner_controller(tau_in: float) -> TransferFunction:
     """Return G_c = (3 tau s + 1) / (tau^3 s + 3 tau^2): eq. (28) fixed (docs/design.md §5)."""
     return TransferFunction([3.0 * tau_in, 1.0], [tau_in ** 3, 3.0 * tau_in ** 2])
 
 
-def inner_controller_printed(tau_in):
+def inner_controller_printed(tau_in: float) -> TransferFunction:
     """Return eq. (28) as printed, (3 tau^2 s + 1) / (tau^3 s + 3 tau^2): unstable loop."""
     return TransferFunction([3.0 * tau_in ** 2, 1.0], [tau_in ** 3, 3.0 * tau_in ** 2])
 
 
-def butterworth(omega_n, zeta):
+def butterworth(omega_n: float, zeta: float) -> TransferFunction:
     """Return M_T = wn^2 / (s^2 + 2 zeta wn s + wn^2), eq. (36)."""
     return TransferFunction([omega_n ** 2], [1.0, 2.0 * zeta * omega_n, omega_n ** 2])
 
 
-def outer_plant_channel(tau_in, gain=1.0):
+def outer_plant_channel(tau_in: float, gain: float = 1.0) -> TransferFunction:
     """Return M_p(i, i) = gain(i) (3 tau s + 1) / (tau s + 1)^3, eq. (35)."""
     return gain * inner_closed_loop(tau_in)
 
 
-def outer_youla_channel(tau_in, omega_n, zeta, gain=1.0):
+def outer_youla_channel(tau_in: float, omega_n: float, zeta: float,
+                        gain: float = 1.0) -> TransferFunction:
     """Return M_Y(i, i) = M_T / M_p(i, i), eq. (37)."""
     return butterworth(omega_n, zeta) / outer_plant_channel(tau_in, gain)
 
 
-def outer_channel_design(tau_in, omega_n, zeta, gain=1.0):
+def outer_channel_design(tau_in: float, omega_n: float, zeta: float, gain: float = 1.0
+                         ) -> tuple[TransferFunction, TransferFunction, TransferFunction,
+                                    TransferFunction]:
     """
     Return (M_Y, T_y, S_y, G_C) of one decoupled channel by eq. (37), (39), (40), (41).
 
@@ -126,7 +130,7 @@ def outer_channel_design(tau_in, omega_n, zeta, gain=1.0):
     return m_y, t_y, s_y, g_c
 
 
-def outer_controller(tau_in, omega_n, zeta):
+def outer_controller(tau_in: float, omega_n: float, zeta: float) -> TransferFunction:
     """
     Return k(s) = wn^2 (tau s + 1)^3 / ((3 tau s + 1) s (s + 2 zeta wn)) (docs/design.md §5).
 
@@ -138,7 +142,8 @@ def outer_controller(tau_in, omega_n, zeta):
     return TransferFunction(num, den)
 
 
-def feedforward(tau_in, feedforward_ratio=FEEDFORWARD_RATIO):
+def feedforward(tau_in: float, feedforward_ratio: float = FEEDFORWARD_RATIO
+                ) -> TransferFunction:
     """
     Return T_forward = (tau s + 1)^3 / ((3 tau s + 1)(tau_f s + 1)^2), eq. (44).
 
@@ -154,7 +159,7 @@ def feedforward(tau_in, feedforward_ratio=FEEDFORWARD_RATIO):
 
 # -- sampled-data designs ------------------------------------------------------------------
 
-def double_integrator_discrete(dt):
+def double_integrator_discrete(dt: float) -> TransferFunction:
     """Return ZOH{1/s^2} = dt^2 (z + 1) / (2 (z - 1)^2): the sampled eq. (27)."""
     return TransferFunction([dt * dt / 2.0, dt * dt / 2.0], [1.0, -2.0, 1.0], dt)
 
@@ -175,13 +180,13 @@ def _inner_discrete_coefficients(tau_in, dt):
     return p, z0, gain, -quotient[1]
 
 
-def inner_closed_loop_discrete(tau_in, dt):
+def inner_closed_loop_discrete(tau_in: float, dt: float) -> TransferFunction:
     """Return T_d = K (z + 1)(z - z0) / (z - p)^3, the sampled eq. (29)."""
     p, z0, gain, _ = _inner_discrete_coefficients(tau_in, dt)
     return TransferFunction(gain * np.polymul([1.0, 1.0], [1.0, -z0]), np.poly([p] * 3), dt)
 
 
-def inner_controller_discrete(tau_in, dt):
+def inner_controller_discrete(tau_in: float, dt: float) -> TransferFunction:
     """
     Return the sampled eq. (28): G_c,d = (2 K / dt^2) (z - z0) / (z - c).
 
@@ -192,7 +197,8 @@ def inner_controller_discrete(tau_in, dt):
     return TransferFunction(2.0 * gain / dt ** 2 * np.array([1.0, -z0]), [1.0, -c], dt)
 
 
-def outer_controller_discrete(tau_in, omega_n, zeta, dt):
+def outer_controller_discrete(tau_in: float, omega_n: float, zeta: float,
+                              dt: float) -> TransferFunction:
     """
     Return k_d(z) = M_T,d / (P_d (1 - M_T,d)): eq. (37)-(41) on the sampled plant.
 
@@ -211,7 +217,8 @@ def outer_controller_discrete(tau_in, omega_n, zeta, dt):
     return TransferFunction(num, den, dt)
 
 
-def feedforward_discrete(tau_in, dt, feedforward_ratio=FEEDFORWARD_RATIO):
+def feedforward_discrete(tau_in: float, dt: float, feedforward_ratio: float = FEEDFORWARD_RATIO
+                         ) -> TransferFunction:
     """
     Return T_forward,d = (z + 1) / (2 T_d(z)) ((1 - p_f) / (z - p_f))^2, eq. (44)-(45).
 

@@ -32,6 +32,10 @@ Adding a law: one module with a :class:`.base.ServoLaw` subclass, and one line i
 :data:`LAWS`.
 """
 
+from typing import Any, TYPE_CHECKING
+
+from numpy.typing import ArrayLike
+
 from .base import (AdaptiveGain, FEATURE_FALLBACKS, guard_reference, JOINT_LIMIT_MARGIN_RAD,
                    LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE, ServoLaw, target_features,
                    VelocityLaw, WINDUP_HORIZON_S)
@@ -39,6 +43,9 @@ from .ibvs import ClassicIBVS
 from .paper import Paper
 from .pbvs import axis_error, PBVS, SUBSTEPS, tool_from_markers
 from .switching import SWITCH_SETTLE_S, Switching, SWITCHING_FEEDFORWARD_RATIO
+
+if TYPE_CHECKING:
+    from ibvs_model.combined import CameraRobotModel
 
 #: The registry: every servo law, the default (the paper's) first.
 LAWS = (Paper, Switching, ClassicIBVS, PBVS)
@@ -53,7 +60,7 @@ __all__ = ['AdaptiveGain', 'axis_error', 'ClassicIBVS', 'FEATURE_FALLBACKS',
            'VelocityLaw', 'WINDUP_HORIZON_S']
 
 
-def law_class(name):
+def law_class(name: str) -> type[ServoLaw]:
     """Return the :class:`.base.ServoLaw` subclass named ``name``; ValueError if none."""
     for law in LAWS:
         if law.name == name:
@@ -61,12 +68,13 @@ def law_class(name):
     raise ValueError(f'servo_law must be one of {SERVO_LAWS}, got {name!r}')
 
 
-def feedforward_overrides(name):
+def feedforward_overrides(name: str) -> dict[str, Any]:
     """Return the feedforward parameters that go with the law ``name`` (a new dict)."""
     return dict(law_class(name).feedforward)
 
 
-def make_law(name, model, pose, dt, **settings):
+def make_law(name: str, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+             **settings: Any) -> ServoLaw:
     """
     Return the servo law ``name`` for ``model``, target ``pose``, camera period ``dt`` (s).
 

@@ -11,12 +11,19 @@ error of every law: e = s - s* (:func:`ibvs_control.controllers.feature_error`; 
 vpServo, Chaumette & Hutchinson, IEEE RAM 2006, eq. 1).
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any, TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ..controllers import FeedbackUpdate
 from ..decoupling import SVD_RCOND
+
+if TYPE_CHECKING:
+    from ibvs_model.combined import CameraRobotModel
+    from ibvs_model.robot import RobotParams
 
 #: Defaults of the velocity laws' gain (:class:`AdaptiveGain`, 1/s and 1/(s px)).
 #: Model-only loop, scenario 1 (|e| = 1840 px at the start): a constant lambda of 4, 6 or
@@ -71,22 +78,23 @@ class ServoLaw:
     holding = 'holding'
 
     @classmethod
-    def create(cls, model, pose, dt, **settings):
+    def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+               **settings: Any) -> 'ServoLaw':
         """Return the law for ``model``, target ``pose`` and camera period ``dt`` (s)."""
         return cls(model, pose, dt, **{k: settings[k] for k in cls.options if k in settings})
 
     @classmethod
-    def needs_measured(cls, settings):
+    def needs_measured(cls, settings: Mapping[str, Any]) -> bool:
         """Return True when the law needs to know, per frame, whether it was measured."""
         return False
 
     @classmethod
-    def feedforward_method(cls, method):
+    def feedforward_method(cls, method: str) -> str:
         """Return the feedforward_method the law runs with when ``method`` is asked."""
         return 'hold' if cls.without_feedforward else method
 
     @classmethod
-    def feedforward_problem(cls, method):
+    def feedforward_problem(cls, method: str) -> str | None:
         """Return why ``method`` does not go with this law, or None if it does."""
         if cls.without_feedforward and method != 'hold':
             return "that law has no feedforward; allowed: 'hold' (ibvs run sets it for you)"
@@ -94,11 +102,13 @@ class ServoLaw:
             return "that law needs the feedforward; allowed: 'sampled', 'tustin' or 'zoh'"
         return None
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
+    def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,
+               qdot_encoder: ArrayLike | None = None, measured: bool = True,
+               t: float | None = None) -> FeedbackUpdate:
         """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
         raise NotImplementedError
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the law's state: q_feedback back to 0."""
         raise NotImplementedError
 
@@ -140,7 +150,8 @@ class AdaptiveGain:
         return float(a * np.exp(-self.lambda_slope * float(error_norm) / a) + self.lambda_inf)
 
 
-def target_features(model, pose, p_target=None):
+def target_features(model: 'CameraRobotModel', pose: NDArray[np.float64],
+                    p_target: ArrayLike | None = None) -> NDArray[np.float64]:
     """Return p_bar: ``p_target`` (taught, checked) or the model's F at ``pose`` (eq. 30)."""
     if p_target is not None:
         p_target = np.asarray(p_target, dtype=float).reshape(-1)
@@ -151,8 +162,10 @@ def target_features(model, pose, p_target=None):
     return model.camera.project(markers).reshape(6)
 
 
-def guard_reference(q_ref, q_encoder, params, windup_horizon_s=WINDUP_HORIZON_S,
-                    joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD):
+def guard_reference(q_ref: ArrayLike, q_encoder: NDArray[np.float64], params: 'RobotParams',
+                    windup_horizon_s: float = WINDUP_HORIZON_S,
+                    joint_limit_margin_rad: float = JOINT_LIMIT_MARGIN_RAD
+                    ) -> tuple[NDArray[np.float64], bool]:
     """
     Return the joint reference kept where the arm can follow it, and whether it was cut.
 
@@ -196,13 +209,16 @@ class VelocityLaw(ServoLaw):
                'joint_limit_margin_rad')
 
     @classmethod
-    def needs_measured(cls, settings):
+    def needs_measured(cls, settings: Mapping[str, Any]) -> bool:
         """Return True with feature_fallback 'hold': the law then needs /ibvs/feature_status."""
         return settings.get('feature_fallback', FEATURE_FALLBACKS[0]) == 'hold'
 
-    def __init__(self, model, pose, dt, gain=None, svd_rcond=SVD_RCOND, p_target=None,
-                 feature_fallback=FEATURE_FALLBACKS[0], windup_horizon_s=WINDUP_HORIZON_S,
-                 joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD):
+    def __init__(self, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+                 gain: AdaptiveGain | None = None, svd_rcond: float = SVD_RCOND,
+                 p_target: ArrayLike | None = None,
+                 feature_fallback: str = FEATURE_FALLBACKS[0],
+                 windup_horizon_s: float = WINDUP_HORIZON_S,
+                 joint_limit_margin_rad: float = JOINT_LIMIT_MARGIN_RAD) -> None:
         """Keep the model, the target pose and p_bar (``p_target`` or F at the pose)."""
         if feature_fallback not in FEATURE_FALLBACKS:
             raise ValueError(f'feature_fallback must be one of {FEATURE_FALLBACKS}, got '
@@ -224,11 +240,11 @@ class VelocityLaw(ServoLaw):
         self.last = None
 
     @property
-    def q_feedback(self):
+    def q_feedback(self) -> NDArray[np.float64]:
         """Return the integrated correction (zeros before the first frame)."""
         return self._q_feedback.copy()
 
-    def q_reference(self, q_encoder):
+    def q_reference(self, q_encoder: ArrayLike) -> NDArray[np.float64]:
         """Return q(0) + q_feedback, the joint reference; q(0) is the first frame's q_T."""
         if self.q_start is None:
             self.q_start = np.asarray(q_encoder, dtype=float).copy()
@@ -247,7 +263,7 @@ class VelocityLaw(ServoLaw):
                                    error_norm, correction, clipped, held)
         return self.last
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the integrated correction."""
         self._q_feedback = np.zeros(6)
         self.q_start = None

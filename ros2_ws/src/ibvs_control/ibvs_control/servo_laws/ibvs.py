@@ -1,10 +1,17 @@
 """Classic image-based visual servoing on the stereo features (no ROS)."""
 
-import numpy as np
+from typing import TYPE_CHECKING
 
-from .base import FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw, WINDUP_HORIZON_S
-from ..controllers import check_inputs, feature_error
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .base import (AdaptiveGain, FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw,
+                   WINDUP_HORIZON_S)
+from ..controllers import check_inputs, feature_error, FeedbackUpdate
 from ..decoupling import decouple, SVD_RCOND
+
+if TYPE_CHECKING:
+    from ibvs_model.combined import CameraRobotModel
 
 
 class ClassicIBVS(VelocityLaw):
@@ -24,10 +31,12 @@ class ClassicIBVS(VelocityLaw):
     name = 'ibvs'
     options = VelocityLaw.options + ('svd_damping',)
 
-    def __init__(self, model, pose, dt, gain=None, svd_rcond=SVD_RCOND, svd_damping=0.0,
-                 p_target=None, feature_fallback=FEATURE_FALLBACKS[0],
-                 windup_horizon_s=WINDUP_HORIZON_S,
-                 joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD):
+    def __init__(self, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+                 gain: AdaptiveGain | None = None, svd_rcond: float = SVD_RCOND,
+                 svd_damping: float = 0.0, p_target: ArrayLike | None = None,
+                 feature_fallback: str = FEATURE_FALLBACKS[0],
+                 windup_horizon_s: float = WINDUP_HORIZON_S,
+                 joint_limit_margin_rad: float = JOINT_LIMIT_MARGIN_RAD) -> None:
         """
         Project the target markers (p_bar = F(q_target), eq. 30); ``dt`` the camera period.
 
@@ -37,7 +46,9 @@ class ClassicIBVS(VelocityLaw):
                          windup_horizon_s, joint_limit_margin_rad)
         self.svd_damping = svd_damping
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
+    def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,
+               qdot_encoder: ArrayLike | None = None, measured: bool = True,
+               t: float | None = None) -> FeedbackUpdate:
         """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
         p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         error = feature_error(p_hat, self.p_target)

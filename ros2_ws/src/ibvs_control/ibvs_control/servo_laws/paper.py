@@ -1,7 +1,14 @@
 """The paper's law as a servo law: the adaptive Youla feedback of section 4.2 (no ROS)."""
 
+from typing import Any, TYPE_CHECKING
+
+from numpy.typing import ArrayLike
+
 from .base import ServoLaw
 from ..controllers import AdaptiveFeedback
+
+if TYPE_CHECKING:
+    from ibvs_model.combined import CameraRobotModel
 
 
 class Paper(AdaptiveFeedback, ServoLaw):
@@ -18,7 +25,8 @@ class Paper(AdaptiveFeedback, ServoLaw):
     holding = 'holding (arm slewing)'
 
     @classmethod
-    def create(cls, model, pose, dt, **settings):
+    def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+               **settings: Any) -> 'Paper':
         """Return the feedback with the Youla design's ``tau_in``, ``omega_n``, ``zeta``."""
         return cls(model, pose, settings['tau_in'], settings['omega_n'], settings['zeta'], dt,
                    **{k: settings[k] for k in cls.options if k in settings})

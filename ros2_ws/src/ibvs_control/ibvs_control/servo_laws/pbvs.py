@@ -1,17 +1,26 @@
 """Position-based visual servoing of the flange point and the tool axis (no ROS)."""
 
+from typing import TYPE_CHECKING
+
 from ibvs_model import geometric_jacobian, InvalidInputError
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-from .base import FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw, WINDUP_HORIZON_S
-from ..controllers import check_inputs
+from .base import (AdaptiveGain, FEATURE_FALLBACKS, JOINT_LIMIT_MARGIN_RAD, VelocityLaw,
+                   WINDUP_HORIZON_S)
+from ..controllers import check_inputs, FeedbackUpdate
 from ..decoupling import decouple, SVD_RCOND
+
+if TYPE_CHECKING:
+    from ibvs_model.camera import StereoCamera
+    from ibvs_model.combined import CameraRobotModel
 
 #: Sub-steps of the PBVS integration over one camera period (:class:`PBVS`).
 SUBSTEPS = 10
 
 
-def tool_from_markers(camera, p_hat):
+def tool_from_markers(camera: 'StereoCamera', p_hat: ArrayLike
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the flange position (3,) and the unit tool axis (3,) in {O} from the features.
 
@@ -26,7 +35,7 @@ def tool_from_markers(camera, p_hat):
     return points[0], axis / norm
 
 
-def axis_error(axis, axis_target):
+def axis_error(axis: ArrayLike, axis_target: ArrayLike) -> NDArray[np.float64]:
     """
     Return theta u (3,): the rotation (angle-axis, rad) that takes ``axis`` to ``axis_target``.
 
@@ -60,10 +69,12 @@ class PBVS(VelocityLaw):
     name = 'pbvs'
     options = VelocityLaw.options + ('substeps',)
 
-    def __init__(self, model, pose, dt, gain=None, svd_rcond=SVD_RCOND, substeps=SUBSTEPS,
-                 p_target=None, feature_fallback=FEATURE_FALLBACKS[0],
-                 windup_horizon_s=WINDUP_HORIZON_S,
-                 joint_limit_margin_rad=JOINT_LIMIT_MARGIN_RAD):
+    def __init__(self, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+                 gain: AdaptiveGain | None = None, svd_rcond: float = SVD_RCOND,
+                 substeps: int = SUBSTEPS, p_target: ArrayLike | None = None,
+                 feature_fallback: str = FEATURE_FALLBACKS[0],
+                 windup_horizon_s: float = WINDUP_HORIZON_S,
+                 joint_limit_margin_rad: float = JOINT_LIMIT_MARGIN_RAD) -> None:
         """
         Keep the target flange position and axis; ``dt`` the camera period.
 
@@ -79,13 +90,15 @@ class PBVS(VelocityLaw):
         else:
             self.t_target, self.axis_target = tool_from_markers(model.camera, self.p_target)
 
-    def pose_error(self, p_hat):
+    def pose_error(self, p_hat: ArrayLike) -> NDArray[np.float64]:
         """Return e = [t - t*, -theta u] (6,) of the measured features (m, rad)."""
         position, axis = tool_from_markers(self.model.camera, p_hat)
         return np.concatenate([position - self.t_target,
                                -axis_error(axis, self.axis_target)])
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
+    def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,
+               qdot_encoder: ArrayLike | None = None, measured: bool = True,
+               t: float | None = None) -> FeedbackUpdate:
         """Return the :class:`.controllers.FeedbackUpdate` of one frame."""
         p_hat, q_encoder = check_inputs(p_hat, q_encoder)
         error = self.pose_error(p_hat)

@@ -1,10 +1,17 @@
 """Feedforward alone, then the paper's feedback: the switching law (no ROS)."""
 
+from collections.abc import Mapping
+from typing import Any, TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .base import ServoLaw
 from .paper import Paper
 from ..controllers import AdaptiveFeedback, check_inputs, feature_error, FeedbackUpdate
+
+if TYPE_CHECKING:
+    from ibvs_model.combined import CameraRobotModel
 
 #: The switching law's wait (s) and T_forward double pole, in tau_in (``feedforward_ratio``;
 #: the paper: 0.1). Before the switch the feedforward alone moves the arm, and the paper's
@@ -51,17 +58,19 @@ class Switching(ServoLaw):
     holding = 'feedforward only (before the switch)'
 
     @classmethod
-    def create(cls, model, pose, dt, **settings):
+    def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+               **settings: Any) -> 'Switching':
         """Wrap the paper's feedback made from the same ``settings``."""
         own = {k: settings[k] for k in cls.options if k in settings}
         return cls(Paper.create(model, pose, dt, **settings), **own)
 
     @classmethod
-    def needs_measured(cls, settings):
+    def needs_measured(cls, settings: Mapping[str, Any]) -> bool:
         """Return True: the switch waits for a measured frame."""
         return True
 
-    def __init__(self, feedback, switch_settle_s=SWITCH_SETTLE_S):
+    def __init__(self, feedback: AdaptiveFeedback,
+                 switch_settle_s: float = SWITCH_SETTLE_S) -> None:
         """Wrap an :class:`.controllers.AdaptiveFeedback`; ``switch_settle_s`` in seconds."""
         if not isinstance(feedback, AdaptiveFeedback):
             raise TypeError('feedback must be an AdaptiveFeedback')
@@ -75,18 +84,20 @@ class Switching(ServoLaw):
         self.last = None
 
     @property
-    def q_feedback(self):
+    def q_feedback(self) -> NDArray[np.float64]:
         """Return the feedback's output (zeros before the switch)."""
         return self.feedback.q_feedback
 
-    def ready(self, t, qdot_encoder, measured):
+    def ready(self, t: float, qdot_encoder: ArrayLike | None, measured: bool) -> bool:
         """Return True when the frame at ``t`` (s) may switch the feedback on."""
         if not measured or t - self.t0 < self.switch_settle_s:
             return False
         limit = self.feedback.hold_speed_fraction * np.asarray(self.feedback.model.params.qd_max)
         return qdot_encoder is None or bool(np.all(np.abs(qdot_encoder) <= limit))
 
-    def update(self, p_hat, q_encoder, qdot_encoder=None, measured=True, t=None):
+    def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,
+               qdot_encoder: ArrayLike | None = None, measured: bool = True,
+               t: float | None = None) -> FeedbackUpdate:
         """
         Return the :class:`.controllers.FeedbackUpdate` of one frame.
 
@@ -108,7 +119,7 @@ class Switching(ServoLaw):
                                    float(np.linalg.norm(error)), np.zeros(6), False, True)
         return self.last
 
-    def reset(self):
+    def reset(self) -> None:
         """Back to feedforward alone."""
         self.feedback.reset()
         self.t0 = None
