@@ -11,6 +11,7 @@ sample per pixel, with 2 x 2, and as the simulator renders by default (one sampl
 ``python -m ibvs_sim.bench`` prints median and p95 of each.
 """
 
+from collections.abc import Callable
 import time
 
 from ibvs_common.bench import print_timing
@@ -60,7 +61,7 @@ def _bench_world(world, report, renders, physics):
                    c, DEFAULT_SUPERSAMPLING, spheres, DEFAULT_FOCUS_SUPERSAMPLING), count))
 
 
-def run(report):
+def run(report: Callable[[str, list[float]], None]) -> None:
     """Time one physics step and one stereo pair at HD720 and VGA; see the module docstring."""
     world = World(renderer='auto')
     try:
@@ -85,7 +86,7 @@ def run(report):
         fast.close()
 
 
-def main():
+def main() -> None:
     """Print median and p95 of each timing (``python -m ibvs_sim.bench``)."""
     run(print_timing)
 

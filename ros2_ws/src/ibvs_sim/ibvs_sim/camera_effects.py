@@ -24,10 +24,12 @@ drop decision first and, for a frame that is kept, the noise of the left image a
 the right one, so that a run is the same every time.
 """
 
+from collections.abc import Iterable
 import math
 
 from ibvs_model import StereoIntrinsics
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 #: Largest frame drop probability the simulator accepts (a camera that loses every frame
@@ -40,13 +42,14 @@ MAX_NOISE_STDDEV = 0.5
 class EffectError(ValueError):
     """A camera effect's value cannot be used; ``param`` names its sim_node parameter."""
 
-    def __init__(self, param, message):
+    def __init__(self, param: str, message: str) -> None:
         """Keep the parameter's name and the reason."""
         super().__init__(f'{param}: {message}')
         self.param = param
 
 
-def add_image_noise(image, stddev, rng):
+def add_image_noise(image: ArrayLike, stddev: float, rng: np.random.Generator
+                    ) -> NDArray[np.uint8]:
     """
     Return an 8-bit image with additive Gaussian noise of ``stddev`` (module docstring).
 
@@ -66,7 +69,7 @@ def add_image_noise(image, stddev, rng):
     return np.rint(np.clip(noisy, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
-def error_transform(xyz_m, rpy_deg):
+def error_transform(xyz_m: ArrayLike, rpy_deg: ArrayLike) -> NDArray[np.float64]:
     """
     Return the 4x4 calibration error T_err: translation ``xyz_m``, rotation ``rpy_deg``.
 
@@ -84,7 +87,8 @@ def error_transform(xyz_m, rpy_deg):
     return tf
 
 
-def calibrated_pose(pose_C_O, xyz_m, rpy_deg):
+def calibrated_pose(pose_C_O: ArrayLike, xyz_m: ArrayLike, rpy_deg: ArrayLike
+                    ) -> NDArray[np.float64]:
     """
     Return the camera pose a calibration with this error gives: T_C^O T_err.
 
@@ -96,7 +100,8 @@ def calibrated_pose(pose_C_O, xyz_m, rpy_deg):
     return np.asarray(pose_C_O, dtype=float) @ error_transform(xyz_m, rpy_deg)
 
 
-def calibrated_intrinsics(intrinsics, focal_length_error):
+def calibrated_intrinsics(intrinsics: StereoIntrinsics, focal_length_error: float
+                          ) -> StereoIntrinsics:
     """
     Return ``intrinsics`` with f_u and f_v multiplied by ``focal_length_error``.
 
@@ -120,7 +125,8 @@ class CameraEffects:
     [0, MAX_DROP_PROBABILITY]; ``seed``: the Generator's seed (``camera_seed``).
     """
 
-    def __init__(self, noise_stddev=0.0, drop_probability=0.0, seed=0):
+    def __init__(self, noise_stddev: float = 0.0, drop_probability: float = 0.0,
+                 seed: int | None = 0) -> None:
         """Check the values and seed the Generator."""
         if not (math.isfinite(noise_stddev) and 0.0 <= noise_stddev <= MAX_NOISE_STDDEV):
             raise EffectError('image_noise_stddev', f'{noise_stddev}: must be in '
@@ -133,12 +139,12 @@ class CameraEffects:
         self.drop_probability = float(drop_probability)
         self.rng = np.random.default_rng(seed)
 
-    def frame_lost(self):
+    def frame_lost(self) -> bool:
         """Return True if the next frame is lost (draws one uniform number when p > 0)."""
         if self.drop_probability == 0.0:
             return False
         return bool(self.rng.random() < self.drop_probability)
 
-    def noisy(self, images):
+    def noisy(self, images: Iterable[ArrayLike]) -> tuple[NDArray[np.uint8], ...]:
         """Return the images (left, right) with noise added, left first."""
         return tuple(add_image_noise(image, self.noise_stddev, self.rng) for image in images)

@@ -32,12 +32,14 @@ Determinism: one context, fixed geometry, no blending or multisampling; llvmpipe
 the same triangles to the same pixels every time (tested to the bit).
 """
 
+from collections.abc import Sequence
 import contextlib
 import ctypes
 from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 #: Background colour: PyBullet's EGL plugin's (measured: 178, 178, 204 of 255).
 BACKGROUND_RGB = (0.7, 0.7, 0.8)
@@ -140,7 +142,8 @@ class Shape:
     rgb: tuple
 
 
-def box_triangles(half_extents):
+def box_triangles(half_extents: ArrayLike
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return (positions, normals) (36, 3) of a box centred on its frame: flat faces."""
     h = np.asarray(half_extents, dtype=float)
     positions, normals = [], []
@@ -160,7 +163,8 @@ def box_triangles(half_extents):
     return np.array(positions), np.array(normals)
 
 
-def cylinder_triangles(radius, length, segments=CYLINDER_SEGMENTS):
+def cylinder_triangles(radius: float, length: float, segments: int = CYLINDER_SEGMENTS
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return (positions, normals) of a closed cylinder along z, centred on its frame.
 
@@ -184,7 +188,8 @@ def cylinder_triangles(radius, length, segments=CYLINDER_SEGMENTS):
     return np.array(positions), np.array(normals)
 
 
-def obj_triangles(text, scale=(1.0, 1.0, 1.0)):
+def obj_triangles(text: str, scale: ArrayLike = (1.0, 1.0, 1.0)
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return (positions, normals) of a Wavefront OBJ's triangles, positions scaled per axis.
 
@@ -228,7 +233,8 @@ def obj_triangles(text, scale=(1.0, 1.0, 1.0)):
     return np.asarray(positions, dtype=float), normals / np.where(lengths > 0.0, lengths, 1.0)
 
 
-def transformed(positions, normals, transform):
+def transformed(positions: NDArray[np.float64], normals: NDArray[np.float64],
+                transform: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return (positions, normals) moved by the rigid 4x4 ``transform``."""
     tf = np.asarray(transform, dtype=float)
     return positions @ tf[:3, :3].T + tf[:3, 3], normals @ tf[:3, :3].T
@@ -244,7 +250,8 @@ class GLRenderer:
     :class:`GLRendererError` when no OpenGL 3.3 context can be created.
     """
 
-    def __init__(self, shapes, near, far, light_direction):
+    def __init__(self, shapes: Sequence[Shape], near: float, far: float,
+                 light_direction: ArrayLike) -> None:
         """Create the context, compile the shaders, upload the triangles (module docstring)."""
         try:
             import moderngl  # here: a World without this renderer never loads OpenGL
@@ -329,7 +336,8 @@ class GLRenderer:
             self._fbo_size = size
         return self._fbo
 
-    def render(self, part_poses, view, projection, width, height):
+    def render(self, part_poses: ArrayLike, view: ArrayLike, projection: ArrayLike,
+               width: int, height: int) -> NDArray[np.uint8]:
         """
         Return the (height, width, 3) uint8 image of the scene.
 
@@ -360,7 +368,7 @@ class GLRenderer:
             fbo.read_into(image, viewport=viewport, components=3, alignment=1)
         return image
 
-    def close(self):
+    def close(self) -> None:
         """Release the context (idempotent)."""
         if self._ctx is not None:
             with self._use():

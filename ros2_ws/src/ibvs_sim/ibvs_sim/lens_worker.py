@@ -20,12 +20,15 @@ mid-frame would make the simulator fail its last render (exit code 1) instead of
 cleanly; the simulator stops and closes it.
 """
 
+from collections.abc import Mapping
 from multiprocessing.connection import Connection
 import socket
 import subprocess
 import sys
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 #: How long to wait for the worker to start (spawn, imports, PyBullet and EGL), s.
 START_TIMEOUT_S = 120.0
@@ -45,7 +48,7 @@ class LensWorker:
     there (the same robot, floor and renderer as the simulator's own).
     """
 
-    def __init__(self, world_kwargs):
+    def __init__(self, world_kwargs: Mapping[str, Any]) -> None:
         """Start the worker and wait until its World is built; raise LensWorkerError if not."""
         ours, theirs = socket.socketpair()
         self._process = subprocess.Popen(
@@ -74,7 +77,7 @@ class LensWorker:
             self.close()
             raise LensWorkerError(f'the lens worker is gone ({what}): {exc!r}') from None
 
-    def submit(self, q, *args):
+    def submit(self, q: ArrayLike, *args: Any) -> None:
         """Ask for :meth:`World.render_lens` (``args``) with the robot at joint angles ``q``."""
         if self._pending:
             raise LensWorkerError('submit() again before result()')
@@ -85,7 +88,7 @@ class LensWorker:
             raise LensWorkerError(f'the lens worker is gone: {exc!r}') from None
         self._pending = True
 
-    def result(self):
+    def result(self) -> NDArray[np.uint8]:
         """Return the (H, W, 3) uint8 image asked for by the last :meth:`submit`."""
         if not self._pending:
             raise LensWorkerError('result() without submit()')
@@ -96,7 +99,7 @@ class LensWorker:
         data = self._conn.recv_bytes()
         return np.frombuffer(data, dtype=np.uint8).reshape(detail).copy()
 
-    def close(self):
+    def close(self) -> None:
         """Stop the worker (idempotent)."""
         if self._process is None:
             return

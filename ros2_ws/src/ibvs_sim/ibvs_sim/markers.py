@@ -12,8 +12,15 @@ about f alpha^2 tan(theta) / cos^2(theta) further out (theta: angle off the opti
 0.1 to 0.3 px for the 25 mm markers at 2 m. :func:`sphere_image_centre` gives it exactly.
 """
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 from ibvs_model.scene import MARKER_RGB
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from ibvs_model.camera import StereoCamera
 
 #: A pixel belongs to a marker when its dominant channel (that of the marker's colour)
 #: exceeds both others by this factor and is at least MIN_LEVEL.
@@ -21,7 +28,8 @@ DOMINANCE = 1.8
 MIN_LEVEL = 40
 
 
-def colour_masks(image, colours=MARKER_RGB):
+def colour_masks(image: ArrayLike, colours: Sequence[Sequence[int]] = MARKER_RGB
+                 ) -> list[NDArray[np.bool_]]:
     """
     Return one boolean mask (H, W) per marker colour: pixels of that colour's hue.
 
@@ -41,7 +49,7 @@ def colour_masks(image, colours=MARKER_RGB):
     return masks
 
 
-def mask_centre(mask):
+def mask_centre(mask: ArrayLike) -> tuple[float, float, int] | None:
     """Return (u, v, pixel count) of a mask by its first image moments; None if empty."""
     v, u = np.nonzero(mask)
     if u.size == 0:
@@ -49,7 +57,9 @@ def mask_centre(mask):
     return float(u.mean()), float(v.mean()), int(u.size)
 
 
-def marker_centres(left, right, colours=MARKER_RGB):
+def marker_centres(left: ArrayLike, right: ArrayLike,
+                   colours: Sequence[Sequence[int]] = MARKER_RGB
+                   ) -> tuple[NDArray[np.float64], NDArray[np.int_]]:
     """
     Return (features (2, 3) as rows (u_l, u_r, v), pixel counts (2, 2)) from a stereo pair.
 
@@ -68,7 +78,8 @@ def marker_centres(left, right, colours=MARKER_RGB):
     return features, counts
 
 
-def sphere_image_centre(camera, centre_O, radius):
+def sphere_image_centre(camera: 'StereoCamera', centre_O: ArrayLike, radius: float
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the centre (u_l, u_r, v) of the ellipses a sphere projects to, and their areas.
 

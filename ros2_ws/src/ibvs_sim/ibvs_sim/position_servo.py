@@ -34,13 +34,15 @@ import math
 from ibvs_model.drive import (ACCELERATION_LIMITS, check_limits, EGM_BANDWIDTH_HZ,
                               EGM_DELAY_S, SPEED_LIMITS)
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 
 class PositionServo:
     """A joint position servo with dead time, finite bandwidth and speed/acceleration limits."""
 
-    def __init__(self, dt, q0, bandwidth_hz=EGM_BANDWIDTH_HZ, delay_s=EGM_DELAY_S,
-                 speed_limits=SPEED_LIMITS, acceleration_limits=ACCELERATION_LIMITS):
+    def __init__(self, dt: float, q0: ArrayLike, bandwidth_hz: float = EGM_BANDWIDTH_HZ,
+                 delay_s: float = EGM_DELAY_S, speed_limits: ArrayLike = SPEED_LIMITS,
+                 acceleration_limits: ArrayLike = ACCELERATION_LIMITS) -> None:
         """
         Start at rest at ``q0`` (6,) rad with the reference q0; ``dt`` the physics step (s).
 
@@ -69,7 +71,7 @@ class PositionServo:
         self.holding = False
         self._line = deque([q0.copy()] * (self.delay_steps + 1), maxlen=self.delay_steps + 1)
 
-    def command(self, reference):
+    def command(self, reference: ArrayLike) -> None:
         """Take a new reference (6,) rad; it holds until the next (zero-order hold)."""
         reference = np.asarray(reference, dtype=float)
         if reference.shape != (6,) or not np.all(np.isfinite(reference)):
@@ -77,7 +79,7 @@ class PositionServo:
         self.reference = reference.copy()
         self.holding = False
 
-    def hold(self):
+    def hold(self) -> None:
         """Stop each joint under its acceleration limit and hold it there (stale reference)."""
         if not self.holding:
             stop = self.qd * np.abs(self.qd) / (2.0 * self.a_max)
@@ -85,7 +87,7 @@ class PositionServo:
             self._line.extend([self.reference.copy()] * len(self._line))
             self.holding = True
 
-    def step(self):
+    def step(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Advance one physics step; return the joint (position, velocity), two (6,) arrays."""
         self._line.append(self.reference.copy())
         error = self._line[0] - self.q

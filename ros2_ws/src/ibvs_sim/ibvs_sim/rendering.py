@@ -38,10 +38,16 @@ cost (measured at HD720 near the target pose).
 :class:`ibvs_sim.world.World` makes the PyBullet calls with what this module computes.
 """
 
+from collections.abc import Iterable, Sequence
 import math
+from typing import TYPE_CHECKING
 
 from ibvs_model.camera import merge_windows, StereoIntrinsics
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from ibvs_model.camera import StereoCamera
 
 #: Near and far clipping planes of the render, m.
 NEAR_M = 0.05
@@ -60,7 +66,8 @@ DEFAULT_FOCUS_SUPERSAMPLING = 8
 FOCUS_MARGIN_PX = 2
 
 
-def projection_matrix(intrinsics, near=NEAR_M, far=FAR_M, renderer='egl'):
+def projection_matrix(intrinsics: StereoIntrinsics, near: float = NEAR_M, far: float = FAR_M,
+                      renderer: str = 'egl') -> NDArray[np.float64]:
     """
     Return the 4x4 OpenGL projection matrix of a pinhole with ``intrinsics`` (eq. 16).
 
@@ -78,7 +85,7 @@ def projection_matrix(intrinsics, near=NEAR_M, far=FAR_M, renderer='egl'):
     ])
 
 
-def ground_obj(half_size_m):
+def ground_obj(half_size_m: float) -> str:
     """
     Return a Wavefront OBJ of the ground: one square of ``half_size_m`` each side, facing up.
 
@@ -99,7 +106,8 @@ def ground_obj(half_size_m):
     return '\n'.join(lines) + '\n'
 
 
-def tiles(intrinsics, max_width=EGL_WINDOW[0], max_height=EGL_WINDOW[1]):
+def tiles(intrinsics: StereoIntrinsics, max_width: int = EGL_WINDOW[0],
+          max_height: int = EGL_WINDOW[1]) -> list[tuple[int, int, StereoIntrinsics]]:
     """
     Return the tiles of an image no larger than ``max_width`` x ``max_height``.
 
@@ -119,14 +127,14 @@ def tiles(intrinsics, max_width=EGL_WINDOW[0], max_height=EGL_WINDOW[1]):
     return out
 
 
-def supersampled(intrinsics, factor):
+def supersampled(intrinsics: StereoIntrinsics, factor: int) -> StereoIntrinsics:
     """Return the intrinsics of an image ``factor`` times finer with the same view (above)."""
     k, s = intrinsics, int(factor)
     return StereoIntrinsics(k.width * s, k.height * s, k.fu * s, k.fv * s,
                             s * (k.cu + 0.5) - 0.5, s * (k.cv + 0.5) - 0.5, k.baseline)
 
 
-def box_downsample(image, factor):
+def box_downsample(image: NDArray[np.uint8], factor: int) -> NDArray[np.uint8]:
     """
     Return the mean of each ``factor`` x ``factor`` block of ``image`` as uint8.
 
@@ -147,7 +155,9 @@ def box_downsample(image, factor):
     return (quotient + up).astype(np.uint8)
 
 
-def focus_windows(intrinsics, lens_pose, spheres, margin_px=FOCUS_MARGIN_PX):
+def focus_windows(intrinsics: StereoIntrinsics, lens_pose: ArrayLike,
+                  spheres: Iterable[tuple[ArrayLike, float]], margin_px: int = FOCUS_MARGIN_PX
+                  ) -> list[tuple[int, int, int, int]]:
     """
     Return the windows (u0, v0, u1, v1), u1 and v1 excluded, that hold the images of ``spheres``.
 
@@ -178,7 +188,8 @@ def focus_windows(intrinsics, lens_pose, spheres, margin_px=FOCUS_MARGIN_PX):
     return merge_windows(boxes)
 
 
-def render_windows(windows, factor, max_size=EGL_WINDOW):
+def render_windows(windows: Sequence[tuple[int, int, int, int]], factor: int,
+                   max_size: tuple[int, int] = EGL_WINDOW) -> list[tuple[int, int, int, int]]:
     """
     Return the windows to render with ``factor`` x ``factor`` samples per pixel, one call each.
 
@@ -196,14 +207,14 @@ def render_windows(windows, factor, max_size=EGL_WINDOW):
     return list(windows)
 
 
-def window_intrinsics(intrinsics, window):
+def window_intrinsics(intrinsics: StereoIntrinsics, window: Sequence[int]) -> StereoIntrinsics:
     """Return the intrinsics of the window (u0, v0, u1, v1) of an image: c moved to its corner."""
     u0, v0, u1, v1 = window
     k = intrinsics
     return StereoIntrinsics(u1 - u0, v1 - v0, k.fu, k.fv, k.cu - u0, k.cv - v0, k.baseline)
 
 
-def lens_poses(camera):
+def lens_poses(camera: 'StereoCamera') -> tuple[NDArray[np.float64], ...]:
     """Return (T_left^O, T_right^O): the lenses at x = -b/2 and +b/2 of {C} (ROS signs)."""
     poses = []
     for sign in (-1.0, 1.0):
@@ -213,12 +224,12 @@ def lens_poses(camera):
     return tuple(poses)
 
 
-def view_matrix(lens_pose):
+def view_matrix(lens_pose: ArrayLike) -> NDArray[np.float64]:
     """Return the OpenGL view matrix of an optical frame (x right, y down, z forward) in {O}."""
     flip = np.diag([1.0, -1.0, -1.0, 1.0])  # optical axes -> OpenGL eye axes
     return flip @ np.linalg.inv(lens_pose)
 
 
-def gl_matrix(matrix):
+def gl_matrix(matrix: ArrayLike) -> list[float]:
     """Return a 4x4 matrix as the column-major list of 16 floats that PyBullet expects."""
     return [float(v) for v in np.asarray(matrix).T.reshape(16)]

@@ -73,6 +73,7 @@ goes on and the arm holds its position. Each rejection is logged and counted on 
 
 from dataclasses import replace
 import time
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
@@ -198,7 +199,7 @@ WAIT_LOG_S = 1.0
 class SimNode(Node):
     """PyBullet IRB 4600 and ZED 2, in lockstep with the controllers (module docstring)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, build the simulator and the interfaces."""
         super().__init__('sim_node', **kwargs)
         self.sim = None
@@ -329,7 +330,7 @@ class SimNode(Node):
         self.diagnostics.update(command='none yet', commands=0, real_time_factor=self._rtf)
         self._run_timer = None
 
-    def destroy_node(self):
+    def destroy_node(self) -> None:
         """Release PyBullet with the node."""
         if self.sim is not None:
             self.sim.close()
@@ -574,7 +575,7 @@ class SimNode(Node):
         self._take_reference(values[[names.index(n) for n in contract.JOINT_NAMES]], source)
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
     """Run the simulator node (``ros2 run ibvs_sim sim_node``)."""
     run(SimNode, args=args, name='sim_node')
 

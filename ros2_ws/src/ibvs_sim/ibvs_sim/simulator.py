@@ -29,6 +29,7 @@ from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, ModelError,
                         paper, pose_error, StereoCamera, StereoIntrinsics)
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .camera_effects import calibrated_intrinsics, calibrated_pose, CameraEffects
 from .config import SimConfig
@@ -39,7 +40,7 @@ from .world import RendererError, World
 class ConfigError(ParameterError):
     """A configuration the simulator cannot run; ``param`` names the parameter at fault."""
 
-    def __init__(self, param, message):
+    def __init__(self, param: str, message: str) -> None:
         """Keep the parameter's name and the reason."""
         super().__init__(f"parameter '{param}': {message}", param)
 
@@ -59,7 +60,8 @@ class Simulator:
     and a renderer or lens worker that cannot start here.
     """
 
-    def __init__(self, config: SimConfig = SimConfig(), teach_pose=None):
+    def __init__(self, config: SimConfig = SimConfig(),
+                 teach_pose: ArrayLike | None = None) -> None:
         """Check the combinations, solve the start pose and build the PyBullet world."""
         self.config = config
         self.dt_ns = period_ns(config.physics_rate_hz)
@@ -124,33 +126,34 @@ class Simulator:
         self.last_torque = np.zeros(6)
 
     @property
-    def t_ns(self):
+    def t_ns(self) -> int:
         """Return the sim time of the current step, integer nanoseconds."""
         return self.k * self.dt_ns
 
-    def close(self):
+    def close(self) -> None:
         """Release the PyBullet client."""
         self.world.close()
 
-    def true_state(self):
+    def true_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the true joint angles and velocities."""
         return self.world.joint_state()
 
-    def encoders(self):
+    def encoders(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return what the encoders read: (q - d_q, qd), the paper's q_T and its rate."""
         q, qd = self.world.joint_state()
         return q - self.d_q, qd
 
-    def tool_pose(self):
+    def tool_pose(self) -> NDArray[np.float64]:
         """Return the true flange pose T_E^O (eq. 7) of the simulated robot."""
         return forward_kinematics(self.world.joint_state()[0], self.params)
 
-    def frame_due(self):
+    def frame_due(self) -> int | None:
         """Return when the camera frame to take at this step was due (n * T_cam ns), or None."""
         stamp = self.next_frame * self.camera_period_ns
         return stamp if stamp <= self.t_ns else None
 
-    def take_frame(self, render=True):
+    def take_frame(self, render: bool = True
+                   ) -> tuple[int, tuple[NDArray[np.uint8], NDArray[np.uint8]] | None, bool]:
         """
         Return (stamp ns, (left, right) images or None, lost) of the frame due now; advance n.
 
@@ -175,11 +178,11 @@ class Simulator:
                                           self.render_marker_supersampling)
         return self.effects.noisy(images)
 
-    def hold_torque(self):
+    def hold_torque(self) -> NDArray[np.float64]:
         """Return the torque that stops the arm where it is in one step (World.hold_torque)."""
         return self.world.hold_torque()
 
-    def move_to(self, q, qd):
+    def move_to(self, q: ArrayLike, qd: ArrayLike) -> None:
         """
         Set the true joints to ``q`` with speed ``qd`` as the next step's state; k += 1.
 
@@ -194,7 +197,7 @@ class Simulator:
         self.k += 1
         self.last_torque = None
 
-    def step(self, torque=None):
+    def step(self, torque: ArrayLike | None = None) -> NDArray[np.float64]:
         """
         Apply ``torque`` (6,) for one step, or the holding torque when None; then k += 1.
 

@@ -22,10 +22,12 @@ plugin ignores that flag and always shades with its shadow map, so there the rob
 shadow on the ground (a one-sided square: :func:`ibvs_sim.rendering.ground_obj`).
 """
 
+from collections.abc import Iterable
 import os
 from pathlib import Path
 import pkgutil
 import tempfile
+from typing import TYPE_CHECKING
 
 from ibvs_common.shared_params import PHYSICS_RATE_HZ
 from ibvs_model import IRB4600
@@ -33,6 +35,7 @@ from ibvs_model.camera import StereoCamera
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 import pybullet
 
 from .config import MOUNT_HEIGHT_M, RENDERER
@@ -45,6 +48,10 @@ from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F4
                         lens_poses, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M,
                         projection_matrix, render_windows, supersampled, tiles, view_matrix,
                         window_intrinsics)
+
+if TYPE_CHECKING:
+    from ibvs_model.camera import StereoIntrinsics
+    from ibvs_model.robot import RobotParams
 
 #: Ground plane: a square facing up (:func:`ibvs_sim.rendering.ground_obj`), this grey, this
 #: many metres each side of {O}, ``mount_height_m`` below the robot's base plane z = 0 of {O}.
@@ -108,9 +115,11 @@ class World:
     ms a VGA pair). Not with 'opengl', which draws both lenses in one context.
     """
 
-    def __init__(self, params=IRB4600, physics_rate_hz=PHYSICS_RATE_HZ.default,
-                 renderer=RENDERER.default, with_tool=True,
-                 mount_height_m=MOUNT_HEIGHT_M.default, lens_worker=False):
+    def __init__(self, params: 'RobotParams' = IRB4600,
+                 physics_rate_hz: float = PHYSICS_RATE_HZ.default,
+                 renderer: str = RENDERER.default, with_tool: bool = True,
+                 mount_height_m: float = MOUNT_HEIGHT_M.default,
+                 lens_worker: bool = False) -> None:
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
         self.mount_height_m = float(mount_height_m)
         self.params = params
@@ -280,7 +289,7 @@ class World:
         _egl_owner = self
         return 'egl'
 
-    def close(self):
+    def close(self) -> None:
         """Stop the lens worker and disconnect the client (idempotent)."""
         global _egl_owner
         if self._lens_worker is not None:
@@ -297,25 +306,26 @@ class World:
         if _egl_owner is self:
             _egl_owner = None
 
-    def reset(self, q, qd=None):
+    def reset(self, q: ArrayLike, qd: ArrayLike | None = None) -> None:
         """Set the true joint angles (and velocities, default 0) without dynamics."""
         q = np.asarray(q, float)
         qd = np.zeros(6) if qd is None else np.asarray(qd, float)
         for j, angle, rate in zip(self.joints, q, qd):
             self._call(pybullet.resetJointState, self.body, j, float(angle), float(rate))
 
-    def joint_state(self):
+    def joint_state(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the true joint angles and velocities, two (6,) arrays."""
         states = self._call(pybullet.getJointStates, self.body, self.joints)
         return (np.array([s[0] for s in states]), np.array([s[1] for s in states]))
 
-    def inverse_dynamics(self, q, qd, qdd):
+    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike
+                         ) -> NDArray[np.float64]:
         """Return tau = M(q) qdd + C(q, qd) qd + g(q) from PyBullet's inverse dynamics."""
         return np.array(self._call(pybullet.calculateInverseDynamics, self.body,
                                    [float(v) for v in q], [float(v) for v in qd],
                                    [float(v) for v in qdd]))
 
-    def hold_torque(self):
+    def hold_torque(self) -> NDArray[np.float64]:
         """
         Return the torque that stops the arm where it is within this step.
 
@@ -326,25 +336,27 @@ class World:
         q, qd = self.joint_state()
         return self.inverse_dynamics(q, qd, -qd / self.dt)
 
-    def step(self, torque):
+    def step(self, torque: ArrayLike) -> None:
         """Apply ``torque`` (6,) N m for one step of h seconds and advance the physics."""
         self._call(pybullet.setJointMotorControlArray, self.body, self.joints,
                    pybullet.TORQUE_CONTROL, forces=[float(t) for t in torque])
         self._call(pybullet.stepSimulation)
 
-    def link_pose(self, name):
+    def link_pose(self, name: str) -> NDArray[np.float64]:
         """Return the 4x4 pose in {O} of the URDF frame of link ``name`` (PyBullet's FK)."""
         state = self._call(pybullet.getLinkState, self.body, self.links[name],
                            computeForwardKinematics=True)
         return _pose_matrix(state[4], state[5])
 
-    def marker_spheres(self):
+    def marker_spheres(self) -> list[tuple[NDArray[np.float64], float]]:
         """Return the fiducials as (centre (3,) in {O}, radius m) pairs (none without tool)."""
         return [(self.link_pose(name)[:3, 3], MARKER_RADIUS_M)
                 for name in ('marker_1', 'marker_2') if name in self.links]
 
-    def render_stereo(self, camera, supersampling=1, focus=(),
-                      focus_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
+    def render_stereo(self, camera: StereoCamera, supersampling: int = 1,
+                      focus: Iterable[tuple[ArrayLike, float]] = (),
+                      focus_supersampling: int = DEFAULT_FOCUS_SUPERSAMPLING
+                      ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
         """
         Return (left, right) RGB images (H, W, 3) uint8 seen by ``camera`` (eq. 16-22).
 
@@ -371,8 +383,10 @@ class World:
         image = self.render_lens(left, *args)
         return image, self._lens_worker.result()
 
-    def render_lens(self, pose, intrinsics, supersampling=1, focus=(),
-                    focus_supersampling=DEFAULT_FOCUS_SUPERSAMPLING):
+    def render_lens(self, pose: ArrayLike, intrinsics: 'StereoIntrinsics', supersampling: int = 1,
+                    focus: Iterable[tuple[ArrayLike, float]] = (),
+                    focus_supersampling: int = DEFAULT_FOCUS_SUPERSAMPLING
+                    ) -> NDArray[np.uint8]:
         """
         Return the RGB image (H, W, 3) uint8 of one lens at ``pose`` (T of its optical frame).
 
