@@ -5,8 +5,9 @@ Readers raise :class:`InputError` with a short reason (used as the rejection rea
 /diagnostics) and never return NaN.
 """
 
+from collections.abc import Iterable, Sequence
 import math
-from typing import NamedTuple, Optional, Tuple, Union
+from typing import NamedTuple, Optional, Tuple, TYPE_CHECKING, Union
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -14,6 +15,7 @@ from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
 from ibvs_model import IRB4600, StereoCamera, StereoIntrinsics
 from nav_msgs.msg import Path
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
@@ -22,6 +24,9 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from . import contract
 from .sim_time import clock_problem
 from .timing import is_frame_stamp, NS_PER_S, seconds_to_ns
+
+if TYPE_CHECKING:
+    from ibvs_model.robot import RobotParams
 
 #: How far (rad) a start posture may lie outside its joint's travel (ibvs_model.IRB4600
 #: q_min, q_max) and still be read (:func:`travel_bounds`).
@@ -40,7 +45,7 @@ SPEED_BOUND_RAD_S = 1e4
 class InputError(ValueError):
     """A message cannot be used; ``reason`` is a short key for the rejection counter."""
 
-    def __init__(self, reason, detail=''):
+    def __init__(self, reason: str, detail: str = '') -> None:
         """Keep the short ``reason`` and a longer ``detail`` for the log."""
         super().__init__(f'{reason}: {detail}' if detail else reason)
         self.reason = reason
@@ -118,7 +123,9 @@ def ns_stamp(ns: int) -> Time:
     return Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
 
 
-def joint_state(stamp, position=None, velocity=None, effort=None, names=contract.JOINT_NAMES):
+def joint_state(stamp: int | Time, position: ArrayLike | None = None,
+                velocity: ArrayLike | None = None, effort: ArrayLike | None = None,
+                names: Iterable[str] = contract.JOINT_NAMES) -> JointState:
     """Build a JointState with the contract's joint names."""
     msg = JointState()
     msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
@@ -133,7 +140,9 @@ def joint_state(stamp, position=None, velocity=None, effort=None, names=contract
     return msg
 
 
-def read_joints(msg, field='position', names=contract.JOINT_NAMES, bound=None):
+def read_joints(msg: JointState, field: str = 'position',
+                names: Sequence[str] = contract.JOINT_NAMES,
+                bound: tuple[ArrayLike, ArrayLike] | None = None) -> NDArray[np.float64]:
     """
     Return ``msg.<field>`` as a (6,) array in the order of ``names``.
 
@@ -161,7 +170,8 @@ def read_joints(msg, field='position', names=contract.JOINT_NAMES, bound=None):
     return values
 
 
-def travel_bounds(params=IRB4600):
+def travel_bounds(params: 'RobotParams' = IRB4600
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return (low, high) of a posture the arm can start from: the travel, with a margin."""
     return (np.asarray(params.q_min, dtype=float) - POSITION_MARGIN_RAD,
             np.asarray(params.q_max, dtype=float) + POSITION_MARGIN_RAD)
@@ -180,17 +190,17 @@ _POSITION_BOUNDS = _symmetric_bounds(POSITION_BOUND_RAD)
 _VELOCITY_BOUNDS = _symmetric_bounds(SPEED_BOUND_RAD_S)
 
 
-def position_bounds():
+def position_bounds() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return (low, high) of a joint position that is read: +-POSITION_BOUND_RAD."""
     return _POSITION_BOUNDS
 
 
-def velocity_bounds():
+def velocity_bounds() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return (low, high) of a joint velocity that can be meant: +-SPEED_BOUND_RAD_S."""
     return _VELOCITY_BOUNDS
 
 
-def check_finite(msg, fields):
+def check_finite(msg: JointState, fields: Iterable[str]) -> None:
     """
     Raise :class:`InputError` if a JointState field in ``fields`` holds a non-finite value.
 
@@ -209,7 +219,8 @@ def duration_ns(duration: Duration) -> int:
     return int(duration.sec) * NS_PER_S + int(duration.nanosec)
 
 
-def joint_trajectory(start_ns, period_ns, positions, names=contract.JOINT_NAMES):
+def joint_trajectory(start_ns: int, period_ns: int, positions: ArrayLike,
+                     names: Iterable[str] = contract.JOINT_NAMES) -> JointTrajectory:
     """
     Return positions sampled every ``period_ns`` from ``start_ns`` as a JointTrajectory.
 
@@ -230,7 +241,9 @@ def joint_trajectory(start_ns, period_ns, positions, names=contract.JOINT_NAMES)
     return msg
 
 
-def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
+def read_trajectory(msg: JointTrajectory, period_ns: int,
+                    names: Sequence[str] = contract.JOINT_NAMES
+                    ) -> tuple[int, NDArray[np.float64]]:
     """
     Return (start ns, (N, 6) positions) of a JointTrajectory sampled every ``period_ns``.
 
@@ -268,7 +281,7 @@ def read_trajectory(msg, period_ns, names=contract.JOINT_NAMES):
     return stamp_ns(msg.header.stamp), positions
 
 
-def pose_matrix(pose):
+def pose_matrix(pose: Pose) -> NDArray[np.float64]:
     """Return a geometry_msgs/Pose as a 4x4 homogeneous transform."""
     q = pose.orientation
     quat = np.array([q.x, q.y, q.z, q.w], dtype=float)
@@ -284,7 +297,7 @@ def pose_matrix(pose):
     return tf
 
 
-def matrix_poses(tfs):
+def matrix_poses(tfs: ArrayLike) -> list[Pose]:
     """Return 4x4 homogeneous transforms (N, 4, 4) as geometry_msgs/Pose, one quaternion call."""
     tfs = np.asarray(tfs, dtype=float).reshape(-1, 4, 4)
     quats = Rotation.from_matrix(tfs[:, :3, :3]).as_quat()
@@ -298,12 +311,13 @@ def matrix_poses(tfs):
     return poses
 
 
-def matrix_pose(tf):
+def matrix_pose(tf: ArrayLike) -> Pose:
     """Return a 4x4 homogeneous transform as a geometry_msgs/Pose."""
     return matrix_poses(tf)[0]
 
 
-def pose_stamped(tf, stamp, frame_id=contract.BASE_FRAME):
+def pose_stamped(tf: ArrayLike, stamp: int | Time,
+                 frame_id: str = contract.BASE_FRAME) -> PoseStamped:
     """Return a 4x4 transform as PoseStamped in ``frame_id``."""
     msg = PoseStamped()
     msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
@@ -312,7 +326,8 @@ def pose_stamped(tf, stamp, frame_id=contract.BASE_FRAME):
     return msg
 
 
-def path_msg(stamped_poses, frame_id=contract.BASE_FRAME):
+def path_msg(stamped_poses: Sequence[tuple[int, ArrayLike]],
+             frame_id: str = contract.BASE_FRAME) -> Path:
     """Return (stamp ns, 4x4 transform) pairs as a nav_msgs/Path stamped with the last one."""
     msg = Path()
     msg.header.frame_id = frame_id
@@ -325,7 +340,8 @@ def path_msg(stamped_poses, frame_id=contract.BASE_FRAME):
     return msg
 
 
-def image_msg(array, stamp, encoding='rgb8', frame_id=''):
+def image_msg(array: ArrayLike, stamp: int | Time, encoding: str = 'rgb8',
+              frame_id: str = '') -> Image:
     """
     Return an (H, W, 3) uint8 array as a sensor_msgs/Image of ``encoding``.
 
@@ -350,8 +366,10 @@ def image_msg(array, stamp, encoding='rgb8', frame_id=''):
     return msg
 
 
-def camera_infos(intrinsics, stamp,
-                 frames=(contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)):
+def camera_infos(intrinsics: StereoIntrinsics, stamp: int | Time,
+                 frames: tuple[str, str] = (contract.LEFT_CAMERA_FRAME,
+                                            contract.RIGHT_CAMERA_FRAME)
+                 ) -> tuple[CameraInfo, CameraInfo]:
     """
     Return (left, right) CameraInfo of a rectified stereo pair (ROS conventions).
 
@@ -380,7 +398,7 @@ def camera_infos(intrinsics, stamp,
 MAX_IMAGE_SIDE_PX = 8192
 
 
-def check_camera_info(info):
+def check_camera_info(info: CameraInfo) -> None:
     """
     Raise :class:`InputError` unless one CameraInfo can be a lens of the stereo camera.
 
@@ -395,7 +413,7 @@ def check_camera_info(info):
         raise InputError('bad camera_info', 'P must have 12 finite values with P[0] > 0')
 
 
-def intrinsics_from_infos(left, right):
+def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsics:
     """
     Return :class:`StereoIntrinsics` from the left and right CameraInfo.
 
@@ -425,7 +443,7 @@ def intrinsics_from_infos(left, right):
 MAX_CAMERA_DISTANCE_M = 100.0
 
 
-def read_camera_pose(pose_msg):
+def read_camera_pose(pose_msg: PoseStamped | Pose) -> NDArray[np.float64]:
     """
     Return /stereo/pose (PoseStamped or Pose) as T_C^O; :class:`InputError` if unusable.
 
@@ -447,13 +465,15 @@ def read_camera_pose(pose_msg):
     return tf
 
 
-def camera_from_msgs(left_info, right_info, pose_msg):
+def camera_from_msgs(left_info: CameraInfo, right_info: CameraInfo,
+                     pose_msg: PoseStamped | Pose) -> StereoCamera:
     """Return the :class:`StereoCamera` described by both CameraInfo and /stereo/pose."""
     return StereoCamera(intrinsics_from_infos(left_info, right_info),
                         read_camera_pose(pose_msg))
 
 
-def features_msg(features, stamp, frame_id=contract.CAMERA_FRAME):
+def features_msg(features: ArrayLike, stamp: int | Time,
+                 frame_id: str = contract.CAMERA_FRAME) -> PolygonStamped:
     """Return p_I (6,) as PolygonStamped: one point per marker, x = u_l, y = u_r, z = v."""
     p = np.asarray(features, dtype=float).reshape(2, 3)
     msg = PolygonStamped()
@@ -463,7 +483,7 @@ def features_msg(features, stamp, frame_id=contract.CAMERA_FRAME):
     return msg
 
 
-def read_features(msg):
+def read_features(msg: PolygonStamped) -> NDArray[np.float64]:
     """
     Return p_I (6,) from a PolygonStamped; :class:`InputError` if not 2 finite points.
 

@@ -9,6 +9,7 @@ seconds (the file says what was measured). A user who sets the variable keeps th
 file; other middlewares ignore it.
 """
 
+from collections.abc import MutableMapping
 import os
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from ament_index_python.packages import get_package_share_directory, PackageNotF
 PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 
 
-def profiles_file():
+def profiles_file() -> Path | None:
     """Return the path of the installed profiles file, or None if it is not installed."""
     try:
         path = Path(get_package_share_directory('ibvs_common')) / 'config' / \
@@ -27,7 +28,7 @@ def profiles_file():
     return path if path.is_file() else None
 
 
-def configure(environ=os.environ):
+def configure(environ: MutableMapping[str, str] = os.environ) -> str | None:
     """Point Fast DDS at our profiles unless the user chose a file; return the one in use."""
     if PROFILES_ENV not in environ:
         path = profiles_file()

@@ -10,6 +10,7 @@ instead of ending the process.
 """
 
 from collections import Counter
+from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
@@ -17,6 +18,9 @@ from rclpy.clock import Clock, ClockType
 from . import contract
 from .profiling import Stopwatch
 from .sim_time import guard_clock
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
 
 
 class Diagnostics:
@@ -29,7 +33,8 @@ class Diagnostics:
     convert (negative seconds, nanosec >= 1e9) is counted as a rejection of ``/clock``.
     """
 
-    def __init__(self, node, name, period_s=1.0, log_period_s=5.0):
+    def __init__(self, node: 'Node', name: str, period_s: float = 1.0,
+                 log_period_s: float = 5.0) -> None:
         """Create the /diagnostics publisher and the steady-clock timer of ``node``."""
         self._node = node
         self._name = f'{node.get_name()}: {name}'
@@ -47,7 +52,7 @@ class Diagnostics:
         self._timer = node.create_timer(period_s, self.publish, clock=self._steady)
         guard_clock(node, self.reject)
 
-    def reject(self, source, reason, detail=''):
+    def reject(self, source: str, reason: str, detail: str = '') -> None:
         """Count one rejected input from ``source`` for ``reason``; log it once per period."""
         key = f'{source}: {reason}'
         self.rejections[key] += 1
@@ -61,19 +66,19 @@ class Diagnostics:
                 f' [{count} so far]')
 
     @property
-    def rejected_total(self):
+    def rejected_total(self) -> int:
         """Return the number of inputs rejected so far, all reasons together."""
         return sum(self.rejections.values())
 
-    def update(self, **values):
+    def update(self, **values: Any) -> None:
         """Set status values shown on /diagnostics (numbers are formatted, others str())."""
         self.values.update(values)
 
-    def set_level(self, level, message):
+    def set_level(self, level: bytes, message: str) -> None:
         """Set the overall level (DiagnosticStatus.OK/WARN/ERROR) and its message."""
         self.level, self.message = level, message
 
-    def status(self):
+    def status(self) -> DiagnosticStatus:
         """Return the current DiagnosticStatus."""
         kvs = [KeyValue(key=k, value=_fmt(v)) for k, v in self.values.items()]
         kvs.append(KeyValue(key='rejected_total', value=str(self.rejected_total)))
@@ -83,7 +88,7 @@ class Diagnostics:
         return DiagnosticStatus(level=self.level, name=self._name, message=self.message,
                                 hardware_id=self._hardware_id, values=kvs)
 
-    def publish(self):
+    def publish(self) -> None:
         """Publish the current status now."""
         msg = DiagnosticArray()
         msg.header.stamp = self._node.get_clock().now().to_msg()

@@ -1,8 +1,10 @@
 """The ``main()`` of every node, in the shape of ros2/demos ``demo_nodes_py`` (jazzy)."""
 
+from collections.abc import Sequence
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -11,6 +13,10 @@ from rclpy.signals import SignalHandlerOptions
 
 from . import dds
 from .params import ParameterError
+
+if TYPE_CHECKING:
+    from rclpy.context import Context
+    from rclpy.node import Node
 
 #: Longest a stop request waits for the executor to come back from ``wait`` (seconds).
 STOP_POLL_S = 0.1
@@ -32,16 +38,16 @@ class StopRequest:
     ``KeyboardInterrupt`` at once, for a node stuck in a callback.
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._event = threading.Event()
         self._previous = {}
 
-    def install(self):
+    def install(self) -> None:
         """Install the handlers (main thread only), remembering the previous ones."""
         for signum in STOP_SIGNALS:
             self._previous[signum] = signal.signal(signum, self._handle)
 
-    def restore(self):
+    def restore(self) -> None:
         """Put the previous handlers back."""
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
@@ -52,12 +58,12 @@ class StopRequest:
             raise KeyboardInterrupt
         self._event.set()
 
-    def is_set(self):
+    def is_set(self) -> bool:
         """Return whether a stop was requested."""
         return self._event.is_set()
 
 
-def make_executor(context):
+def make_executor(context: 'Context') -> EventsExecutor:
     """
     Return the executor every node of the graph spins in: rclpy's ``EventsExecutor``.
 
@@ -70,7 +76,8 @@ def make_executor(context):
     return EventsExecutor(context=context)
 
 
-def spin_until_stopped(nodes, stop, poll_s=STOP_POLL_S):
+def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
+                       poll_s: float = STOP_POLL_S) -> None:
     """Spin ``nodes`` (one node or several of one context) until ``stop`` or shutdown."""
     nodes = list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
     context = nodes[0].context
@@ -86,7 +93,8 @@ def spin_until_stopped(nodes, stop, poll_s=STOP_POLL_S):
         executor.shutdown(timeout_sec=0.0)
 
 
-def run(node_class, args=None, name=None):
+def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None = None,
+        name: str | None = None) -> None:
     """
     Init rclpy, build ``node_class()``, spin until SIGINT/SIGTERM, then clean up.
 

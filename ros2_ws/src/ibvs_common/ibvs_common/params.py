@@ -13,8 +13,14 @@ the allowed range; :func:`ibvs_common.node_main.run` turns it into a fatal log l
 non-zero exit code.
 """
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields
 import math
+from typing import Any, Self, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.node import Node
 
 
 class ParameterError(ValueError):
@@ -24,7 +30,7 @@ class ParameterError(ValueError):
     ``param``: the name of the parameter at fault, where one is (None otherwise).
     """
 
-    def __init__(self, message, param=None):
+    def __init__(self, message: str, param: str | None = None) -> None:
         """Keep the message and the parameter's name."""
         super().__init__(message)
         self.param = param
@@ -52,7 +58,7 @@ class Param:
     length: int = None
     read_only: bool = True
 
-    def allowed(self):
+    def allowed(self) -> str:
         """Describe the allowed values in words, for descriptors and error messages."""
         if self.choices is not None:
             return 'one of ' + ', '.join(repr(c) for c in self.choices)
@@ -75,7 +81,7 @@ class Param:
         return isinstance(self.default, (list, tuple)) and bool(self.default) and \
             isinstance(self.default[0], str)
 
-    def descriptor(self):
+    def descriptor(self) -> 'ParameterDescriptor':
         """Return the ParameterDescriptor shown by ``ros2 param describe``."""
         # Imported here: a Param (and its check) is pure Python, usable without ROS.
         from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -92,7 +98,7 @@ class Param:
                     from_value=float(self.low), to_value=float(self.high), step=0.0)]
         return desc
 
-    def check(self, value):
+    def check(self, value: Any) -> Any:
         """Return ``value`` if allowed, else raise :class:`ParameterError` naming the parameter."""
         def fail(why):
             raise ParameterError(
@@ -141,7 +147,7 @@ class Param:
         return value
 
 
-def plain_value(value, default):
+def plain_value(value: Any, default: Any) -> Any:
     """Convert rclpy's value to plain Python, integers to floats where the default is a float."""
     if hasattr(value, 'tolist'):
         value = value.tolist()
@@ -156,7 +162,7 @@ def plain_value(value, default):
     return value
 
 
-def declare(node, specs):
+def declare(node: 'Node', specs: Iterable[Param]) -> dict[str, Any]:
     """
     Declare every :class:`Param` on ``node`` and return their validated values by name.
 
@@ -178,7 +184,7 @@ def declare(node, specs):
     return values
 
 
-def param_field(spec):
+def param_field(spec: Param) -> Any:
     """
     Return a dataclass field named after ``spec`` that carries it and takes its default.
 
@@ -211,12 +217,12 @@ class ParamConfig:
             object.__setattr__(self, f.name, tuple(value) if isinstance(value, list) else value)
 
     @classmethod
-    def params(cls):
+    def params(cls) -> tuple[Param, ...]:
         """Return the :class:`Param` of each field that has one, in field order."""
         return tuple(f.metadata['param'] for f in fields(cls) if 'param' in f.metadata)
 
     @classmethod
-    def from_values(cls, values, **others):
+    def from_values(cls, values: Mapping[str, Any], **others: Any) -> Self:
         """
         Return the config of the parameter values ``values`` (a mapping by name).
 

@@ -15,7 +15,7 @@ import signal
 PR_SET_PDEATHSIG = 1
 
 
-def die_with_parent():
+def die_with_parent() -> None:
     """Ask Linux to SIGKILL this process when its parent dies (no-op where prctl is absent)."""
     try:
         libc = ctypes.CDLL('libc.so.6', use_errno=True)
@@ -24,7 +24,7 @@ def die_with_parent():
         pass
 
 
-def supervised_child():
+def supervised_child() -> None:
     """
     Child-side: own process group, no blocked signal, and SIGKILL when the runner dies.
 

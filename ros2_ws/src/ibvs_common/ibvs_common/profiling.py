@@ -10,6 +10,7 @@ costs two ``perf_counter`` calls per section; nothing here changes what a node c
 """
 
 from collections import defaultdict
+from collections.abc import Iterator
 from contextlib import contextmanager
 import time
 
@@ -22,14 +23,14 @@ SIM_TIME_KEY = 'profiled_sim_time_s'
 class Stopwatch:
     """Total wall time and number of passes of named sections, and the sim time reached."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         """Start with nothing timed."""
         self.totals = defaultdict(float)
         self.counts = defaultdict(int)
         self.sim_ns = 0
 
     @contextmanager
-    def section(self, name):
+    def section(self, name: str) -> Iterator[None]:
         """Time the body of the ``with`` statement as one pass of section ``name``."""
         start = time.perf_counter()
         try:
@@ -37,16 +38,16 @@ class Stopwatch:
         finally:
             self.add(name, time.perf_counter() - start)
 
-    def add(self, name, seconds):
+    def add(self, name: str, seconds: float) -> None:
         """Add one pass of ``seconds`` to section ``name``."""
         self.totals[name] += seconds
         self.counts[name] += 1
 
-    def reached(self, t_ns):
+    def reached(self, t_ns: int) -> None:
         """Note that the node's work has reached sim time ``t_ns`` (never goes back)."""
         self.sim_ns = max(self.sim_ns, int(t_ns))
 
-    def values(self):
+    def values(self) -> dict[str, str]:
         """Return the totals as /diagnostics key/value pairs (empty before any section)."""
         if not self.totals:
             return {}

@@ -6,7 +6,12 @@ every node started with ``--ros-args --params-file`` sees the same values; each 
 declares only those it uses (undeclared overrides are ignored by rclpy).
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 from ibvs_model import paper
+import numpy as np
+from numpy.typing import NDArray
 
 from .params import Param, ParameterError
 
@@ -56,7 +61,7 @@ STALE_TIMEOUT_S = Param('stale_timeout_s', 0.5,
                         low=0.0, high=60.0, low_open=True)
 
 
-def target_from_parameters(values):
+def target_from_parameters(values: Mapping[str, Any]) -> NDArray[np.float64]:
     """
     Return the target T_E^O of the 'target_position' / 'target_rotation' values by name.
 
@@ -103,7 +108,7 @@ LOCKSTEP = Param(
     'as a real cell does, and nobody waits for anybody', '-')
 
 
-def check_command_interface(values):
+def check_command_interface(values: Mapping[str, Any]) -> None:
     """
     Refuse a command interface and time mode that do not go together (ParameterError).
 
@@ -128,7 +133,7 @@ CAMERA_POSE = Param(
     '/stereo/pose', 'm, -', low=-20.0, high=20.0, length=7)
 
 
-def camera_pose_from(values):
+def camera_pose_from(values: Mapping[str, Any]) -> NDArray[np.float64] | None:
     """
     Return the 'camera_pose' parameter as a 4x4 T_C^O, or None when it is all zeros.
 

@@ -11,12 +11,17 @@ reports it to a callback (:class:`ibvs_common.diagnostics.Diagnostics` counts it
 /diagnostics and logs it, throttled) and keeps the last good time.
 """
 
-from typing import Optional, Tuple
+from collections.abc import Callable
+from typing import Optional, Tuple, TYPE_CHECKING
 
 from rclpy.time_source import TimeSource
 
 from . import contract
 from .timing import NS_PER_S
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
 
 
 def clock_problem(sec: int, nanosec: int) -> Optional[Tuple[str, str]]:
@@ -36,12 +41,13 @@ class GuardedTimeSource(TimeSource):
     of :meth:`ibvs_common.diagnostics.Diagnostics.reject`); the clock keeps its last time.
     """
 
-    def __init__(self, reject, *, node=None):
+    def __init__(self, reject: Callable[[str, str, str], None], *,
+                 node: 'Node | None' = None) -> None:
         """Keep ``reject``, then attach to ``node`` as rclpy's TimeSource does."""
         self._reject = reject
         super().__init__(node=node)
 
-    def clock_callback(self, msg):
+    def clock_callback(self, msg: 'Clock') -> None:
         """Set the attached clocks from ``msg``, unless its time is malformed."""
         problem = clock_problem(msg.clock.sec, msg.clock.nanosec)
         if problem is not None:
@@ -50,7 +56,7 @@ class GuardedTimeSource(TimeSource):
         super().clock_callback(msg)
 
 
-def guard_clock(node, reject):
+def guard_clock(node: 'Node', reject: Callable[[str, str, str], None]) -> GuardedTimeSource:
     """
     Replace ``node``'s TimeSource by a :class:`GuardedTimeSource` reporting to ``reject``.
 
@@ -67,7 +73,7 @@ def guard_clock(node, reject):
     return new
 
 
-def known_now_ns(node):
+def known_now_ns(node: 'Node') -> int | None:
     """
     Return ``node``'s clock in integer nanoseconds, or None while sim time has not started.
 
@@ -81,7 +87,7 @@ def known_now_ns(node):
     return now
 
 
-def node_time_ns(node, *stamps):
+def node_time_ns(node: 'Node', *stamps: int | None) -> int:
     """
     Return the newest time ``node`` knows (ns): its clock and the ``stamps`` it accepted.
 
