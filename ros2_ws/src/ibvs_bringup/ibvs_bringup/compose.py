@@ -18,6 +18,7 @@ executable for ``ros2 run`` and for a real cell, where the joint controller runs
 simulator.
 """
 
+from collections.abc import Sequence
 import importlib
 import sys
 
@@ -33,7 +34,7 @@ USAGE = ('usage: ros2 run ibvs_bringup compose NODE [NODE ...] [--ros-args ...]\
          f'  NODE: one of {", ".join(NODES)}, each at most once')
 
 
-def node_classes(names):
+def node_classes(names: Sequence[str]) -> list[type]:
     """Return the node classes of ``names``; ValueError names what is wrong."""
     if not names:
         raise ValueError('no node named')
@@ -45,7 +46,7 @@ def node_classes(names):
     return [getattr(importlib.import_module(NODES[n][0]), NODES[n][1]) for n in names]
 
 
-def main(args=None):
+def main(args: list[str] | None = None) -> None:
     """Run the nodes named on the command line in one process (module docstring)."""
     argv = sys.argv if args is None else args
     names = rclpy.utilities.remove_ros_args(argv)[1:]

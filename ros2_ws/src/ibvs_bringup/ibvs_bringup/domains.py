@@ -18,12 +18,14 @@ Linux, 0-101 (higher IDs can collide with the ephemeral ports of the operating s
 - A study holds the domains of its runs itself and says so in ``IBVS_DOMAIN_HELD``.
 """
 
+from collections.abc import Iterator, MutableMapping
 from contextlib import contextmanager
 import fcntl
 import os
 from pathlib import Path
 import tempfile
 import time
+from typing import TextIO
 
 #: Directory of the lock files, one per domain ID.
 LOCK_DIR = Path(tempfile.gettempdir()) / 'ibvs-ros-domains'
@@ -36,7 +38,7 @@ SAFE_RANGE = (0, 101)
 POOL_ENV = 'IBVS_ROS_DOMAINS'
 
 
-def parse_pool(text):
+def parse_pool(text: str) -> tuple[int, int]:
     """Return ``'LOW-HIGH'`` as (low, high) within :data:`SAFE_RANGE`; ValueError if not."""
     try:
         low, high = (int(x) for x in str(text).strip().split('-'))
@@ -48,7 +50,7 @@ def parse_pool(text):
     return low, high
 
 
-def pool(environ=os.environ):
+def pool(environ: MutableMapping[str, str] = os.environ) -> tuple[int, int]:
     """Return the pool of domains: ``IBVS_ROS_DOMAINS`` if set, else :data:`SAFE_RANGE`."""
     text = environ.get(POOL_ENV, '').strip()
     return parse_pool(text) if text else SAFE_RANGE
@@ -62,7 +64,7 @@ class DomainBusy(RuntimeError):
     """The domain a run was told to use is held by another run."""
 
 
-def try_lock(domain):
+def try_lock(domain: int) -> TextIO | None:
     """Return an open file that holds ``domain``'s lock, or None if another process holds it."""
     LOCK_DIR.mkdir(exist_ok=True)
     lock = open(LOCK_DIR / f'{int(domain)}.lock', 'w')
@@ -74,7 +76,7 @@ def try_lock(domain):
     return lock
 
 
-def lock_domain(low, high, poll_s=0.5):
+def lock_domain(low: int, high: int, poll_s: float = 0.5) -> tuple[int, TextIO]:
     """
     Return ``(domain, lock)``: the first free ROS_DOMAIN_ID in [low, high], held until closed.
 
@@ -88,7 +90,8 @@ def lock_domain(low, high, poll_s=0.5):
         time.sleep(poll_s)
 
 
-def claim(environ=os.environ, pool=FREE_POOL):
+def claim(environ: MutableMapping[str, str] = os.environ,
+          pool: tuple[int, int] = FREE_POOL) -> tuple[int, TextIO | None]:
     """
     Return ``(domain, lock)`` for a run started with ``environ`` (module docstring).
 
@@ -115,7 +118,8 @@ def claim(environ=os.environ, pool=FREE_POOL):
 
 
 @contextmanager
-def held(environ=os.environ, pool=FREE_POOL):
+def held(environ: MutableMapping[str, str] = os.environ,
+         pool: tuple[int, int] = FREE_POOL) -> Iterator[tuple[int, bool]]:
     """
     Hold a run's domain (:func:`claim`) with ``ROS_DOMAIN_ID`` set to it in ``environ``.
 

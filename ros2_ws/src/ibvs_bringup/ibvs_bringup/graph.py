@@ -10,7 +10,9 @@ is one :class:`Node` entry here plus its module (and its executable in its packa
 ``setup.py``, which ``ros2 run`` needs; a test checks that each node has one).
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from ibvs_common import contract
 
@@ -78,15 +80,15 @@ class Graph:
     step0_topics: tuple
     host: tuple = ('ibvs_bringup', 'compose')
 
-    def node(self, name):
+    def node(self, name: str) -> Node:
         """Return the :class:`Node` called ``name``."""
         return next(n for n in self.nodes if n.name == name)
 
-    def paper_nodes(self):
+    def paper_nodes(self) -> tuple[tuple[str, str], ...]:
         """Return (package, executable) of the paper's nodes, in start order."""
         return tuple((n.package, n.name) for n in self.nodes if n.paper)
 
-    def processes(self):
+    def processes(self) -> tuple[ProcessSpec, ...]:
         """
         Return the processes of a run (:class:`~.supervision.ProcessSpec`), in start order.
 
@@ -109,25 +111,25 @@ class Graph:
             raise ValueError(f'the simulator {self.simulator} must start last')
         return tuple(out)
 
-    def shared(self, process):
+    def shared(self, process: str) -> tuple[str, ...]:
         """Return the names of the nodes of the shared process ``process``, in order."""
         return tuple(n.name for n in self.nodes if n.process == process)
 
-    def remaps(self, zed=False):
+    def remaps(self, zed: bool = False) -> dict[str, dict[str, str]]:
         """Return {node: {topic: remapped}}, with the ZED wrapper's names if ``zed``."""
         out = {n.name: {**n.remaps, **(n.zed_remaps if zed else {})} for n in self.nodes}
         return {name: m for name, m in out.items() if m}
 
-    def step0_readers(self):
+    def step0_readers(self) -> dict[str, tuple[str, ...]]:
         """Return {topic: nodes that must read it} for each topic of step 0."""
         return {t: tuple(n.name for n in self.nodes if t in n.step0_reads)
                 for t in self.step0_topics}
 
-    def compose_table(self):
+    def compose_table(self) -> dict[str, tuple[str, str]]:
         """Return {node: (module, class)}: the nodes ``compose`` can hold."""
         return {n.name: (n.module, n.cls) for n in self.nodes}
 
-    def markdown_table(self):
+    def markdown_table(self) -> str:
         """Return the node table of docs/design.md §1 (markdown)."""
         rows = ['| node | package, module | process | reads | writes | rate |',
                 '|---|---|---|---|---|---|']
@@ -202,7 +204,8 @@ GRAPH = Graph(
 )
 
 
-def process_plan(params, graph=GRAPH):
+def process_plan(params: Mapping[str, Any], graph: Graph = GRAPH
+                 ) -> list[tuple[ProcessSpec, tuple[str, ...]]]:
     """
     Return [(ProcessSpec, its remapping arguments)] of a run with ``params``, in start order.
 
@@ -216,6 +219,6 @@ def process_plan(params, graph=GRAPH):
             for spec in graph.processes()]
 
 
-def uses_zed_names(params):
+def uses_zed_names(params: Mapping[str, Any]) -> bool:
     """Whether the simulator of a run with ``params`` publishes the ZED wrapper's names."""
     return params.get('camera_topics', 'ibvs') == 'zed_wrapper'

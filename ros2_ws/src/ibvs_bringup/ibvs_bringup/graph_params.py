@@ -10,18 +10,23 @@ graph has started, and a name that no node declares, which every node would sile
 ignore, is refused with the nearest declared names.
 """
 
+from collections.abc import Mapping
 import difflib
+from typing import Any, TYPE_CHECKING
 
-from ibvs_common.params import ParameterError, plain_value
+from ibvs_common.params import Param, ParameterError, plain_value
 
 from .scenario import ScenarioError
+
+if TYPE_CHECKING:
+    from .graph import Graph
 
 #: Parameters that are not a node's: ROS's own (every node declares use_sim_time) and the
 #: runner's (a scenario's name and its sim time limit).
 NOT_NODES = ('use_sim_time', 'scenario_name', 'run_duration_s')
 
 
-def declared(graph=None):
+def declared(graph: 'Graph | None' = None) -> dict[str, Param]:
     """
     Return ``{name: Param}`` of every parameter a node of ``graph`` declares.
 
@@ -41,7 +46,7 @@ def declared(graph=None):
     return specs
 
 
-def check(params, where='parameter'):
+def check(params: Mapping[str, Any], where: str = 'parameter') -> None:
     """
     Raise :class:`ScenarioError` unless every one of ``params`` is declared and in range.
 

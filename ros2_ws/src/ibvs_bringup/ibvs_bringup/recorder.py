@@ -17,9 +17,12 @@ its type hash (RIHS01, in metadata.yaml and on the MCAP channel as ``topic_type_
 message: one that never had a message is not in it.
 """
 
+from collections.abc import Mapping
 from functools import partial
 import importlib
 from io import BytesIO, StringIO
+from pathlib import Path
+from typing import Any
 
 from ibvs_common import contract
 from ibvs_common.profiling import Stopwatch
@@ -72,7 +75,7 @@ LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY,
                   contract.ROBOT_DESCRIPTION, contract.TF_STATIC}
 
 
-def bag_qos(profile):
+def bag_qos(profile: QoSProfile) -> Qos:
     """Return an rclpy QoSProfile as the rosbags ``Qos`` written to the bag's metadata."""
     def duration(d):
         sec, nsec = divmod(d.nanoseconds, 1_000_000_000)
@@ -142,13 +145,13 @@ class JazzyWriter(Writer):
 
     STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _JazzyMcapStorage}
 
-    def close(self):
+    def close(self) -> None:
         """Close the bag; metadata.yaml names :data:`ROS_DISTRO`."""
         super().close()
         self.metapath.write_text(_with_distro(self.metapath.read_text('utf8')), 'utf8')
 
 
-def message_class(type_name):
+def message_class(type_name: str) -> type:
     """Return the Python class of 'pkg/msg/Type' (what rosidl_runtime_py.get_message does)."""
     pkg, kind, name = type_name.split('/')
     return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
@@ -157,8 +160,9 @@ def message_class(type_name):
 class Recorder(Node):
     """Subscribe to the graph's topics and write them to an MCAP bag as they arrive."""
 
-    def __init__(self, bag_path, include_images=False, custom_data=None,
-                 include_overlays=False, **kwargs):
+    def __init__(self, bag_path: str | Path, include_images: bool = False,
+                 custom_data: Mapping[str, str] | None = None,
+                 include_overlays: bool = False, **kwargs: Any) -> None:
         """
         Open the bag at ``bag_path`` (must not exist) and subscribe to the known topics.
 
@@ -190,7 +194,7 @@ class Recorder(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._discovery = self.create_timer(0.5, self._discover, clock=self._steady)
 
-    def set_custom_data(self, key, value):
+    def set_custom_data(self, key: str, value: str) -> None:
         """Add a key/value (strings) to the bag's metadata; effective at :meth:`close`."""
         self._writer.set_custom_data(key, value)
 
@@ -241,7 +245,7 @@ class Recorder(Node):
             self.latest[topic] = data
         self.counts[topic] += 1
 
-    def close(self):
+    def close(self) -> None:
         """Stop recording and write the bag's metadata."""
         for sub in self._topic_subs.values():
             self.destroy_subscription(sub)

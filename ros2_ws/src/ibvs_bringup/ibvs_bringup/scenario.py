@@ -5,8 +5,10 @@ A scenario file is a ROS 2 parameter file whose parameters sit under ``/**`` so 
 node started with ``--ros-args --params-file <file>`` sees them.
 """
 
+from collections.abc import Mapping
 import importlib.util
 from pathlib import Path
+from typing import Any
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 from ibvs_common import contract
@@ -19,7 +21,7 @@ class ScenarioError(ValueError):
     """A scenario cannot be found or its file is malformed."""
 
 
-def share_directory(package='ibvs_bringup'):
+def share_directory(package: str = 'ibvs_bringup') -> Path:
     """Return the installed share directory of ``package`` (its source tree if not built)."""
     try:
         return Path(get_package_share_directory(package))
@@ -27,7 +29,7 @@ def share_directory(package='ibvs_bringup'):
         return Path(importlib.util.find_spec(package).origin).resolve().parents[1]
 
 
-def scenario_path(name_or_path):
+def scenario_path(name_or_path: str | Path) -> Path:
     """Return the parameter file of a scenario name ('scenario1') or an explicit path."""
     path = Path(name_or_path)
     if path.suffix in ('.yaml', '.yml'):
@@ -42,7 +44,7 @@ def scenario_path(name_or_path):
     return candidate
 
 
-def load_parameters(name_or_path):
+def load_parameters(name_or_path: str | Path) -> dict[str, Any]:
     """Return the ``/**`` parameters of a scenario file as a dict."""
     path = scenario_path(name_or_path)
     try:
@@ -56,7 +58,7 @@ def load_parameters(name_or_path):
     return params
 
 
-def check_progress(params):
+def check_progress(params: Mapping[str, Any]) -> None:
     """
     Refuse a configuration with which the graph of ``ibvs run`` cannot advance sim time.
 
@@ -74,7 +76,7 @@ def check_progress(params):
             'simulator on its own)')
 
 
-def parse_override(text):
+def parse_override(text: str) -> tuple[str, Any]:
     """Parse 'name:=value' (value in YAML syntax, as ``ros2 run ... -p`` takes it)."""
     if ':=' not in text:
         raise ScenarioError(f'override {text!r} is not of the form name:=value')
@@ -85,7 +87,7 @@ def parse_override(text):
         raise ScenarioError(f'override {text!r}: the value is not valid YAML: {exc}') from None
 
 
-def write_parameters(params, path):
+def write_parameters(params: Mapping[str, Any], path: str | Path) -> Path:
     """Write ``params`` as a ``/**`` parameter file at ``path`` and return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -18,6 +18,7 @@ init_port ...: open_and_lock_file failed", seen with two test workers at once). 
 what it freed.
 """
 
+from collections.abc import Container
 import fcntl
 import os
 from pathlib import Path
@@ -44,7 +45,7 @@ def _locked(path):
     return False
 
 
-def names(shm_dir=SHM_DIR):
+def names(shm_dir: str | Path = SHM_DIR) -> set[str]:
     """Return the names of the files in ``shm_dir`` now (a run's snapshot at its start)."""
     try:
         return set(os.listdir(shm_dir))
@@ -52,7 +53,8 @@ def names(shm_dir=SHM_DIR):
         return set()
 
 
-def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
+def zombies(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
+            now: float | None = None, new_since: Container[str] | None = None) -> list[Path]:
     """
     Return the files of the segments whose owner is dead (module docstring).
 
@@ -80,7 +82,8 @@ def zombies(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, now=None, new_since=None):
     return found
 
 
-def clean(shm_dir=SHM_DIR, min_age_s=MIN_AGE_S, new_since=None):
+def clean(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
+          new_since: Container[str] | None = None) -> tuple[int, int]:
     """Remove :func:`zombies`; return (files removed, bytes freed)."""
     count, freed = 0, 0
     for path in zombies(shm_dir, min_age_s, new_since=new_since):

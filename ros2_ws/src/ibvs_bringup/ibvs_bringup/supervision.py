@@ -9,6 +9,7 @@ graph, then the readers of step 0 subscribed. A process that exits meanwhile rai
 :class:`NodeDied`, which names it, its exit code and its last log line.
 """
 
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 import os
 from pathlib import Path
@@ -16,9 +17,14 @@ import shutil
 import signal
 import subprocess
 import time
+from typing import TYPE_CHECKING
 
 from ament_index_python.packages import get_package_prefix
 from ibvs_common.process import supervised_child
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
+    from rclpy.node import Node
 
 
 @dataclass(frozen=True)
@@ -39,7 +45,8 @@ class ProcessSpec:
         if not self.name:
             object.__setattr__(self, 'name', self.executable)
 
-    def start(self, params_file, log_dir, extra_args=()):
+    def start(self, params_file: str | Path, log_dir: str | Path,
+              extra_args: Sequence[str] = ()) -> 'NodeProcess':
         """Start this process (:class:`NodeProcess`) with the run's parameters file."""
         return NodeProcess(self.package, self.executable, params_file, log_dir, extra_args,
                            self)
@@ -48,7 +55,7 @@ class ProcessSpec:
 class NodeDied(RuntimeError):
     """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
 
-    def __init__(self, node, returncode, log_path):
+    def __init__(self, node: str, returncode: int | None, log_path: str | Path) -> None:
         """Keep which node died, its exit code and where its log is; quote its last line."""
         try:
             lines = Path(log_path).read_text(errors='replace').strip().splitlines()
@@ -62,7 +69,7 @@ class NodeDied(RuntimeError):
         self.log_path = log_path
 
 
-def executable_command(package, executable):
+def executable_command(package: str, executable: str) -> list[str]:
     """Return the command that ``ros2 run <package> <executable>`` stands for."""
     if shutil.which('ros2'):
         return ['ros2', 'run', package, executable]
@@ -75,7 +82,9 @@ def executable_command(package, executable):
 class NodeProcess:
     """One process of the graph (one node, or several: ``spec``), its output in a log file."""
 
-    def __init__(self, package, executable, params_file, log_dir, extra_args=(), spec=None):
+    def __init__(self, package: str, executable: str, params_file: str | Path,
+                 log_dir: str | Path, extra_args: Sequence[str] = (),
+                 spec: ProcessSpec | None = None) -> None:
         """Start ``package executable [spec.args] --ros-args --params-file params_file``."""
         spec = spec or ProcessSpec(package, executable)
         cmd = executable_command(package, executable) + [
@@ -83,7 +92,8 @@ class NodeProcess:
         self._launch(cmd, spec.name, spec.nodes, Path(log_dir) / f'{spec.name}.log')
 
     @classmethod
-    def of_command(cls, command, name, log_path, nodes=()):
+    def of_command(cls, command: Iterable[str], name: str, log_path: str | Path,
+                   nodes: Iterable[str] = ()) -> 'NodeProcess':
         """Start any ``command`` supervised as a node's process is (tools, tests)."""
         process = cls.__new__(cls)
         process._launch(list(command), name, tuple(nodes), Path(log_path))
@@ -95,11 +105,11 @@ class NodeProcess:
         self.proc = subprocess.Popen(command, stdout=self._log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, preexec_fn=supervised_child)
 
-    def poll(self):
+    def poll(self) -> int | None:
         """Return the exit code, or None while running."""
         return self.proc.poll()
 
-    def stop(self, timeout_s=10.0):
+    def stop(self, timeout_s: float = 10.0) -> int | None:
         """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
         return stop_all([self], timeout_s)[self.name]
 
@@ -111,7 +121,7 @@ class NodeProcess:
             pass
 
 
-def stop_all(procs, timeout_s=10.0):
+def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0) -> dict[str, int | None]:
     """
     Stop ``procs`` (:class:`NodeProcess`) together; return their exit codes by name.
 
@@ -143,8 +153,10 @@ def stop_all(procs, timeout_s=10.0):
     return {p.name: p.proc.returncode for p in procs}
 
 
-def wait_for_readers(executor, node, procs, readers, alongside=(), topic_of=None,
-                     timeout_s=60.0):
+def wait_for_readers(executor: 'Executor', node: 'Node', procs: Sequence[NodeProcess],
+                     readers: Mapping[str, Sequence[str]], alongside: Collection[str] = (),
+                     topic_of: Mapping[str, str] | None = None,
+                     timeout_s: float = 60.0) -> dict[str, int]:
     """
     Spin until each node of ``readers`` subscribes its topic; return subscriber counts.
 
@@ -174,7 +186,8 @@ def wait_for_readers(executor, node, procs, readers, alongside=(), topic_of=None
                                + ', '.join(missing))
 
 
-def wait_for_nodes(executor, node, names, procs, timeout_s=60.0):
+def wait_for_nodes(executor: 'Executor', node: 'Node', names: Iterable[str],
+                   procs: Sequence[NodeProcess], timeout_s: float = 60.0) -> None:
     """Spin until every node in ``names`` is in the graph; fail if one of them exits."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
