@@ -39,18 +39,24 @@ metrics stay as they were):
   start-up excluded).
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TYPE_CHECKING
 
 from ibvs_common import contract, profiling
 from ibvs_common.conversions import camera_from_msgs, pose_matrix
 from ibvs_common.shared_params import target_from_parameters
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 import yaml
 
 from .convergence import REACHED
+
+if TYPE_CHECKING:
+    from ibvs_model.robot import RobotParams
 
 #: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
 PARAMS_KEY = 'ibvs.parameters'
@@ -88,7 +94,7 @@ def _settle_time(t, inside):
     return float(t[0]) if outside.size == 0 else float(t[outside[-1] + 1])
 
 
-def axis_angle_deg(rotation, target_rotation):
+def axis_angle_deg(rotation: ArrayLike, target_rotation: ArrayLike) -> NDArray[np.float64]:
     """Return the angle (deg) between each tool axis z6 and the target's, for (N, 3, 3)."""
     cos = np.clip(rotation[:, :, 2] @ target_rotation[:, 2], -1.0, 1.0)
     # acos loses precision near 1: use the chord instead.
@@ -97,7 +103,8 @@ def axis_angle_deg(rotation, target_rotation):
     return np.degrees(angle)
 
 
-def estimated_time(mode_t, modes, t_end):
+def estimated_time(mode_t: 'Sequence[float] | NDArray[np.float64]', modes: Sequence[str],
+                   t_end: float) -> float:
     """Return the sim time spent with features not purely measured (mode held to next frame)."""
     if len(mode_t) == 0:
         return 0.0
@@ -105,8 +112,10 @@ def estimated_time(mode_t, modes, t_end):
     return float(sum(e - s for s, e, m in zip(mode_t, ends, modes) if m != 'measured'))
 
 
-def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_duration_s=None,
-                    scenario=None):
+def compute_metrics(t: ArrayLike, position: ArrayLike, rotation: ArrayLike,
+                    target: ArrayLike, mode_t: 'Sequence[float] | NDArray[np.float64]' = (),
+                    modes: Sequence[str] = (), wall_duration_s: float | None = None,
+                    scenario: str | int | None = None) -> dict[str, Any]:
     """Return the run's metrics dict (see the module docstring) from arrays."""
     t = np.asarray(t, dtype=float)
     position = np.asarray(position, dtype=float)
@@ -153,7 +162,7 @@ def compute_metrics(t, position, rotation, target, mode_t=(), modes=(), wall_dur
     return metrics
 
 
-def free_running_metrics(latency, rtf_held):
+def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike) -> dict[str, Any]:
     """
     Return the free-running metrics (module docstring); {} without latency records.
 
@@ -197,7 +206,7 @@ INFO_SIDES = {contract.LEFT_INFO: 'left', contract.RIGHT_INFO: 'right',
 OLD_TOOL_POSE = '/ibvs/tool_pose'
 
 
-def load_run(bag_path):
+def load_run(bag_path: str | Path) -> 'RunData':
     """Read a run's bag: tool poses, features, feature modes, camera and parameters."""
     bag_path = Path(bag_path)
     meta = yaml.safe_load((bag_path / 'metadata.yaml').read_text())
@@ -265,7 +274,9 @@ def load_run(bag_path):
                    rtf_held=np.array(rtf_held))
 
 
-def load_joints(bag_path, end_s=None):
+def load_joints(bag_path: str | Path, end_s: float | None = None
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                           NDArray[np.float64], NDArray[np.float64]]:
     """
     Return (t, q, qd, tau_t, tau) of a run's bag: /joint_states and /joint_effort_commands.
 
@@ -297,7 +308,7 @@ def load_joints(bag_path, end_s=None):
             column(efforts, 1))
 
 
-def node_timings(bag_path):
+def node_timings(bag_path: str | Path) -> dict[str, dict[str, Any]]:
     """
     Return each node's last section timings from the bag's /diagnostics.
 
@@ -324,7 +335,8 @@ def node_timings(bag_path):
     return out
 
 
-def feature_errors(run, params=None):
+def feature_errors(run: 'RunData', params: 'RobotParams | None' = None
+                   ) -> NDArray[np.float64]:
     """
     Return the measured features minus the true projection of the markers, (N, 6) px.
 
@@ -356,7 +368,7 @@ def feature_errors(run, params=None):
     return np.array(rows).reshape(-1, 6)
 
 
-def analyse_bag(bag_path):
+def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
     """Return (RunData, metrics) of a recorded run."""
     run = load_run(bag_path)
     metrics = compute_metrics(run.t, run.position, run.rotation, run.target, run.mode_t,

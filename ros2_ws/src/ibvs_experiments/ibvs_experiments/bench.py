@@ -18,6 +18,7 @@ print numbers; no test asserts on time.
 """
 
 import argparse
+from collections.abc import Sequence
 import importlib
 import json
 import os
@@ -27,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from typing import Any
 
 import numpy as np
 
@@ -65,11 +67,11 @@ ROUND_TRIP_FLOOR_MS = 0.09
 class Table:
     """Collects timings and prints one line per benchmark."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         """Start with no rows."""
         self.rows = []
 
-    def report(self, name, seconds):
+    def report(self, name: str, seconds: Sequence[float]) -> None:
         """Record per-iteration timings (s) of ``name`` and print median, p95 and count."""
         s = np.asarray(seconds, dtype=float)
         row = {'name': name, 'n': int(s.size), 'median_ms': float(np.median(s) * 1e3),
@@ -79,7 +81,7 @@ class Table:
               f"   (n={row['n']})", flush=True)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Run every package benchmark, then the graph's real-time factor."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--graph-duration', type=float, default=1.0,
@@ -125,7 +127,8 @@ def _load():
     return f'{os.getloadavg()[0]:.2f}'
 
 
-def repeated_graph(resolution, duration_s, out_dir, runs, table):
+def repeated_graph(resolution: str, duration_s: float, out_dir: Path, runs: int,
+                   table: Table) -> dict[str, Any]:
     """Run the graph ``runs`` times with the fast renderer; print medians against targets."""
     results = [graph_breakdown(resolution, duration_s, out_dir, FAST_RENDERER, table)
                for _ in range(max(runs, 1))]
@@ -144,7 +147,7 @@ def repeated_graph(resolution, duration_s, out_dir, runs, table):
     return {'runs': results, 'wall_s_per_sim_s_median': per_sim, 'targets': targets}
 
 
-def short_run(runs):
+def short_run(runs: int) -> dict[str, Any]:
     """Time ``ibvs run scenario1 --duration 0.3`` from start to exit; print the median."""
     walls = []
     for _ in range(runs):
@@ -163,7 +166,8 @@ def short_run(runs):
         SHORT_RUN_WALL_S_TARGET, 's')}
 
 
-def graph_breakdown(resolution, duration_s, out_dir, renderer=None, table=None):
+def graph_breakdown(resolution: str, duration_s: float, out_dir: Path,
+                    renderer: str | None = None, table: Table | None = None) -> dict[str, Any]:
     """Run scenario 1 through the graph; print and return wall time per sim second by part."""
     from . import analysis, runner
     overrides = {'resolution': resolution}

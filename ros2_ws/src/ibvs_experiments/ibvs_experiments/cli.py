@@ -23,12 +23,14 @@ Commands:
 """
 
 import argparse
+from collections.abc import Sequence
 import json
 import math
 from pathlib import Path
 import re
 import sys
 import time
+from typing import Any
 
 from ibvs_bringup import domains, graph_params, scenario
 
@@ -46,7 +48,7 @@ def _print_summary(metrics, out=sys.stdout):
         print(f'  {key:28s} {text}', file=out)
 
 
-def with_servo_law(overrides):
+def with_servo_law(overrides: dict[str, Any]) -> dict[str, Any]:
     """Return ``overrides`` with the feedforward parameters of its servo_law added."""
     law = overrides.get('servo_law')
     if law is None:
@@ -59,7 +61,7 @@ def with_servo_law(overrides):
     return overrides
 
 
-def positive_seconds(text):
+def positive_seconds(text: str) -> float:
     """Return ``text`` as a number of seconds > 0 (argparse type of --duration, --stall-s)."""
     try:
         value = float(text)
@@ -70,7 +72,7 @@ def positive_seconds(text):
     return value
 
 
-def cmd_run(args):
+def cmd_run(args: argparse.Namespace) -> int:
     """Run one scenario and print its metrics."""
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
@@ -104,7 +106,7 @@ def cmd_run(args):
     return 0
 
 
-def cmd_video(args):
+def cmd_video(args: argparse.Namespace) -> int:
     """Write the MP4 of a run recorded with --overlays: overlays beside a 3D view."""
     from . import video
     try:
@@ -116,7 +118,7 @@ def cmd_video(args):
     return 0
 
 
-def cmd_analyse(args):
+def cmd_analyse(args: argparse.Namespace) -> int:
     """Recompute metrics and figures from a bag."""
     bag = Path(args.bag)
     out = Path(args.out) if args.out else bag.parent
@@ -127,7 +129,7 @@ def cmd_analyse(args):
     return 0
 
 
-def cmd_demo(args):
+def cmd_demo(args: argparse.Namespace) -> int:
     """Run the paper's scenario 1 (ideal actuators) into results/scenario1."""
     args.scenario = 'scenario1'
     args.out = args.out or 'results/scenario1'
@@ -141,7 +143,7 @@ def cmd_demo(args):
                                          'duration': args.video_duration, 'video': True}))
 
 
-def cmd_study(args):
+def cmd_study(args: argparse.Namespace) -> int:
     """Run a study spec's runs on Ray (local or --address), then its table and figures."""
     from . import study
     spec = study_spec.load(study.study_path(args.spec))
@@ -161,7 +163,7 @@ def cmd_study(args):
     return 0
 
 
-def cmd_report(args):
+def cmd_report(args: argparse.Namespace) -> int:
     """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
     from . import report, study
     start = time.monotonic()
@@ -179,12 +181,12 @@ def _study_defaults():
     return {'domains': study.DOMAIN_IDS, 'parallel': study.default_parallel()}
 
 
-def plain_text(doc):
+def plain_text(doc: str) -> str:
     """Return a docstring as a terminal shows it: reST roles and literals as plain text."""
     return re.sub(r':\w+:`~?([^`]+)`', r'\1', doc).replace('``', "'")
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Parse the command line and run the command."""
     parser = argparse.ArgumentParser(prog='ibvs', description=plain_text(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -255,7 +257,7 @@ def main(argv=None):
         return 130
 
 
-def metrics_json(path):
+def metrics_json(path: str | Path) -> Any:
     """Return the metrics dict stored at ``path``."""
     return json.loads(Path(path).read_text())
 

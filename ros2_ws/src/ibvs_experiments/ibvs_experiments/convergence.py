@@ -13,8 +13,12 @@ docstring says why its tolerances are what they are:
 - :data:`REACHED`: the metric ``time_to_1mm_s``, the first time within 1 mm.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 import math
+from typing import Any
+
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -28,7 +32,7 @@ class Convergence:
     position_m: float
     axis_deg: float = math.inf
 
-    def within(self, position_error_m, axis_error_deg=0.0):
+    def within(self, position_error_m: ArrayLike, axis_error_deg: ArrayLike = 0.0) -> Any:
         """
         Return whether the errors are within the tolerances (elementwise for arrays).
 
@@ -36,7 +40,7 @@ class Convergence:
         """
         return (position_error_m <= self.position_m) & (axis_error_deg <= self.axis_deg)
 
-    def final(self, metrics):
+    def final(self, metrics: Mapping[str, Any]) -> bool:
         """Return whether a run's metrics end within the tolerances (missing: not within)."""
         return bool(self.within(metrics.get('final_position_error_m', math.inf),
                                 metrics.get('final_tool_axis_error_deg', math.inf)))

@@ -19,9 +19,11 @@ tool's path per law from the run folders under ``DIR``; ``ibvs report --laws`` r
 """
 
 import argparse
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 import json
 from pathlib import Path
+from typing import Any, TYPE_CHECKING
 
 from ibvs_common import contract
 from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
@@ -32,12 +34,16 @@ matplotlib.use('Agg')
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from numpy.typing import ArrayLike, NDArray  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.typesys import get_typestore, Stores  # noqa: E402
 import yaml  # noqa: E402
 
 from . import analysis  # noqa: E402
 from .convergence import LAW_TABLE  # noqa: E402
+
+if TYPE_CHECKING:
+    from .study_spec import Spec
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
 #: Actuator cases: name -> parameter overrides. With 0.067 s latency the velocity laws'
@@ -62,17 +68,19 @@ class LawRun:
     target: np.ndarray
 
     @property
-    def converged(self):
+    def converged(self) -> bool:
         """Return True when the run reached 1 mm and ended within :data:`LAW_TABLE`."""
         return self.metrics.get('time_to_1mm_s') is not None and LAW_TABLE.final(self.metrics)
 
 
-def overrides_for(law, case):
+def overrides_for(law: str, case: str) -> dict[str, Any]:
     """Return the parameter overrides of one run (the law's feedforward ones included)."""
     return {**CASES[case], 'servo_law': law, **feedforward_overrides(law)}
 
 
-def plan(out_dir, laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
+def plan(out_dir: str | Path, laws: Iterable[str] = SERVO_LAWS,
+         cases: Iterable[str] = tuple(CASES), scenarios: Iterable[str] = SCENARIOS
+         ) -> list[tuple[str, Path, dict[str, Any]]]:
     """Return (scenario, run folder, overrides) of every run, ideal actuators first."""
     return [(name, Path(out_dir) / case / law / name, overrides_for(law, case))
             for case in cases for law in laws for name in scenarios]
@@ -85,7 +93,8 @@ DURATIONS_S = {'ideal': 3.0, 'limited': 5.0}
 STUDY_PREFIX = 'laws'
 
 
-def specs(laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
+def specs(laws: Iterable[str] = SERVO_LAWS, cases: Iterable[str] = tuple(CASES),
+          scenarios: Iterable[str] = SCENARIOS) -> 'list[Spec]':
     """
     Return the law comparison as studies (:class:`.study_spec.Spec`), one per case and scenario.
 
@@ -101,14 +110,15 @@ def specs(laws=SERVO_LAWS, cases=tuple(CASES), scenarios=SCENARIOS):
             for case in cases for name in scenarios]
 
 
-def read_records(records):
+def read_records(records: Mapping[str, Sequence[Mapping[str, Any]]]) -> list['LawRun']:
     """Return the :class:`LawRun` of the law studies' records (``run_studies``'s answer)."""
     runs = [read_run(record['run_dir']) for name, rs in records.items()
             if name.startswith(STUDY_PREFIX + '_') for record in rs if record['status'] == 'ok']
     return _ordered(runs)
 
 
-def run_all(out_dir, progress=print, **selection):
+def run_all(out_dir: str | Path, progress: Callable[[str], None] = print,
+            **selection: Any) -> list['LawRun']:
     """Run :func:`plan` one run at a time (``runner.run_scenario``); return :func:`read_all`."""
     from . import runner
     for name, run_dir, overrides in plan(out_dir, **selection):
@@ -117,7 +127,7 @@ def run_all(out_dir, progress=print, **selection):
     return read_all(out_dir)
 
 
-def joint_speeds(bag_path):
+def joint_speeds(bag_path: str | Path) -> NDArray[np.float64]:
     """Return the measured joint speeds (N, 6) of a run's /joint_states (rad/s)."""
     rows = []
     typestore = get_typestore(Stores.ROS2_JAZZY)
@@ -128,7 +138,7 @@ def joint_speeds(bag_path):
     return np.array(rows, dtype=float).reshape(-1, 6)
 
 
-def case_of(params):
+def case_of(params: Mapping[str, Any]) -> str:
     """Return the case name of a run's parameters ('ideal', 'limited' or a description)."""
     for name, values in CASES.items():
         if all(params.get(k) == v for k, v in values.items()):
@@ -136,7 +146,9 @@ def case_of(params):
     return f"{params.get('actuators')}, {params.get('feedback_latency_s', 0.0)} s latency"
 
 
-def summarise(params, metrics, qdot, position, target, qd_max=IRB4600.qd_max):
+def summarise(params: Mapping[str, Any], metrics: Mapping[str, Any], qdot: ArrayLike,
+              position: ArrayLike, target: ArrayLike, qd_max: ArrayLike = IRB4600.qd_max
+              ) -> 'LawRun':
     """Return the :class:`LawRun` of a run's parameters, metrics, joint speeds and path."""
     speed = np.abs(np.asarray(qdot, dtype=float))
     return LawRun(law=params.get('servo_law', SERVO_LAWS[0]), case=case_of(params),
@@ -147,7 +159,7 @@ def summarise(params, metrics, qdot, position, target, qd_max=IRB4600.qd_max):
                   target=np.asarray(target, dtype=float)[:3, 3])
 
 
-def read_run(run_dir):
+def read_run(run_dir: str | Path) -> 'LawRun':
     """Return the :class:`LawRun` of a folder written by ``runner.run_scenario``."""
     run_dir = Path(run_dir)
     data, metrics = analysis.analyse_bag(run_dir / 'bag')
@@ -161,7 +173,7 @@ def read_run(run_dir):
                      data.target)
 
 
-def read_all(out_dir):
+def read_all(out_dir: str | Path) -> list['LawRun']:
     """Return the :class:`LawRun` of every run folder (one with a ``bag``) under out_dir."""
     return _ordered([read_run(bag.parent) for bag in sorted(Path(out_dir).rglob('bag'))
                      if (bag / 'metadata.yaml').exists()])
@@ -178,7 +190,7 @@ def _mm(value, digits=2):
     return 'not reached' if value is None else f'{1e3 * value:.{digits}f}'
 
 
-def table(runs):
+def table(runs: Sequence['LawRun']) -> list[str]:
     """Return the markdown lines of the table: one row per run."""
     lines = ['| actuators | scenario | law | final position [mm] | final axis [deg] | '
              'time to 1 mm [s] | overshoot [mm] | peak joint speed [rad/s] (share of '
@@ -196,7 +208,7 @@ def table(runs):
     return lines
 
 
-def path_figure(runs, law, path):
+def path_figure(runs: Sequence['LawRun'], law: str, path: str | Path) -> None:
     """Plot the tool's path of each run of ``law`` (one colour per scenario) to ``path``."""
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection='3d')
@@ -220,7 +232,8 @@ def path_figure(runs, law, path):
     plt.close(fig)
 
 
-def section(runs, out_dir, figure_prefix=''):
+def section(runs: Sequence['LawRun'], out_dir: str | Path, figure_prefix: str = ''
+            ) -> list[str]:
     """
     Write one path figure per law into ``out_dir``; return the report's markdown lines.
 
@@ -243,7 +256,7 @@ def section(runs, out_dir, figure_prefix=''):
     return lines
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Write DIR/laws.md and the path figures from the run folders under DIR."""
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument('dir', help='folder holding the run folders (any depth)')

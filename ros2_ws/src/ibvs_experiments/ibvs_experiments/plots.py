@@ -17,12 +17,20 @@ Figures of one run, in the style of the paper's Figures 10-12, and more.
   limits.
 """
 
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import matplotlib
 
 matplotlib.use('Agg')
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from numpy.typing import ArrayLike  # noqa: E402
+
+if TYPE_CHECKING:
+    from .analysis import RunData
 
 MODE_COLOURS = {'measured': 'tab:green', 'blending': 'tab:orange', 'estimated': 'tab:red'}
 #: Each marker's colour in the figures: P1 (flange) red, P2 (shaft) blue, as the spheres.
@@ -32,7 +40,7 @@ MARKER_COLOURS = ('tab:red', 'tab:blue')
 TRANSIENT_S = 0.4
 
 
-def pose_vs_time(run, path):
+def pose_vs_time(run: 'RunData', path: str | Path) -> None:
     """Plot position and tool axis against time with their targets (Figures 10-12)."""
     fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True)
     t = run.t - run.t[0]
@@ -55,7 +63,7 @@ def pose_vs_time(run, path):
     plt.close(fig)
 
 
-def trajectory_3d(run, path, arrows=12):
+def trajectory_3d(run: 'RunData', path: str | Path, arrows: int = 12) -> None:
     """Plot the 3D flange path with tool-axis arrows, start, target and target axis."""
     fig = plt.figure(figsize=(7.5, 6.5))
     ax = fig.add_subplot(projection='3d')
@@ -86,7 +94,8 @@ def trajectory_3d(run, path, arrows=12):
     plt.close(fig)
 
 
-def image_plane(run, path, target_features=None):
+def image_plane(run: 'RunData', path: str | Path, target_features: ArrayLike | None = None
+                ) -> None:
     """Plot both markers' image paths in the left and right images."""
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
     width, height = 1280, 720
@@ -130,7 +139,7 @@ def image_plane(run, path, target_features=None):
     plt.close(fig)
 
 
-def feature_timeline(run, path):
+def feature_timeline(run: 'RunData', path: str | Path) -> None:
     """Plot per frame whether features were measured, blended or estimated."""
     fig, ax = plt.subplots(figsize=(10, 2.2))
     levels = {'estimated': 0, 'blending': 1, 'measured': 2}
@@ -149,7 +158,7 @@ def feature_timeline(run, path):
     plt.close(fig)
 
 
-def error_vs_time(run, path):
+def error_vs_time(run: 'RunData', path: str | Path) -> None:
     """Plot the position and tool-axis error norms, log axis, with the transient inset."""
     from .analysis import axis_angle_deg
     t = run.t - run.t[0]
@@ -183,7 +192,7 @@ def error_vs_time(run, path):
     plt.close(fig)
 
 
-def feature_error(run, path, target_features):
+def feature_error(run: 'RunData', path: str | Path, target_features: ArrayLike | None) -> None:
     """Plot each marker's image error |p_I - p_bar| (px, both images) against time."""
     fig, ax = plt.subplots(figsize=(10, 4))
     t = np.asarray(run.feature_t) - (run.t[0] if len(run.t) else 0.0)
@@ -209,7 +218,8 @@ def feature_error(run, path, target_features):
     plt.close(fig)
 
 
-def joints(series, limits, path, title=''):
+def joints(series: Sequence[ArrayLike], limits: Sequence[ArrayLike], path: str | Path,
+           title: str = '') -> None:
     """
     Plot joint angles, speeds and torques against time with their limits.
 
@@ -259,7 +269,7 @@ def _modes_at(run, times):
     return [run.modes[max(i, 0)] for i in idx]
 
 
-def title_of(run):
+def title_of(run: 'RunData') -> str:
     """Return the run's name for figure titles: the scenario's name or number."""
     return run.params.get('scenario_name') or f"scenario {run.params.get('scenario', '?')}"
 
@@ -268,7 +278,8 @@ def _title(run, what):
     return f'{title_of(run)}: {what}'
 
 
-def write_all(run, out_dir, target_features=None):
+def write_all(run: 'RunData', out_dir: Path, target_features: ArrayLike | None = None
+              ) -> dict[str, Path]:
     """Write every figure of a run into ``out_dir``; return their paths."""
     paths = {
         'pose_vs_time': out_dir / 'pose_vs_time.png',

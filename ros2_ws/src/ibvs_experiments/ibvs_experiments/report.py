@@ -11,9 +11,11 @@ To add a study to the report, add its spec file there and its name to
 :data:`EXTRA_STUDIES`: the report then shows its table and figures.
 """
 
+from collections.abc import Mapping, Sequence
 import dataclasses
 import json
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -48,7 +50,8 @@ def _verdict(ok, why=''):
     return ('met' if ok else 'not met') + (f' ({why})' if why else '')
 
 
-def claims(s1, s2, s3, worst):
+def claims(s1: Mapping[str, Any], s2: Mapping[str, Any], s3: Mapping[str, Any],
+           worst: Mapping[str, Any]) -> list[tuple[str, str, str, str]]:
     """
     Return the rows (claim, the paper's words, ours, verdict) of the paper's claims.
 
@@ -90,7 +93,7 @@ def claims(s1, s2, s3, worst):
     return rows
 
 
-def load_specs(quick=False):
+def load_specs(quick: bool = False) -> list[study_spec.Spec]:
     """Return the report's study specs; ``quick`` keeps the sweep's endpoints and nominal."""
     specs = [study_spec.load(study.study_path(name)) for name in REPORT_STUDIES]
     if quick:
@@ -104,7 +107,7 @@ def _quick(spec):
     return dataclasses.replace(spec, name=f'{spec.name}_quick', grid=grid)
 
 
-def sweep_rows(records):
+def sweep_rows(records: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """Return the Figure 13 sweep's rows (link, scale, metrics) from its study's records."""
     rows = []
     for record in records:
@@ -117,7 +120,7 @@ def sweep_rows(records):
     return rows
 
 
-def sweep_figure(rows, path):
+def sweep_figure(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
     """Plot final position error against the L2 and L4 factors (paper Figure 13)."""
     fig, ax = plt.subplots(figsize=(7, 4))
     for link, marker in (('L2', 'o'), ('L4', 's')):
@@ -136,8 +139,10 @@ def sweep_figure(rows, path):
     plt.close(fig)
 
 
-def build_report(out_dir, quick=False, address=None, parallel=None, domains=study.DOMAIN_IDS,
-                 laws=None):
+def build_report(out_dir: str | Path, quick: bool = False, address: str | None = None,
+                 parallel: int | None = None,
+                 domains: tuple[int, int] = study.DOMAIN_IDS,
+                 laws: bool | None = None) -> Path:
     """
     Run the report's studies and write ``<out_dir>/report.md``; return its path.
 

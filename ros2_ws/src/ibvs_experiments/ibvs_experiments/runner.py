@@ -22,18 +22,21 @@ said it waits for (its once-a-second "waiting ..." log line and the ``waiting_fo
 it publishes on /diagnostics).
 """
 
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 import json
 from pathlib import Path
 import re
 import shutil
 import time
+from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_bringup import domains, graph_params, scenario, shm
-from ibvs_bringup.graph import GRAPH, process_plan, uses_zed_names, ZED_TOPICS
+from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
 from ibvs_bringup.recorder import Recorder
-from ibvs_bringup.supervision import NodeDied, stop_all, wait_for_nodes, wait_for_readers
+from ibvs_bringup.supervision import (NodeDied, NodeProcess, stop_all, wait_for_nodes,
+                                      wait_for_readers)
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
@@ -42,12 +45,17 @@ from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
+from numpy.typing import NDArray
 import rclpy
 from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 import yaml
 
 from . import analysis, convergence
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
+    from rclpy.node import Node
 
 
 #: Default wall time without sim-time progress after which a run is declared stalled (s).
@@ -79,7 +87,8 @@ class RunStalled(RuntimeError):
     a frozen or hung node, the likely cause, named first.
     """
 
-    def __init__(self, what, sim_s, waits, silent=()):
+    def __init__(self, what: str, sim_s: float, waits: Mapping[str, str],
+                 silent: Sequence[str] = ()) -> None:
         """Keep the sim time reached and each node's wait; the message lists them."""
         lines = [f'  {node}: {text}' for node, text in waits.items()]
         head = (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
@@ -91,7 +100,8 @@ class RunStalled(RuntimeError):
         self.silent = tuple(silent)
 
 
-def last_waiting_line(log_path, since_epoch_s, node=None):
+def last_waiting_line(log_path: str | Path, since_epoch_s: float,
+                      node: str | None = None) -> str | None:
     """
     Return the last "waiting ..." line a node logged at or after ``since_epoch_s``, or None.
 
@@ -136,7 +146,8 @@ class Monitor:
     time), not at each step.
     """
 
-    def __init__(self, node, recorder, target, clock=time.monotonic):
+    def __init__(self, node: 'Node', recorder: Recorder, target: NDArray[np.float64],
+                 clock: Callable[[], float] = time.monotonic) -> None:
         """Follow ``recorder``'s /clock and /ibvs/tool_path; /diagnostics on ``node``."""
         self._clock = clock
         #: Wall time (``clock``) of the latest /diagnostics of each node, by node name.
@@ -155,7 +166,7 @@ class Monitor:
         node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diagnostics,
                                  10)
 
-    def poll(self):
+    def poll(self) -> None:
         """Take the newest sim time and tool pose the recorder has received."""
         recorder = self._recorder
         if self.started_wall is None and recorder.counts.get(contract.CLOCK):
@@ -178,12 +189,12 @@ class Monitor:
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
             self.heard[node] = self._clock()
 
-    def silent(self, nodes):
+    def silent(self, nodes: Iterable[str]) -> list[str]:
         """Return those of ``nodes`` whose heartbeat stopped (none for :data:`HEARTBEAT_S`)."""
         now = self._clock()
         return [n for n in nodes if n in self.heard and now - self.heard[n] > HEARTBEAT_S]
 
-    def stalled_sim_s(self):
+    def stalled_sim_s(self) -> float:
         """Return the sim time of the stall: the simulator's own status if newer than /clock."""
         sim = self.diagnostics.get('sim_node', {}).get('sim_time_s')
         try:
@@ -191,7 +202,7 @@ class Monitor:
         except (TypeError, ValueError):
             return self.sim_ns * 1e-9
 
-    def waits(self, procs, since_epoch_s):
+    def waits(self, procs: Sequence[NodeProcess], since_epoch_s: float) -> dict[str, str]:
         """
         Return, per node, what it last said it waits for (log line, /diagnostics).
 
@@ -219,7 +230,7 @@ class Monitor:
                                  + out[node])
         return out
 
-    def update_convergence(self, tolerance):
+    def update_convergence(self, tolerance: convergence.Convergence) -> float:
         """
         Track since when the tool has been within ``tolerance``; return that duration (s).
 
@@ -260,10 +271,12 @@ class Outcome:
     wall_duration_s: float = None
 
 
-def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=False,
-                 wall_timeout_s=1800.0, converge_hold_s=None, progress=print,
-                 stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S, record_overlays=False,
-                 figures=True):
+def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None = None,
+                 duration_s: float | None = None, record_images: bool = False,
+                 wall_timeout_s: float = 1800.0, converge_hold_s: float | None = None,
+                 progress: Callable[[str], None] = print, stall_s: float = STALL_S,
+                 start_timeout_s: float = START_TIMEOUT_S, record_overlays: bool = False,
+                 figures: bool = True) -> RunResult:
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
 
@@ -336,7 +349,8 @@ def run_scenario(name, out_dir, overrides=None, duration_s=None, record_images=F
                      recorder.timing.values())
 
 
-def prepare(name, out_dir, overrides=None, duration_s=None):
+def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None = None,
+            duration_s: float | None = None) -> Prepared:
     """
     Check the parameters of scenario ``name`` with ``overrides``; write its parameters file.
 
@@ -364,7 +378,8 @@ def prepare(name, out_dir, overrides=None, duration_s=None):
                     target_from_parameters(params))
 
 
-def start(run, executor, watcher, procs, graph=GRAPH):
+def start(run: Prepared, executor: 'Executor', watcher: 'Node', procs: list[NodeProcess],
+          graph: Graph = GRAPH) -> None:
     """
     Start the processes of ``graph`` for ``run`` (:func:`process_plan`), appending to ``procs``.
 
@@ -393,8 +408,11 @@ def start(run, executor, watcher, procs, graph=GRAPH):
         procs.append(spec.start(run.params_file, run.log_dir, extra))
 
 
-def watch(run, executor, monitor, procs, wall_start, progress=print, converge_hold_s=None,
-          wall_timeout_s=1800.0, stall_s=STALL_S, start_timeout_s=START_TIMEOUT_S):
+def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
+          procs: Sequence[NodeProcess], wall_start: float,
+          progress: Callable[[str], None] = print, converge_hold_s: float | None = None,
+          wall_timeout_s: float = 1800.0, stall_s: float = STALL_S,
+          start_timeout_s: float = START_TIMEOUT_S) -> Outcome:
     """
     Spin and look at the run every ``POLL_S`` until it ends; return its :class:`Outcome`.
 
@@ -459,7 +477,7 @@ def watch(run, executor, monitor, procs, wall_start, progress=print, converge_ho
     return outcome
 
 
-def stop(procs, graph=GRAPH):
+def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH) -> dict[str, int | None]:
     """
     Stop ``procs``; return their exit codes by name, in reverse start order.
 
@@ -479,7 +497,7 @@ def _clean_shm(progress, whose, new_since=None):
                  f'{shm.SHM_DIR} that {whose} left')
 
 
-def target_features(run):
+def target_features(run: analysis.RunData) -> NDArray[np.float64] | None:
     """Return F(q_target) with the recorded camera and the nominal robot (None w/o camera)."""
     if run.camera is None:
         return None
@@ -487,7 +505,9 @@ def target_features(run):
     return CameraRobotModel(run.camera, IRB4600).features(q)
 
 
-def write_results(bag_path, out_dir, wall_duration_s=None, figures=True):
+def write_results(bag_path: str | Path, out_dir: str | Path,
+                  wall_duration_s: float | None = None, figures: bool = True
+                  ) -> dict[str, Any]:
     """Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics."""
     out_dir = Path(out_dir)
     run, metrics = analysis.analyse_bag(bag_path)

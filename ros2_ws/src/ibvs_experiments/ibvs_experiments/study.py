@@ -22,6 +22,7 @@ run (each stops its nodes as ``ibvs run`` does on SIGINT), shuts Ray down, and k
 records of the runs already finished.
 """
 
+from collections.abc import Mapping, Sequence
 import csv
 import hashlib
 import importlib.util
@@ -36,6 +37,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from typing import Any, TextIO
 
 from ibvs_bringup import graph_params, scenario
 from ibvs_bringup.domains import HELD_ENV, lock_domain, parse_pool, pool
@@ -70,7 +72,7 @@ TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to
 CANCEL_GRACE_S = 30.0
 
 
-def code_version():
+def code_version() -> str:
     """
     Return a hash of the installed sources (``*.py``) that take part in a run.
 
@@ -91,7 +93,7 @@ def code_version():
     return digest.hexdigest()[:16]
 
 
-def parse_domains(text):
+def parse_domains(text: str) -> tuple[int, int]:
     """Parse ``'LOW-HIGH'`` into the inclusive range of ROS_DOMAIN_IDs (within 0-101)."""
     try:
         return parse_pool(text)
@@ -99,8 +101,9 @@ def parse_domains(text):
         raise study_spec.StudyError(str(exc)) from None
 
 
-def execute_run(domains, run_dir, scenario_name, overrides, duration_s, stall_s,
-                figures=False):
+def execute_run(domains: tuple[int, int], run_dir: str | Path, scenario_name: str,
+                overrides: Mapping[str, Any], duration_s: float, stall_s: float,
+                figures: bool = False) -> dict[str, Any]:
     """
     Run ``ibvs run`` once in a subprocess on its own ROS domain; return what came of it.
 
@@ -169,13 +172,13 @@ def _children_cpu_s():
 class Progress:
     """One line per finished run: count, share, failures, elapsed time and ETA."""
 
-    def __init__(self, total, cached, out=sys.stdout):
+    def __init__(self, total: int, cached: int, out: TextIO = sys.stdout) -> None:
         """Count ``total`` runs of which ``cached`` are done already."""
         self.total, self.done, self.failed, self.cached = total, cached, 0, cached
         self.start = time.monotonic()
         self.out = out
 
-    def update(self, label, record):
+    def update(self, label: str, record: Mapping[str, Any]) -> None:
         """Account for one finished run and print the line."""
         self.done += 1
         self.failed += record['status'] != 'ok'
@@ -227,12 +230,12 @@ class _Ray:
         return False
 
 
-def default_parallel():
+def default_parallel() -> int:
     """Return how many runs fit at once on this machine (cores / CPUS_PER_RUN, at least 1)."""
     return max(1, (os.cpu_count() or 1) // CPUS_PER_RUN)
 
 
-def check_spec(spec):
+def check_spec(spec: study_spec.Spec) -> None:
     """
     Raise :class:`scenario.ScenarioError` unless every run of ``spec`` can start.
 
@@ -245,8 +248,10 @@ def check_spec(spec):
         graph_params.check({**base, **run.overrides}, f'study {spec.name}, run {run.index}')
 
 
-def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
-                stall_s=STALL_S, retry_failed=False, out=sys.stdout):
+def run_studies(specs: Sequence[study_spec.Spec], out_dir: Path, address: str | None = None,
+                parallel: int | None = None, domains: tuple[int, int] = DOMAIN_IDS,
+                stall_s: float = STALL_S, retry_failed: bool = False,
+                out: TextIO = sys.stdout) -> dict[str, list[dict[str, Any]]]:
     """
     Run every run of ``specs`` (a list of :class:`study_spec.Spec`) in one Ray session.
 
@@ -272,7 +277,9 @@ def run_studies(specs, out_dir, address=None, parallel=None, domains=DOMAIN_IDS,
     return records
 
 
-def plan(specs, out_dir, retry_failed=False):
+def plan(specs: Sequence[study_spec.Spec], out_dir: str | Path, retry_failed: bool = False
+         ) -> tuple[dict[str, list[dict[str, Any]]],
+                    list[tuple[study_spec.Spec, dict[str, Any]]]]:
     """
     Return ``({name: [record, ...]}, [(spec, record), ...])``: every run, and those to run.
 
@@ -343,12 +350,13 @@ def _load_record(run_dir, key):
     return record if record.get('key') == key and 'status' in record else None
 
 
-def succeeded(record):
+def succeeded(record: Mapping[str, Any]) -> bool:
     """Return whether a run finished within 1 mm and 0.1 deg of the target (ACCEPTANCE)."""
     return record.get('status') == 'ok' and ACCEPTANCE.final(record.get('metrics') or {})
 
 
-def table_rows(spec, records):
+def table_rows(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]]
+               ) -> list[dict[str, Any]]:
     """Return the study table as dicts: run, swept parameters, metrics, status, wall time."""
     rows = []
     for record in records:
@@ -372,7 +380,8 @@ def _cell(value):
     return str(value).replace('|', '/')
 
 
-def write_results(spec, records, study_dir):
+def write_results(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]],
+                  study_dir: str | Path) -> list[dict[str, Any]]:
     """Write ``table.csv``, ``table.md`` and the figures of one study; return the rows."""
     study_dir = Path(study_dir)
     study_dir.mkdir(parents=True, exist_ok=True)
@@ -396,7 +405,8 @@ def write_results(spec, records, study_dir):
     return rows
 
 
-def write_figures(spec, rows, study_dir):
+def write_figures(spec: study_spec.Spec, rows: Sequence[Mapping[str, Any]],
+                  study_dir: Path) -> list[Path]:
     """Error against each swept parameter, a CDF for draws, the success rate; return paths."""
     paths = []
     for name in spec.swept_names():
@@ -453,7 +463,7 @@ def _save(fig, path):
     return path
 
 
-def study_path(name_or_path):
+def study_path(name_or_path: str | Path) -> Path:
     """Return the spec file of an installed study name ('fig13_link_lengths') or a path."""
     path = Path(name_or_path)
     if path.suffix in ('.yaml', '.yml'):

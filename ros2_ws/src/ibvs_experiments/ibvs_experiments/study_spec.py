@@ -30,11 +30,13 @@ come from ``numpy.random.default_rng(seed)``, one parameter after the other in n
 so a spec names the same runs on any machine.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 import hashlib
 import itertools
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -77,13 +79,13 @@ class Spec:
     #: Whether each run draws its figures (a few seconds each); not part of a run's key.
     run_figures: bool = False
 
-    def swept_names(self):
+    def swept_names(self) -> list[str]:
         """Return the names of the grid and draw parameters, grid first, in spec order."""
         names = [k for product in self.grid for k in product]
         names += list((self.draws or {}).get('parameters', {}))
         return list(dict.fromkeys(names))
 
-    def runs(self):
+    def runs(self) -> list['Run']:
         """Return the study's runs: every grid point with every draw."""
         points = [dict(zip(product, values)) for product in self.grid
                   for values in itertools.product(*product.values())] or [{}]
@@ -184,7 +186,7 @@ def _draws(value):
     return {'n': n, 'seed': seed, 'parameters': checked}
 
 
-def parse(data, default_name='study'):
+def parse(data: Any, default_name: str = 'study') -> Spec:
     """Check a spec's data (parsed YAML) and return a :class:`Spec`; raise StudyError."""
     data = _mapping(data, 'study spec')
     _unknown(data, KEYS, 'study spec')
@@ -217,7 +219,7 @@ def parse(data, default_name='study'):
                 description=str(data.get('description', '')), run_figures=run_figures)
 
 
-def load(path):
+def load(path: str | Path) -> Spec:
     """Read and check the spec file at ``path``."""
     path = Path(path)
     try:
@@ -230,7 +232,8 @@ def load(path):
         raise StudyError(f'{path}: {exc}') from None
 
 
-def run_key(scenario_params, overrides, duration_s, code_version):
+def run_key(scenario_params: Mapping[str, Any], overrides: Mapping[str, Any],
+            duration_s: float, code_version: str) -> str:
     """
     Return the cache key of a run: SHA-256 of everything that decides its result.
 

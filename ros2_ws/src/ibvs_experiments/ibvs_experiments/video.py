@@ -9,6 +9,7 @@ target and the tool's path so far). Written with OpenCV's VideoWriter ('mp4v', a
 camera's frame rate) to ``RUN_DIR/video.mp4``; the 3D view is drawn with matplotlib (Agg).
 """
 
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 import time
 
@@ -19,6 +20,7 @@ from ibvs_viz import scene
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 import numpy as np
+from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 from scipy.spatial.transform import Rotation
@@ -46,7 +48,8 @@ def _matrix(transform):
     return tf
 
 
-def frame_poses(local):
+def frame_poses(local: Mapping[str, tuple[str, NDArray[np.float64]]]
+                ) -> dict[str, NDArray[np.float64]]:
     """Return {frame: T_frame^base_link} from {child: (parent, T_child^parent)}."""
     out = {contract.BASE_FRAME: np.eye(4)}
 
@@ -60,7 +63,9 @@ def frame_poses(local):
     return out
 
 
-def read_frames(bag_path):
+def read_frames(bag_path: str | Path
+                ) -> Iterator[tuple[int, NDArray[np.uint8], NDArray[np.uint8],
+                                    dict[str, NDArray[np.float64]]]]:
     """
     Yield (stamp ns, left rgb, right rgb, {frame: T^base_link}) of each overlaid frame.
 
@@ -112,7 +117,7 @@ def read_frames(bag_path):
                     yield t_ns, left, right, frame_poses({**static, **dynamic[t_ns]})
 
 
-def count_frames(bag_path):
+def count_frames(bag_path: str | Path) -> int:
     """Return how many left overlay images the bag holds (the video's frame count)."""
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
@@ -123,7 +128,7 @@ def count_frames(bag_path):
 class ArmView:
     """A matplotlib 3D view of the cell, redrawn for each frame into an RGB array."""
 
-    def __init__(self, height_px=PANEL_HEIGHT, width_px=None):
+    def __init__(self, height_px: int = PANEL_HEIGHT, width_px: int | None = None) -> None:
         """Make the figure (``width_px`` defaults to 4/3 of the height)."""
         width_px = width_px or int(height_px * 4 / 3)
         self.figure = Figure(figsize=(width_px / 100.0, height_px / 100.0), dpi=100)
@@ -131,7 +136,7 @@ class ArmView:
         self.axes = self.figure.add_subplot(projection='3d')
         self.path = []
 
-    def draw(self, t_s, poses):
+    def draw(self, t_s: float, poses: Mapping[str, NDArray[np.float64]]) -> NDArray[np.uint8]:
         """Return the view (H, W, 3) uint8 of the frame poses ``poses`` at time ``t_s``."""
         ax = self.axes
         ax.cla()
@@ -192,7 +197,9 @@ def _scaled(image, height):
     return cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA)
 
 
-def write_video(run_dir, out_path=None, fps=None, progress=print):
+def write_video(run_dir: str | Path, out_path: str | Path | None = None,
+                fps: float | None = None, progress: Callable[[str], None] = print
+                ) -> tuple[Path, int]:
     """
     Write ``RUN_DIR/video.mp4`` (or ``out_path``) from the run's bag; return (path, frames).
 
@@ -230,7 +237,7 @@ def write_video(run_dir, out_path=None, fps=None, progress=print):
     return out_path, n
 
 
-def still(run_dir, out_path, index=None):
+def still(run_dir: str | Path, out_path: str | Path, index: int | None = None) -> Path:
     """Write one video frame (the middle one by default) as a PNG; return its path."""
     bag = Path(run_dir) / 'bag'
     index = count_frames(bag) // 2 if index is None else index
