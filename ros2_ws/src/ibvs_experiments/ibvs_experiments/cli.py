@@ -167,9 +167,15 @@ def cmd_report(args: argparse.Namespace) -> int:
     """Run the reproduction: scenarios 1-3 and the robustness sweep, then the report."""
     from . import report, study
     start = time.monotonic()
-    path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
-                               parallel=args.parallel,
-                               domains=study.parse_domains(args.domains))
+    try:
+        path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
+                                   parallel=args.parallel,
+                                   domains=study.parse_domains(args.domains),
+                                   retry_failed=args.retry_failed)
+    except report.ReportRunsFailed as exc:
+        print(f'error: {exc}\nno report written; the runs that finished stay cached, and '
+              '`ibvs report --retry-failed` runs the failed ones again', file=sys.stderr)
+        return 1
     print(f'wrote {path}')
     minutes, seconds = divmod(time.monotonic() - start, 60.0)
     print(f'report took {int(minutes)} min {seconds:.0f} s of wall time')
@@ -235,6 +241,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('-o', '--out', default='results', help='results directory')
     p.add_argument('--quick', action='store_true',
                    help='sweep endpoints only, and no servo-law comparison')
+    p.add_argument('--retry-failed', action='store_true',
+                   help='run again the runs recorded as failed (a failed run stays cached '
+                   'as failed otherwise)')
     p.set_defaults(func=cmd_report)
     for name in ('study', 'report'):
         p = sub.choices[name]

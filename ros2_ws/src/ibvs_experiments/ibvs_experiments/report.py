@@ -139,10 +139,20 @@ def sweep_figure(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
     plt.close(fig)
 
 
+class ReportRunsFailed(RuntimeError):
+    """Runs of the report failed: no report is written; ``failed`` names each, with why."""
+
+    def __init__(self, failed: list[str]) -> None:
+        """Keep ``failed``: one line per run, 'study#index: reason'."""
+        super().__init__(f'{len(failed)} report run(s) failed (logs in their run '
+                         'directories):\n' + '\n'.join(failed))
+        self.failed = failed
+
+
 def build_report(out_dir: str | Path, quick: bool = False, address: str | None = None,
                  parallel: int | None = None,
                  domains: tuple[int, int] = study.DOMAIN_IDS,
-                 laws: bool | None = None) -> Path:
+                 laws: bool | None = None, retry_failed: bool = False) -> Path:
     """
     Run the report's studies and write ``<out_dir>/report.md``; return its path.
 
@@ -155,12 +165,11 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
     specs = load_specs(quick)
     law_specs = laws_report.specs() if laws else []
     records = study.run_studies(specs + law_specs, out_dir / 'studies', address=address,
-                                parallel=parallel, domains=domains)
+                                parallel=parallel, domains=domains, retry_failed=retry_failed)
     failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
               for rs in records.values() for r in rs if r['status'] != 'ok']
     if failed:
-        raise RuntimeError('report runs failed (logs in their run directories):\n'
-                           + '\n'.join(failed))
+        raise ReportRunsFailed(failed)
     scenarios = {name: records[name][0]['metrics'] for name in SCENARIO_STUDIES}
     run_dirs = {name: Path(records[name][0]['run_dir']).relative_to(out_dir)
                 for name in SCENARIO_STUDIES}

@@ -110,3 +110,18 @@ def test_finding16_help_is_plain_text_and_setup_files_have_no_tests_require(caps
     src = Path(__file__).resolve().parents[2]
     for setup in src.glob('*/setup.py'):
         assert 'tests_require' not in setup.read_text(), setup
+
+
+def test_a_report_with_failed_runs_ends_with_an_error_line_not_a_traceback(capsys, monkeypatch):
+    from ibvs_experiments import report
+    asked = {}
+
+    def failing(out_dir, **kwargs):
+        asked.update(kwargs)
+        raise report.ReportRunsFailed(['laws_limited_scenario2#3: run stalled: ...'])
+
+    monkeypatch.setattr(report, 'build_report', failing)
+    code, err = run(capsys, 'report', '-o', 'unused', '--retry-failed')
+    assert code == 1 and asked['retry_failed'] is True
+    assert err.startswith('error: 1 report run(s) failed') and 'Traceback' not in err
+    assert 'laws_limited_scenario2#3' in err and '--retry-failed' in err
