@@ -49,15 +49,23 @@ $(BUILD_STAMP): $(VENV_STAMP) $(SOURCES)
 
 build: $(BUILD_STAMP)
 
-# Linters first, in their own pytest process: flake8 forks workers, and a fork of a process
-# that holds rclpy objects from earlier node tests can crash in the child.
-# The rest in two worker processes (pytest-xdist, a file per worker at a time): the graph
-# tests are latency-bound (about 1.2 of 2 cores), so two files at once use the machine. Each
-# worker is its own process with its own ROS domain (ibvs_testing.isolation.isolate, called
-# from the root conftest.py).
+# The linters in a pytest process of their own (flake8 forks workers, and a fork of a process
+# that holds rclpy objects from earlier node tests can crash in the child), at the same time
+# as the rest, their report printed after it: the rest runs in two worker processes
+# (pytest-xdist, a file per worker at a time) whose graph tests are latency-bound (about 1.2
+# of 2 cores), which leaves room for the linters' 20-odd seconds of CPU. Each worker is its
+# own process with its own ROS domain (ibvs_testing.isolation.isolate, called from the root
+# conftest.py). make test fails if either fails; PYTEST_ARGS='-k NAME' may select no linter.
 test: build
-	$(RUN) python -m pytest -m linter $(PYTEST_ARGS)
-	$(RUN) python -m pytest -m 'not linter' -n 2 --dist loadfile $(PYTEST_ARGS)
+	$(RUN) lint_log=$$(mktemp) && \
+	  { python -m pytest -m linter -p no:cacheprovider $(PYTEST_ARGS) > $$lint_log 2>&1 & \
+	    lint_pid=$$!; } && \
+	  { python -m pytest -m 'not linter' -n 2 --dist loadfile $(PYTEST_ARGS); tests=$$?; } ; \
+	  wait $$lint_pid; lint=$$?; [ $$lint -eq 5 ] && lint=0; \
+	  echo '--- linters (ran alongside; exit 5: none selected by PYTEST_ARGS) ---'; \
+	  cat $$lint_log; \
+	  rm -f $$lint_log; echo "linters: exit $$lint; other tests: exit $$tests"; \
+	  [ $$tests -eq 0 ] && [ $$lint -eq 0 ]
 
 # Bad input into every subscribed topic of every node (tests/fuzz; make test runs it too).
 fuzz: build
