@@ -47,6 +47,7 @@ from typing import Any, TYPE_CHECKING
 from ibvs_common import contract, profiling
 from ibvs_common.conversions import camera_from_msgs, pose_matrix
 from ibvs_common.shared_params import target_from_parameters
+from ibvs_common.timing import ns_to_seconds, seconds_to_ns
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from rosbags.highlevel import AnyReader
@@ -172,7 +173,7 @@ def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike) -> dict[str, A
     latency = np.asarray(latency, dtype=np.int64).reshape(-1, 2)
     if latency.size == 0:
         return {}
-    delay = (latency[:, 0] - latency[:, 1]) * 1e-9
+    delay = ns_to_seconds(latency[:, 0] - latency[:, 1])
     held = np.asarray(rtf_held, dtype=float)
     return {
         'frames_used': int(delay.size),
@@ -194,7 +195,7 @@ def _stamp(header):
 
 def _before(end_ns, stamps, values):
     """Return (stamps, values) of the samples stamped (s) before ``end_ns``."""
-    keep = [i for i, x in enumerate(stamps) if round(x * 1e9) < end_ns]
+    keep = [i for i, x in enumerate(stamps) if seconds_to_ns(x) < end_ns]
     return [stamps[i] for i in keep], [values[i] for i in keep]
 
 
@@ -251,7 +252,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     # stopped (older bags have no duration_s and are taken whole).
     limit = run_info.get('duration_s')
     if limit is not None:
-        end_ns = round(float(limit) * 1e9)
+        end_ns = seconds_to_ns(limit)
         t, poses = _before(end_ns, t, poses)
         ft, feats = _before(end_ns, ft, feats)
         mt, modes = _before(end_ns, mt, modes)
@@ -355,11 +356,11 @@ def feature_errors(run: 'RunData', params: 'RobotParams | None' = None
         raise ValueError('the run recorded no camera (camera_info and /stereo/pose)')
     if len(run.feature_t) != len(run.features):
         raise ValueError('features without two points in the recording')
-    mode_of = {round(t * 1e9): mode for t, mode in zip(run.mode_t, run.modes)}
-    step_of = {round(t * 1e9): i for i, t in enumerate(run.t)}
+    mode_of = {seconds_to_ns(t): mode for t, mode in zip(run.mode_t, run.modes)}
+    step_of = {seconds_to_ns(t): i for i, t in enumerate(run.t)}
     rows = []
     for t, features in zip(run.feature_t, run.features):
-        stamp = round(t * 1e9)
+        stamp = seconds_to_ns(t)
         if mode_of.get(stamp) != 'measured' or stamp not in step_of:
             continue
         i = step_of[stamp]

@@ -41,6 +41,7 @@ from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
 from ibvs_common.shared_params import target_from_parameters
+from ibvs_common.timing import ns_to_seconds
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path as PathMsg
@@ -198,9 +199,9 @@ class Monitor:
         """Return the sim time of the stall: the simulator's own status if newer than /clock."""
         sim = self.diagnostics.get('sim_node', {}).get('sim_time_s')
         try:
-            return max(self.sim_ns * 1e-9, float(sim))
+            return max(ns_to_seconds(self.sim_ns), float(sim))
         except (TypeError, ValueError):
-            return self.sim_ns * 1e-9
+            return ns_to_seconds(self.sim_ns)
 
     def waits(self, procs: Sequence[NodeProcess], since_epoch_s: float) -> dict[str, str]:
         """
@@ -242,7 +243,7 @@ class Monitor:
             return 0.0
         if self.within_since_ns is None:
             self.within_since_ns = self.sim_ns
-        return (self.sim_ns - self.within_since_ns) * 1e-9
+        return ns_to_seconds(self.sim_ns - self.within_since_ns)
 
 
 @dataclass
@@ -436,7 +437,7 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
                 break
         if outcome.died:
             break
-        sim_s = monitor.sim_ns * 1e-9
+        sim_s = ns_to_seconds(monitor.sim_ns)
         now = time.monotonic()
         if now - last_print >= 2.0:
             last_print = now
