@@ -49,7 +49,12 @@ class LensWorker:
     """
 
     def __init__(self, world_kwargs: Mapping[str, Any]) -> None:
-        """Start the worker and wait until its World is built; raise LensWorkerError if not."""
+        """
+        Start the worker building its World; :meth:`wait_ready` waits until it has.
+
+        The caller does its own start-up meanwhile: the worker's imports, EGL and URDF load
+        then overlap with the simulator's (about a second of every run's start, issue 24).
+        """
         ours, theirs = socket.socketpair()
         self._process = subprocess.Popen(
             [sys.executable, '-m', 'ibvs_sim.lens_server', str(theirs.fileno())],
@@ -57,13 +62,19 @@ class LensWorker:
         theirs.close()
         self._conn = Connection(ours.detach())
         self._pending = False
+        #: The renderer the worker's World uses ('egl' or 'tiny'); None until ready.
+        self.renderer = None
         self._conn.send(world_kwargs)
-        kind, detail = self._receive(START_TIMEOUT_S, 'start')
-        if kind != 'ready':
-            self.close()
-            raise LensWorkerError(f'the lens worker did not start: {detail}')
-        #: The renderer the worker's World uses ('egl' or 'tiny').
-        self.renderer = detail
+
+    def wait_ready(self) -> str:
+        """Wait until the worker's World is built; return its renderer (LensWorkerError if not)."""
+        if self.renderer is None:
+            kind, detail = self._receive(START_TIMEOUT_S, 'start')
+            if kind != 'ready':
+                self.close()
+                raise LensWorkerError(f'the lens worker did not start: {detail}')
+            self.renderer = detail
+        return self.renderer
 
     def _receive(self, timeout_s, what):
         if not self._conn.poll(timeout_s):
@@ -81,6 +92,7 @@ class LensWorker:
         """Ask for :meth:`World.render_lens` (``args``) with the robot at joint angles ``q``."""
         if self._pending:
             raise LensWorkerError('submit() again before result()')
+        self.wait_ready()
         try:
             self._conn.send((np.asarray(q, dtype=float), args))
         except (BrokenPipeError, OSError) as exc:

@@ -41,7 +41,7 @@ import pybullet
 from .config import MOUNT_HEIGHT_M, RENDERER
 from .gl_renderer import (box_triangles, cylinder_triangles, GLRenderer, GLRendererError,
                           obj_triangles, Shape, transformed)
-from .lens_worker import LensWorker
+from .lens_worker import LensWorker, LensWorkerError
 from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
                         DEFAULT_SUPERSAMPLING, EGL_WINDOW, FAR_M, focus_windows, gl_matrix,
                         ground_obj,
@@ -132,17 +132,22 @@ class World:
         # (measured: 64 against 64-78 ms a VGA pair, 121-135 against 184-186 ms at HD720,
         # loaded machine), as llvmpipe's own threads already use both.
         lens_worker = lens_worker and renderer != 'opengl'
-        if lens_worker:  # before the EGL plugin loads here; the worker inherits it
-            os.environ.setdefault(LLVMPIPE_THREADS, '1')
         try:
+            if lens_worker:  # before the EGL plugin loads here; the worker inherits it
+                os.environ.setdefault(LLVMPIPE_THREADS, '1')
+                # Started first: its start-up overlaps with this process's below.
+                self._lens_worker = LensWorker({
+                    'params': params, 'physics_rate_hz': physics_rate_hz,
+                    'renderer': renderer, 'with_tool': with_tool,
+                    'mount_height_m': self.mount_height_m})
             # The EGL plugin only draws bodies loaded after it: load it first.
             self.renderer = self._setup_renderer(renderer)
             self._setup(with_tool)
-            if lens_worker:
-                self._lens_worker = LensWorker({
-                    'params': params, 'physics_rate_hz': physics_rate_hz,
-                    'renderer': self.renderer, 'with_tool': with_tool,
-                    'mount_height_m': self.mount_height_m})
+            if self._lens_worker is not None and \
+                    self._lens_worker.wait_ready() != self.renderer:
+                raise LensWorkerError(f'the lens worker renders with '
+                                      f'{self._lens_worker.renderer!r}, this process with '
+                                      f'{self.renderer!r}')
         except Exception:
             self.close()
             raise
