@@ -6,11 +6,14 @@ enough to write the paper's Youla designs, eq. (28)-(29), (33)-(41) and (44)-(45
 the paper writes them, and to check them (poles, DC gain, step response). Polynomials
 are numpy arrays with the highest power first, as in scipy.signal. ``dt = None`` is a
 continuous-time (Laplace, s) transfer function; ``dt > 0`` a discrete-time (z) one.
+
+scipy.signal is imported by the conversions that use it, not with this module: it costs
+about a second of CPU, and the runner reads the control nodes' parameters (which import
+this module) before every run without designing anything (issue 24: start-up).
 """
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 
 def _trim(poly):
@@ -183,6 +186,7 @@ class TransferFunction:
         """Return (A, B, C, D) of a state-space realisation (scipy.signal.tf2ss)."""
         if not self.is_proper():
             raise ValueError('an improper transfer function has no state-space realisation')
+        from scipy import signal  # here: module docstring
         a, b, c, d = signal.tf2ss(self.num, self.den)
         return a, b, c, d
 
@@ -195,6 +199,7 @@ class TransferFunction:
         """
         if self.dt is not None:
             raise ValueError('already discrete')
+        from scipy import signal  # here: module docstring
         num, den, _ = signal.cont2discrete((self.num, self.den), dt, method=method)
         return TransferFunction(np.ravel(num), den, dt)
 
@@ -205,6 +210,7 @@ class TransferFunction:
         Continuous: scipy.signal.step (exact for the linear system). Discrete: the output
         at the samples t = k dt, held in between (``t`` is rounded down to samples).
         """
+        from scipy import signal  # here: module docstring
         t = np.asarray(t, dtype=float)
         if self.dt is None:
             _, y = signal.step((self.num, self.den), T=t)
