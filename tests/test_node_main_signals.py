@@ -75,24 +75,29 @@ class Flood:
         self._node.destroy_node()
 
 
-def start_sink(mode='normal'):
+def start_sinks(mode='normal', count=1):
     """
-    Start the node process and wait until it has taken its first image.
+    Start ``count`` node processes at once and wait until each has taken its first image.
 
     Lines before 'ready' are allowed: Fast DDS logs "Failed init_port ...:
     open_and_lock_file failed" when another process on the machine holds the shared-memory
     port it tried first, and goes on with the next one (eProsima/Fast-DDS#1095); with two
-    test workers that happens. The process ending before 'ready' fails the test.
+    test workers that happens. A process ending before 'ready' fails the test.
     """
-    proc = subprocess.Popen([sys.executable, '-c', NODE_SCRIPT, mode], text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    before = []
-    for line in proc.stdout:
-        if line.strip() == 'ready':
-            return proc
-        before.append(line)
-    proc.kill()
-    pytest.fail(f'node did not start: {"".join(before)}')
+    procs = [subprocess.Popen([sys.executable, '-c', NODE_SCRIPT, mode], text=True,
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+             for _ in range(count)]
+    for proc in procs:
+        before = []
+        for line in proc.stdout:
+            if line.strip() == 'ready':
+                break
+            before.append(line)
+        else:
+            for p in procs:
+                p.kill()
+            pytest.fail(f'node did not start: {"".join(before)}')
+    return procs
 
 
 def stop_and_collect(proc, timeout_s=10.0):
@@ -108,20 +113,26 @@ def stop_and_collect(proc, timeout_s=10.0):
 
 @pytest.mark.parametrize('signum', [subprocess.signal.SIGINT, subprocess.signal.SIGTERM])
 def test_stop_signal_under_image_flood_exits_zero(context, signum):
+    # Eight stops, two processes at a time (each start is mostly discovery, not CPU), each
+    # stopped after its own random delay while both take the flood.
     rng = random.Random(20261121)
     with Flood(context):
-        for attempt in range(8):
-            proc = start_sink()
-            time.sleep(rng.uniform(0.0, 0.5))
-            proc.send_signal(signum)
-            code, out = stop_and_collect(proc)
-            assert code == 0, f'attempt {attempt}: exit code {code}\n{out[-3000:]}'
-            assert 'clean exit' in out
+        for attempt in range(0, 8, 2):
+            procs = start_sinks(count=2)
+            elapsed = 0.0
+            for proc, delay in zip(procs, sorted(rng.uniform(0.0, 0.5) for _ in procs)):
+                time.sleep(delay - elapsed)
+                elapsed = delay
+                proc.send_signal(signum)
+            for index, proc in enumerate(procs):
+                code, out = stop_and_collect(proc)
+                assert code == 0, f'attempt {attempt + index}: exit code {code}\n{out[-3000:]}'
+                assert 'clean exit' in out
 
 
 def test_second_sigint_stops_a_node_stuck_in_a_callback(context):
     with Flood(context):
-        proc = start_sink(mode='stuck')
+        proc, = start_sinks(mode='stuck')
         proc.send_signal(subprocess.signal.SIGINT)
         time.sleep(1.0)
         # The first signal waits for the callback to return (60 s here)...
