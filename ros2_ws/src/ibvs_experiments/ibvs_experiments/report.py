@@ -245,16 +245,9 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
         runs = laws_report.read_records(records)
         lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
         from ibvs_control import calibration_sweep
-        lines += ['### Calibration error (model-only loop, scenario 1)', '',
-                  calibration_sweep.__doc__.strip().split('\n\n')[1].replace('\n', ' '), '',
-                  'Final position / tool-axis error of the true flange after '
-                  f'{calibration_sweep.DURATION_S:g} s:', '']
-        lines += calibration_sweep.table(calibration_sweep.sweep()) + ['']
-        lines += ['### Feature noise (model-only loop, scenario 1)', '',
-                  'Gaussian noise on every measured feature (px, a stand-in for the '
-                  "detector's error, not rendered image noise); RMS position / tool-axis "
-                  f'error over the last {calibration_sweep.TAIL_S:g} s:', '']
-        lines += calibration_sweep.noise_table(calibration_sweep.noise_sweep()) + ['']
+        lines += laws_report.model_only_section(
+            calibration_sweep.sweep(), calibration_sweep.noise_sweep(), out_dir / 'laws',
+            'laws/')
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path
