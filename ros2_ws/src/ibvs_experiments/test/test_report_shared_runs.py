@@ -1,6 +1,7 @@
 """The report runs each distinct graph run once: studies that name the same run share it."""
 
 import dataclasses
+import json
 
 from ibvs_experiments import laws_report, report
 from ibvs_experiments.study_spec import Spec
@@ -84,3 +85,41 @@ def test_every_run_gets_a_record_and_the_sweep_reads_scenario_1_at_its_nominal_p
     ibvs = next(r for r in records['laws_ideal_scenario2']
                 if r['overrides']['servo_law'] == 'ibvs')
     assert ibvs['run_dir'].startswith('/runs/laws_ideal_scenario2/') and 'same_as' not in ibvs
+
+
+def test_build_report_runs_a_shared_run_once_and_shows_it_in_every_study(tmp_path,
+                                                                         monkeypatch):
+    from ibvs_experiments import study
+    metrics = dict.fromkeys(('time_to_1mm_s', 'settling_time_2pct_s', 'max_overshoot_m',
+                             'final_tool_axis_error_deg', 'time_estimated_s',
+                             'lowest_tool_z_m'), 0.0)
+    asked = []
+
+    def run_studies(specs, out_dir, **_):
+        asked.extend(specs)
+        records = {}
+        for spec in specs:
+            records[spec.name] = []
+            for run in spec.runs():
+                # scenario 1 ends 1 mm off, every other run its index + 1 um
+                error = 1e-3 if spec.name == 'scenario1' else 1e-6 * (run.index + 1)
+                records[spec.name].append(
+                    {'study': spec.name, 'index': run.index, 'swept': run.swept,
+                     'overrides': run.overrides, 'status': 'ok',
+                     'run_dir': str(tmp_path / 'studies' / spec.name / 'runs' / str(run.index)),
+                     'metrics': {**metrics, 'final_position_error_m': error,
+                                 'initial_position_error_m': 2.0}})
+        return records
+
+    monkeypatch.setattr(study, 'run_studies', run_studies)
+    report.build_report(tmp_path, quick=True)
+    runs = sum(len(spec.runs()) for spec in asked)
+    assert runs == 3 + 2 * len(report.QUICK_SCALES) - 2, 'the sweep at 100 % is scenario 1'
+    sweep = json.loads((tmp_path / 'report.json').read_text())['sweep']
+    s1 = json.loads((tmp_path / 'report.json').read_text())['scenarios']['scenario1']
+    assert len(sweep) == 2 * len(report.QUICK_SCALES)
+    nominal = [r['final_position_error_m'] for r in sweep if r['scale'] == 1.0]
+    assert nominal == [s1['final_position_error_m']] * 2
+    table = (tmp_path / 'studies' / f'{report.SWEEP_STUDY}_quick' / 'table.md').read_text()
+    assert f'{2 * len(report.QUICK_SCALES)} runs' in table
+    assert '2 of them made by another study' in (tmp_path / 'report.md').read_text()
