@@ -14,13 +14,16 @@ overshoot past the target along the approach, peak joint speed (rad/s, and as a 
 IRB 4600's limit qd_max), and converged: within :data:`.convergence.LAW_TABLE` of the
 target at the end and within 1 mm from ``time_to_1mm_s`` on.
 
-``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and one figure of the
-tool's path per law from the run folders under ``DIR``; ``ibvs report --laws`` runs them.
+``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and per law one figure
+of the tool's paths in 3-D and one of the features' paths in the images from the run folders
+under ``DIR``; ``ibvs report --laws`` runs them. The figures of the model-only calibration and
+noise sweeps (:mod:`ibvs_control.calibration_sweep`) are here too
+(:func:`model_only_section`): ``ibvs_control`` draws nothing.
 """
 
 import argparse
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import json
 from pathlib import Path
 from typing import Any, TYPE_CHECKING
@@ -43,6 +46,9 @@ from . import analysis  # noqa: E402
 from .convergence import LAW_TABLE  # noqa: E402
 
 if TYPE_CHECKING:
+    from ibvs_control.calibration_sweep import SweepRun
+    from matplotlib.figure import Figure
+
     from .study_spec import Spec
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
@@ -52,6 +58,8 @@ SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
 #: model-only loop oscillates and diverges from scenario 1; at 6 / s it converges.
 CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
          'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
+#: Each case's line style in the law figures (another case: dotted).
+CASE_STYLES = {'ideal': '-', 'limited': '--'}
 
 
 @dataclass(frozen=True)
@@ -66,6 +74,12 @@ class LawRun:
     peak_speed_share: float
     position: np.ndarray
     target: np.ndarray
+    #: The features p_hat of each camera frame (N, 6): per marker (u_left, u_right, v), px.
+    features: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    #: The target features p_bar (6,) (F at the target, nominal robot), or None.
+    target_features: np.ndarray | None = None
+    #: The images' (width, height), px, or None when the bag has no camera.
+    image_size: tuple[int, int] | None = None
 
     @property
     def converged(self) -> bool:
@@ -147,16 +161,27 @@ def case_of(params: Mapping[str, Any]) -> str:
 
 
 def summarise(params: Mapping[str, Any], metrics: Mapping[str, Any], qdot: ArrayLike,
-              position: ArrayLike, target: ArrayLike, qd_max: ArrayLike = IRB4600.qd_max
-              ) -> 'LawRun':
-    """Return the :class:`LawRun` of a run's parameters, metrics, joint speeds and path."""
+              position: ArrayLike, target: ArrayLike, qd_max: ArrayLike = IRB4600.qd_max,
+              features: ArrayLike | None = None, target_features: ArrayLike | None = None,
+              image_size: tuple[int, int] | None = None) -> 'LawRun':
+    """
+    Return the :class:`LawRun` of a run's parameters, metrics, joint speeds and path.
+
+    ``features``, ``target_features``, ``image_size``: the run's image-plane features
+    (N, 6), p_bar (6,) and the images' (width, height), for :func:`image_figure`.
+    """
     speed = np.abs(np.asarray(qdot, dtype=float))
     return LawRun(law=params.get('servo_law', SERVO_LAWS[0]), case=case_of(params),
                   scenario=str(params.get('scenario_name', metrics.get('scenario'))),
                   metrics=metrics, peak_joint_speed=float(speed.max(initial=0.0)),
                   peak_speed_share=float((speed / np.asarray(qd_max)).max(initial=0.0)),
                   position=np.asarray(position, dtype=float),
-                  target=np.asarray(target, dtype=float)[:3, 3])
+                  target=np.asarray(target, dtype=float)[:3, 3],
+                  features=np.zeros((0, 6)) if features is None
+                  else np.asarray(features, dtype=float).reshape(-1, 6),
+                  target_features=None if target_features is None
+                  else np.asarray(target_features, dtype=float),
+                  image_size=image_size)
 
 
 def read_run(run_dir: str | Path) -> 'LawRun':
@@ -169,8 +194,12 @@ def read_run(run_dir: str | Path) -> 'LawRun':
         params = {**loaded.get('/**', {}).get('ros__parameters', {}), **params}
     params.setdefault('scenario_name', f"scenario{params['scenario']}" if 'scenario' in params
                       else run_dir.name)
+    from .runner import target_features
+    size = None if data.camera is None else (data.camera.intrinsics.width,
+                                             data.camera.intrinsics.height)
     return summarise(params, metrics, joint_speeds(run_dir / 'bag'), data.position,
-                     data.target)
+                     data.target, features=data.features, target_features=target_features(data),
+                     image_size=size)
 
 
 def read_all(out_dir: str | Path) -> list['LawRun']:
@@ -212,11 +241,10 @@ def path_figure(runs: Sequence['LawRun'], law: str, path: str | Path) -> None:
     """Plot the tool's path of each run of ``law`` (one colour per scenario) to ``path``."""
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection='3d')
-    styles = {'ideal': '-', 'limited': '--'}
     for i, name in enumerate(SCENARIOS):
         for r in (r for r in runs if r.law == law and r.scenario == name):
             p = r.position
-            ax.plot(p[:, 0], p[:, 1], p[:, 2], styles.get(r.case, ':'), color=f'C{i}',
+            ax.plot(p[:, 0], p[:, 1], p[:, 2], CASE_STYLES.get(r.case, ':'), color=f'C{i}',
                     label=f'{name}, {r.case}')
             ax.scatter(*p[0], color=f'C{i}', marker='o')
     targets = {tuple(r.target) for r in runs if r.law == law}
@@ -232,10 +260,158 @@ def path_figure(runs: Sequence['LawRun'], law: str, path: str | Path) -> None:
     plt.close(fig)
 
 
+def image_figure(runs: Sequence['LawRun'], law: str, path: str | Path) -> 'Figure':
+    """
+    Plot the image-plane paths of ``law``'s runs: a row per scenario, left and right image.
+
+    Each marker's measured or estimated features p_hat (colour per marker, as
+    :data:`.plots.MARKER_COLOURS`; line style per case), its start (o) and its target p_bar
+    (*), and the image border; estimated features out of view are drawn too (Corke's and
+    ViSP's IBVS examples plot the same: the feature paths in the image). Returns the
+    figure, saved and closed.
+    """
+    from .plots import MARKER_COLOURS
+    names = [name for name in SCENARIOS
+             if any(r.law == law and r.scenario == name for r in runs)]
+    fig, axes = plt.subplots(max(len(names), 1), 2, figsize=(12, 3.8 * max(len(names), 1)),
+                             squeeze=False)
+    for row, name in enumerate(names):
+        sel = [r for r in runs if r.law == law and r.scenario == name]
+        for side in (0, 1):
+            ax = axes[row, side]
+            size = next((r.image_size for r in sel if r.image_size is not None), None)
+            if size is not None:
+                ax.add_patch(plt.Rectangle((-0.5, -0.5), *size, fill=False, color='grey',
+                                           label='image border'))
+            for r in sel:
+                for marker, colour in enumerate(MARKER_COLOURS):
+                    u, v = r.features[:, 3 * marker + side], r.features[:, 3 * marker + 2]
+                    ax.plot(u, v, CASE_STYLES.get(r.case, ':'), color=colour, lw=1,
+                            label=f'marker {marker + 1}, {r.case}')
+                    if len(u):
+                        ax.scatter(u[0], v[0], s=25, color=colour, marker='o')
+                    if r.target_features is not None:
+                        ax.scatter(r.target_features[3 * marker + side],
+                                   r.target_features[3 * marker + 2], s=120, marker='*',
+                                   color=colour, edgecolor='black', zorder=3)
+            ax.autoscale_view()
+            ax.invert_yaxis()
+            ax.set_aspect('equal', adjustable='datalim')
+            ax.set_xlabel('u [px]')
+            ax.set_ylabel('v [px]')
+            ax.set_title(f"{name}, {'left' if side == 0 else 'right'} image", fontsize=10)
+            ax.grid(alpha=0.3)
+        axes[row, 1].legend(fontsize=7, loc='center left', bbox_to_anchor=(1.02, 0.5))
+    fig.suptitle(f'image-plane feature paths, servo_law = {law} (o start, * target)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return fig
+
+
+def _one_error_at_a_time(runs):
+    """Return the runs with no focal error by camera position error, and the reverse."""
+    position = sorted((r for r in runs if r.focal_error == 0.0),
+                      key=lambda r: r.position_error_m)
+    focal = sorted((r for r in runs if r.position_error_m == 0.0), key=lambda r: r.focal_error)
+    return position, focal
+
+
+def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure':
+    """
+    Plot the calibration sweep (:func:`ibvs_control.calibration_sweep.sweep`) to ``path``.
+
+    Columns: against the camera position error (mm, no focal error) and against the focal
+    length error (%, no position error); rows: the true flange's final position error
+    (mm) and final tool-axis error (deg), each with the law table's tolerance
+    (:data:`.convergence.LAW_TABLE`, dotted), and the time to 1 mm (s; x at the top of the
+    panel: not within 1 mm at the end). One colour and marker per law, one line style per
+    target source (model solid, taught dashed). Points with both errors are not drawn.
+    Returns the figure, saved and closed.
+    """
+    laws = list(dict.fromkeys(r.law for r in runs))
+    targets = list(dict.fromkeys(r.target for r in runs))
+    styles = dict(zip(targets, ('-', '--', ':', '-.')))
+    markers = dict(zip(laws, 'osD^v<>'))
+    # Each row: label, value, and the LAW_TABLE tolerance drawn (the axis always shows it,
+    # so that a numerical floor of 1e-7 deg is not drawn as a spread).
+    rows = (('final position error [mm]', lambda r: 1e3 * r.final_position_error_m,
+             1e3 * LAW_TABLE.position_m),
+            ('final tool-axis error [deg]', lambda r: r.final_axis_error_deg,
+             LAW_TABLE.axis_deg),
+            ('time to 1 mm [s]', lambda r: r.time_to_1mm_s, None))
+    columns = (('camera position error [mm]', lambda r: 1e3 * r.position_error_m),
+               ('focal length error [%]', lambda r: 100 * r.focal_error))
+    fig, axes = plt.subplots(len(rows), len(columns), figsize=(12, 10), sharex='col',
+                             squeeze=False)
+    for col, ((xlabel, x), sel) in enumerate(zip(columns, _one_error_at_a_time(runs))):
+        for row, (ylabel, y, tolerance) in enumerate(rows):
+            ax = axes[row, col]
+            for i, law in enumerate(laws):
+                for target in targets:
+                    line = [r for r in sel if r.law == law and r.target == target]
+                    xs = np.array([x(r) for r in line])
+                    ys = np.array([y(r) for r in line], dtype=float)
+                    ax.plot(xs, ys, styles[target], marker=markers[law], color=f'C{i}',
+                            ms=5, alpha=0.8, label=f'{law}, {target} target')
+                    missing = ~np.isfinite(ys)
+                    if missing.any():
+                        ax.scatter(xs[missing], np.ones(missing.sum()), marker='x',
+                                   color=f'C{i}', transform=ax.get_xaxis_transform(),
+                                   clip_on=False)
+            if tolerance is not None:
+                ax.axhline(tolerance, color='grey', ls=':', lw=1, label='converged within')
+                ax.set_ylim(bottom=0.0, top=max(ax.get_ylim()[1], 1.5 * tolerance))
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            if row == len(rows) - 1:
+                ax.set_xlabel(xlabel)
+    axes[0, -1].legend(fontsize=7, loc='upper left')
+    fig.suptitle('calibration error, model-only loop from scenario 1 (x: not within 1 mm '
+                 'at the end)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return fig
+
+
+def noise_figure(results: Mapping[tuple[str, float], tuple[float, float]],
+                 path: str | Path) -> 'Figure':
+    """
+    Plot the noise sweep (:func:`ibvs_control.calibration_sweep.noise_sweep`) to ``path``.
+
+    RMS position error (mm) and RMS tool-axis error (deg) of the true flange over the
+    sweep's last ``TAIL_S`` against the features' noise (px), one line per law.
+    Returns the figure, saved and closed.
+    """
+    noise = sorted({sigma for _, sigma in results})
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    for i, law in enumerate(dict.fromkeys(law for law, _ in results)):
+        for ax, scale, which in ((axes[0], 1e3, 0), (axes[1], 1.0, 1)):
+            ax.plot(noise, [scale * results[law, sigma][which] for sigma in noise], 'o-',
+                    color=f'C{i}', label=law)
+    for ax, label in zip(axes, ('RMS position error [mm]', 'RMS tool-axis error [deg]')):
+        ax.set_xlabel('feature noise, standard deviation [px]')
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    from ibvs_control.calibration_sweep import TAIL_S
+    fig.suptitle('feature noise, model-only loop from scenario 1 (RMS over the last '
+                 f'{TAIL_S:g} s)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return fig
+
+
 def section(runs: Sequence['LawRun'], out_dir: str | Path, figure_prefix: str = ''
             ) -> list[str]:
     """
-    Write one path figure per law into ``out_dir``; return the report's markdown lines.
+    Write each law's figures into ``out_dir``; return the report's markdown lines.
+
+    The table (:func:`table`), then per law the tool paths in 3-D (:func:`path_figure`,
+    ``law_path_<law>.png``) and the image-plane feature paths (:func:`image_figure`,
+    ``law_image_<law>.png``).
 
     ``figure_prefix``: the figures' folder as the markdown file that holds the lines sees it.
     """
@@ -253,7 +429,43 @@ def section(runs: Sequence['LawRun'], out_dir: str | Path, figure_prefix: str = 
         name = f'law_path_{law}.png'
         path_figure(runs, law, out_dir / name)
         lines += [f'![{law}]({figure_prefix}{name})', '']
+    lines += ["Each law's features in the left and right image (measured, or estimated out of "
+              'view), per scenario:', '']
+    for law in dict.fromkeys(r.law for r in runs):
+        name = f'law_image_{law}.png'
+        image_figure(runs, law, out_dir / name)
+        lines += [f'![{law} image paths]({figure_prefix}{name})', '']
     return lines
+
+
+def model_only_section(calibration: 'Sequence[SweepRun]',
+                       noise: Mapping[tuple[str, float], tuple[float, float]],
+                       out_dir: str | Path, figure_prefix: str = '') -> list[str]:
+    """
+    Return the report's lines of the model-only sweeps; write their figures into ``out_dir``.
+
+    ``calibration``: :func:`ibvs_control.calibration_sweep.sweep`'s runs; ``noise``:
+    :func:`~ibvs_control.calibration_sweep.noise_sweep`'s results. Each is computed once
+    by the caller and gives both its table and its figure (``calibration.png``,
+    ``noise.png``); ``figure_prefix`` as for :func:`section`.
+    """
+    from ibvs_control import calibration_sweep
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    calibration_figure(calibration, out_dir / 'calibration.png')
+    noise_figure(noise, out_dir / 'noise.png')
+    return ['### Calibration error (model-only loop, scenario 1)', '',
+            calibration_sweep.__doc__.strip().split('\n\n')[1].replace('\n', ' '), '',
+            'Final position / tool-axis error of the true flange after '
+            f'{calibration_sweep.DURATION_S:g} s:', '',
+            *calibration_sweep.table(calibration), '',
+            f'![calibration error]({figure_prefix}calibration.png)', '',
+            '### Feature noise (model-only loop, scenario 1)', '',
+            'Gaussian noise on every measured feature (px, a stand-in for the '
+            "detector's error, not rendered image noise); RMS position / tool-axis "
+            f'error over the last {calibration_sweep.TAIL_S:g} s:', '',
+            *calibration_sweep.noise_table(noise), '',
+            f'![feature noise]({figure_prefix}noise.png)', '']
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -139,6 +139,95 @@ def sweep_figure(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
     plt.close(fig)
 
 
+def run_identity(scenario_name: str, overrides: Mapping[str, Any],
+                 duration_s: float | None) -> str:
+    """
+    Return what decides a graph run, as text: every node parameter's value and the sim time.
+
+    Each parameter a node declares takes its default (:func:`graph_params.declared`), then
+    the scenario file's value, then the override's, and the sim time is ``duration_s`` or
+    the scenario's, as ``ibvs run`` resolves them (:func:`.runner.prepare`). Two runs with
+    the same identity run the same graph with the same values: the lockstep run is
+    deterministic, so they record the same bag, whichever study names them (a study's cache
+    key, :func:`.study_spec.run_key`, hashes the overrides as written instead).
+    """
+    import tempfile
+    from ibvs_bringup import graph_params
+    from ibvs_common.params import plain_value
+    from .runner import prepare
+    with tempfile.TemporaryDirectory(prefix='ibvs-identity-') as tmp:
+        run = prepare(scenario_name, tmp, overrides, duration_s)
+    declared = graph_params.declared()
+    values = {name: param.default for name, param in declared.items()}
+    values.update(run.params)
+    values = {name: plain_value(value, declared[name].default) if name in declared else value
+              for name, value in values.items()}
+    return json.dumps({'parameters': values, 'duration_s': run.duration_s}, sort_keys=True,
+                      default=str)
+
+
+def shared_runs(specs: Sequence[study_spec.Spec]
+                ) -> tuple[list[study_spec.Spec], dict[tuple[str, int], tuple[str, int]]]:
+    """
+    Return ``specs`` with every run that an earlier run makes already left out, and which.
+
+    A run is made already when an earlier one (in ``specs`` order) has the same
+    :func:`run_identity` and draws its figures if this one does (``run_figures``). The
+    answer: the specs to run (a study that keeps some of its grid points has them as a grid
+    of one-point products, which names the same overrides, hence the same cache keys; a
+    study with nothing left is dropped), and ``{(study, index): (study, index)}`` from each
+    run left out to the run that makes it. Studies with draws are kept whole.
+    """
+    made, shared, out = {}, {}, []
+    for spec in specs:
+        runs = spec.runs()
+        kept = []
+        for run in runs:
+            identity = None if spec.draws else run_identity(spec.scenario, run.overrides,
+                                                            spec.duration_s)
+            first = made.get(identity)
+            if first is not None and (first[1] or not spec.run_figures):
+                shared[spec.name, run.index] = first[0]
+                continue
+            kept.append(run)
+            if identity is not None and (first is None or spec.run_figures):
+                made[identity] = ((spec.name, run.index), spec.run_figures)
+        if len(kept) == len(runs):
+            out.append(spec)
+        elif kept:
+            out.append(dataclasses.replace(spec, grid=tuple(
+                {name: [value] for name, value in run.swept.items()} for run in kept)))
+    return out, shared
+
+
+def with_shared(specs: Sequence[study_spec.Spec], records: Mapping[str, Sequence[dict]],
+                shared: Mapping[tuple[str, int], tuple[str, int]]
+                ) -> dict[str, list[dict[str, Any]]]:
+    """
+    Return every run's record of ``specs``, those :func:`shared_runs` left out included.
+
+    ``records``: ``run_studies``'s answer for the specs that were run. A run left out gets a
+    copy of the record of the run that made it (its metrics and run folder), with its own
+    study, index, swept values and overrides, and ``same_as``: 'study#index' of that run.
+    """
+    done = {}
+    for name, rs in records.items():
+        spec = next(s for s in specs if s.name == name)
+        left = [run for run in spec.runs() if (name, run.index) not in shared]
+        for run, record in zip(left, rs):
+            done[name, run.index] = {**record, 'index': run.index}
+    out = {}
+    for spec in specs:
+        out[spec.name] = []
+        for run in spec.runs():
+            source = shared.get((spec.name, run.index))
+            record = done[spec.name, run.index] if source is None else {
+                **done[source], 'study': spec.name, 'index': run.index, 'swept': run.swept,
+                'overrides': run.overrides, 'same_as': f'{source[0]}#{source[1]}'}
+            out[spec.name].append(record)
+    return out
+
+
 class ReportRunsFailed(RuntimeError):
     """Runs of the report failed: no report is written; ``failed`` names each, with why."""
 
@@ -157,17 +246,30 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
     Run the report's studies and write ``<out_dir>/report.md``; return its path.
 
     ``laws``: also the servo laws side by side (:func:`.laws_report.specs`, 24 runs on Ray
-    with the other studies); default: unless ``quick``.
+    with the other studies); default: unless ``quick``. A run that two studies name (the
+    same :func:`run_identity`) runs once (:func:`shared_runs`): the sweep's two runs at
+    100 % are scenario 1's, and the law study's paper runs with ideal actuators are the
+    scenario studies'.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     laws = not quick if laws is None else laws
     specs = load_specs(quick)
     law_specs = laws_report.specs() if laws else []
-    records = study.run_studies(specs + law_specs, out_dir / 'studies', address=address,
-                                parallel=parallel, domains=domains, retry_failed=retry_failed)
+    to_run, shared = shared_runs(specs + law_specs)
+    if shared:
+        print(f'{len(shared)} run(s) that two studies name run once: '
+              + ', '.join(f'{a}#{i} = {b}#{j}' for (a, i), (b, j) in shared.items()),
+              flush=True)
+    ran = study.run_studies(to_run, out_dir / 'studies', address=address,
+                            parallel=parallel, domains=domains, retry_failed=retry_failed)
+    records = with_shared(specs + law_specs, ran, shared)
+    for spec in specs + law_specs:
+        if spec not in to_run:
+            study.write_results(spec, records[spec.name], out_dir / 'studies' / spec.name)
     failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
-              for rs in records.values() for r in rs if r['status'] != 'ok']
+              for rs in records.values() for r in rs if r['status'] != 'ok'
+              and 'same_as' not in r]
     if failed:
         raise ReportRunsFailed(failed)
     scenarios = {name: records[name][0]['metrics'] for name in SCENARIO_STUDIES}
@@ -232,9 +334,11 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
     lines += ['## Studies', '',
               'Each study of this report, with its table (CSV beside it) and figures; '
               '`ros2 run ibvs_experiments ibvs study <name>` runs one on its own.', '']
-    for spec in specs:
+    for spec in specs + law_specs:
+        same = sum('same_as' in r for r in records[spec.name])
         lines += [f'- [{spec.name}](studies/{spec.name}/table.md): {len(records[spec.name])} '
-                  f'run(s). {spec.description}']
+                  f'run(s)' + (f', {same} of them made by another study' if same else '')
+                  + f'. {spec.description}']
     for name in EXTRA_STUDIES:
         spec = next(s for s in specs if s.name == name)
         lines += ['', f'### {name}', '', spec.description, '']
@@ -245,16 +349,9 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
         runs = laws_report.read_records(records)
         lines += laws_report.section(runs, out_dir / 'laws', 'laws/')
         from ibvs_control import calibration_sweep
-        lines += ['### Calibration error (model-only loop, scenario 1)', '',
-                  calibration_sweep.__doc__.strip().split('\n\n')[1].replace('\n', ' '), '',
-                  'Final position / tool-axis error of the true flange after '
-                  f'{calibration_sweep.DURATION_S:g} s:', '']
-        lines += calibration_sweep.table(calibration_sweep.sweep()) + ['']
-        lines += ['### Feature noise (model-only loop, scenario 1)', '',
-                  'Gaussian noise on every measured feature (px, a stand-in for the '
-                  "detector's error, not rendered image noise); RMS position / tool-axis "
-                  f'error over the last {calibration_sweep.TAIL_S:g} s:', '']
-        lines += calibration_sweep.noise_table(calibration_sweep.noise_sweep()) + ['']
+        lines += laws_report.model_only_section(
+            calibration_sweep.sweep(), calibration_sweep.noise_sweep(), out_dir / 'laws',
+            'laws/')
     path = out_dir / 'report.md'
     path.write_text('\n'.join(lines))
     return path
