@@ -64,7 +64,8 @@ PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_contro
 #: Modules that organise runs but take no part in one: left out of the code version, so
 #: that a change to the study or report layer keeps the runs cached.
 NOT_IN_A_RUN = ('ibvs_experiments/study.py', 'ibvs_experiments/study_spec.py',
-                'ibvs_experiments/report.py', 'ibvs_experiments/bench.py')
+                'ibvs_experiments/report.py', 'ibvs_experiments/laws_report.py',
+                'ibvs_experiments/bench.py')
 #: Metrics in the study table, in this order.
 TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
                  'max_overshoot_m')
