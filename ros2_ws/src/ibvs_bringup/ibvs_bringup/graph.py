@@ -141,8 +141,9 @@ class Graph:
                         f'{" (" + n.doc_module + ")" if n.doc_module else ""} | {where} | '
                         f'{n.doc_reads}{remapped} | {n.doc_writes} | {n.doc_rate} |')
         rows.append('| recorder (in the runner) | `ibvs_bringup.recorder.Recorder` | the '
-                    "runner's | every topic (images on request) | the MCAP bag | as messages "
-                    'arrive |')
+                    "runner's | every topic (images, /joint_states and /joint_effort_commands "
+                    'on request: /ibvs/joint_path has their values) | the MCAP bag | as '
+                    'messages arrive |')
         return '\n'.join(rows) + '\n'
 
 
@@ -191,16 +192,19 @@ GRAPH = Graph(
              doc_module='core: `ibvs_sim.simulator.Simulator`, `ibvs_sim.world.World`',
              doc_reads='/joint_effort_commands',
              doc_writes='/joint_states: every physics step (`physics_rate_hz`, 1 kHz); '
-                        '/ibvs/tool_path (the poses of every step) and /clock: '
-                        '`clock_rate_hz` (10 Hz); /stereo/joint_states: every camera frame; '
+                        '/ibvs/tool_path (the poses of every step), /ibvs/joint_path (the '
+                        '/joint_states of every step) and /clock: `clock_rate_hz` (10 Hz); '
+                        '/stereo/joint_states: every camera frame; '
                         'images and camera_info: every camera frame (`camera_rate_hz`, '
                         '30 Hz); /stereo/pose: once',
              doc_rate='one step per effort command (lockstep, §4)'),
     ),
     simulator='sim_node',
-    # The runner's recorder and monitor also read /ibvs/tool_path, in its own process.
+    # The runner's recorder and monitor also read /ibvs/tool_path, and the recorder
+    # /ibvs/joint_path (not /joint_states: only the nodes above leave the simulator's process
+    # with it, the feedforward for its first state), in the runner's own process.
     step0_topics=(contract.JOINT_STATES, contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
-                  contract.RIGHT_INFO, contract.TOOL_PATH),
+                  contract.RIGHT_INFO, contract.TOOL_PATH, contract.JOINT_PATH),
 )
 
 

@@ -1,5 +1,5 @@
 """
-Recorder: every topic of the graph, raw images only on request, into a rosbag2 MCAP bag.
+Recorder: the graph's topics into a rosbag2 MCAP bag; images and per-step ones on request.
 
 Written with ``rosbags`` (rosbag2 format version 9, MCAP storage, message definitions from
 the ROS 2 Jazzy type store), so ``ros2 bag info``, Foxglove and PlotJuggler open it: the
@@ -8,6 +8,14 @@ serialized (``raw=True``) and written as they are: no deserialisation on the hot
 topics of the contract are subscribed before the simulator starts, so nothing of the run's
 beginning is lost; any other topic that appears is picked up by discovery, as
 ``ros2 bag record --all`` does.
+
+The lockstep's per-step messages, /joint_states and /joint_effort_commands, are not
+recorded unless asked (``include_per_step``): the simulator publishes the same states, with
+the torque each step applied, in batches on /ibvs/joint_path, ten a second, which the
+recorder records instead. A subscriber in this process would have the simulator and the
+joint controller send each of their 1000 messages a second out of their process, where the
+lockstep needs none (docs/speed.md); the analysis reads either
+(:func:`ibvs_experiments.analysis.load_joints`).
 
 What ``ros2 bag play`` needs beyond the messages, as ``ros2 bag record`` writes it: each
 topic's ``offered_qos_profiles`` (the QoS of its publishers, read when its first message
@@ -45,6 +53,7 @@ ROS_DISTRO = 'jazzy'
 KNOWN_TOPICS = {
     contract.CLOCK: 'rosgraph_msgs/msg/Clock',
     contract.JOINT_STATES: 'sensor_msgs/msg/JointState',
+    contract.JOINT_PATH: 'trajectory_msgs/msg/JointTrajectory',
     contract.FRAME_JOINT_STATES: 'sensor_msgs/msg/JointState',
     contract.LEFT_INFO: 'sensor_msgs/msg/CameraInfo',
     contract.RIGHT_INFO: 'sensor_msgs/msg/CameraInfo',
@@ -66,6 +75,8 @@ KNOWN_TOPICS = {
     contract.DEBUG_RIGHT_IMAGE: 'sensor_msgs/msg/Image',
 }
 IMAGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
+#: Per-step topics recorded with ``include_per_step`` only: /ibvs/joint_path has them.
+PER_STEP_TOPICS = {contract.JOINT_STATES, contract.EFFORT_COMMANDS}
 #: Image topics recorded with ``include_overlays`` (subscribing to them has them drawn).
 OVERLAY_TOPICS = {contract.DEBUG_LEFT_IMAGE, contract.DEBUG_RIGHT_IMAGE}
 #: Deep queues: a recorder that falls behind must not lose lockstep messages.
@@ -162,17 +173,20 @@ class Recorder(Node):
 
     def __init__(self, bag_path: str | Path, include_images: bool = False,
                  custom_data: Mapping[str, str] | None = None,
-                 include_overlays: bool = False, **kwargs: Any) -> None:
+                 include_overlays: bool = False, include_per_step: bool = False,
+                 **kwargs: Any) -> None:
         """
         Open the bag at ``bag_path`` (must not exist) and subscribe to the known topics.
 
         Image topics are recorded with ``include_images``, but the feature node's overlays
         (:data:`OVERLAY_TOPICS`), which are recorded with ``include_overlays``: they are
-        drawn only while someone subscribes to them.
+        drawn only while someone subscribes to them. The lockstep's per-step messages
+        (:data:`PER_STEP_TOPICS`) are recorded with ``include_per_step`` (module docstring).
         """
         super().__init__('ibvs_recorder', **kwargs)
         self._include_images = include_images
         self._include_overlays = include_overlays
+        self._include_per_step = include_per_step
         self._typestore = get_typestore(TYPESTORE)
         self._writer = JazzyWriter(bag_path, version=9, storage_plugin=StoragePlugin.MCAP)
         for key, value in (custom_data or {}).items():
@@ -199,6 +213,8 @@ class Recorder(Node):
         self._writer.set_custom_data(key, value)
 
     def _record(self, topic, type_name):
+        if topic in PER_STEP_TOPICS and not self._include_per_step:
+            return
         wanted = self._include_overlays if topic in OVERLAY_TOPICS else self._include_images
         if type_name in IMAGE_TYPES and not wanted:
             return

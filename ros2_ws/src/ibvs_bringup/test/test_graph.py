@@ -47,6 +47,7 @@ def test_the_step0_readers_are_the_runners_of_before():
         contract.LEFT_INFO: ('feature_node', 'adaptive_feedback_node'),
         contract.RIGHT_INFO: ('feature_node', 'adaptive_feedback_node'),
         contract.TOOL_PATH: (),
+        contract.JOINT_PATH: (),  # the recorder's, in the runner's process
     }
     assert GRAPH.paper_nodes() == (
         ('ibvs_vision', 'feature_node'), ('ibvs_control', 'adaptive_feedback_node'),

@@ -7,7 +7,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from ibvs_bringup.recorder import Recorder
 from ibvs_common import contract
-from ibvs_common.conversions import joint_state
+from ibvs_common.conversions import joint_path, joint_state
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -16,6 +16,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.storage_mcap import McapReader, read_string
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
 DEADLINE_S = 20.0
 
@@ -31,7 +32,12 @@ def channel_metadata(channel):
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
-    """Record a latched pose, a /clock (one of them malformed) and joint states; return the bag."""
+    """
+    Record a latched pose, a /clock (one of them malformed) and a joint path; return the bag.
+
+    A /joint_states is published too, with the recorder's discovery given time to find it:
+    it must not be recorded (nor subscribed to).
+    """
     path = tmp_path_factory.mktemp('rec') / 'bag'
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -43,16 +49,24 @@ def bag(tmp_path_factory):
     try:
         pose = talker.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
         clock = talker.create_publisher(Clock, contract.CLOCK, contract.RELIABLE)
+        batch = talker.create_publisher(JointTrajectory, contract.JOINT_PATH,
+                                        contract.RELIABLE)
         joints = talker.create_publisher(JointState, contract.JOINT_STATES, contract.RELIABLE)
         deadline = time.monotonic() + DEADLINE_S
-        while not all(p.get_subscription_count() for p in (pose, clock, joints)):
+        while not all(p.get_subscription_count() for p in (pose, clock, batch)):
             assert time.monotonic() < deadline, 'discovery'
             executor.spin_once(timeout_sec=0.05)
+        until = time.monotonic() + 1.0  # two passes of the recorder's discovery
+        while time.monotonic() < until:
+            executor.spin_once(timeout_sec=0.05)
+        assert joints.get_subscription_count() == 0
         pose.publish(PoseStamped())
         clock.publish(Clock(clock=Time(sec=2)))
         clock.publish(Clock(clock=Time(sec=-1)))  # a bad publisher: not fatal, not a time
-        joints.publish(joint_state(2_000_000_000, position=[0.0] * 6))
-        while recorder.counts[contract.JOINT_STATES] < 1 or recorder.counts[contract.CLOCK] < 2 \
+        state = joint_state(2_000_000_000, position=[0.0] * 6)
+        joints.publish(state)
+        batch.publish(joint_path([state]))
+        while recorder.counts[contract.JOINT_PATH] < 1 or recorder.counts[contract.CLOCK] < 2 \
                 or recorder.counts[contract.STEREO_POSE] < 1:
             assert time.monotonic() < deadline, 'messages'
             executor.spin_once(timeout_sec=0.05)
@@ -82,7 +96,7 @@ def test_each_topic_has_its_publishers_qos_and_its_type_hash(bag):
     with Reader(bag) as reader:
         conns = {c.topic: c for c in reader.connections}
         hashes = {c.topic: c.digest for c in reader.connections}
-    assert set(conns) == {contract.STEREO_POSE, contract.CLOCK, contract.JOINT_STATES}
+    assert set(conns) == {contract.STEREO_POSE, contract.CLOCK, contract.JOINT_PATH}
     for topic, conn in conns.items():
         qos = conn.ext.offered_qos_profiles
         assert len(qos) == 1, topic
@@ -105,8 +119,24 @@ def test_each_topic_has_its_publishers_qos_and_its_type_hash(bag):
 
 def test_a_malformed_clock_is_recorded_but_does_not_move_the_bag_time(bag):
     with Reader(bag) as reader:
-        times = [t for c, t, _ in reader.messages() if c.topic == contract.JOINT_STATES]
+        times = [t for c, t, _ in reader.messages() if c.topic == contract.JOINT_PATH]
     assert times == [2_000_000_000]
+
+
+def test_the_lockstep_per_step_messages_are_recorded_when_asked(tmp_path):
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        for include in (False, True):
+            recorder = Recorder(tmp_path / f'bag_{include}', context=ctx,
+                                include_per_step=include)
+            assert (contract.JOINT_STATES in recorder.counts) == include
+            assert (contract.EFFORT_COMMANDS in recorder.counts) == include
+            assert contract.JOINT_PATH in recorder.counts
+            recorder.close()
+            recorder.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
 
 
 def test_finding13_messages_before_a_clock_are_on_disk_before_the_bag_is_closed(tmp_path):

@@ -56,6 +56,13 @@ FRAME_LATENCY = '/ibvs/frame_latency'
 #: published in batches just before each /clock, so that when /clock says T every pose
 #: stamped before T is out. One pose message per step cost the lockstep 0.3 ms a step.
 TOOL_PATH = '/ibvs/tool_path'
+#: Evaluation only (trajectory_msgs/JointTrajectory in base_link): the /joint_states of every
+#: physics step, the same values, in batches published with /ibvs/tool_path: one point per
+#: step (positions, velocities, effort = the torque of the step before; time_from_start from
+#: header.stamp, the first step's stamp). The recorder takes these instead of the 1000
+#: /joint_states and /joint_effort_commands a second, so that no per-step message leaves the
+#: lockstep's process unless somebody subscribes to it.
+JOINT_PATH = '/ibvs/joint_path'
 #: Per stereo frame, stamped with the image stamp: one DiagnosticStatus whose values
 #: (:data:`FEATURE_STATUS_KEYS`) say what the feature node published for the frame. Written by
 #: :func:`ibvs_common.conversions.feature_status_msg` and read by

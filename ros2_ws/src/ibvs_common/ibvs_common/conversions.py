@@ -340,6 +340,62 @@ def path_msg(stamped_poses: Sequence[tuple[int, ArrayLike]],
     return msg
 
 
+def joint_path(states: Sequence[JointState]) -> JointTrajectory:
+    """
+    Return a batch of joint states (in stamp order) as one trajectory_msgs/JointTrajectory.
+
+    trajectory_msgs/JointTrajectory, not a Path or a list of JointStates: it is the standard
+    message for a joint-space series, one JointTrajectoryPoint per state with the state's
+    positions, velocities and effort as they are (the same float64s), at time_from_start =
+    its stamp - header.stamp, the first state's stamp (the trajectory_msgs convention).
+    The joint names are the first state's; :func:`read_joint_path` reads it back.
+    """
+    msg = JointTrajectory()
+    msg.header.frame_id = contract.BASE_FRAME
+    if not states:
+        return msg
+    msg.header.stamp = states[0].header.stamp
+    msg.joint_names = list(states[0].name)
+    start = stamp_ns(states[0].header.stamp)
+    points = []
+    for state in states:
+        point = JointTrajectoryPoint(positions=state.position, velocities=state.velocity,
+                                     effort=state.effort)
+        point.time_from_start.sec, point.time_from_start.nanosec = divmod(
+            stamp_ns(state.header.stamp) - start, NS_PER_S)
+        points.append(point)
+    msg.points = points
+    return msg
+
+
+def read_joint_path(msg: JointTrajectory, names: Sequence[str] = contract.JOINT_NAMES
+                    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64],
+                               NDArray[np.float64]]:
+    """
+    Return (stamps ns (N,), positions, velocities, efforts) of a :func:`joint_path` batch.
+
+    Values by joint name in the order of ``names``, (N, 6) each; efforts (N, 0) when the
+    batch has none (a position-controlled simulator models no torque). Works on rclpy and
+    ``rosbags`` messages alike. Raises :class:`InputError` for other joint names or a
+    point whose fields have another length.
+    """
+    if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
+        raise InputError('wrong joint names', f'{list(msg.joint_names)}')
+    order = [list(msg.joint_names).index(n) for n in names]
+    start = stamp_ns(msg.header.stamp)
+    stamps = np.array([start + duration_ns(p.time_from_start) for p in msg.points],
+                      dtype=np.int64)
+    out = [stamps]
+    for field in ('positions', 'velocities', 'effort'):
+        rows = [np.asarray(getattr(p, field), dtype=float) for p in msg.points]
+        width = len(names) if field != 'effort' or any(len(r) for r in rows) else 0
+        if any(r.shape != (width,) for r in rows):
+            raise InputError(f'wrong {field} length', f'expected {width} in every point')
+        values = np.array(rows, dtype=float).reshape(len(rows), width)
+        out.append(values[:, order] if width else values)
+    return tuple(out)
+
+
 def image_msg(array: ArrayLike, stamp: int | Time, encoding: str = 'rgb8',
               frame_id: str = '') -> Image:
     """

@@ -217,6 +217,31 @@ def test_joint_trajectory_round_trip_reorders_by_name_and_rejects_bad_ones():
         conversions.read_trajectory(conversions.joint_trajectory(0, 1, np.empty((0, 6))), 1)
 
 
+def test_joint_path_round_trip_keeps_stamps_and_values_and_reorders_by_name():
+    rng = np.random.default_rng(4)
+    names = list(reversed(contract.JOINT_NAMES))
+    states = [conversions.joint_state(1_999_000_000 + k * 1_000_000, rng.normal(size=6),
+                                      rng.normal(size=6), rng.normal(size=6), names)
+              for k in range(3)]
+    msg = conversions.joint_path(states)
+    assert conversions.stamp_ns(msg.header.stamp) == 1_999_000_000  # the first state's
+    stamps, q, qd, tau = conversions.read_joint_path(msg)
+    assert stamps.tolist() == [1_999_000_000, 2_000_000_000, 2_001_000_000]
+    for got, field in ((q, 'position'), (qd, 'velocity'), (tau, 'effort')):
+        assert got.tobytes() == np.array([list(getattr(m, field))[::-1]
+                                          for m in states]).tobytes()
+    # A position-controlled simulator models no torque: no effort in the batch.
+    no_torque = conversions.joint_path([conversions.joint_state(0, np.zeros(6), np.zeros(6))])
+    assert conversions.read_joint_path(no_torque)[3].shape == (1, 0)
+    msg.points[1].velocities = [0.0] * 5
+    with pytest.raises(InputError, match='wrong velocities length'):
+        conversions.read_joint_path(msg)
+    msg.joint_names = ['a'] * 6
+    with pytest.raises(InputError, match='wrong joint names'):
+        conversions.read_joint_path(msg)
+    assert not conversions.joint_path([]).points
+
+
 def test_pose_round_trip():
     tf = forward_kinematics(np.radians([10, 20, 30, 40, 50, 60]))
     back = conversions.pose_matrix(conversions.matrix_pose(tf))

@@ -45,9 +45,9 @@ from pathlib import Path
 from typing import Any, TYPE_CHECKING
 
 from ibvs_common import contract, profiling
-from ibvs_common.conversions import camera_from_msgs, pose_matrix
+from ibvs_common.conversions import camera_from_msgs, InputError, pose_matrix, read_joint_path
 from ibvs_common.shared_params import target_from_parameters
-from ibvs_common.timing import ns_to_seconds, seconds_to_ns
+from ibvs_common.timing import NS_PER_S, ns_to_seconds, seconds_to_ns
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from rosbags.highlevel import AnyReader
@@ -279,26 +279,46 @@ def load_joints(bag_path: str | Path, end_s: float | None = None
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                            NDArray[np.float64], NDArray[np.float64]]:
     """
-    Return (t, q, qd, tau_t, tau) of a run's bag: /joint_states and /joint_effort_commands.
+    Return (t, q, qd, tau_t, tau) of a run's bag: its joint states and joint torques.
 
-    Angles and speeds by joint name (contract.JOINT_NAMES), (N, 6); times in s of sim
-    time; only the samples stamped before ``end_s`` when given.
+    The joint states are the simulator's batches on /ibvs/joint_path where the bag has them
+    (a run's: the recorder takes those), else /joint_states (a real cell's bag, or a
+    recorder asked for them), never both, so each step counts once. The torques are the
+    /joint_effort_commands where the bag has them, else those the batches report applied
+    (a state's effort is the torque of the step before it, which is the command stamped at
+    that step's start unless the simulator rejected it: the same float64s, at the same
+    times). Angles and speeds by joint name (contract.JOINT_NAMES), (N, 6); times in s of
+    sim time; only the samples stamped before ``end_s`` when given.
     """
-    rows = {contract.JOINT_STATES: [], contract.EFFORT_COMMANDS: []}
+    states, efforts, batched = [], [], []
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
-        conns = [c for c in reader.connections if c.topic in rows]
+        has_batches = any(c.topic == contract.JOINT_PATH for c in reader.connections)
+        wanted = {contract.JOINT_PATH if has_batches else contract.JOINT_STATES,
+                  contract.EFFORT_COMMANDS}
+        conns = [c for c in reader.connections if c.topic in wanted]
         for conn, _, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == contract.JOINT_PATH:
+                try:
+                    stamps, q, qd, tau = read_joint_path(msg)
+                except InputError:
+                    continue
+                batched.extend(zip((ns // NS_PER_S + ns % NS_PER_S * 1e-9  # as _stamp does
+                                    for ns in stamps.tolist()), q, qd, tau))
+                continue
             t = _stamp(msg.header)
             if (end_s is not None and t >= end_s) or list(msg.name) != list(
                     contract.JOINT_NAMES):
                 continue
             if conn.topic == contract.JOINT_STATES:
-                rows[conn.topic].append((t, msg.position, msg.velocity))
+                states.append((t, msg.position, msg.velocity))
             else:
-                rows[conn.topic].append((t, msg.effort))
-    states, efforts = rows[contract.JOINT_STATES], rows[contract.EFFORT_COMMANDS]
+                efforts.append((t, msg.effort))
+    states += [(t, q, qd) for t, q, qd, _ in batched if end_s is None or t < end_s]
+    if not efforts:
+        efforts = [(t, tau) for (t, *_), (*_, tau) in zip(batched, batched[1:])
+                   if len(tau) and (end_s is None or t < end_s)]
 
     def column(items, k):
         if not items:

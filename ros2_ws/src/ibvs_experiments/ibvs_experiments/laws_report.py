@@ -28,7 +28,6 @@ import json
 from pathlib import Path
 from typing import Any, TYPE_CHECKING
 
-from ibvs_common import contract
 from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
 from ibvs_model import IRB4600
 import matplotlib
@@ -38,8 +37,6 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from numpy.typing import ArrayLike, NDArray  # noqa: E402
-from rosbags.highlevel import AnyReader  # noqa: E402
-from rosbags.typesys import get_typestore, Stores  # noqa: E402
 import yaml  # noqa: E402
 
 from . import analysis  # noqa: E402
@@ -142,14 +139,8 @@ def run_all(out_dir: str | Path, progress: Callable[[str], None] = print,
 
 
 def joint_speeds(bag_path: str | Path) -> NDArray[np.float64]:
-    """Return the measured joint speeds (N, 6) of a run's /joint_states (rad/s)."""
-    rows = []
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
-        conns = [c for c in reader.connections if c.topic == contract.JOINT_STATES]
-        for conn, _, raw in reader.messages(connections=conns):
-            rows.append(reader.deserialize(raw, conn.msgtype).velocity)
-    return np.array(rows, dtype=float).reshape(-1, 6)
+    """Return the measured joint speeds (N, 6) of a run's joint states (rad/s; load_joints)."""
+    return analysis.load_joints(bag_path)[2]
 
 
 def case_of(params: Mapping[str, Any]) -> str:

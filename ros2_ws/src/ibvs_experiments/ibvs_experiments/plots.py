@@ -223,9 +223,9 @@ def joints(series: Sequence[ArrayLike], limits: Sequence[ArrayLike], path: str |
     """
     Plot joint angles, speeds and torques against time with their limits.
 
-    ``series``: (t, q, qd, tau_t, tau): t (N,) with q, qd (N, 6) (/joint_states), tau_t
-    (M,) with tau (M, 6) (/joint_effort_commands); ``limits``: (q_min, q_max, qd_max,
-    tau_max), six values each.
+    ``series``: (t, q, qd, tau_t, tau) of :func:`.analysis.load_joints`: t (N,) with q, qd
+    (N, 6) (the joint states), tau_t (M,) with tau (M, 6) (the torques); ``limits``:
+    (q_min, q_max, qd_max, tau_max), six values each.
     """
     t, q, qd, tau_t, tau = series
     q_min, q_max, qd_max, tau_max = (np.asarray(v, dtype=float) for v in limits)

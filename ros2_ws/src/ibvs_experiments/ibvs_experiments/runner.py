@@ -404,6 +404,7 @@ def start(run: Prepared, executor: 'Executor', watcher: 'Node', procs: list[Node
                       '-p', 'min_frame_joint_state_subscribers:='
                       f'{counts[contract.FRAME_JOINT_STATES]}',
                       '-p', f'min_tool_path_subscribers:={counts[contract.TOOL_PATH]}',
+                      '-p', f'min_joint_path_subscribers:={counts[contract.JOINT_PATH]}',
                       '-p', 'min_camera_info_subscribers:='
                       f'{min(counts[contract.LEFT_INFO], counts[contract.RIGHT_INFO])}')
         procs.append(spec.start(run.params_file, run.log_dir, extra))

@@ -1,9 +1,15 @@
-"""Metrics of a run, on responses whose settling time and overshoot are known in closed form."""
+"""
+Metrics of a run, on responses whose settling time and overshoot are known in closed form.
+
+And the joint series of a bag (:func:`ibvs_experiments.analysis.load_joints`), recorded by
+the recorder as a run records them.
+"""
 
 import math
 
 from ibvs_bringup import scenario
 from ibvs_experiments import analysis
+from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
 
@@ -145,3 +151,70 @@ def test_report_verdicts_follow_the_papers_words():
         worst, final_position_error_m=0.03))]
     assert [v.split(' (')[0] for v in verdicts] == ['not met', 'not met', 'met', 'not met',
                                                     'met', 'not met']
+
+
+@pytest.fixture
+def write_bag(context, executor_of):
+    """Return write(path, [(topic, rclpy message)]): a bag recorded as a run's recorder does."""
+    from ibvs_bringup.recorder import KNOWN_TOPICS, message_class, Recorder
+    from ibvs_common import contract
+    from rclpy.node import Node
+
+    def write(path, messages):
+        recorder = Recorder(path, context=context, include_per_step=True)
+        talker = Node(f'talker_{path.name}', context=context)
+        executor = executor_of(recorder, talker)
+        pubs = {topic: talker.create_publisher(message_class(KNOWN_TOPICS[topic]), topic,
+                                               contract.RELIABLE)
+                for topic in {t for t, _ in messages}}
+        spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()),
+                   what='discovery')
+        for topic, msg in messages:
+            pubs[topic].publish(msg)
+        spin_until(executor, lambda: sum(recorder.counts.values()) == len(messages),
+                   what='messages')
+        recorder.close()
+    return write
+
+
+def test_load_joints_reads_the_batches_of_a_run_and_the_states_of_a_cell(tmp_path, write_bag):
+    from ibvs_common import contract
+    from ibvs_common.conversions import joint_path, joint_state
+    rng = np.random.default_rng(3)
+    period, steps = 1_000_000, 25
+    commands = [joint_state(k * period, effort=rng.normal(size=6)) for k in range(steps)]
+    # Each state reports the torque of the step before it: the command of that step.
+    states = [joint_state(k * period, rng.normal(size=6), rng.normal(size=6),
+                          commands[k - 1].effort if k else np.zeros(6)) for k in range(steps)]
+    # A real cell's bag: the per-step messages.
+    per_step = [m for pair in zip(states, commands) for m in (
+        (contract.JOINT_STATES, pair[0]), (contract.EFFORT_COMMANDS, pair[1]))]
+    write_bag(tmp_path / 'cell', per_step)
+    # A run's: the batches of 10 steps (the last one partial); with the per-step states
+    # too, as a recorder asked for them records them, which must not count twice.
+    batches = [(contract.JOINT_PATH, joint_path(states[i:i + 10]))
+               for i in range(0, steps, 10)]
+    write_bag(tmp_path / 'run', batches)
+    write_bag(tmp_path / 'both', [m for m in per_step if m[0] == contract.JOINT_STATES]
+              + batches)
+    cell, run, both = (analysis.load_joints(tmp_path / name) for name in ('cell', 'run', 'both'))
+    assert len(cell[0]) == len(run[0]) == len(both[0]) == steps
+    for got_cell, got_run, got_both in zip(cell[:3], run[:3], both[:3]):  # the same float64s
+        assert got_cell.tobytes() == got_run.tobytes() == got_both.tobytes()
+    assert run[1].tobytes() == np.array([m.position for m in states]).tobytes()
+    assert run[0].tolist() == [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+                               for m in states]
+    # The torques: the commands, or those the states report applied, at the commands' stamps
+    # (all but the last command, which no state of the bag reports yet).
+    assert len(cell[3]) == steps and len(run[3]) == len(both[3]) == steps - 1
+    for k in (3, 4):
+        assert cell[k][:-1].tobytes() == run[k].tobytes() == both[k].tobytes()
+    # The end of the run: the samples stamped before it, from either.
+    for name in ('cell', 'run'):
+        t, q, qd, tau_t, tau = analysis.load_joints(tmp_path / name, end_s=0.012)
+        assert len(t) == len(q) == len(qd) == len(tau_t) == len(tau) == 12
+    # A free-running run's: the position drive models no torque.
+    write_bag(tmp_path / 'free', [(contract.JOINT_PATH, joint_path(
+        [joint_state(m.header.stamp, m.position, m.velocity) for m in states]))])
+    free = analysis.load_joints(tmp_path / 'free')
+    assert free[1].tobytes() == run[1].tobytes() and free[3].shape == (0,)

@@ -4,20 +4,30 @@ sim_node: the simulated plant (paper Figure 3) on the contract of docs/design.md
 Lockstep. At step k (sim time t_k, from 0) the node publishes, in this order: when /clock is
 due (``clock_rate_hz``, 10 Hz: the first step at or after each multiple of its period; sim
 time for the nodes' clocks, at gazebo_ros's default rate; no result depends on it), first
-/ibvs/tool_path with the true flange poses of the steps since the last one, then /clock,
-so that when /clock says T every tool pose stamped before T is out; /joint_states (encoder
-angles q - d_q, velocities, the torque of the previous step); on a camera frame's
-step, the same joint state on /stereo/joint_states, then the frame (both images and
-CameraInfo, stamped t_k), which it renders while the joint controller works on step k.
-Every consumer matches its inputs by stamp, so the order changes no result.
-It then waits for /joint_effort_commands stamped t_k; that message (and only that one)
-applies its torques for one step and moves to k + 1, inside the subscription callback:
-nothing spins or sleeps, so any number of nodes can share one executor. While it waits, a
-steady-clock timer logs once a second what it waits for.
+the evaluation's batches of the steps since the last one: /ibvs/tool_path with the true
+flange poses and /ibvs/joint_path with their /joint_states (:func:`ibvs_common.conversions.
+joint_path`), then /clock, so that when /clock says T every tool pose and joint state
+stamped before T is out; /joint_states (encoder angles q - d_q, velocities, the torque of
+the previous step); on a camera frame's step, the same joint state on /stereo/joint_states,
+then the frame (both images and CameraInfo, stamped t_k), which it renders while the joint
+controller works on step k. Every consumer matches its inputs by stamp, so the order
+changes no result. It then waits for /joint_effort_commands stamped t_k; that message (and
+only that one) applies its torques for one step and moves to k + 1, inside the subscription
+callback: nothing spins or sleeps, so any number of nodes can share one executor. While it
+waits, a steady-clock timer logs once a second what it waits for. When the node is
+destroyed (the end of a run) it publishes the batches of the steps since the last /clock.
+
+Who gets the per-step messages: whoever subscribes to them. In a run, /joint_states goes to
+the joint controller, in this process, and to the feedforward until its first state; the
+recorder takes /ibvs/joint_path instead of /joint_states and /joint_effort_commands, so no
+message leaves the process at every step (one to another process costs the lockstep more
+than one within it: docs/speed.md). A viewer that wants the 1 kHz states (Foxglove,
+``ros2 topic echo``) subscribes to /joint_states and gets them: there is nothing to switch
+on here.
 
 Start. Step 0 is published once somebody will answer and listen: /joint_effort_commands
-has a publisher, /joint_states a subscriber (and /stereo/joint_states and /ibvs/tool_path
-as many as the runner says) and, with publish_images, both image topics a
+has a publisher, /joint_states a subscriber (and /stereo/joint_states, /ibvs/tool_path and
+/ibvs/joint_path as many as the runner says) and, with publish_images, both image topics a
 subscriber (so that no lockstep message is published before its reader is matched). Until
 then it logs once a second what is missing.
 
@@ -78,9 +88,9 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_state,
-                                     ns_stamp, path_msg, pose_stamped, read_joints, read_stamp,
-                                     stamp_ns)
+from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_path,
+                                     joint_state, ns_stamp, path_msg, pose_stamped, read_joints,
+                                     read_stamp, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
@@ -113,14 +123,14 @@ CLOCK_RATE_HZ = Param(
     'clock_rate_hz', 10.0, "rate of /clock, the sim time of every node's clock (10 Hz, as "
     'gazebo_ros publishes it by default): published at the first physics step at or after '
     'each multiple of its period, at most once a step (a rate at or above physics_rate_hz: '
-    'every step); the true tool poses go out in one /ibvs/tool_path just before each. The '
-    'lockstep goes by message stamps, not by /clock, so the rate changes no result, only the '
-    'cost: each /clock wakes every node',
+    'every step); the true tool poses and joint states go out in one /ibvs/tool_path and one '
+    '/ibvs/joint_path just before each. The lockstep goes by message stamps, not by /clock, '
+    'so the rate changes no result, only the cost: each /clock wakes every node',
     'Hz', low=0.0, high=10000.0, low_open=True)
 
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
-    'subscribers (a recorder that must see step 0 counts too)', '-', low=1, high=1000)
+    'subscribers (every node that must see step 0)', '-', low=1, high=1000)
 MIN_CAMERA_INFO_SUBSCRIBERS = Param(
     'min_camera_info_subscribers', 0, 'with publish_images, the start waits until each '
     'camera_info topic has this many subscribers (every node that builds its camera model '
@@ -133,6 +143,9 @@ MIN_FRAME_JOINT_STATE_SUBSCRIBERS = Param(
 MIN_TOOL_PATH_SUBSCRIBERS = Param(
     'min_tool_path_subscribers', 0, 'the start waits until /ibvs/tool_path has this many '
     'subscribers (a recorder whose metrics start at step 0)', '-', low=0, high=1000)
+MIN_JOINT_PATH_SUBSCRIBERS = Param(
+    'min_joint_path_subscribers', 0, 'the start waits until /ibvs/joint_path has this many '
+    'subscribers (a recorder whose joint series start at step 0)', '-', low=0, high=1000)
 
 REAL_TIME_FACTOR = Param(
     'real_time_factor', 0.05, 'free-running (lockstep false): sim seconds per wall second '
@@ -159,7 +172,7 @@ CAMERA_TOPICS = Param(
 PARAMS = SimConfig.params() + (
     PUBLISH_IMAGES, CLOCK_RATE_HZ,
     MIN_JOINT_STATE_SUBSCRIBERS, MIN_FRAME_JOINT_STATE_SUBSCRIBERS, MIN_TOOL_PATH_SUBSCRIBERS,
-    MIN_CAMERA_INFO_SUBSCRIBERS,
+    MIN_JOINT_PATH_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
     TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION,
     LOCKSTEP, COMMAND_INTERFACE, POSITION_COMMAND_TYPE, COMMAND_RATE_HZ, JOINTS,
     REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS)
@@ -203,6 +216,8 @@ class SimNode(Node):
         """Declare and check the parameters, build the simulator and the interfaces."""
         super().__init__('sim_node', **kwargs)
         self.sim = None
+        #: The (stamp ns, T_E^O) and the /joint_states of the steps since the last batch.
+        self._tool_poses, self._joint_states = [], []
         try:
             self._setup()
         except BaseException:
@@ -219,6 +234,7 @@ class SimNode(Node):
         self._min_joint_subscribers = values['min_joint_state_subscribers']
         self._min_frame_joint_subscribers = values['min_frame_joint_state_subscribers']
         self._min_tool_subscribers = values['min_tool_path_subscribers']
+        self._min_joint_path_subscribers = values['min_joint_path_subscribers']
         self._min_info_subscribers = values['min_camera_info_subscribers']
         clock_rate_hz = values['clock_rate_hz']
         if not self._lockstep and clock_rate_hz < values['command_rate_hz']:
@@ -255,8 +271,8 @@ class SimNode(Node):
         self._pub_frame_joints = self.create_publisher(JointState, contract.FRAME_JOINT_STATES,
                                                        contract.RELIABLE)
         self._pub_tool = self.create_publisher(Path, contract.TOOL_PATH, contract.RELIABLE)
-        #: The (stamp ns, T_E^O) of the steps since the last /ibvs/tool_path.
-        self._tool_poses = []
+        self._pub_joint_path = self.create_publisher(JointTrajectory, contract.JOINT_PATH,
+                                                     contract.RELIABLE)
         self._pub_images = self._pub_infos = ()
         image_topics, info_topics, self._camera_frames, self._encoding, qos = \
             CAMERA_OUTPUTS[values['camera_topics']]
@@ -331,7 +347,10 @@ class SimNode(Node):
         self._run_timer = None
 
     def destroy_node(self) -> None:
-        """Release PyBullet with the node."""
+        """Publish the last batches (the end of a run), release PyBullet with the node."""
+        if self.context.ok():
+            self._publish_tool_path()
+            self._publish_joint_path()
         if self.sim is not None:
             self.sim.close()
         return super().destroy_node()
@@ -343,7 +362,8 @@ class SimNode(Node):
             missing.append(f'a publisher on {self._sub.topic_name}')
         for pub, wanted in ((self._pub_joints, self._min_joint_subscribers),
                             (self._pub_frame_joints, self._min_frame_joint_subscribers),
-                            (self._pub_tool, self._min_tool_subscribers)):
+                            (self._pub_tool, self._min_tool_subscribers),
+                            (self._pub_joint_path, self._min_joint_path_subscribers)):
             have = pub.get_subscription_count()
             if have < wanted:
                 missing.append(f'{wanted - have} more subscriber(s) on {pub.topic_name}')
@@ -399,13 +419,13 @@ class SimNode(Node):
         timing = self.diagnostics.timing
         clock_due = t_ns >= self._next_clock_ns
         with timing.section('tool_path'):
-            if clock_due and self._tool_poses:
-                self._pub_tool.publish(path_msg(self._tool_poses))
-                self._tool_poses = []
+            if clock_due:
+                self._publish_tool_path()
             self._tool_poses.append((t_ns, sim.tool_pose()))
         self._frame_step = sim.frame_due() is not None
         with timing.section('step_messages'):
             if clock_due:
+                self._publish_joint_path()
                 self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
                 self.last_clock_ns = t_ns
                 self._next_clock_ns = (t_ns // self._clock_period_ns + 1) * self._clock_period_ns
@@ -413,6 +433,7 @@ class SimNode(Node):
             joints = joint_state(t_ns, q, qd, sim.last_torque)
             self._pub_joints.publish(joints)
             self._published_at = time.perf_counter()
+            self._joint_states.append(joints)
             if self._frame_step:
                 self._pub_frame_joints.publish(joints)
         if self._frame_step:
@@ -434,6 +455,18 @@ class SimNode(Node):
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
                                 frames=self.frames, frames_lost=sim.frames_lost,
                                 held_steps=self.held_steps)
+
+    def _publish_tool_path(self):
+        """Publish the tool poses of the steps since the last batch, if any."""
+        if self._tool_poses:
+            self._pub_tool.publish(path_msg(self._tool_poses))
+            self._tool_poses = []
+
+    def _publish_joint_path(self):
+        """Publish the /joint_states of the steps since the last batch, if any."""
+        if self._joint_states:
+            self._pub_joint_path.publish(joint_path(self._joint_states))
+            self._joint_states = []
 
     def _on_command(self, msg):
         """Apply the effort command stamped t_k: one physics step, then publish step k + 1."""

@@ -13,7 +13,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract
-from ibvs_common.conversions import joint_state, pose_matrix, stamp_ns
+from ibvs_common.conversions import joint_state, pose_matrix, read_joint_path, stamp_ns
 from ibvs_common.params import ParameterError
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.sim_node import SimNode
@@ -26,6 +26,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from trajectory_msgs.msg import JointTrajectory
 
 
 class StandIn(Node):
@@ -46,7 +47,7 @@ class StandIn(Node):
         self.unanswered = 0
         self.rec = {name: [] for name in ('clock', 'joints', 'left', 'right', 'left_info',
                                           'right_info', 'tool', 'frame_joints', 'pose',
-                                          'diagnostics')}
+                                          'diagnostics', 'joint_path')}
         self.pub = self.create_publisher(JointState, contract.EFFORT_COMMANDS,
                                          contract.RELIABLE)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
@@ -65,6 +66,8 @@ class StandIn(Node):
         self.create_subscription(JointState, contract.FRAME_JOINT_STATES,
                                  lambda m: self.rec['frame_joints'].append(m),
                                  contract.RELIABLE)
+        self.create_subscription(JointTrajectory, contract.JOINT_PATH,
+                                 lambda m: self.rec['joint_path'].append(m), contract.RELIABLE)
         self.create_subscription(PoseStamped, contract.STEREO_POSE,
                                  lambda m: self.rec['pose'].append(m), contract.LATCHED)
         self.create_subscription(DiagnosticArray, contract.DIAGNOSTICS,
@@ -167,6 +170,34 @@ def test_lockstep_rates_and_stamps(graph):
     assert np.abs(np.asarray(rec['joints'][-1].position) - q0).max() < 1e-6
     assert np.allclose(pose_matrix(rec['tool'][0].pose), paper.scenario_start_pose(1),
                        atol=1e-7)
+
+
+def test_joint_path_has_every_step_once_and_its_last_batch_at_the_end(graph):
+    """/ibvs/joint_path: each step's /joint_states once, the same float64s, in batches."""
+    period = 1_000_000
+    sim, stand_in, executor = graph(publish_images=False)
+    spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 250 * period)
+    stand_in.stop_and_settle(executor, sim)
+    rec = stand_in.rec
+    assert rec['clock'][:3] == [0, 100 * period, 200 * period]
+
+    def batched():
+        return np.concatenate([read_joint_path(b)[0] for b in rec['joint_path']]).tolist()
+
+    # Just before each /clock (T), one batch of the steps since the last one: [T - 0.1 s, T).
+    spin_until(executor, lambda: rec['joint_path'] and batched()[-1] == rec['clock'][-1] - period)
+    assert [stamp_ns(b.header.stamp) for b in rec['joint_path']] == rec['clock'][:-1]
+    assert [len(b.points) for b in rec['joint_path']] == [100] * (len(rec['clock']) - 1)
+    assert batched() == list(range(0, rec['clock'][-1], period))
+    # The end of a run: the simulator, destroyed, publishes the steps since the last /clock.
+    sim.destroy_node()
+    spin_until(executor, lambda: batched()[-1] == stand_in.last_stamp())
+    assert batched() == [stamp_ns(m.header.stamp) for m in rec['joints']]
+    # The same values as the /joint_states of those steps, bit for bit.
+    states = [read_joint_path(b) for b in rec['joint_path']]
+    for k, field in ((1, 'position'), (2, 'velocity'), (3, 'effort')):
+        assert np.concatenate([s[k] for s in states]).tobytes() == \
+            np.array([getattr(m, field) for m in rec['joints']], dtype=float).tobytes(), field
 
 
 def test_clock_at_its_rate_on_the_step_grid(graph):
@@ -330,6 +361,7 @@ def test_waiting_is_logged_once_a_second(domain_id):
 
 @pytest.mark.parametrize('param, topic, msg_type', [
     ('min_tool_path_subscribers', contract.TOOL_PATH, Path),
+    ('min_joint_path_subscribers', contract.JOINT_PATH, JointTrajectory),
     ('min_frame_joint_state_subscribers', contract.FRAME_JOINT_STATES, JointState)])
 def test_the_start_waits_for_the_subscribers_it_is_told_of(graph, param, topic, msg_type):
     # The stand-in subscribes the topic once; ask for one more, then add it.
