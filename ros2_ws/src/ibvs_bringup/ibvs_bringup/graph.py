@@ -150,7 +150,10 @@ class Graph:
 #: The graph of docs/design.md §1, in start order. The joint controller runs in the
 #: simulator's process (``lockstep``, ibvs_bringup.compose): the lockstep's two messages per
 #: physics step then stay in one process (0.1 instead of 0.4 ms a step on two cores), as
-#: gazebo_ros2_control runs the controllers inside the simulator. ibvs_viz's viz_node is
+#: gazebo_ros2_control runs the controllers inside the simulator. The feedforward runs there
+#: too: it works once, on the first /joint_states, and a process of its own cost every run
+#: the start of an interpreter with scipy and rclpy (about 2.4 s of CPU on a 2-core machine
+#: where the nodes' start-up is CPU-bound, issue 24); it needs no remap. ibvs_viz's viz_node is
 #: not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
 #: /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint states, so
 #: nothing in the lockstep waits for it.
@@ -179,7 +182,7 @@ GRAPH = Graph(
              doc_reads='/ibvs/features, /joint_states, camera_info, /stereo/pose',
              doc_writes='/ibvs/q_feedback', doc_rate='one per frame'),
         Node('feedforward_node', 'ibvs_control', 'ibvs_control.feedforward_node',
-             'FeedforwardNode', step0_reads=(contract.JOINT_STATES,),
+             'FeedforwardNode', process='lockstep', step0_reads=(contract.JOINT_STATES,),
              doc_module='pure: `controllers.Feedforward`',
              doc_reads='the first good /joint_states', doc_writes='/ibvs/feedforward_trajectory',
              doc_rate='once, then it unsubscribes'),
@@ -201,8 +204,8 @@ GRAPH = Graph(
     ),
     simulator='sim_node',
     # The runner's recorder and monitor also read /ibvs/tool_path, and the recorder
-    # /ibvs/joint_path (not /joint_states: only the nodes above leave the simulator's process
-    # with it, the feedforward for its first state), in the runner's own process.
+    # /ibvs/joint_path (not /joint_states, which does not leave the simulator's process),
+    # in the runner's own process.
     step0_topics=(contract.JOINT_STATES, contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                   contract.RIGHT_INFO, contract.TOOL_PATH, contract.JOINT_PATH),
 )

@@ -12,7 +12,7 @@ from ibvs_common import contract
 import pytest
 
 #: The graph as the runner started it before it had one description (issue 23).
-LOCKSTEP = ('joint_controller_node', 'sim_node')
+LOCKSTEP = ('feedforward_node', 'joint_controller_node', 'sim_node')
 FRAME = (f'{contract.JOINT_STATES}:={contract.FRAME_JOINT_STATES}',)
 
 
@@ -26,7 +26,6 @@ def test_the_process_plan_is_the_runners_of_before():
         (ProcessSpec('ibvs_viz', 'viz_node'), _remaps(*FRAME)),
         (ProcessSpec('ibvs_vision', 'feature_node'), _remaps(*FRAME)),
         (ProcessSpec('ibvs_control', 'adaptive_feedback_node'), _remaps(*FRAME)),
-        (ProcessSpec('ibvs_control', 'feedforward_node'), ()),
         (ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'), ()),
     ]
     zed = dict(graph.process_plan({'camera_topics': 'zed_wrapper'}))
@@ -69,21 +68,20 @@ def test_every_node_has_its_executable():
 
 
 def test_adding_a_node_is_one_entry_of_the_description():
-    # Issue 23's acceptance: a dummy node between the feedforward and the lockstep, reading
+    # Issue 23's acceptance: a dummy node between the feedback and the lockstep, reading
     # /joint_states at step 0 and a remapped camera_info, with no other edit.
     dummy = Node('dummy_node', 'ibvs_dummy', 'ibvs_dummy.dummy_node', 'DummyNode',
                  remaps={contract.LEFT_INFO: '/elsewhere/camera_info'},
                  step0_reads=(contract.JOINT_STATES,), doc_reads='/joint_states')
-    at = [n.name for n in GRAPH.nodes].index('feedforward_node') + 1
+    at = [n.name for n in GRAPH.nodes].index('adaptive_feedback_node') + 1
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (dummy,) + GRAPH.nodes[at:])
     plan = graph.process_plan({}, bigger)
     assert [spec.name for spec, _ in plan] == [
-        'viz_node', 'feature_node', 'adaptive_feedback_node', 'feedforward_node',
-        'dummy_node', 'lockstep']
-    assert plan[4] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
+        'viz_node', 'feature_node', 'adaptive_feedback_node', 'dummy_node', 'lockstep']
+    assert plan[3] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
                        ('-r', f'{contract.LEFT_INFO}:=/elsewhere/camera_info'))
     assert bigger.step0_readers()[contract.JOINT_STATES] == \
-        ('feedforward_node', 'dummy_node', 'joint_controller_node')
+        ('dummy_node', 'feedforward_node', 'joint_controller_node')
     assert bigger.compose_table()['dummy_node'] == ('ibvs_dummy.dummy_node', 'DummyNode')
     assert '| `dummy_node` | `ibvs_dummy.dummy_node` | its own | /joint_states; ' \
         f'{contract.LEFT_INFO} read as /elsewhere/camera_info' in bigger.markdown_table()
