@@ -201,9 +201,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         p = sub.add_parser(name, help=func.__doc__)
         if name == 'run':
             p.add_argument('scenario', help='scenario1..3 or a parameter file')
-            p.add_argument('--no-figures', dest='figures', action='store_false',
-                           help='write the bag and metrics.json only (ibvs analyse draws '
-                           'the figures from the bag later)')
+        p.add_argument('--no-figures', dest='figures', action='store_false',
+                       help='write the bag and metrics.json only (ibvs analyse draws the '
+                       'figures from the bag later)')
         p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
         p.add_argument('--duration', type=positive_seconds, help='sim time limit, s (> 0)')
         p.add_argument('--images', action='store_true', help='also record raw images')
