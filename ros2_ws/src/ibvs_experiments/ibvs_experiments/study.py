@@ -42,16 +42,11 @@ from typing import Any, TextIO
 from ibvs_bringup import graph_params, scenario
 from ibvs_bringup.domains import HELD_ENV, lock_domain, parse_pool, pool
 from ibvs_common.process import supervised_child
-import matplotlib
+import numpy as np
 
-matplotlib.use('Agg')
-
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from . import study_spec  # noqa: E402
-from .convergence import ACCEPTANCE  # noqa: E402
-from .runner import STALL_S  # noqa: E402
+from . import study_spec
+from .convergence import ACCEPTANCE
+from .runner import STALL_S
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
 CPUS_PER_RUN = 1
@@ -409,6 +404,9 @@ def write_results(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]],
 def write_figures(spec: study_spec.Spec, rows: Sequence[Mapping[str, Any]],
                   study_dir: Path) -> list[Path]:
     """Error against each swept parameter, a CDF for draws, the success rate; return paths."""
+    # Here, not at import: every `ibvs` command imports this module for its defaults, and
+    # pyplot costs about 1.4 s (issue 24: start-up).
+    from .plots import plt
     paths = []
     for name in spec.swept_names():
         sel = [r for r in rows if r[name] != '']
@@ -458,6 +456,7 @@ def write_figures(spec: study_spec.Spec, rows: Sequence[Mapping[str, Any]],
 
 
 def _save(fig, path):
+    from .plots import plt
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
