@@ -299,8 +299,15 @@ class GLRenderer:
             for shape in shapes])
         # Shared corners once, as indices: llvmpipe shades each vertex of the buffer once per
         # draw, and a triangle soup has six times as many (the marker spheres: 15360 against
-        # 2562 each).
-        unique, indices = np.unique(rows, axis=0, return_inverse=True)
+        # 2562 each). The vertices in the order of their first use, so that a shape's are
+        # together and a draw of some shapes only (render) shades theirs: llvmpipe shades
+        # every vertex between the least and the greatest index a draw uses.
+        unique, first, indices = np.unique(rows, axis=0, return_index=True,
+                                           return_inverse=True)
+        order = np.argsort(first)
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        unique, indices = unique[order], rank[np.reshape(indices, -1)]
         data = np.zeros(len(unique), dtype=[('position', 'f4', 3), ('normal', 'f4', 3),
                                             ('colour', 'f4', 3), ('part', 'i4')])
         data['position'], data['normal'] = unique[:, 0:3], unique[:, 3:6]
@@ -308,7 +315,21 @@ class GLRenderer:
         self.triangles = len(rows) // 3
         self.vertices = len(unique)
         self._vbo = self._ctx.buffer(data.tobytes())
-        self._ibo = self._ctx.buffer(np.asarray(indices, dtype='u4').reshape(-1).tobytes())
+        self._ibo = self._ctx.buffer(np.asarray(indices, dtype='u4').tobytes())
+        # Each shape's triangles are one run of the index buffer, in the order given; its
+        # bounding sphere (centre in its part's frame, radius) decides whether a pass draws it.
+        counts = np.array([len(shape.positions) for shape in shapes])
+        self._shape_first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        self._shape_count = counts
+        self._shape_part = np.array([shape.part for shape in shapes])
+        centres, radii = [], []
+        for shape in shapes:
+            points = np.asarray(shape.positions, dtype=float)
+            centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+            centres.append(centre)
+            radii.append(np.linalg.norm(points - centre, axis=1).max())
+        self._shape_centre = np.array(centres)
+        self._shape_radius = np.array(radii)
         self._vao = self._ctx.vertex_array(
             self._program, [(self._vbo, '3f 3f 3f 1i', 'in_position', 'in_normal',
                              'in_colour', 'in_part')], index_buffer=self._ibo,
@@ -337,19 +358,28 @@ class GLRenderer:
         return self._fbo
 
     def render(self, part_poses: ArrayLike, view: ArrayLike, projection: ArrayLike,
-               width: int, height: int) -> NDArray[np.uint8]:
+               width: int, height: int,
+               covered: Sequence[tuple[int, int, int, int]] = ()) -> NDArray[np.uint8]:
         """
         Return the (height, width, 3) uint8 image of the scene.
 
         ``part_poses`` (P, 4, 4): the pose in {O} of each part; ``view``: the OpenGL view
         matrix (:func:`ibvs_sim.rendering.view_matrix`); ``projection``: the OpenGL
         projection matrix of the image (:func:`ibvs_sim.rendering.projection_matrix`).
+        ``covered``: windows (u0, v0, u1, v1) of this image, u1 and v1 excluded, that the
+        caller paints over (the markers' supersampled windows); a shape whose image lies
+        inside one is not drawn there, so the pixels outside them are what they would be
+        without, and inside them anything. Only the shapes that may reach the image (and are
+        not covered) are drawn (:meth:`_runs`): the image is the same to the bit.
         """
         poses = np.asarray(part_poses, dtype=float)
         if poses.shape != (self.parts, 4, 4):
             raise GLRendererError(f'part_poses must be ({self.parts}, 4, 4), got {poses.shape}')
         flip = np.diag([1.0, -1.0, 1.0, 1.0])  # window row j = image row j (module docstring)
-        mvp = flip @ np.asarray(projection, dtype=float) @ np.asarray(view, dtype=float) @ poses
+        clip = flip @ np.asarray(projection, dtype=float)
+        modelview = np.asarray(view, dtype=float) @ poses
+        mvp = clip @ modelview
+        runs = self._runs(modelview, clip, int(width), int(height), covered)
         with self._use():
             # GLSL matrices are column-major: the transposes, row by row.
             self._program['mvp'].write(np.ascontiguousarray(mvp.transpose(0, 2, 1),
@@ -363,10 +393,55 @@ class GLRenderer:
             self._ctx.front_face = 'cw'  # counter-clockwise in {O}, y flipped (docstring)
             self._ctx.enable_only(self._moderngl.DEPTH_TEST | self._moderngl.CULL_FACE)
             fbo.clear(*BACKGROUND_RGB, 1.0, depth=1.0, viewport=viewport)
-            self._vao.render(self._moderngl.TRIANGLES)
+            for first, count in runs:
+                self._vao.render(self._moderngl.TRIANGLES, vertices=count, first=first)
             image = np.empty((int(height), int(width), 3), dtype=np.uint8)
             fbo.read_into(image, viewport=viewport, components=3, alignment=1)
         return image
+
+    def _runs(self, modelview, clip, width, height, covered):
+        """
+        Return the (first index, index count) runs of the shapes this pass draws, in order.
+
+        ``modelview`` (P, 4, 4): each part's pose in the eye frame; ``clip``: eye to clip
+        coordinates. A shape is left out where the cube around its bounding sphere, axis-
+        aligned in the eye frame (that of :func:`ibvs_sim.rendering.focus_windows`), cannot
+        give a pixel: all eight corners lie beyond one plane of the clip volume (all its
+        points do, it is convex), or its image lies inside a window of ``covered``: when the
+        cube lies in front of the eye, its image is inside the convex hull of its corners'
+        images, whose bounding box, grown by a pixel, is tested. Pixel (i, j) is sampled at
+        window coordinates (i + 1/2, j + 1/2). A shape left out would draw no fragment
+        there, so the image is the same; the order of those drawn is kept (the depth test's
+        ties).
+        """
+        signs = np.array([[sx, sy, sz, 0.0] for sx in (-1, 1) for sy in (-1, 1)
+                          for sz in (-1, 1)])
+        m = modelview[self._shape_part]  # (n, 4, 4)
+        eye = m[:, :, :3] @ self._shape_centre[:, :, None] + m[:, :, 3:]  # (n, 4, 1)
+        corners = (eye[:, None, :, 0] + self._shape_radius[:, None, None] * signs) @ clip.T
+        xyz, w = corners[:, :, :3], corners[:, :, 3:]
+        margin = 1e-3 * np.abs(w)  # far more than float32's rounding
+        outside = (np.all(xyz - w > margin, axis=1) | np.all(xyz + w < -margin, axis=1))
+        draw = ~np.any(outside, axis=1)
+        if len(covered):
+            ahead = np.all(w[:, :, 0] > 0.0, axis=1)
+            ndc = xyz[:, :, :2] / np.where(w > 0.0, w, 1.0)
+            window = (ndc + 1.0) * (0.5 * np.array([width, height]))
+            low = np.floor(window.min(axis=1)) - 1.0  # (n, 2): lowest i, j that may be hit
+            high = np.ceil(window.max(axis=1)) + 1.0
+            for u0, v0, u1, v1 in covered:
+                inside = ((low[:, 0] >= u0) & (low[:, 1] >= v0)
+                          & (high[:, 0] < u1) & (high[:, 1] < v1))
+                draw &= ~(ahead & inside)
+        runs = []
+        for first, count, on in zip(self._shape_first, self._shape_count, draw):
+            if not on:
+                continue
+            if runs and runs[-1][0] + runs[-1][1] == first:
+                runs[-1][1] += int(count)
+            else:
+                runs.append([int(first), int(count)])
+        return runs
 
     def close(self) -> None:
         """Release the context (idempotent)."""

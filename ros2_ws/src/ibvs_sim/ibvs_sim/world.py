@@ -399,28 +399,32 @@ class World:
         """
         view = view_matrix(pose)
         poses = self._gl_part_poses() if self._gl is not None else None
-        image = self._render(view, intrinsics, supersampling, poses)
+        windows = []
         if focus and focus_supersampling > supersampling:
             windows = focus_windows(intrinsics, pose, focus)
             if self.renderer == 'egl':
                 windows = render_windows(windows, focus_supersampling)
-            for window in windows:
-                u0, v0, u1, v1 = window
-                image[v0:v1, u0:u1] = self._render(
-                    view, window_intrinsics(intrinsics, window), focus_supersampling, poses)
+        image = self._render(view, intrinsics, supersampling, poses, windows)
+        for window in windows:
+            u0, v0, u1, v1 = window
+            image[v0:v1, u0:u1] = self._render(
+                view, window_intrinsics(intrinsics, window), focus_supersampling, poses)
         return image
 
-    def _render(self, view, intrinsics, supersampling, part_poses=None):
+    def _render(self, view, intrinsics, supersampling, part_poses=None, covered=()):
         """
         Return the image with ``intrinsics`` rendered with s x s samples per pixel.
 
-        ``view``: the OpenGL view matrix; ``part_poses``: those of :meth:`_gl_part_poses`
-        (renderer 'opengl' only).
+        ``view``: the OpenGL view matrix; ``part_poses``: those of :meth:`_gl_part_poses`,
+        ``covered``: the windows (u0, v0, u1, v1) of the image that will be painted over
+        (renderer 'opengl' only: it leaves out the shapes inside them, the marker spheres
+        in the full image, :meth:`GLRenderer.render`).
         """
         k = supersampled(intrinsics, supersampling)
         if self._gl is not None:
+            s = supersampling
             image = self._gl.render(part_poses, view, projection_matrix(k), int(k.width),
-                                    int(k.height))
+                                    int(k.height), [tuple(s * c for c in w) for w in covered])
             return box_downsample(image, supersampling)
         view = gl_matrix(view)
         if self.renderer == 'egl':

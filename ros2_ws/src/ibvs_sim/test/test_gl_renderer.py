@@ -93,6 +93,85 @@ def test_part_poses_must_match_the_scene(sphere_renderer):
                                projection_matrix(k), k.width, k.height)
 
 
+def _two_spheres(offset_m):
+    """Return Shapes of two marker spheres of one part: at the origin and at ``offset_m``."""
+    positions, normals = obj_triangles(icosphere_obj(), [MARKER_RADIUS_M] * 3)
+    return [Shape(0, positions, normals, (1.0, 0.0, 0.0)),
+            Shape(0, positions + np.asarray(offset_m), normals, (0.0, 0.0, 1.0))]
+
+
+def _sphere_view(camera, renderer, k, covered=()):
+    """Render ``renderer``'s part 0 at the origin seen by ``camera``'s left lens."""
+    (lens, _) = lens_poses(camera)
+    return renderer.render(np.eye(4)[None], view_matrix(lens), projection_matrix(k), k.width,
+                           k.height, covered)
+
+
+def _renderer(shapes):
+    try:
+        return GLRenderer(shapes, NEAR_M, FAR_M, LIGHT['lightDirection'])
+    except GLRendererError as exc:
+        pytest.skip(f'no OpenGL context here: {exc}')
+
+
+@pytest.mark.parametrize('offset_m', [(5.0, 0.0, 0.0), (0.0, 0.0, 3.0), (0.0, 0.2, 0.0)])
+def test_shapes_out_of_view_are_left_out_and_the_image_is_the_same(offset_m):
+    """
+    The second sphere beside the view, behind the camera, or in view: same image as drawn.
+
+    An out-of-view shape is not drawn (its run is left out of the pass), and the image
+    equals, to the bit, that of a scene without it (in view: with it).
+    """
+    camera = StereoCamera(StereoIntrinsics.zed2('VGA'), look_at((0.0, 0.0, 2.0), (0.0, 0.0, 0.0),
+                                                                up=(0.0, 1.0, 0.0)))
+    k = camera.intrinsics
+    both = _renderer(_two_spheres(offset_m))
+    alone = _renderer(_two_spheres(offset_m)[:1])
+    try:
+        (lens, _) = lens_poses(camera)
+        flip = np.diag([1.0, -1.0, 1.0, 1.0])
+        runs = both._runs(view_matrix(lens)[None], flip @ projection_matrix(k), k.width,
+                          k.height, ())
+        in_view = offset_m == (0.0, 0.2, 0.0)
+        sphere = both._shape_count[0]  # indices of one sphere
+        assert sum(count for _, count in runs) == (2 * sphere if in_view else sphere)
+        image = _sphere_view(camera, both, k).astype(int)
+        if in_view:
+            assert np.any(image[:, :, 2] - image[:, :, 0] > 50)  # the blue sphere
+            assert not np.array_equal(image, _sphere_view(camera, alone, k))
+        else:
+            assert np.array_equal(image, _sphere_view(camera, alone, k))
+    finally:
+        both.close()
+        alone.close()
+
+
+def test_a_shape_inside_a_covered_window_is_left_out_and_nothing_else_changes():
+    """The sphere inside its focus window is not drawn; every pixel outside it is the same."""
+    camera = StereoCamera(StereoIntrinsics.zed2('HD720'),
+                          look_at((0.0, 0.0, 2.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0)))
+    k = camera.intrinsics
+    renderer = _renderer(_two_spheres((0.3, 0.0, 0.0)))
+    try:
+        (lens, _) = lens_poses(camera)
+        (window,) = focus_windows(k, lens, [(np.zeros(3), MARKER_RADIUS_M)])
+        full = _sphere_view(camera, renderer, k)
+        covered = _sphere_view(camera, renderer, k, [window])
+        u0, v0, u1, v1 = window
+        inside = np.zeros(full.shape[:2], dtype=bool)
+        inside[v0:v1, u0:u1] = True
+        assert np.array_equal(full[~inside], covered[~inside])
+        red = full[:, :, 0].astype(int) - full[:, :, 1] > 50
+        assert red[inside].sum() > 100 and not red[~inside].any()
+        # Left out, not merely painted: the window shows the background there.
+        assert np.all(covered[inside] == covered[0, 0])
+        # A window that holds only part of the sphere's image leaves it drawn.
+        half = (u0, v0, (u0 + u1) // 2, v1)
+        assert np.array_equal(_sphere_view(camera, renderer, k, [half]), full)
+    finally:
+        renderer.close()
+
+
 def _volume(positions):
     """Signed volume enclosed by triangles (divergence theorem): > 0 when wound outwards."""
     a, b, c = positions[0::3], positions[1::3], positions[2::3]
