@@ -352,11 +352,18 @@ class GLRenderer:
         if fbo is None or width > fbo.width or height > fbo.height:
             size = (max(width, fbo.width if fbo else 0), max(height, fbo.height if fbo else 0))
             if fbo is not None:
-                fbo.release()
+                self._release(fbo)
             fbo = self._fbos[index] = self._ctx.framebuffer(
                 color_attachments=[self._ctx.renderbuffer(size, components=4)],
                 depth_attachment=self._ctx.depth_renderbuffer(size))
         return fbo
+
+    @staticmethod
+    def _release(fbo):
+        """Release a framebuffer and its attachments (moderngl leaves those alive)."""
+        for attachment in (*fbo.color_attachments, fbo.depth_attachment):
+            attachment.release()
+        fbo.release()
 
     def render(self, part_poses: ArrayLike, view: ArrayLike, projection: ArrayLike,
                width: int, height: int,
@@ -402,8 +409,9 @@ class GLRenderer:
             for index, (view, projection, width, height, covered) in enumerate(passes):
                 width, height = int(width), int(height)
                 clip = flip @ np.asarray(projection, dtype=float)
-                modelview = np.asarray(view, dtype=float) @ poses
-                mvp = clip @ modelview
+                view = np.asarray(view, dtype=float)
+                mvp = clip @ view @ poses
+                modelview = view @ poses
                 self._program['mvp'].write(np.ascontiguousarray(mvp.transpose(0, 2, 1),
                                                                 dtype='f4'))
                 fbo = self._framebuffer(index, width, height)
@@ -475,7 +483,7 @@ class GLRenderer:
                 self._program.release()
                 for fbo in self._fbos:
                     if fbo is not None:
-                        fbo.release()
+                        self._release(fbo)
             self._current.save()
             self._ctx.release()
             self._current.restore()

@@ -172,6 +172,47 @@ def test_a_shape_inside_a_covered_window_is_left_out_and_nothing_else_changes():
         renderer.close()
 
 
+def test_passes_drawn_together_equal_passes_drawn_one_by_one(sphere_renderer):
+    """render_passes: each image as render gives it, whatever the order and sizes of the passes."""
+    camera = StereoCamera(StereoIntrinsics.zed2('HD720'),
+                          look_at((0.0, 0.0, 2.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0)))
+    k = camera.intrinsics
+    pose = np.eye(4)[None]
+    passes = []
+    for lens in lens_poses(camera):
+        (window,) = focus_windows(k, lens, [(np.zeros(3), MARKER_RADIUS_M)])
+        fine = supersampled(window_intrinsics(k, window), SAMPLES)
+        passes += [(view_matrix(lens), projection_matrix(k), k.width, k.height, [window]),
+                   (view_matrix(lens), projection_matrix(fine), fine.width, fine.height, ())]
+    alone = [sphere_renderer.render(pose, *p) for p in passes]
+    for order in (passes, passes[::-1]):
+        together = sphere_renderer.render_passes(pose, order)
+        expected = alone if order is passes else alone[::-1]
+        assert all(np.array_equal(a, b) for a, b in zip(together, expected))
+    # Not trivially equal: the windows hold the sphere, which the full images leave out.
+    assert np.any(alone[1] != alone[1][0, 0]) and np.any(alone[3] != alone[3][0, 0])
+    assert np.all(alone[0] == alone[0][0, 0])
+
+
+def test_a_lens_alone_is_drawn_as_in_the_stereo_pair():
+    """World 'opengl': render_lens gives the image that render_stereo gives that lens."""
+    camera = StereoCamera(StereoIntrinsics.zed2('VGA'),
+                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+    try:
+        world = World(renderer='opengl')
+    except Exception as exc:
+        pytest.skip(f'no OpenGL context here: {exc}')
+    try:
+        world.reset(inverse_kinematics(paper.target_pose()))
+        focus = world.marker_spheres()
+        pair = world.render_stereo(camera, 1, focus, DEFAULT_FOCUS_SUPERSAMPLING)
+        for lens, image in zip(lens_poses(camera), pair):
+            assert np.array_equal(world.render_lens(lens, camera.intrinsics, 1, focus,
+                                                    DEFAULT_FOCUS_SUPERSAMPLING), image)
+    finally:
+        world.close()
+
+
 def _volume(positions):
     """Signed volume enclosed by triangles (divergence theorem): > 0 when wound outwards."""
     a, b, c = positions[0::3], positions[1::3], positions[2::3]
