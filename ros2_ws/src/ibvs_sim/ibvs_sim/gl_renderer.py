@@ -27,6 +27,12 @@ its shadows: a directional light towards ``light_direction`` (the simulator's, a
 PyBullet: :data:`ibvs_sim.world.LIGHT`), intensity
 i = 1/2 + 1/2 clamp(n . l, -1, 1), times 0.7 on faces turned away from the light, and the
 colour rgb (1/2 + i/2); no specular highlight. The robot casts no shadow on the ground.
+Computed once a pixel from the interpolated normal, but once a vertex for the flat shapes
+(boxes, the ground), whose pixels would all interpolate the vertices' one normal.
+
+Cost: a pass draws only the shapes that can reach its pixels, and none that the caller
+paints over (:meth:`GLRenderer.render`); a stereo pair's passes are drawn together
+(:meth:`GLRenderer.render_passes`). docs/speed.md has the measurements.
 
 Determinism: one context, fixed geometry, no blending or multisampling; llvmpipe rasterises
 the same triangles to the same pixels every time (tested to the bit).
@@ -324,11 +330,11 @@ class GLRenderer:
         #: The OpenGL implementation that draws (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)').
         self.gl_renderer = self._ctx.info.get('GL_RENDERER', '?')
         # Program 0 lights each pixel (smooth shapes), program 1 each vertex (flat shapes).
+        fill = {'parts': parts, 'lighting': _LIGHTING}
         self._programs = [
-            self._ctx.program(vertex_shader=_VERTEX_SHADER % {'parts': parts},
-                              fragment_shader=_FRAGMENT_SHADER % {'lighting': _LIGHTING}),
-            self._ctx.program(vertex_shader=_FLAT_VERTEX_SHADER % {'parts': parts,
-                                                                  'lighting': _LIGHTING},
+            self._ctx.program(vertex_shader=_VERTEX_SHADER % fill,
+                              fragment_shader=_FRAGMENT_SHADER % fill),
+            self._ctx.program(vertex_shader=_FLAT_VERTEX_SHADER % fill,
                               fragment_shader=_FLAT_FRAGMENT_SHADER)]
         for program in self._programs:
             program['light'].value = self._light
