@@ -382,6 +382,8 @@ class World:
                              f'[1, {MAX_FOCUS_SUPERSAMPLING}], got {focus_supersampling!r}')
         left, right = lens_poses(camera)
         args = (camera.intrinsics, supersampling, tuple(focus), focus_supersampling)
+        if self._gl is not None:
+            return tuple(self._gl_render_lenses((left, right), *args))
         if self._lens_worker is None:
             return self.render_lens(left, *args), self.render_lens(right, *args)
         self._lens_worker.submit(self.joint_state()[0], right, *args)
@@ -397,9 +399,11 @@ class World:
 
         The arguments are those of :meth:`render_stereo`, checked there.
         """
+        if self._gl is not None:
+            return self._gl_render_lenses([pose], intrinsics, supersampling, tuple(focus),
+                                          focus_supersampling)[0]
         view = view_matrix(pose)
-        poses = self._gl_part_poses() if self._gl is not None else None
-        image = self._render(view, intrinsics, supersampling, poses)
+        image = self._render(view, intrinsics, supersampling)
         if focus and focus_supersampling > supersampling:
             windows = focus_windows(intrinsics, pose, focus)
             if self.renderer == 'egl':
@@ -407,21 +411,43 @@ class World:
             for window in windows:
                 u0, v0, u1, v1 = window
                 image[v0:v1, u0:u1] = self._render(
-                    view, window_intrinsics(intrinsics, window), focus_supersampling, poses)
+                    view, window_intrinsics(intrinsics, window), focus_supersampling)
         return image
 
-    def _render(self, view, intrinsics, supersampling, part_poses=None):
+    def _gl_render_lenses(self, poses, intrinsics, supersampling, focus, focus_supersampling):
         """
-        Return the image with ``intrinsics`` rendered with s x s samples per pixel.
+        Return the images of lenses at ``poses`` drawn by renderer 'opengl' in one go.
 
-        ``view``: the OpenGL view matrix; ``part_poses``: those of :meth:`_gl_part_poses`
-        (renderer 'opengl' only).
+        The passes of :meth:`render_lens` (each lens's image, then its marker windows) at
+        the link poses of now, drawn by one :meth:`GLRenderer.render_passes`; the full
+        images leave out what the windows cover (:meth:`GLRenderer.render`). The other
+        arguments are those of :meth:`render_stereo`.
         """
         k = supersampled(intrinsics, supersampling)
-        if self._gl is not None:
-            image = self._gl.render(part_poses, view, projection_matrix(k), int(k.width),
-                                    int(k.height))
-            return box_downsample(image, supersampling)
+        passes, lens_windows = [], []
+        for pose in poses:
+            view = view_matrix(pose)
+            windows = []
+            if focus and focus_supersampling > supersampling:
+                windows = focus_windows(intrinsics, pose, focus)
+            passes.append((view, projection_matrix(k), k.width, k.height,
+                           [tuple(supersampling * c for c in w) for w in windows]))
+            for window in windows:
+                fine = supersampled(window_intrinsics(intrinsics, window), focus_supersampling)
+                passes.append((view, projection_matrix(fine), fine.width, fine.height, ()))
+            lens_windows.append(windows)
+        drawn = iter(self._gl.render_passes(self._gl_part_poses(), passes))
+        images = []
+        for windows in lens_windows:
+            image = box_downsample(next(drawn), supersampling)
+            for u0, v0, u1, v1 in windows:
+                image[v0:v1, u0:u1] = box_downsample(next(drawn), focus_supersampling)
+            images.append(image)
+        return images
+
+    def _render(self, view, intrinsics, supersampling):
+        """Return the image with ``intrinsics`` rendered by PyBullet, s x s samples/px."""
+        k = supersampled(intrinsics, supersampling)
         view = gl_matrix(view)
         if self.renderer == 'egl':
             renderer, parts = pybullet.ER_BULLET_HARDWARE_OPENGL, tiles(k)
