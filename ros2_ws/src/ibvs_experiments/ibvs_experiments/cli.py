@@ -77,6 +77,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
+    scenario.load_parameters(args.scenario)  # a refused scenario leaves no output directory
     out = Path(args.out or Path('results') / Path(args.scenario).stem)
     try:
         out.mkdir(parents=True, exist_ok=True)

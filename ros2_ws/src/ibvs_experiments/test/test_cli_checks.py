@@ -33,8 +33,12 @@ def test_finding9_bad_commands_end_with_an_error_line_and_code_2(capsys, tmp_pat
     assert code == 2 and err.startswith('error:') and 'servo_law' in err
     broken = tmp_path / 'broken.yaml'
     broken.write_text('/**:\n  ros__parameters: {tau_in: [0.01\n')
-    code, err = run(capsys, 'run', str(broken))
+    out = tmp_path / 'results'
+    code, err = run(capsys, 'run', str(broken), '-o', str(out))
     assert code == 2 and str(broken) in err and 'Traceback' not in err
+    code, err = run(capsys, 'run', 'nosuchscenario', '-o', str(out))
+    assert code == 2 and err.startswith('error:') and 'nosuchscenario' in err
+    assert not out.exists()  # a refused run leaves no output directory behind
     code, err = run(capsys, 'run', 'scenario1', '-o', '/proc/ibvs-results')
     assert code == 2 and err.startswith('error:')
     for duration in ('-1', '0'):
