@@ -146,23 +146,21 @@ def run_identity(scenario_name: str, overrides: Mapping[str, Any],
 
     Each parameter a node declares takes its default (:func:`graph_params.declared`), then
     the scenario file's value, then the override's, and the sim time is ``duration_s`` or
-    the scenario's, as ``ibvs run`` resolves them (:func:`.runner.prepare`). Two runs with
+    the scenario's, as ``ibvs run`` resolves them (:func:`.runner.resolve`). Two runs with
     the same identity run the same graph with the same values: the lockstep run is
     deterministic, so they record the same bag, whichever study names them (a study's cache
     key, :func:`.study_spec.run_key`, hashes the overrides as written instead).
     """
-    import tempfile
     from ibvs_bringup import graph_params
     from ibvs_common.params import plain_value
-    from .runner import prepare
-    with tempfile.TemporaryDirectory(prefix='ibvs-identity-') as tmp:
-        run = prepare(scenario_name, tmp, overrides, duration_s)
+    from .runner import resolve
+    params, duration_s = resolve(scenario_name, overrides, duration_s)
     declared = graph_params.declared()
     values = {name: param.default for name, param in declared.items()}
-    values.update(run.params)
+    values.update(params)
     values = {name: plain_value(value, declared[name].default) if name in declared else value
               for name, value in values.items()}
-    return json.dumps({'parameters': values, 'duration_s': run.duration_s}, sort_keys=True,
+    return json.dumps({'parameters': values, 'duration_s': duration_s}, sort_keys=True,
                       default=str)
 
 

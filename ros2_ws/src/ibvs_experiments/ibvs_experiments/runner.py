@@ -350,6 +350,24 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                      recorder.timing.values())
 
 
+def resolve(name: str, overrides: Mapping[str, Any] | None = None,
+            duration_s: float | None = None) -> tuple[dict[str, Any], float]:
+    """
+    Return the checked parameters of scenario ``name`` with ``overrides``, and the sim time.
+
+    The scenario file's values, then the overrides (:func:`graph_params.check`,
+    :func:`scenario.check_progress` raise here); the sim time is ``duration_s``, else the
+    file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
+    """
+    params = scenario.load_parameters(name)
+    params.update(overrides or {})
+    graph_params.check(params)
+    scenario.check_progress(params)
+    params.setdefault('scenario_name', Path(str(name)).stem)
+    duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
+    return params, duration_s
+
+
 def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None = None,
             duration_s: float | None = None) -> Prepared:
     """
@@ -359,12 +377,7 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
     :func:`run_scenario` that come before any node (:func:`graph_params.check`,
     :func:`scenario.check_progress`) raise here.
     """
-    params = scenario.load_parameters(name)
-    params.update(overrides or {})
-    graph_params.check(params)
-    scenario.check_progress(params)
-    params.setdefault('scenario_name', Path(str(name)).stem)
-    duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
+    params, duration_s = resolve(name, overrides, duration_s)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     log_dir = out_dir / 'logs'
