@@ -93,20 +93,17 @@ class Graph:
         Return the processes of a run (:class:`~.supervision.ProcessSpec`), in start order.
 
         A node of its own process starts where it stands in :attr:`nodes`; the nodes that
-        share a process start together (``compose``, in their order) where the first of them
+        share a process start together (``compose``, in their order) where the last of them
         stands. The simulator's process must come last, so that every subscriber is up
         before the first /joint_states.
         """
-        out, shared = [], {}
-        for n in self.nodes:
+        out = []
+        for i, n in enumerate(self.nodes):
             if not n.process:
                 out.append(ProcessSpec(n.package, n.name))
-            elif n.process not in shared:
-                shared[n.process] = len(out)
-                out.append(None)
-        for name, index in shared.items():
-            members = self.shared(name)
-            out[index] = ProcessSpec(*self.host, members, members, name)
+            elif all(m.process != n.process for m in self.nodes[i + 1:]):
+                members = self.shared(n.process)
+                out.append(ProcessSpec(*self.host, members, members, n.process))
         if self.simulator not in out[-1].nodes:
             raise ValueError(f'the simulator {self.simulator} must start last')
         return tuple(out)
@@ -147,16 +144,18 @@ class Graph:
         return '\n'.join(rows) + '\n'
 
 
-#: The graph of docs/design.md §1, in start order. The joint controller runs in the
-#: simulator's process (``lockstep``, ibvs_bringup.compose): the lockstep's two messages per
-#: physics step then stay in one process (0.1 instead of 0.4 ms a step on two cores), as
-#: gazebo_ros2_control runs the controllers inside the simulator. The feedforward runs there
-#: too: it works once, on the first /joint_states, and a process of its own cost every run
-#: the start of an interpreter with scipy and rclpy (about 2.4 s of CPU on a 2-core machine
-#: where the nodes' start-up is CPU-bound, issue 24); it needs no remap. ibvs_viz's viz_node is
-#: not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
+#: The graph of docs/design.md §1, in start order. The paper's nodes run in one process
+#: (``lockstep``, ibvs_bringup.compose), as gazebo_ros2_control runs the controllers inside
+#: the simulator and as a component container holds a camera's pipeline: the lockstep's two
+#: messages per physics step and a frame's images, features and q_feedback then pass as
+#: objects (ibvs_common.intra_process; DDS still carries them to any reader in another
+#: process), and at the paper's latency of 0 the chain render -> detection -> feedback ->
+#: joint loop is serial anyway (issue 24: 2.3 -> 1.7 s per simulated second at HD720 with
+#: the 'opengl' renderer). Each node keeps its executable for ``ros2 run`` and a real cell,
+#: where the joint controller and the vision run without the simulator. ibvs_viz's viz_node
+#: is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
 #: /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint states, so
-#: nothing in the lockstep waits for it.
+#: nothing in the lockstep waits for it; it runs on its own.
 GRAPH = Graph(
     nodes=(
         Node('viz_node', 'ibvs_viz', 'ibvs_viz.viz_node', 'VizNode',
@@ -167,7 +166,7 @@ GRAPH = Graph(
              doc_writes='/robot_description, /tf, /tf_static, /ibvs/markers',
              doc_rate='one per frame; nothing waits for it'),
         Node('feature_node', 'ibvs_vision', 'ibvs_vision.feature_node', 'FeatureNode',
-             remaps=FRAME_STATES, zed_remaps=ZED_TOPICS,
+             process='lockstep', remaps=FRAME_STATES, zed_remaps=ZED_TOPICS,
              step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                           contract.RIGHT_INFO),
              doc_module='pure: `detector`, `blend`',
@@ -175,7 +174,7 @@ GRAPH = Graph(
              doc_writes='/ibvs/features, /ibvs/feature_status',
              doc_rate='one message each per stereo frame'),
         Node('adaptive_feedback_node', 'ibvs_control', 'ibvs_control.adaptive_feedback_node',
-             'AdaptiveFeedbackNode', remaps=FRAME_STATES, zed_remaps=ZED_INFO,
+             'AdaptiveFeedbackNode', process='lockstep', remaps=FRAME_STATES, zed_remaps=ZED_INFO,
              step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                           contract.RIGHT_INFO),
              doc_module='pure: `controllers.AdaptiveFeedback`',
@@ -217,13 +216,18 @@ def process_plan(params: Mapping[str, Any], graph: Graph = GRAPH
     Return [(ProcessSpec, its remapping arguments)] of a run with ``params``, in start order.
 
     The processes and remappings are the graph's (:mod:`ibvs_bringup.graph`), with the ZED
-    wrapper's names when the simulator publishes them (``camera_topics: zed_wrapper``).
+    wrapper's names when the simulator publishes them (``camera_topics: zed_wrapper``). In a
+    process of several nodes a remapping names its node (``-r node:topic:=remapped``, the
+    ROS 2 syntax of a node-specific rule), so that it leaves the others' topics alone.
     """
     run_remaps = graph.remaps(zed=uses_zed_names(params))
-    return [(spec, tuple(arg for node in spec.nodes
-                         for topic, remapped in run_remaps.get(node, {}).items()
-                         for arg in ('-r', f'{topic}:={remapped}')))
-            for spec in graph.processes()]
+    plan = []
+    for spec in graph.processes():
+        scope = len(spec.nodes) > 1
+        plan.append((spec, tuple(arg for node in spec.nodes
+                                 for topic, remapped in run_remaps.get(node, {}).items()
+                                 for arg in ('-r', f'{node}:' * scope + f'{topic}:={remapped}'))))
+    return plan
 
 
 def uses_zed_names(params: Mapping[str, Any]) -> bool:

@@ -53,16 +53,23 @@ class ProcessSpec:
 
 
 class NodeDied(RuntimeError):
-    """A node process exited during a run; ``node`` and ``returncode`` say which and how."""
+    """
+    A node process exited during a run; ``node`` and ``returncode`` say which and how.
 
-    def __init__(self, node: str, returncode: int | None, log_path: str | Path) -> None:
+    ``node`` is the process's name (a node's, or a shared process's such as ``lockstep``);
+    ``nodes``, the nodes it held, are named in the message when they are several.
+    """
+
+    def __init__(self, node: str, returncode: int | None, log_path: str | Path,
+                 nodes: Sequence[str] = ()) -> None:
         """Keep which node died, its exit code and where its log is; quote its last line."""
         try:
             lines = Path(log_path).read_text(errors='replace').strip().splitlines()
         except OSError:
             lines = []
         last = f'; its last words: {lines[-1].strip()}' if lines else ''
-        super().__init__(f'node {node} exited with code {returncode} during the run '
+        held = f' (nodes {", ".join(nodes)})' if len(nodes) > 1 else ''
+        super().__init__(f'node {node}{held} exited with code {returncode} during the run '
                          f'(log: {log_path}){last}')
         self.node = node
         self.returncode = returncode
@@ -172,7 +179,7 @@ def wait_for_readers(executor: 'Executor', node: 'Node', procs: Sequence[NodePro
         executor.spin_once(timeout_sec=0.05)
         for p in procs:
             if p.poll() is not None:
-                raise NodeDied(p.name, p.poll(), p.log_path)
+                raise NodeDied(p.name, p.poll(), p.log_path, p.nodes)
         infos = {topic: node.get_subscriptions_info_by_topic(topic_of.get(topic, topic))
                  for topic in readers}
         missing = [f'{name} on {topic}' for topic, names in readers.items()
@@ -194,7 +201,7 @@ def wait_for_nodes(executor: 'Executor', node: 'Node', names: Iterable[str],
         executor.spin_once(timeout_sec=0.1)
         for p in procs:
             if p.poll() is not None:
-                raise NodeDied(p.name, p.poll(), p.log_path)
+                raise NodeDied(p.name, p.poll(), p.log_path, p.nodes)
         if set(names) <= set(node.get_node_names()):
             return
     raise TimeoutError(f'nodes not up after {timeout_s:.0f} s: '

@@ -11,22 +11,23 @@ from ibvs_bringup.supervision import ProcessSpec
 from ibvs_common import contract
 import pytest
 
-#: The graph as the runner started it before it had one description (issue 23).
-LOCKSTEP = ('feedforward_node', 'joint_controller_node', 'sim_node')
+#: The paper's nodes, all in the simulator's process (issue 24: the frame's messages need
+#: no DDS there, ibvs_common.intra_process).
+LOCKSTEP = ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
+            'joint_controller_node', 'sim_node')
 FRAME = (f'{contract.JOINT_STATES}:={contract.FRAME_JOINT_STATES}',)
 
 
-def _remaps(*pairs):
-    return tuple(arg for pair in pairs for arg in ('-r', pair))
+def _remaps(*pairs, node=None):
+    return tuple(arg for pair in pairs for arg in ('-r', f'{node}:' * bool(node) + pair))
 
 
-def test_the_process_plan_is_the_runners_of_before():
+def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
     plan = graph.process_plan({})
     assert plan == [
         (ProcessSpec('ibvs_viz', 'viz_node'), _remaps(*FRAME)),
-        (ProcessSpec('ibvs_vision', 'feature_node'), _remaps(*FRAME)),
-        (ProcessSpec('ibvs_control', 'adaptive_feedback_node'), _remaps(*FRAME)),
-        (ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'), ()),
+        (ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'),
+         _remaps(*FRAME, node='feature_node') + _remaps(*FRAME, node='adaptive_feedback_node')),
     ]
     zed = dict(graph.process_plan({'camera_topics': 'zed_wrapper'}))
     info = (f'{contract.LEFT_INFO}:={contract.ZED_LEFT_INFO}',
@@ -34,9 +35,9 @@ def test_the_process_plan_is_the_runners_of_before():
     images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
               f'{contract.RIGHT_IMAGE}:={contract.ZED_RIGHT_IMAGE}')
     assert zed[ProcessSpec('ibvs_viz', 'viz_node')] == _remaps(*FRAME, *info)
-    assert zed[ProcessSpec('ibvs_vision', 'feature_node')] == \
-        _remaps(*FRAME, images[0], images[1], *info)
-    assert zed[ProcessSpec('ibvs_control', 'adaptive_feedback_node')] == _remaps(*FRAME, *info)
+    assert zed[ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep')] == (
+        _remaps(*FRAME, images[0], images[1], *info, node='feature_node')
+        + _remaps(*FRAME, *info, node='adaptive_feedback_node'))
 
 
 def test_the_step0_readers_are_the_runners_of_before():
@@ -76,9 +77,8 @@ def test_adding_a_node_is_one_entry_of_the_description():
     at = [n.name for n in GRAPH.nodes].index('adaptive_feedback_node') + 1
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (dummy,) + GRAPH.nodes[at:])
     plan = graph.process_plan({}, bigger)
-    assert [spec.name for spec, _ in plan] == [
-        'viz_node', 'feature_node', 'adaptive_feedback_node', 'dummy_node', 'lockstep']
-    assert plan[3] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
+    assert [spec.name for spec, _ in plan] == ['viz_node', 'dummy_node', 'lockstep']
+    assert plan[1] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
                        ('-r', f'{contract.LEFT_INFO}:=/elsewhere/camera_info'))
     assert bigger.step0_readers()[contract.JOINT_STATES] == \
         ('dummy_node', 'feedforward_node', 'joint_controller_node')
@@ -88,7 +88,10 @@ def test_adding_a_node_is_one_entry_of_the_description():
     # Into the simulator's process: one field more.
     shared = dataclasses.replace(dummy, process='lockstep')
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (shared,) + GRAPH.nodes[at:])
-    assert graph.process_plan({}, bigger)[-1][0].nodes == ('dummy_node', *LOCKSTEP)
+    spec, remaps = graph.process_plan({}, bigger)[-1]
+    assert spec.nodes == LOCKSTEP[:2] + ('dummy_node',) + LOCKSTEP[2:]
+    assert _remaps(f'{contract.LEFT_INFO}:=/elsewhere/camera_info', node='dummy_node') \
+        == remaps[-2:]
 
 
 def test_the_simulator_starts_last():

@@ -5,6 +5,7 @@ Readers raise :class:`InputError` with a short reason (used as the rejection rea
 /diagnostics) and never return NaN.
 """
 
+from array import array as Array
 from collections.abc import Iterable, Sequence
 import math
 from typing import NamedTuple, Optional, Tuple, TYPE_CHECKING, Union
@@ -156,14 +157,17 @@ def read_joints(msg: JointState, field: str = 'position',
     if values.shape != (len(names),):
         raise InputError(f'wrong {field} length',
                          f'{values.size} values, expected {len(names)}')
-    if not len(msg.name):
-        raise InputError('no joint names', 'JointState.name is empty; values are mapped by name')
-    if len(msg.name) != len(names) or set(msg.name) != set(names):
-        raise InputError('wrong joint names', f'{list(msg.name)}')
-    values = values[[list(msg.name).index(n) for n in names]]
-    if not np.all(np.isfinite(values)):
+    given = list(msg.name)
+    if given != list(names):  # the contract's order (every message of the graph) as it is
+        if not given:
+            raise InputError('no joint names',
+                             'JointState.name is empty; values are mapped by name')
+        if len(given) != len(names) or set(given) != set(names):
+            raise InputError('wrong joint names', f'{given}')
+        values = values[[given.index(n) for n in names]]
+    if not np.isfinite(values).all():
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
-    if bound is not None and not np.all((values >= bound[0]) & (values <= bound[1])):
+    if bound is not None and not ((values >= bound[0]) & (values <= bound[1])).all():
         raise InputError(f'{field} out of range',
                          f'{values.tolist()}, allowed {np.round(bound[0], 3).tolist()} to '
                          f'{np.round(bound[1], 3).tolist()}')
@@ -418,7 +422,9 @@ def image_msg(array: ArrayLike, stamp: int | Time, encoding: str = 'rgb8',
     msg.encoding = encoding
     msg.is_bigendian = 0
     msg.step = array.shape[2] * msg.width
-    msg.data = array.tobytes()
+    data = Array('B')
+    data.frombytes(array)  # one copy (tobytes and the setter's conversion made two)
+    msg.data = data
     return msg
 
 
@@ -530,8 +536,13 @@ def camera_from_msgs(left_info: CameraInfo, right_info: CameraInfo,
 
 def features_msg(features: ArrayLike, stamp: int | Time,
                  frame_id: str = contract.CAMERA_FRAME) -> PolygonStamped:
-    """Return p_I (6,) as PolygonStamped: one point per marker, x = u_l, y = u_r, z = v."""
-    p = np.asarray(features, dtype=float).reshape(2, 3)
+    """
+    Return p_I (6,) as PolygonStamped: one point per marker, x = u_l, y = u_r, z = v.
+
+    The values are rounded to float32 here, as Point32 carries them: the message holds what
+    DDS delivers, also to a reader that gets the object itself (:mod:`.intra_process`).
+    """
+    p = np.asarray(features, dtype=float).reshape(2, 3).astype(np.float32)
     msg = PolygonStamped()
     msg.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
     msg.header.frame_id = frame_id

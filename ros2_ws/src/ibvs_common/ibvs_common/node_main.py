@@ -12,6 +12,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from . import dds
+from .intra_process import bus_of
 from .params import ParameterError
 
 if TYPE_CHECKING:
@@ -78,16 +79,26 @@ def make_executor(context: 'Context') -> EventsExecutor:
 
 def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
                        poll_s: float = STOP_POLL_S) -> None:
-    """Spin ``nodes`` (one node or several of one context) until ``stop`` or shutdown."""
+    """
+    Spin ``nodes`` (one node or several of one context) until ``stop`` or shutdown.
+
+    Between two executor callbacks it delivers the messages that the nodes of the process
+    passed to each other directly (:mod:`.intra_process`); while some wait, the executor
+    only looks for ready callbacks instead of sleeping.
+    """
     nodes = list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
     context = nodes[0].context
     executor = make_executor(context)
     for node in nodes:
         executor.add_node(node)
+    bus = bus_of(context)
+    bus.active = True
     try:
         while context.ok() and not stop.is_set():
-            executor.spin_once(timeout_sec=poll_s)
+            executor.spin_once(timeout_sec=0.0 if bus.pending else poll_s)
+            bus.drain()
     finally:
+        bus.active = False
         for node in nodes:
             executor.remove_node(node)
         executor.shutdown(timeout_sec=0.0)

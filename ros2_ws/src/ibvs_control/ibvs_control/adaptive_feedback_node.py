@@ -56,7 +56,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
-from ibvs_common import contract
+from ibvs_common import contract, intra_process
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
                                      joint_state, pose_stamped, position_bounds,
                                      read_camera_pose, read_feature_status, read_features,
@@ -117,11 +117,14 @@ class AdaptiveFeedbackNode(Node):
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
         self.diagnostics.update(state='waiting for camera', frames=0)
-        self._pub = self.create_publisher(JointState, contract.Q_FEEDBACK, contract.RELIABLE)
-        self.create_subscription(CameraInfo, contract.LEFT_INFO,
-                                 lambda m: self._on_info(0, m), contract.IMAGES)
-        self.create_subscription(CameraInfo, contract.RIGHT_INFO,
-                                 lambda m: self._on_info(1, m), contract.IMAGES)
+        # The frames' messages between nodes of one process need no DDS when nobody else
+        # reads them (ibvs_common.intra_process); the latched ones always take DDS.
+        self._pub = intra_process.publisher(self, JointState, contract.Q_FEEDBACK,
+                                            contract.RELIABLE)
+        intra_process.subscription(self, CameraInfo, contract.LEFT_INFO,
+                                   lambda m: self._on_info(0, m), contract.IMAGES)
+        intra_process.subscription(self, CameraInfo, contract.RIGHT_INFO,
+                                   lambda m: self._on_info(1, m), contract.IMAGES)
         calibrated = camera_pose_from(values)
         if calibrated is None:
             self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
@@ -129,21 +132,21 @@ class AdaptiveFeedbackNode(Node):
         else:  # a hand-eye calibration's result, as a parameter
             self._camera_pose = pose_stamped(calibrated, 0)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
-        joints = self.create_subscription(JointState, contract.JOINT_STATES,
-                                          self._on_joint_state, contract.RELIABLE)
+        joints = intra_process.subscription(self, JointState, contract.JOINT_STATES,
+                                            self._on_joint_state, contract.RELIABLE)
         self._joints_topic = joints.topic_name
         self._lockstep = FrameLockstep(HISTORY, self.needs_status,
                                        joints_name=joints.topic_name,
                                        status_name=contract.FEATURE_STATUS,
                                        full_note='waiting for the camera model')
-        self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
-                                 contract.RELIABLE)
+        intra_process.subscription(self, PolygonStamped, contract.FEATURES,
+                                   self._on_features, contract.RELIABLE)
         if self._taught:
             self.create_subscription(PolygonStamped, contract.TARGET_FEATURES,
                                      self._on_target, contract.LATCHED)
         if self.needs_status:
-            self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS,
-                                     self._on_status, contract.RELIABLE)
+            intra_process.subscription(self, DiagnosticArray, contract.FEATURE_STATUS,
+                                       self._on_status, contract.RELIABLE)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._answered_since_log = True
         self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)

@@ -28,7 +28,7 @@ publisher would hold the arm at its start until then.
 
 from typing import Any
 
-from ibvs_common import contract
+from ibvs_common import contract, intra_process
 from ibvs_common.conversions import (InputError, joint_trajectory, read_joints, read_stamp,
                                      stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
@@ -69,8 +69,8 @@ class FeedforwardNode(Node):
         self.diagnostics.update(started=False)
         self._pub = self.create_publisher(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
                                           contract.LATCHED)
-        self._sub = self.create_subscription(JointState, contract.JOINT_STATES,
-                                             self._on_joint_state, contract.RELIABLE)
+        self._sub = intra_process.subscription(self, JointState, contract.JOINT_STATES,
+                                               self._on_joint_state, contract.RELIABLE)
         self.get_logger().info(
             f'target {np.round(self.pose[:3, 3], 4).tolist()} m; T_forward '
             f"'{values['feedforward_method']}' at {1e9 / self.dt_ns:g} Hz, double pole at "

@@ -65,7 +65,7 @@ and the loop goes on as if the bad one had never come.
 from typing import Any
 
 from builtin_interfaces.msg import Duration
-from ibvs_common import contract
+from ibvs_common import contract, intra_process
 from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
                                      position_bounds, read_joints, read_stamp,
                                      read_trajectory, stamp_lead_ns, velocity_bounds)
@@ -148,16 +148,18 @@ class JointControllerNode(Node):
         self.diagnostics = Diagnostics(self, 'joint controller')
         self.diagnostics.update(actuators=values['actuators'], commands=0,
                                 torque_limits=self.torque_limits)
-        self._pub = self.create_publisher(JointState, contract.EFFORT_COMMANDS,
-                                          contract.RELIABLE)
-        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joint_state,
-                                 contract.RELIABLE)
+        # With the simulator in this process, its messages and ours need no DDS
+        # (ibvs_common.intra_process).
+        self._pub = intra_process.publisher(self, JointState, contract.EFFORT_COMMANDS,
+                                            contract.RELIABLE)
+        intra_process.subscription(self, JointState, contract.JOINT_STATES,
+                                   self._on_joint_state, contract.RELIABLE)
         self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
                                  self._on_trajectory, contract.LATCHED)
-        self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
-                                 contract.RELIABLE)
-        self.create_subscription(Header, contract.FRAME_LOST, self._on_frame_lost,
-                                 contract.RELIABLE)
+        intra_process.subscription(self, JointState, contract.Q_FEEDBACK, self._on_feedback,
+                                   contract.RELIABLE)
+        intra_process.subscription(self, Header, contract.FRAME_LOST, self._on_frame_lost,
+                                   contract.RELIABLE)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._progress = True
         self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)

@@ -447,7 +447,7 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
         for p in procs:
             code = p.poll()
             if code is not None:
-                outcome.died = NodeDied(p.name, code, p.log_path)
+                outcome.died = NodeDied(p.name, code, p.log_path, p.nodes)
                 break
         if outcome.died:
             break

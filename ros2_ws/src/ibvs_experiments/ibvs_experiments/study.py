@@ -5,7 +5,7 @@ Each run is ``ibvs run`` in a subprocess of a Ray worker, isolated from the othe
 own ``ROS_DOMAIN_ID`` (from a pool: :mod:`ibvs_bringup.domains`),
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and its own output directory. A run declares
 ``num_cpus=CPUS_PER_RUN`` to Ray: the lockstep passes one message at a time through the
-graph's four processes, so they take turns and one run keeps at most about one core busy
+graph's processes, so they take turns and one run keeps at most about one core busy
 (each record's ``cpu_s`` says how much it used), and Ray runs as many at once as the machine
 (or the cluster) has cores.
 

@@ -87,7 +87,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
-from ibvs_common import contract
+from ibvs_common import contract, intra_process
 from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_path,
                                      joint_state, ns_stamp, path_msg, pose_stamped, read_joints,
                                      read_stamp, stamp_ns)
@@ -266,10 +266,12 @@ class SimNode(Node):
                                 frames_lost=0, held_steps=0, renderer=self.sim.world.renderer,
                                 start_residual_m=pos_err)
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
-        self._pub_joints = self.create_publisher(JointState, contract.JOINT_STATES,
-                                                 contract.RELIABLE)
-        self._pub_frame_joints = self.create_publisher(JointState, contract.FRAME_JOINT_STATES,
-                                                       contract.RELIABLE)
+        # The lockstep's and the frames' messages go directly to their readers in this
+        # process when no other process reads them (ibvs_common.intra_process).
+        self._pub_joints = intra_process.publisher(self, JointState, contract.JOINT_STATES,
+                                                   contract.RELIABLE)
+        self._pub_frame_joints = intra_process.publisher(
+            self, JointState, contract.FRAME_JOINT_STATES, contract.RELIABLE)
         self._pub_tool = self.create_publisher(Path, contract.TOOL_PATH, contract.RELIABLE)
         self._pub_joint_path = self.create_publisher(JointTrajectory, contract.JOINT_PATH,
                                                      contract.RELIABLE)
@@ -277,9 +279,9 @@ class SimNode(Node):
         image_topics, info_topics, self._camera_frames, self._encoding, qos = \
             CAMERA_OUTPUTS[values['camera_topics']]
         if self._publish_images:
-            self._pub_images = tuple(self.create_publisher(Image, topic, qos)
+            self._pub_images = tuple(intra_process.publisher(self, Image, topic, qos)
                                      for topic in image_topics)
-            self._pub_infos = tuple(self.create_publisher(CameraInfo, topic, qos)
+            self._pub_infos = tuple(intra_process.publisher(self, CameraInfo, topic, qos)
                                     for topic in info_topics)
         self._pub_lost = self.create_publisher(Header, contract.FRAME_LOST, contract.RELIABLE)
         # The controllers get the calibrated camera; the images show the true one.
@@ -301,8 +303,8 @@ class SimNode(Node):
             limit = EFFORT_BOUND_FACTOR * np.asarray(joint_efforts(self.sim.params),
                                                      dtype=float)
             self._effort_bound = (-limit, limit)
-            self._sub = self.create_subscription(JointState, contract.EFFORT_COMMANDS,
-                                                 self._on_command, contract.RELIABLE)
+            self._sub = intra_process.subscription(self, JointState, contract.EFFORT_COMMANDS,
+                                                   self._on_command, contract.RELIABLE)
 
         self.started = False
         self._frame_step = False

@@ -60,7 +60,7 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
-from ibvs_common import contract, shared_params
+from ibvs_common import contract, intra_process, shared_params
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, feature_status_msg,
                                      features_msg, FeatureStatus, image_msg, InputError,
                                      ns_stamp, pose_stamped, position_bounds,
@@ -153,11 +153,14 @@ class FeatureNode(Node):
         self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, last_switch_time_s='none', switches=0)
-        self._pub = self.create_publisher(PolygonStamped, contract.FEATURES, contract.RELIABLE)
+        # The frames' messages between nodes of one process need no DDS when nobody else
+        # reads them (ibvs_common.intra_process); the latched ones always take DDS.
+        self._pub = intra_process.publisher(self, PolygonStamped, contract.FEATURES,
+                                            contract.RELIABLE)
         self._target_pub = self.create_publisher(PolygonStamped, contract.TARGET_FEATURES,
                                                  contract.LATCHED)
-        self._status_pub = self.create_publisher(DiagnosticArray, contract.FEATURE_STATUS,
-                                                 contract.RELIABLE)
+        self._status_pub = intra_process.publisher(self, DiagnosticArray,
+                                                   contract.FEATURE_STATUS, contract.RELIABLE)
         self._debug_pubs = {side: self.create_publisher(Image, topic, contract.IMAGES)
                             for side, topic in DEBUG_IMAGES.items()}
         # Each of a lens's inputs, left then right, in this order.
@@ -168,16 +171,18 @@ class FeatureNode(Node):
                  contract.LATCHED),
                 (CameraInfo, (contract.LEFT_INFO, contract.RIGHT_INFO), self._on_info,
                  contract.RELIABLE)):
+            subscribe = (self.create_subscription if qos == contract.LATCHED
+                         else partial(intra_process.subscription, self))
             for side, topic in zip(('left', 'right'), topics):
-                self.create_subscription(msg_type, topic, partial(on_message, side), qos)
+                subscribe(msg_type, topic, partial(on_message, side), qos)
         calibrated = shared_params.camera_pose_from(p)
         if calibrated is None:
             self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
                                      contract.LATCHED)
         else:  # a hand-eye calibration's result, as a parameter
             self._pose = pose_stamped(calibrated, 0)
-        joints = self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
-                                          contract.RELIABLE)
+        joints = intra_process.subscription(self, JointState, contract.JOINT_STATES,
+                                            self._on_joints, contract.RELIABLE)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
         self._topics['joints'] = joints.topic_name
 

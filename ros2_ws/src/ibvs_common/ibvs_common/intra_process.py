@@ -1,0 +1,186 @@
+"""
+Intra-process delivery: a message between two nodes of one process handed over as an object.
+
+What rclcpp's intra-process communication does for composed C++ nodes, for rclpy nodes,
+which have none. The lockstep passes two messages per physics step between the simulator
+and the joint controller (and a stereo pair per frame to the feature node); when they share
+a process (:mod:`ibvs_bringup.compose`), DDS still serialises each message, queues it,
+wakes the executor and deserialises it: most of the 0.39 ms a step cost (issue 24). Here a
+publisher made with :func:`publisher` hands its message to the callbacks of the
+subscriptions made with :func:`subscription` on the same topic in the same process, without
+DDS.
+
+The rule, one place (:meth:`Publisher.publish`): a message goes to the process's own readers
+directly, and through DDS too when the publisher's DDS match count says another reader is
+there (a reader in another process: ``ros2 topic echo``, Foxglove, the recorder). A local
+reader's DDS subscription is a real one, so it then also receives the DDS copy; it drops
+it (:class:`Reader`): each reader gets each message exactly once, the direct copy. Topic
+names are the resolved ones, so remapping works as with DDS. A reader matched by DDS only
+after a message was published (the first moments of a start) may miss it, as with DDS.
+
+When. A message handed over is queued, not delivered inside ``publish``: the process's spin
+loop (:func:`ibvs_common.node_main.spin_until_stopped`) delivers the queue after each
+executor callback (:meth:`LocalBus.drain`), so callbacks run one at a time and never inside
+another, as an executor runs them. Delivery happens only while such a loop is spinning the
+context (:attr:`LocalBus.active`); otherwise (a test that spins its own executor) every
+message goes through DDS, as before. Readers get the publisher's object itself: they must
+not modify it (no node of this project does), and it must hold what DDS would carry (a
+float32 field a value that a float32 holds: Python keeps a float64 there until the
+message is serialised; :func:`ibvs_common.conversions.features_msg` rounds). The queue
+keeps every message (a lockstep never has more than a few pending), in publication order.
+A DDS copy is known by equality
+with a message handed over directly and not yet seen from DDS (the last
+:data:`EXPECTED_COPIES`): a message with a NaN, which equals nothing, would be delivered twice
+(no node of this project publishes one).
+"""
+
+from collections import deque
+from collections.abc import Callable
+import time
+from typing import Any, TYPE_CHECKING
+import weakref
+
+if TYPE_CHECKING:
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile
+    from rclpy.subscription import Subscription
+
+#: The longest one :meth:`LocalBus.drain` delivers before it returns to the executor (s),
+#: so that timers (heartbeats, waiting logs) and stop requests are served while a chain of
+#: direct messages (the lockstep between two frames) runs.
+DRAIN_SLICE_S = 0.05
+#: How many directly delivered messages a reader remembers to drop their DDS copies: a
+#: copy DDS never brings (a best-effort topic) is forgotten after this many.
+EXPECTED_COPIES = 64
+
+
+class Reader:
+    """A subscription's callback, fed directly and by DDS; it drops the DDS copies."""
+
+    def __init__(self, callback: Callable[[Any], None]) -> None:
+        """Wrap ``callback``, which takes the message only."""
+        self.callback = callback
+        #: Messages delivered directly whose DDS copy has not come yet.
+        self.expected: deque = deque(maxlen=EXPECTED_COPIES)
+
+    def from_dds(self, msg: Any) -> None:
+        """Pass on ``msg`` from DDS unless it is the copy of one delivered directly."""
+        for i, sent in enumerate(self.expected):
+            if sent == msg:
+                del self.expected[i]
+                return
+        self.callback(msg)
+
+
+class LocalBus:
+    """The readers and the queue of direct messages of one rclpy context (module docstring)."""
+
+    def __init__(self) -> None:
+        """Start inactive, with no readers and an empty queue."""
+        #: Whether a spin loop delivers the queue; publishers use DDS while it is False.
+        self.active = False
+        self._readers: dict[tuple[str, type], list[tuple['Node', 'Subscription', Reader]]] = {}
+        self._queue: deque = deque()
+        #: Messages delivered directly so far (for tests and benchmarks).
+        self.delivered = 0
+
+    def add(self, node: 'Node', sub: 'Subscription', msg_type: type, reader: Reader) -> None:
+        """Register ``sub`` of ``node`` (its callback ``reader``) for direct delivery."""
+        self._readers.setdefault((sub.topic_name, msg_type), []).append((node, sub, reader))
+
+    def readers(self, topic: str, msg_type: type) -> list:
+        """Return the live readers of ``topic`` (a destroyed subscription is forgotten)."""
+        readers = self._readers.get((topic, msg_type))
+        if not readers:
+            return []
+        live = [r for r in readers if r[1] in r[0].subscriptions]
+        if len(live) != len(readers):
+            self._readers[(topic, msg_type)] = live
+        return live
+
+    @property
+    def pending(self) -> int:
+        """Return the number of messages waiting for :meth:`drain`."""
+        return len(self._queue)
+
+    def post(self, readers: list, msg: Any, copied: bool) -> None:
+        """Queue ``msg`` for each of ``readers``; ``copied``: DDS brings them a copy too."""
+        for _, _, reader in readers:
+            self._queue.append((reader.callback, msg))
+            if copied:
+                reader.expected.append(msg)
+
+    def drain(self, slice_s: float = DRAIN_SLICE_S) -> None:
+        """Run the queued deliveries, the ones they queue too, for at most ``slice_s``."""
+        deadline = time.perf_counter() + slice_s
+        queue = self._queue
+        while queue:
+            callback, msg = queue.popleft()
+            callback(msg)
+            self.delivered += 1
+            if time.perf_counter() > deadline:
+                return
+
+
+_BUSES: 'weakref.WeakKeyDictionary[Context, LocalBus]' = weakref.WeakKeyDictionary()
+
+
+def bus_of(context: 'Context') -> LocalBus:
+    """Return the :class:`LocalBus` of ``context`` (made on first use)."""
+    bus = _BUSES.get(context)
+    if bus is None:
+        bus = _BUSES[context] = LocalBus()
+    return bus
+
+
+class Publisher:
+    """
+    An rclpy publisher that hands its messages to this process's readers directly.
+
+    They go through DDS too when other processes read them (module docstring).
+    """
+
+    def __init__(self, node: 'Node', msg_type: type, topic: str,
+                 qos: 'QoSProfile | int') -> None:
+        """Create the rclpy publisher of ``topic`` on ``node``."""
+        #: The rclpy publisher (its DDS match count, its name, destruction).
+        self.rclpy = node.create_publisher(msg_type, topic, qos)
+        self.topic_name = self.rclpy.topic_name
+        self._type = msg_type
+        self._bus = bus_of(node.context)
+
+    def publish(self, msg: Any) -> None:
+        """Hand ``msg`` to the local readers, and to DDS if it has other readers."""
+        bus = self._bus
+        readers = bus.readers(self.topic_name, self._type) if bus.active else ()
+        if not readers:
+            self.rclpy.publish(msg)
+            return
+        others = self.rclpy.get_subscription_count() > len(readers)
+        bus.post(readers, msg, copied=others)
+        if others:
+            self.rclpy.publish(msg)
+
+    def get_subscription_count(self) -> int:
+        """Return the DDS match count, the local readers included."""
+        return self.rclpy.get_subscription_count()
+
+
+def publisher(node: 'Node', msg_type: type, topic: str, qos: 'QoSProfile | int') -> Publisher:
+    """Return a :class:`Publisher` of ``topic`` on ``node`` (``node.create_publisher``'s)."""
+    return Publisher(node, msg_type, topic, qos)
+
+
+def subscription(node: 'Node', msg_type: type, topic: str, callback: Callable[[Any], None],
+                 qos: 'QoSProfile | int') -> 'Subscription':
+    """
+    Return an rclpy subscription of ``node``, registered for direct delivery as well.
+
+    ``callback`` takes the message only. Destroy it with ``node.destroy_subscription``, as
+    any: the bus forgets it then.
+    """
+    reader = Reader(callback)
+    sub = node.create_subscription(msg_type, topic, reader.from_dds, qos)
+    bus_of(node.context).add(node, sub, msg_type, reader)
+    return sub
