@@ -18,20 +18,23 @@ def test_runner_refuses_a_graph_without_images(installed_workspace, tmp_path):
 
 def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run):
     """
-    A frozen lockstep process (SIGSTOP) stalls the run; the runner names the frozen nodes.
+    A frozen lockstep process (SIGSTOP) stalls the run; the runner ends it and names each node.
 
     The paper's nodes share the simulator's process (ibvs_bringup.graph): freezing the
-    feature node freezes them all, and their /diagnostics heartbeats stop. The stall
-    bound leaves each heartbeat more than HEARTBEAT_S old when the runner reports.
+    feature node freezes them all. None of them can say what it waits for; each is named
+    as frozen (its /diagnostics heartbeat stopped) or as silent, the viewers' node, in a
+    process of its own, as waiting.
     """
     code, out, err = signalled_run(
         ['--stall-s', '6'], lambda log: log.exists() and 'starting at t = 0' in log.read_text(),
         signal.SIGSTOP, 90.0)
     assert code == 4, (out, err)
     assert 'no sim-time progress for 6 s' in err, err
-    frozen = err.split('heartbeat stopped: ', 1)[1].split(' (', 1)[0].split(', ')
-    assert {'feature_node', 'adaptive_feedback_node', 'joint_controller_node'} <= set(frozen), err
     waits = dict(line.strip().split(': ', 1) for line in err.splitlines()
                  if line.startswith('  ') and ': ' in line)
-    assert waits['feature_node'].startswith('HEARTBEAT STOPPED'), err
-    assert 'viz_node' not in frozen, err  # its own process goes on
+    for node in ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
+                 'joint_controller_node', 'sim_node'):
+        assert waits[node].startswith('HEARTBEAT STOPPED') or \
+            waits[node].startswith('said nothing about waiting'), err
+    assert 'HEARTBEAT STOPPED' in err, err
+    assert waits['viz_node'].startswith('waiting'), err

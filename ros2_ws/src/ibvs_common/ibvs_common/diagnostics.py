@@ -11,6 +11,7 @@ instead of ending the process.
 
 from collections import Counter
 from typing import Any, TYPE_CHECKING
+import weakref
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
@@ -21,6 +22,23 @@ from .sim_time import guard_clock
 
 if TYPE_CHECKING:
     from rclpy.node import Node
+
+
+#: Each node's :class:`Diagnostics`, for :func:`publish_last`.
+_OF_NODE: 'weakref.WeakKeyDictionary[Node, list[Diagnostics]]' = weakref.WeakKeyDictionary()
+
+
+def publish_last(node: 'Node') -> None:
+    """
+    Publish the status of each :class:`Diagnostics` of ``node`` once more (its end).
+
+    :func:`ibvs_common.node_main.run` calls it before it destroys the node, so that the
+    totals of a run's last second (the timings of :mod:`.profiling` above all) reach the
+    bag even when the run ends between two heartbeats: a run of a simulated second now
+    takes about a second of wall time.
+    """
+    for diagnostics in _OF_NODE.get(node, ()):
+        diagnostics.publish()
 
 
 class Diagnostics:
@@ -51,6 +69,7 @@ class Diagnostics:
         self._last_log = {}
         self._timer = node.create_timer(period_s, self.publish, clock=self._steady)
         guard_clock(node, self.reject)
+        _OF_NODE.setdefault(node, []).append(self)
 
     def reject(self, source: str, reason: str, detail: str = '') -> None:
         """Count one rejected input from ``source`` for ``reason``; log it once per period."""

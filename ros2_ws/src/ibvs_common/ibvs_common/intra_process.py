@@ -18,20 +18,20 @@ it (:class:`Reader`): each reader gets each message exactly once, the direct cop
 names are the resolved ones, so remapping works as with DDS. A reader matched by DDS only
 after a message was published (the first moments of a start) may miss it, as with DDS.
 
-When. A message handed over is queued, not delivered inside ``publish``: the process's spin
-loop (:func:`ibvs_common.node_main.spin_until_stopped`) delivers the queue after each
-executor callback (:meth:`LocalBus.drain`), so callbacks run one at a time and never inside
-another, as an executor runs them. Delivery happens only while such a loop is spinning the
-context (:attr:`LocalBus.active`); otherwise (a test that spins its own executor) every
-message goes through DDS, as before. Readers get the publisher's object itself: they must
-not modify it (no node of this project does), and it must hold what DDS would carry (a
-float32 field a value that a float32 holds: Python keeps a float64 there until the
-message is serialised; :func:`ibvs_common.conversions.features_msg` rounds). The queue
-keeps every message (a lockstep never has more than a few pending), in publication order.
-A DDS copy is known by equality
-with a message handed over directly and not yet seen from DDS (the last
-:data:`EXPECTED_COPIES`): a message with a NaN, which equals nothing, would be delivered twice
-(no node of this project publishes one).
+When. A message handed over is queued, not delivered inside ``publish``: the executor of
+the process's spin loop (:func:`ibvs_common.node_main.spin_until_stopped`) delivers the
+queue as a task (:meth:`LocalBus.drain`), in turns with its timers and DDS messages, so
+callbacks run one at a time and never inside another, as an executor runs them. Delivery
+happens only while such a loop is spinning the context (:attr:`LocalBus.active`);
+otherwise (a test that spins its own executor) every message goes through DDS, as before.
+Readers get the publisher's object itself: they must not modify it (no node of this
+project does), and it must hold what DDS would carry (a float32 field a value that a
+float32 holds: Python keeps a float64 there until the message is serialised;
+:func:`ibvs_common.conversions.features_msg` rounds). The queue keeps every message (a
+lockstep never has more than a few pending), in publication order. A DDS copy is known by
+equality with a message handed over directly and not yet seen from DDS (the last
+:data:`EXPECTED_COPIES`): a message with a NaN, which equals nothing, would be delivered
+twice (no node of this project publishes one).
 """
 
 from collections import deque
@@ -46,10 +46,10 @@ if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
     from rclpy.subscription import Subscription
 
-#: The longest one :meth:`LocalBus.drain` delivers before it returns to the executor (s),
-#: so that timers (heartbeats, waiting logs) and stop requests are served while a chain of
-#: direct messages (the lockstep between two frames) runs.
-DRAIN_SLICE_S = 0.05
+#: The longest one :meth:`LocalBus.drain` delivers before it gives the executor its turn
+#: (s), so that timers (heartbeats, waiting logs), messages from DDS and stop requests are
+#: served while a chain of direct messages (the lockstep between two frames) runs.
+DRAIN_SLICE_S = 0.02
 #: How many directly delivered messages a reader remembers to drop their DDS copies: a
 #: copy DDS never brings (a best-effort topic) is forgotten after this many.
 EXPECTED_COPIES = 64
@@ -78,12 +78,33 @@ class LocalBus:
 
     def __init__(self) -> None:
         """Start inactive, with no readers and an empty queue."""
-        #: Whether a spin loop delivers the queue; publishers use DDS while it is False.
-        self.active = False
+        self._wake: Callable[[], None] | None = None
+        self._draining = False
         self._readers: dict[tuple[str, type], list[tuple['Node', 'Subscription', Reader]]] = {}
         self._queue: deque = deque()
         #: Messages delivered directly so far (for tests and benchmarks).
         self.delivered = 0
+
+    @property
+    def active(self) -> bool:
+        """Whether an executor delivers the queue; publishers use DDS only while it is not."""
+        return self._wake is not None
+
+    def attach(self, wake: Callable[[], None]) -> None:
+        """
+        Start direct delivery: ``wake()`` makes the executor call :meth:`drain` soon.
+
+        ``wake`` queues :meth:`drain` as an executor task
+        (:func:`ibvs_common.node_main.spin_until_stopped`; rclpy's EventsExecutor has no
+        guard conditions): the drain then takes its turn in the executor's queue with the
+        timers and the messages from DDS.
+        """
+        self._wake = wake
+
+    def detach(self) -> None:
+        """Stop direct delivery; what is still queued is dropped."""
+        self._wake = None
+        self._queue.clear()
 
     def add(self, node: 'Node', sub: 'Subscription', msg_type: type, reader: Reader) -> None:
         """Register ``sub`` of ``node`` (its callback ``reader``) for direct delivery."""
@@ -106,21 +127,34 @@ class LocalBus:
 
     def post(self, readers: list, msg: Any, copied: bool) -> None:
         """Queue ``msg`` for each of ``readers``; ``copied``: DDS brings them a copy too."""
+        idle = not self._queue and not self._draining
         for _, _, reader in readers:
             self._queue.append((reader.callback, msg))
             if copied:
                 reader.expected.append(msg)
+        if idle:
+            self._wake()
 
     def drain(self, slice_s: float = DRAIN_SLICE_S) -> None:
-        """Run the queued deliveries, the ones they queue too, for at most ``slice_s``."""
+        """
+        Run the queued deliveries, and those they queue, for at most ``slice_s``.
+
+        What is left then waits for the executor's next turn (a wake goes to the back of
+        its queue), so that a chain of direct messages (the lockstep between two frames)
+        does not hold up timers and DDS messages for longer than ``slice_s``.
+        """
         deadline = time.perf_counter() + slice_s
         queue = self._queue
-        while queue:
-            callback, msg = queue.popleft()
-            callback(msg)
-            self.delivered += 1
-            if time.perf_counter() > deadline:
-                return
+        self._draining = True
+        try:
+            while queue and time.perf_counter() <= deadline:
+                callback, msg = queue.popleft()
+                callback(msg)
+                self.delivered += 1
+        finally:
+            self._draining = False
+        if queue and self._wake is not None:
+            self._wake()
 
 
 _BUSES: 'weakref.WeakKeyDictionary[Context, LocalBus]' = weakref.WeakKeyDictionary()

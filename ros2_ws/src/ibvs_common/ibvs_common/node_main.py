@@ -12,6 +12,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from . import dds
+from .diagnostics import publish_last
 from .intra_process import bus_of
 from .params import ParameterError
 
@@ -82,9 +83,8 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
     """
     Spin ``nodes`` (one node or several of one context) until ``stop`` or shutdown.
 
-    Between two executor callbacks it delivers the messages that the nodes of the process
-    passed to each other directly (:mod:`.intra_process`); while some wait, the executor
-    only looks for ready callbacks instead of sleeping.
+    The executor also delivers the messages that the nodes of the process pass to each
+    other directly (:mod:`.intra_process`): a task, in turn with the other callbacks.
     """
     nodes = list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
     context = nodes[0].context
@@ -92,13 +92,12 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
     for node in nodes:
         executor.add_node(node)
     bus = bus_of(context)
-    bus.active = True
+    bus.attach(lambda: executor.create_task(bus.drain))
     try:
         while context.ok() and not stop.is_set():
-            executor.spin_once(timeout_sec=0.0 if bus.pending else poll_s)
-            bus.drain()
+            executor.spin_once(timeout_sec=poll_s)
     finally:
-        bus.active = False
+        bus.detach()
         for node in nodes:
             executor.remove_node(node)
         executor.shutdown(timeout_sec=0.0)
@@ -136,6 +135,8 @@ def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None 
         pass
     finally:
         for node in reversed(nodes):
+            if node.context.ok():
+                publish_last(node)
             node.destroy_node()
         rclpy.try_shutdown()
         stop.restore()

@@ -93,7 +93,7 @@ def test_a_reader_elsewhere_gets_dds_and_the_one_in_the_process_each_message_onc
         remote = Listener(other, 'remote_listener')
         local = Listener(context)
         talker = Talker(context, ready=lambda count: count >= 2)  # both readers matched
-        spin_until_stopped([local, talker], Stop(lambda: talker.sent >= COUNT))
+        spin_until_stopped([local, talker], Stop(lambda: len(local.stamps) >= COUNT))
         # The local reader's DDS copies come after its direct deliveries: spin them in.
         spin_until_stopped([local, talker], Stop(lambda: False, timeout_s=0.5))
         _spin_other(remote, lambda: len(remote.stamps) >= COUNT)

@@ -32,7 +32,7 @@ import time
 from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
-from ibvs_bringup import domains, graph_params, scenario, shm
+from ibvs_bringup import domains, graph_params, scenario, shm, supervision
 from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
 from ibvs_bringup.recorder import Recorder
 from ibvs_bringup.supervision import (NodeDied, NodeProcess, stop_all, wait_for_nodes,
@@ -331,7 +331,7 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                             converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
                             stall_s=stall_s, start_timeout_s=start_timeout_s)
         finally:
-            codes = stop(procs)
+            codes = stop(procs, executor=executor)
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
                 'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
@@ -492,7 +492,8 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     return outcome
 
 
-def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH) -> dict[str, int | None]:
+def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
+         executor: 'Executor | None' = None) -> dict[str, int | None]:
     """
     Stop ``procs`` together; return their exit codes by name, in reverse start order.
 
@@ -501,9 +502,14 @@ def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH) -> dict[str, int | 
     makes it wait (the lockstep). The analysis takes the steps before the run's end only
     (:func:`.analysis.analyse_bag`), so the order cannot change a result. Stopping the
     simulator alone first cost its exit time again, about a second a run (issue 26).
+    ``executor`` (the recorder's) spins meanwhile: the nodes' last /diagnostics, with
+    their timing totals, reach the bag (a simulated second takes about one of wall time,
+    between two of their heartbeats).
     """
     ordered = sorted(procs, key=lambda p: graph.simulator not in p.nodes)
-    codes = stop_all(ordered)
+    spin = None if executor is None else (
+        lambda: executor.spin_once(timeout_sec=supervision.STOP_SPIN_S))
+    codes = stop_all(ordered, spin=spin)
     return {p.name: codes[p.name] for p in reversed(procs)}
 
 

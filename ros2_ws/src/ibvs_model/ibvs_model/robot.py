@@ -183,6 +183,45 @@ def joint_frames(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[np.floa
     return frames
 
 
+def forward_kinematics_batch(qs: ArrayLike, params: RobotParams = IRB4600
+                             ) -> NDArray[np.float64]:
+    """
+    Return T_E^O(q) (eq. 7) for each row of ``qs``, bit for bit :func:`forward_kinematics`.
+
+    One product A_1^0 ... A_6^5 per row, as :func:`joint_frames` builds it: the same
+    operations in the same order (cos and sin from :mod:`math`, numpy's matmul of each 4x4
+    pair), so that a pose does not depend on whether it was computed alone or in a batch
+    (the simulator's evaluation poses, issue 24).
+
+    Parameters
+    ----------
+    qs : array_like, shape (n, 6)
+        Joint angles (rad), one posture per row.
+    params : RobotParams
+        The robot's geometry.
+
+    Returns
+    -------
+    ndarray, shape (n, 4, 4)
+        T_E^O of each row.
+
+    """
+    qs = np.asarray(qs, dtype=float).reshape(-1, 6)
+    out = np.broadcast_to(np.eye(4), (len(qs), 4, 4)).copy()
+    cos, sin = np.frompyfunc(math.cos, 1, 1), np.frompyfunc(math.sin, 1, 1)
+    for i, (a, alpha, d, offset) in enumerate(params.dh_table()):
+        theta = qs[:, i] + offset
+        ct, st = cos(theta).astype(float), sin(theta).astype(float)
+        ca, sa = math.cos(alpha), math.sin(alpha)
+        A = np.zeros((len(qs), 4, 4))
+        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
+        A[:, 3, 3] = 1.0
+        out = out @ A
+    return out
+
+
 def forward_kinematics(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[np.float64]:
     """
     Return T_E^O(q) = A_1^0 ... A_6^5, eq. (7).

@@ -216,7 +216,7 @@ class SimNode(Node):
         """Declare and check the parameters, build the simulator and the interfaces."""
         super().__init__('sim_node', **kwargs)
         self.sim = None
-        #: The (stamp ns, T_E^O) and the /joint_states of the steps since the last batch.
+        #: The (stamp ns, true q) and the /joint_states of the steps since the last batch.
         self._tool_poses, self._joint_states = [], []
         try:
             self._setup()
@@ -420,10 +420,11 @@ class SimNode(Node):
         t_ns = sim.t_ns
         timing = self.diagnostics.timing
         clock_due = t_ns >= self._next_clock_ns
+        state = sim.true_state()
         with timing.section('tool_path'):
             if clock_due:
                 self._publish_tool_path()
-            self._tool_poses.append((t_ns, sim.tool_pose()))
+            self._tool_poses.append((t_ns, state[0]))  # T_E^O in a batch, at publication
         self._frame_step = sim.frame_due() is not None
         with timing.section('step_messages'):
             if clock_due:
@@ -431,7 +432,7 @@ class SimNode(Node):
                 self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
                 self.last_clock_ns = t_ns
                 self._next_clock_ns = (t_ns // self._clock_period_ns + 1) * self._clock_period_ns
-            q, qd = sim.encoders()
+            q, qd = sim.encoders(state)
             joints = joint_state(t_ns, q, qd, sim.last_torque)
             self._pub_joints.publish(joints)
             self._published_at = time.perf_counter()
@@ -459,9 +460,10 @@ class SimNode(Node):
                                 held_steps=self.held_steps)
 
     def _publish_tool_path(self):
-        """Publish the tool poses of the steps since the last batch, if any."""
+        """Publish the true tool poses of the steps since the last batch, if any."""
         if self._tool_poses:
-            self._pub_tool.publish(path_msg(self._tool_poses))
+            stamps, qs = zip(*self._tool_poses)
+            self._pub_tool.publish(path_msg(list(zip(stamps, self.sim.tool_poses(qs)))))
             self._tool_poses = []
 
     def _publish_joint_path(self):

@@ -26,8 +26,9 @@ from fractions import Fraction
 
 from ibvs_common.params import ParameterError
 from ibvs_common.timing import check_camera_rate, period_ns
-from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, ModelError,
-                        paper, pose_error, StereoCamera, StereoIntrinsics)
+from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
+                        IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
+                        StereoIntrinsics)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -138,14 +139,23 @@ class Simulator:
         """Return the true joint angles and velocities."""
         return self.world.joint_state()
 
-    def encoders(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Return what the encoders read: (q - d_q, qd), the paper's q_T and its rate."""
-        q, qd = self.world.joint_state()
+    def encoders(self, state: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """
+        Return what the encoders read: (q - d_q, qd), the paper's q_T and its rate.
+
+        ``state``: the :meth:`true_state` of this step, if the caller has it already.
+        """
+        q, qd = self.world.joint_state() if state is None else state
         return q - self.d_q, qd
 
     def tool_pose(self) -> NDArray[np.float64]:
         """Return the true flange pose T_E^O (eq. 7) of the simulated robot."""
         return forward_kinematics(self.world.joint_state()[0], self.params)
+
+    def tool_poses(self, qs: ArrayLike) -> NDArray[np.float64]:
+        """Return T_E^O of true joint angles ``qs`` (n, 6), each bit for bit :meth:`tool_pose`."""
+        return forward_kinematics_batch(qs, self.params)
 
     def frame_due(self) -> int | None:
         """Return when the camera frame to take at this step was due (n * T_cam ns), or None."""
