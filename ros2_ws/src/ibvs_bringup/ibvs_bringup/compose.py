@@ -5,17 +5,19 @@ compose: several nodes of the graph in one process, one executor.
 named nodes in that order and spins them together until SIGINT/SIGTERM
 (:func:`ibvs_common.node_main.run`): what an rclcpp component container does, for rclpy
 nodes. The ``--ros-args`` (parameter files, ``-p``, ``-r``) apply to every node of the
-process; a parameter a node does not declare is ignored by it.
+process (a remapping ``-r node:topic:=other`` only to that node); a parameter a node does not
+declare is ignored by it.
 
 Why. The lockstep passes two messages per physics step between the simulator and the joint
-controller. Between two processes such a round trip costs 0.2-0.3 ms on two cores (two
-wake-ups, two copies through shared memory); between two nodes of one process, Fast DDS
-delivers in the process and the executor runs the answer next: 0.04 ms (measured with
-JointState ping-pong, one recorder listening in a third process: 0.10 against 0.22 ms).
-``ibvs run`` therefore runs the simulator and the joint controller in one process, as
-gazebo_ros2_control runs the controllers inside the simulator; each node still has its own
-executable for ``ros2 run`` and for a real cell, where the joint controller runs without the
-simulator.
+controller, and each camera frame goes simulator -> feature node -> feedback -> joint
+controller. Between two processes a message costs two wake-ups and two copies through
+shared memory; between two nodes of one process rclpy still serialises it through DDS, so
+the nodes pass such messages as objects (:mod:`ibvs_common.intra_process`, delivered by the
+spin loop of :func:`ibvs_common.node_main.run`; DDS still carries them to readers in other
+processes). ``ibvs run`` therefore runs the paper's five nodes in one process
+(:data:`ibvs_bringup.graph.GRAPH`), as gazebo_ros2_control runs the controllers inside the
+simulator; each node still has its own executable for ``ros2 run`` and for a real cell,
+where the joint controller runs without the simulator.
 """
 
 from collections.abc import Sequence

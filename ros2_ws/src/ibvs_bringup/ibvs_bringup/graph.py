@@ -150,7 +150,7 @@ class Graph:
 #: messages per physics step and a frame's images, features and q_feedback then pass as
 #: objects (ibvs_common.intra_process; DDS still carries them to any reader in another
 #: process), and at the paper's latency of 0 the chain render -> detection -> feedback ->
-#: joint loop is serial anyway (issue 24: 2.3 -> 1.7 s per simulated second at HD720 with
+#: joint loop is serial anyway (issue 24: 2.45 -> 1.56 s per simulated second at HD720 with
 #: the 'opengl' renderer). Each node keeps its executable for ``ros2 run`` and a real cell,
 #: where the joint controller and the vision run without the simulator. ibvs_viz's viz_node
 #: is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
