@@ -29,9 +29,10 @@ project does), and it must hold what DDS would carry (a float32 field a value th
 float32 holds: Python keeps a float64 there until the message is serialised;
 :func:`ibvs_common.conversions.features_msg` rounds). The queue keeps every message (a
 lockstep never has more than a few pending), in publication order. A DDS copy is known by
-equality with a message handed over directly and not yet seen from DDS (the last
-:data:`EXPECTED_COPIES`): a message with a NaN, which equals nothing, would be delivered
-twice (no node of this project publishes one).
+equality with a message of the same publisher handed over directly and not yet seen from
+DDS; as DDS delivers one publisher's messages in order, a copy also settles the older ones
+whose copies it lost. A message with a NaN, which equals nothing, would be delivered twice
+(no node of this project publishes one).
 """
 
 from collections import deque
@@ -50,9 +51,11 @@ if TYPE_CHECKING:
 #: (s), so that timers (heartbeats, waiting logs), messages from DDS and stop requests are
 #: served while a chain of direct messages (the lockstep between two frames) runs.
 DRAIN_SLICE_S = 0.02
-#: How many directly delivered messages a reader remembers to drop their DDS copies: a
-#: copy DDS never brings (a best-effort topic) is forgotten after this many.
-EXPECTED_COPIES = 64
+#: The most directly delivered messages of one publisher a reader remembers to drop their
+#: DDS copies (a bound on memory if copies never came: they come in order, and each one
+#: settles the older ones). A 20 ms slice of the lockstep publishes up to about 100
+#: /joint_states when nothing renders.
+EXPECTED_COPIES = 1024
 
 
 class Reader:
@@ -61,15 +64,25 @@ class Reader:
     def __init__(self, callback: Callable[[Any], None]) -> None:
         """Wrap ``callback``, which takes the message only."""
         self.callback = callback
-        #: Messages delivered directly whose DDS copy has not come yet.
-        self.expected: deque = deque(maxlen=EXPECTED_COPIES)
+        #: Per publisher (its id), the messages delivered directly whose DDS copy has not
+        #: come yet, oldest first.
+        self.expected: dict[int, deque] = {}
+
+    def expect(self, source: int, msg: Any) -> None:
+        """Remember ``msg`` of publisher ``source``: its DDS copy is to be dropped."""
+        pending = self.expected.get(source)
+        if pending is None:
+            pending = self.expected[source] = deque(maxlen=EXPECTED_COPIES)
+        pending.append(msg)
 
     def from_dds(self, msg: Any) -> None:
         """Pass on ``msg`` from DDS unless it is the copy of one delivered directly."""
-        for i, sent in enumerate(self.expected):
-            if sent == msg:
-                del self.expected[i]
-                return
+        for pending in self.expected.values():
+            for i, sent in enumerate(pending):
+                if sent == msg:
+                    for _ in range(i + 1):  # the older ones' copies will not come now
+                        pending.popleft()
+                    return
         self.callback(msg)
 
 
@@ -125,13 +138,17 @@ class LocalBus:
         """Return the number of messages waiting for :meth:`drain`."""
         return len(self._queue)
 
-    def post(self, readers: list, msg: Any, copied: bool) -> None:
-        """Queue ``msg`` for each of ``readers``; ``copied``: DDS brings them a copy too."""
+    def post(self, readers: list, msg: Any, copied_from: int | None = None) -> None:
+        """
+        Queue ``msg`` for each of ``readers``.
+
+        ``copied_from``: the id of its publisher when DDS brings them a copy too.
+        """
         idle = not self._queue and not self._draining
         for _, _, reader in readers:
             self._queue.append((reader.callback, msg))
-            if copied:
-                reader.expected.append(msg)
+            if copied_from is not None:
+                reader.expect(copied_from, msg)
         if idle:
             self._wake()
 
@@ -192,7 +209,7 @@ class Publisher:
             self.rclpy.publish(msg)
             return
         others = self.rclpy.get_subscription_count() > len(readers)
-        bus.post(readers, msg, copied=others)
+        bus.post(readers, msg, id(self) if others else None)
         if others:
             self.rclpy.publish(msg)
 

@@ -55,7 +55,7 @@ class Talker(Node):
 
 
 class Listener(Node):
-    """Records the stamps it gets, and whether a delivery ever ran inside a publish."""
+    """Records the stamps it gets."""
 
     def __init__(self, context, name='listener'):
         super().__init__(name, context=context)
@@ -99,6 +99,45 @@ def test_a_reader_elsewhere_gets_dds_and_the_one_in_the_process_each_message_onc
         _spin_other(remote, lambda: len(remote.stamps) >= COUNT)
         assert local.stamps == list(range(1, COUNT + 1))
         assert remote.stamps == list(range(1, COUNT + 1))
+        for node in (talker, local, remote):
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=other)
+
+
+def test_a_burst_with_a_reader_elsewhere_reaches_the_local_reader_once_each(context):
+    # More messages in one callback than a drain slice takes, as the lockstep publishes
+    # /joint_states while `ros2 topic echo` listens elsewhere: every DDS copy is dropped.
+    burst = 300
+    other = rclpy.Context()
+    rclpy.init(context=other)
+    try:
+        remote = Listener(other, 'remote_listener')
+        local = Listener(context)
+
+        class Burst(Node):
+
+            def __init__(self):
+                super().__init__('burst', context=context)
+                self.pub = intra_process.publisher(self, JointState, TOPIC, 1000)
+                self.done = False
+                self.create_timer(0.01, self._tick)
+
+            def _tick(self):
+                if not self.done and self.pub.get_subscription_count() >= 2:
+                    for k in range(1, burst + 1):
+                        self.pub.publish(joint_state(k, [0.0] * 6))
+                    self.done = True
+
+        talker = Burst()
+        reader = local.sub.callback.__self__  # the intra_process.Reader
+
+        def settled():  # every message delivered, and the DDS copies came (the last at least)
+            return len(local.stamps) >= burst and not any(reader.expected.values())
+
+        spin_until_stopped([local, talker], Stop(settled))
+        assert local.stamps == list(range(1, burst + 1))
+        assert settled()
         for node in (talker, local, remote):
             node.destroy_node()
     finally:
