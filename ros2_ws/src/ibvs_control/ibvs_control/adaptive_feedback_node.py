@@ -117,8 +117,8 @@ class AdaptiveFeedbackNode(Node):
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
         self.diagnostics.update(state='waiting for camera', frames=0)
-        # The frames' messages between nodes of one process need no DDS when nobody else
-        # reads them (ibvs_common.intra_process); the latched ones always take DDS.
+        # The frames' messages between nodes of one process pass as objects, and through
+        # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
         self._pub = intra_process.publisher(self, JointState, contract.Q_FEEDBACK,
                                             contract.RELIABLE)
         intra_process.subscription(self, CameraInfo, contract.LEFT_INFO,

@@ -148,7 +148,7 @@ class JointControllerNode(Node):
         self.diagnostics = Diagnostics(self, 'joint controller')
         self.diagnostics.update(actuators=values['actuators'], commands=0,
                                 torque_limits=self.torque_limits)
-        # With the simulator in this process, its messages and ours need no DDS
+        # With the simulator in this process, its messages and ours pass as objects
         # (ibvs_common.intra_process).
         self._pub = intra_process.publisher(self, JointState, contract.EFFORT_COMMANDS,
                                             contract.RELIABLE)

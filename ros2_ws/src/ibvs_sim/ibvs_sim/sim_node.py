@@ -266,8 +266,8 @@ class SimNode(Node):
                                 frames_lost=0, held_steps=0, renderer=self.sim.world.renderer,
                                 start_residual_m=pos_err)
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
-        # The lockstep's and the frames' messages go directly to their readers in this
-        # process when no other process reads them (ibvs_common.intra_process).
+        # The lockstep's and the frames' messages go to their readers in this process as
+        # objects, and through DDS to any elsewhere (ibvs_common.intra_process).
         self._pub_joints = intra_process.publisher(self, JointState, contract.JOINT_STATES,
                                                    contract.RELIABLE)
         self._pub_frame_joints = intra_process.publisher(

@@ -153,8 +153,8 @@ class FeatureNode(Node):
         self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, last_switch_time_s='none', switches=0)
-        # The frames' messages between nodes of one process need no DDS when nobody else
-        # reads them (ibvs_common.intra_process); the latched ones always take DDS.
+        # The frames' messages between nodes of one process pass as objects, and through
+        # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
         self._pub = intra_process.publisher(self, PolygonStamped, contract.FEATURES,
                                             contract.RELIABLE)
         self._target_pub = self.create_publisher(PolygonStamped, contract.TARGET_FEATURES,
