@@ -423,8 +423,10 @@ def image_msg(array: ArrayLike, stamp: int | Time, encoding: str = 'rgb8',
     msg.is_bigendian = 0
     msg.step = array.shape[2] * msg.width
     data = Array('B')
-    data.frombytes(array)  # one copy (tobytes and the setter's conversion made two)
-    msg.data = data
+    data.frombytes(array)
+    # The one copy of the pixels: the generated setter copies even an array('B') (its
+    # fast path is under ROS_PYTHON_CHECK_FIELDS only), 1.5 ms of a 2.7 MB HD720 image.
+    msg._data = data
     return msg
 
 

@@ -1,9 +1,13 @@
 """sensor_msgs/Image <-> numpy without cv_bridge: round trips and the rejections."""
 
+from array import array as Array
+
 from ibvs_common.conversions import image_msg, InputError, stamp_ns
 from ibvs_vision.imageconv import image_array
 import numpy as np
 import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import Image
 
 
 @pytest.fixture
@@ -17,6 +21,16 @@ def test_round_trip(image, encoding):
     assert stamp_ns(msg.header.stamp) == 1_500_000_123 and msg.step == 21
     array, got = image_array(msg)
     assert got == encoding and np.array_equal(array, image)
+
+
+@pytest.mark.parametrize('encoding', ['rgb8', 'bgra8'])
+def test_an_image_message_holds_what_dds_carries(image, encoding):
+    # image_msg hands its pixel buffer to the message without the setter's copy: the
+    # message must still be a well-formed one, equal to its DDS round trip.
+    msg = image_msg(image, 42, encoding, 'left')
+    assert isinstance(msg.data, Array) and msg.data.typecode == 'B'
+    assert len(msg.data) == msg.step * msg.height
+    assert deserialize_message(serialize_message(msg), Image) == msg
 
 
 def test_bgra8_of_the_zed_wrapper_reads_as_bgr8(image):
