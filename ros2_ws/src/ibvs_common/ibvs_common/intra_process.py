@@ -93,6 +93,7 @@ class LocalBus:
         """Start inactive, with no readers and an empty queue."""
         self._wake: Callable[[], None] | None = None
         self._draining = False
+        self._failure: BaseException | None = None
         self._readers: dict[tuple[str, type], list[tuple['Node', 'Subscription', Reader]]] = {}
         self._queue: deque = deque()
         #: Messages delivered directly so far (for tests and benchmarks).
@@ -107,7 +108,7 @@ class LocalBus:
         """
         Start direct delivery: ``wake()`` makes the executor call :meth:`drain` soon.
 
-        ``wake`` queues :meth:`drain` as an executor task
+        ``wake`` queues :meth:`drain_task` as an executor task
         (:func:`ibvs_common.node_main.spin_until_stopped`; rclpy's EventsExecutor has no
         guard conditions): the drain then takes its turn in the executor's queue with the
         timers and the messages from DDS.
@@ -118,6 +119,7 @@ class LocalBus:
         """Stop direct delivery; what is still queued is dropped."""
         self._wake = None
         self._queue.clear()
+        self._failure = None
 
     def add(self, node: 'Node', sub: 'Subscription', msg_type: type, reader: Reader) -> None:
         """Register ``sub`` of ``node`` (its callback ``reader``) for direct delivery."""
@@ -172,6 +174,26 @@ class LocalBus:
             self._draining = False
         if queue and self._wake is not None:
             self._wake()
+
+    def drain_task(self) -> None:
+        """
+        :meth:`drain` as the executor's task: an exception is kept for :meth:`raise_failure`.
+
+        An exception out of an rclpy task ends the process with a segmentation fault
+        (EventsExecutor, Jazzy); out of the spin loop it is the traceback and exit code of
+        any callback's exception, and a KeyboardInterrupt (a second stop signal,
+        :class:`ibvs_common.node_main.StopRequest`) stops the node as it would elsewhere.
+        """
+        try:
+            self.drain()
+        except BaseException as exc:  # handed on unchanged by raise_failure
+            self._failure = exc
+
+    def raise_failure(self) -> None:
+        """Raise what the last :meth:`drain_task` raised, if anything (in the spin loop)."""
+        failure, self._failure = self._failure, None
+        if failure is not None:
+            raise failure
 
 
 _BUSES: 'weakref.WeakKeyDictionary[Context, LocalBus]' = weakref.WeakKeyDictionary()

@@ -92,10 +92,11 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
     for node in nodes:
         executor.add_node(node)
     bus = bus_of(context)
-    bus.attach(lambda: executor.create_task(bus.drain))
+    bus.attach(lambda: executor.create_task(bus.drain_task))
     try:
         while context.ok() and not stop.is_set():
             executor.spin_once(timeout_sec=poll_s)
+            bus.raise_failure()
     finally:
         bus.detach()
         for node in nodes:

@@ -167,6 +167,23 @@ def test_a_message_is_delivered_after_the_publishing_callback_returns(context):
     echo.destroy_node()
 
 
+def test_a_callback_that_raises_ends_the_spin_with_its_exception(context):
+    # As a subscription callback's exception does (a traceback and exit code 1 in a node's
+    # main), not a crash of the executor's task.
+    listener = Listener(context)
+
+    def broken(msg):
+        raise RuntimeError('broken callback')
+
+    listener.sub.callback.__self__.callback = broken
+    talker = Talker(context, ready=lambda count: count >= 1)
+    with pytest.raises(RuntimeError, match='broken callback'):
+        spin_until_stopped([listener, talker], Stop(lambda: False))
+    assert not intra_process.bus_of(context).active
+    for node in (talker, listener):
+        node.destroy_node()
+
+
 def test_a_destroyed_subscription_gets_nothing_more(context):
     listener = Listener(context)
     talker = Talker(context, ready=lambda count: count >= 1)
