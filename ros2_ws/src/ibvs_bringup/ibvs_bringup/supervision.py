@@ -9,7 +9,7 @@ graph, then the readers of step 0 subscribed. A process that exits meanwhile rai
 :class:`NodeDied`, which names it, its exit code and its last log line.
 """
 
-from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 import os
 from pathlib import Path
@@ -128,14 +128,14 @@ class NodeProcess:
             pass
 
 
-#: stop_all with ``spin``: the longest one spin should block (s), and the spins after the
-#: last exit (what the nodes sent last is in the caller's DDS readers by then).
+#: stop_all with an executor: the longest one spin blocks (s), and the spins after the last
+#: exit (what the nodes sent last is in the caller's DDS readers by then).
 STOP_SPIN_S = 0.01
 SETTLE_SPINS = 10
 
 
 def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
-             spin: Callable[[], None] | None = None) -> dict[str, int | None]:
+             executor: 'Executor | None' = None) -> dict[str, int | None]:
     """
     Stop ``procs`` (:class:`NodeProcess`) together; return their exit codes by name.
 
@@ -144,10 +144,10 @@ def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
     as long to stop as the slowest of them, not the sum (about a second a node at the end
     of every run, issue 26). A stopped (SIGSTOP) process handles no signal until it is
     continued, so each first gets SIGCONT. Whatever a node left in its process group
-    (``ros2 run``'s child) is killed last. ``spin``: called while waiting (each call
-    blocks for at most about :data:`STOP_SPIN_S`) and :data:`SETTLE_SPINS` times after
-    the last exit, so that what the nodes publish as they stop (their last /diagnostics, the
-    simulator's last batches) reaches the caller's subscribers.
+    (``ros2 run``'s child) is killed last. ``executor`` (the caller's subscribers): spun
+    while waiting and :data:`SETTLE_SPINS` times after the last exit, so that what the
+    nodes publish as they stop (their last /diagnostics, the simulator's last batches)
+    reaches them.
     """
     for p in procs:
         p._signal(signal.SIGCONT)
@@ -159,17 +159,17 @@ def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
         for p in running:
             p._signal(sig)
         deadline = time.monotonic() + wait
-        if spin is not None:
+        if executor is not None:
             while time.monotonic() < deadline and any(p.proc.poll() is None for p in running):
-                spin()
+                executor.spin_once(timeout_sec=STOP_SPIN_S)
             continue
         for p in running:
             try:
                 p.proc.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 pass
-    for _ in range(SETTLE_SPINS if spin is not None else 0):
-        spin()
+    for _ in range(SETTLE_SPINS if executor is not None else 0):
+        executor.spin_once(timeout_sec=STOP_SPIN_S)
     for p in procs:
         p._signal(signal.SIGKILL)
         p._log.close()

@@ -32,7 +32,7 @@ import time
 from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
-from ibvs_bringup import domains, graph_params, scenario, shm, supervision
+from ibvs_bringup import domains, graph_params, scenario, shm
 from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
 from ibvs_bringup.recorder import Recorder
 from ibvs_bringup.supervision import (NodeDied, NodeProcess, stop_all, wait_for_nodes,
@@ -507,9 +507,7 @@ def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
     between two of their heartbeats).
     """
     ordered = sorted(procs, key=lambda p: graph.simulator not in p.nodes)
-    spin = None if executor is None else (
-        lambda: executor.spin_once(timeout_sec=supervision.STOP_SPIN_S))
-    codes = stop_all(ordered, spin=spin)
+    codes = stop_all(ordered, executor=executor)
     return {p.name: codes[p.name] for p in reversed(procs)}
 
 

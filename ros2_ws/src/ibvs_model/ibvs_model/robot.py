@@ -144,14 +144,16 @@ def dh_transform(a: float, alpha: float, d: float, theta: float) -> NDArray[np.f
         A_i^{i-1}.
 
     """
-    ct, st = math.cos(theta), math.sin(theta)
+    return np.array(_dh_rows(a, alpha, d, math.cos(theta), math.sin(theta)))
+
+
+def _dh_rows(a, alpha, d, ct, st):
+    """Return the rows of A_i^{i-1} (eq. 5) from cos and sin of theta (floats or arrays)."""
     ca, sa = math.cos(alpha), math.sin(alpha)
-    return np.array([
-        [ct, -st * ca, st * sa, a * ct],
-        [st, ct * ca, -ct * sa, a * st],
-        [0.0, sa, ca, d],
-        [0.0, 0.0, 0.0, 1.0],
-    ])
+    return ((ct, -st * ca, st * sa, a * ct),
+            (st, ct * ca, -ct * sa, a * st),
+            (0.0, sa, ca, d),
+            (0.0, 0.0, 0.0, 1.0))
 
 
 def _check_q(q):
@@ -211,13 +213,11 @@ def forward_kinematics_batch(qs: ArrayLike, params: RobotParams = IRB4600
     cos, sin = np.frompyfunc(math.cos, 1, 1), np.frompyfunc(math.sin, 1, 1)
     for i, (a, alpha, d, offset) in enumerate(params.dh_table()):
         theta = qs[:, i] + offset
-        ct, st = cos(theta).astype(float), sin(theta).astype(float)
-        ca, sa = math.cos(alpha), math.sin(alpha)
-        A = np.zeros((len(qs), 4, 4))
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
-        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
-        A[:, 3, 3] = 1.0
+        A = np.empty((len(qs), 4, 4))
+        for r, row in enumerate(_dh_rows(a, alpha, d, cos(theta).astype(float),
+                                         sin(theta).astype(float))):
+            for c, value in enumerate(row):
+                A[:, r, c] = value
         out = out @ A
     return out
 
