@@ -9,6 +9,8 @@ Every test needs a standalone EGL context; where none can be created the module 
 with the reason (it can on the project's machines, with Mesa's llvmpipe).
 """
 
+from contextlib import contextmanager
+
 from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoIntrinsics
 from ibvs_model.mesh import icosphere_obj
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
@@ -194,9 +196,10 @@ def test_passes_drawn_together_equal_passes_drawn_one_by_one(sphere_renderer):
     assert np.all(alone[0] == alone[0][0, 0])
 
 
-def test_a_lens_alone_is_drawn_as_in_the_stereo_pair():
-    """World 'opengl': render_lens gives the image that render_stereo gives that lens."""
-    camera = StereoCamera(StereoIntrinsics.zed2('VGA'),
+@contextmanager
+def _world_at_target(resolution):
+    """Yield (World 'opengl' with the arm at the paper's target, the paper's camera)."""
+    camera = StereoCamera(StereoIntrinsics.zed2(resolution),
                           look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
     try:
         world = World(renderer='opengl')
@@ -204,13 +207,19 @@ def test_a_lens_alone_is_drawn_as_in_the_stereo_pair():
         pytest.skip(f'no OpenGL context here: {exc}')
     try:
         world.reset(inverse_kinematics(paper.target_pose()))
+        yield world, camera
+    finally:
+        world.close()
+
+
+def test_a_lens_alone_is_drawn_as_in_the_stereo_pair():
+    """World 'opengl': render_lens gives the image that render_stereo gives that lens."""
+    with _world_at_target('VGA') as (world, camera):
         focus = world.marker_spheres()
         pair = world.render_stereo(camera, 1, focus, DEFAULT_FOCUS_SUPERSAMPLING)
         for lens, image in zip(lens_poses(camera), pair):
             assert np.array_equal(world.render_lens(lens, camera.intrinsics, 1, focus,
                                                     DEFAULT_FOCUS_SUPERSAMPLING), image)
-    finally:
-        world.close()
 
 
 def test_flat_shapes_lit_once_a_vertex_look_as_lit_once_a_pixel():
@@ -220,14 +229,7 @@ def test_flat_shapes_lit_once_a_vertex_look_as_lit_once_a_pixel():
     Lit once a vertex with the normal that each pixel would interpolate; float rounding may
     in principle move a pixel by one grey level (measured: none of 2 x 921600 moves).
     """
-    camera = StereoCamera(StereoIntrinsics.zed2('HD720'),
-                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
-    try:
-        world = World(renderer='opengl')
-    except Exception as exc:
-        pytest.skip(f'no OpenGL context here: {exc}')
-    try:
-        world.reset(inverse_kinematics(paper.target_pose()))
+    with _world_at_target('HD720') as (world, camera):
         renderer = world._gl
         programs = renderer._shape_program.copy()
         assert programs.sum() >= 4 and (1 - programs).sum() >= 4  # boxes, ground; the rest
@@ -235,8 +237,6 @@ def test_flat_shapes_lit_once_a_vertex_look_as_lit_once_a_pixel():
         renderer._shape_program[:] = 0
         per_pixel = world.render_stereo(camera)
         renderer._shape_program[:] = programs
-    finally:
-        world.close()
     for a, b in zip(pair, per_pixel):
         moved = np.any(a != b, axis=2)
         assert np.abs(a.astype(int) - b).max() <= 1 and moved.mean() <= 1e-4, moved.sum()
