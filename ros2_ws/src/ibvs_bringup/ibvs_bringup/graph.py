@@ -155,11 +155,15 @@ class Graph:
 #: where the joint controller and the vision run without the simulator. ibvs_viz's viz_node
 #: is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
 #: /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint states, so
-#: nothing in the lockstep waits for it; it runs on its own.
+#: nothing in the lockstep waits for it once it runs; it runs on its own, and the simulator's
+#: first step waits for its subscriptions like any reader of step 0, so that /tf starts
+#: at t = 0 in the bag.
 GRAPH = Graph(
     nodes=(
         Node('viz_node', 'ibvs_viz', 'ibvs_viz.viz_node', 'VizNode',
              remaps=FRAME_STATES, zed_remaps=ZED_INFO, paper=False,
+             step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
+                          contract.RIGHT_INFO),
              doc_module="pure: `ibvs_viz.scene`; not one of the paper's nodes, §12",
              doc_reads='/joint_states, camera_info, /stereo/pose, /ibvs/features, '
                        '/ibvs/feature_status',

@@ -4,12 +4,12 @@ Supervise the processes of a run: start each as ``ros2 run`` would, watch them, 
 :class:`ProcessSpec` says what to start, :class:`NodeProcess` runs it with its output in a
 log file and dies with the runner (:func:`ibvs_common.process.supervised_child`),
 :func:`stop_all` stops several at once (SIGINT, then SIGTERM, then SIGKILL), and
-:func:`wait_for_nodes` / :func:`wait_for_readers` are the start handshake: the nodes in the
-graph, then the readers of step 0 subscribed. A process that exits meanwhile raises
-:class:`NodeDied`, which names it, its exit code and its last log line.
+:func:`expected_readers` is the start handshake: how many readers of step 0 the simulator
+waits for. A process that exits during a run is reported by :class:`NodeDied`, which names
+it, its exit code and its last log line.
 """
 
-from collections.abc import Collection, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 import os
 from pathlib import Path
@@ -176,49 +176,27 @@ def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
     return {p.name: p.proc.returncode for p in procs}
 
 
-def wait_for_readers(executor: 'Executor', node: 'Node', procs: Sequence[NodeProcess],
-                     readers: Mapping[str, Sequence[str]], alongside: Collection[str] = (),
-                     topic_of: Mapping[str, str] | None = None,
-                     timeout_s: float = 60.0) -> dict[str, int]:
+def expected_readers(local: Iterable['Node'], readers: Mapping[str, Sequence[str]],
+                     topic_of: Mapping[str, str] | None = None) -> dict[str, int]:
     """
-    Spin until each node of ``readers`` subscribes its topic; return subscriber counts.
+    Return how many subscribers the simulator waits for on each topic of step 0.
 
     ``readers``: {topic: the nodes that must read it} (the graph's readers of step 0,
-    :meth:`ibvs_bringup.graph.Graph.step0_readers`). ``alongside``: the nodes that start in
-    the simulator's process, with it: not waited for, and counted as the readers
-    ``readers`` says they are. ``topic_of``: the name each contract topic is remapped to in
-    this run (by contract name in the result).
+    :meth:`ibvs_bringup.graph.Graph.step0_readers`), one subscription each; ``local``: the
+    caller's own nodes (the runner's recorder and monitor), whose subscriptions on the topic
+    count too; ``topic_of``: the name each contract topic is remapped to in this run (the
+    result is by contract name). At least one on each topic.
+
+    This is the start handshake: it is known before any process starts, so that a run
+    starts all its processes at once, and the simulator's first step waits until that many
+    readers are matched (its ``min_*_subscribers``; it says once a second which it still
+    waits for, and the runner's start timeout quotes it). Waiting here for each process to
+    be in the graph before starting the next cost a run half a second and more of its
+    start (issue 24).
     """
     topic_of = topic_of or {}
-    deadline = time.monotonic() + timeout_s
-    while True:
-        executor.spin_once(timeout_sec=0.05)
-        for p in procs:
-            if p.poll() is not None:
-                raise NodeDied(p.name, p.poll(), p.log_path, p.nodes)
-        infos = {topic: node.get_subscriptions_info_by_topic(topic_of.get(topic, topic))
-                 for topic in readers}
-        missing = [f'{name} on {topic}' for topic, names in readers.items()
-                   for name in names if name not in alongside
-                   and name not in {i.node_name for i in infos[topic]}]
-        if not missing:
-            return {topic: max(1, len(found) + sum(n in alongside for n in readers[topic]))
-                    for topic, found in infos.items()}
-        if time.monotonic() > deadline:
-            raise TimeoutError(f'subscriptions not in the graph after {timeout_s:.0f} s: '
-                               + ', '.join(missing))
-
-
-def wait_for_nodes(executor: 'Executor', node: 'Node', names: Iterable[str],
-                   procs: Sequence[NodeProcess], timeout_s: float = 60.0) -> None:
-    """Spin until every node in ``names`` is in the graph; fail if one of them exits."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.1)
-        for p in procs:
-            if p.poll() is not None:
-                raise NodeDied(p.name, p.poll(), p.log_path, p.nodes)
-        if set(names) <= set(node.get_node_names()):
-            return
-    raise TimeoutError(f'nodes not up after {timeout_s:.0f} s: '
-                       f'{sorted(set(names) - set(node.get_node_names()))}')
+    local = list(local)
+    return {topic: max(1, len(names) + sum(
+                s.topic_name == topic_of.get(topic, topic)
+                for node in local for s in node.subscriptions))
+            for topic, names in readers.items()}

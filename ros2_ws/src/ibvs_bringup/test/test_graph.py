@@ -5,7 +5,7 @@ import os
 from pathlib import Path
 
 from ament_index_python.packages import get_package_prefix
-from ibvs_bringup import compose, graph
+from ibvs_bringup import compose, graph, supervision
 from ibvs_bringup.graph import GRAPH, Node
 from ibvs_bringup.supervision import ProcessSpec
 from ibvs_common import contract
@@ -43,9 +43,9 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
 def test_the_step0_readers_are_the_runners_of_before():
     assert GRAPH.step0_readers() == {
         contract.JOINT_STATES: ('feedforward_node', 'joint_controller_node'),
-        contract.FRAME_JOINT_STATES: ('feature_node', 'adaptive_feedback_node'),
-        contract.LEFT_INFO: ('feature_node', 'adaptive_feedback_node'),
-        contract.RIGHT_INFO: ('feature_node', 'adaptive_feedback_node'),
+        contract.FRAME_JOINT_STATES: ('viz_node', 'feature_node', 'adaptive_feedback_node'),
+        contract.LEFT_INFO: ('viz_node', 'feature_node', 'adaptive_feedback_node'),
+        contract.RIGHT_INFO: ('viz_node', 'feature_node', 'adaptive_feedback_node'),
         contract.TOOL_PATH: (),
         contract.JOINT_PATH: (),  # the recorder's, in the runner's process
     }
@@ -99,3 +99,28 @@ def test_the_simulator_starts_last():
     with pytest.raises(ValueError, match='must start last'):
         dataclasses.replace(GRAPH, nodes=(first,) + GRAPH.nodes[:-1]).processes()
     assert graph.GRAPH.processes()[-1].nodes[-1] == GRAPH.simulator
+
+
+class _Sub:
+    def __init__(self, topic):
+        self.topic_name = topic
+
+
+class _Local:
+    def __init__(self, *topics):
+        self.subscriptions = [_Sub(t) for t in topics]
+
+
+def test_the_simulator_waits_for_each_reader_of_step0_and_the_runners_own():
+    # Known before any process starts (issue 24: every process of a run starts at once):
+    # the graph's readers of step 0, one subscription each, and the runner's recorder and
+    # monitor on the topic as this run names it; at least one on each topic.
+    recorder = _Local(contract.JOINT_PATH, contract.TOOL_PATH, contract.ZED_LEFT_INFO,
+                      contract.CLOCK)
+    counts = supervision.expected_readers([recorder, _Local(contract.TOOL_PATH)],
+                                          GRAPH.step0_readers(), graph.ZED_TOPICS)
+    assert counts == {contract.JOINT_STATES: 2, contract.FRAME_JOINT_STATES: 3,
+                      contract.LEFT_INFO: 4, contract.RIGHT_INFO: 3,
+                      contract.TOOL_PATH: 2, contract.JOINT_PATH: 1}
+    bare = supervision.expected_readers([], {contract.TOOL_PATH: ()})
+    assert bare == {contract.TOOL_PATH: 1}

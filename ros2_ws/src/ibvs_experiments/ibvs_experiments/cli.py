@@ -85,11 +85,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f'error: cannot write the results to {out}: {exc.strerror}', file=sys.stderr)
         return 2
     print(f'running {args.scenario} -> {out}')
+
+    def metrics_ready(metrics):
+        # The metrics before the figures, which take matplotlib seconds more (issue 24).
+        print(f'wrote {out}/metrics.json' + (', drawing the figures' if args.figures else ''))
+        _print_summary(metrics)
+        sys.stdout.flush()
+
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
                                      record_images=args.images, stall_s=args.stall_s,
                                      record_overlays=args.overlays or args.video,
-                                     figures=args.figures)
+                                     figures=args.figures, on_metrics=metrics_ready)
     except domains.DomainBusy as exc:
         print(f'run not started: {exc}', file=sys.stderr)
         return 2
@@ -99,9 +106,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     except runner.RunStalled as exc:
         print(f'run stalled: {exc}', file=sys.stderr)
         return 4
-    print(f'wrote {out}/metrics.json, {"figures " if args.figures else ""}and the bag '
+    print(f'wrote {"the figures in " + str(out) + " and " if args.figures else ""}the bag '
           f'{result.bag_path}')
-    _print_summary(result.metrics)
     if args.video:
         return cmd_video(argparse.Namespace(run_dir=out, out=None))
     return 0

@@ -35,8 +35,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_bringup import domains, graph_params, scenario, shm
 from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
 from ibvs_bringup.recorder import Recorder
-from ibvs_bringup.supervision import (NodeDied, NodeProcess, stop_all, wait_for_nodes,
-                                      wait_for_readers)
+from ibvs_bringup.supervision import expected_readers, NodeDied, NodeProcess, stop_all
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
 from ibvs_common.node_main import make_executor
@@ -277,12 +276,15 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                  wall_timeout_s: float = 1800.0, converge_hold_s: float | None = None,
                  progress: Callable[[str], None] = print, stall_s: float = STALL_S,
                  start_timeout_s: float = START_TIMEOUT_S, record_overlays: bool = False,
-                 figures: bool = True) -> RunResult:
+                 figures: bool = True,
+                 on_metrics: Callable[[dict[str, Any]], None] | None = None) -> RunResult:
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
 
     ``figures=False`` writes the bag and metrics only (``ibvs analyse`` draws the figures
     later); a study's runs save the few seconds of matplotlib each (issue 26).
+    ``on_metrics(metrics)``: called as soon as ``metrics.json`` is written, before the
+    figures (:func:`write_results`).
 
     ``record_overlays`` records the feature node's overlay images (/ibvs/debug/*/image,
     which it then draws for every frame; ``ibvs video`` makes a film of them).
@@ -326,7 +328,7 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
         outcome = Outcome()
         wall_start = time.monotonic()
         try:
-            start(run, executor, watcher, procs)
+            start(run, executor, procs)
             outcome = watch(run, executor, monitor, procs, wall_start, progress,
                             converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
                             stall_s=stall_s, start_timeout_s=start_timeout_s)
@@ -345,7 +347,8 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
         raise outcome.died
     if outcome.stalled:
         raise outcome.stalled
-    metrics = write_results(run.bag_path, run.out_dir, outcome.wall_duration_s, figures)
+    metrics = write_results(run.bag_path, run.out_dir, outcome.wall_duration_s, figures,
+                            on_metrics)
     return RunResult(run.out_dir, run.bag_path, metrics, outcome.converged,
                      recorder.timing.values())
 
@@ -392,26 +395,23 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
                     target_from_parameters(params))
 
 
-def start(run: Prepared, executor: 'Executor', watcher: 'Node', procs: list[NodeProcess],
+def start(run: Prepared, executor: 'Executor', procs: list[NodeProcess],
           graph: Graph = GRAPH) -> None:
     """
     Start the processes of ``graph`` for ``run`` (:func:`process_plan`), appending to ``procs``.
 
-    The simulator's process starts last, once every other node is in the graph and every
-    reader of step 0 has subscribed (the start handshake); ``procs`` holds what has started
-    even when a wait fails (:class:`NodeDied`, TimeoutError), for :func:`stop`.
+    All at once, the simulator's last: its first step waits until every reader of step 0
+    is matched (:func:`expected_readers`: the graph's readers and the runner's recorder and
+    monitor), so that no node misses it (volatile topics: a node that misses the first
+    /joint_states or CameraInfo waits for ever, and so does the lockstep). A node that never
+    subscribes leaves the simulator saying what it waits for, and :func:`watch` ends the run
+    after ``start_timeout_s`` with that in :class:`RunStalled`; a process that exits ends it
+    with :class:`NodeDied`.
     """
     topic_of = ZED_TOPICS if uses_zed_names(run.params) else {}
     for spec, extra in process_plan(run.params, graph):
         if graph.simulator in spec.nodes:
-            wait_for_nodes(executor, watcher, [n for p in procs for n in p.nodes], procs)
-            # Every reader of step 0 must be matched before the simulator publishes it
-            # (volatile topics): a node that misses the first /joint_states or CameraInfo
-            # waits for ever, and so does the lockstep (seen: runs stalled at t = 0).
-            # The simulator waits for as many subscribers as the runner sees once each
-            # node's own subscriptions are in the graph, recorder and monitor included.
-            counts = wait_for_readers(executor, watcher, procs, graph.step0_readers(),
-                                      spec.nodes, topic_of)
+            counts = expected_readers(executor.get_nodes(), graph.step0_readers(), topic_of)
             extra += ('-p', 'min_joint_state_subscribers:='
                       f'{counts[contract.JOINT_STATES]}',
                       '-p', 'min_frame_joint_state_subscribers:='
@@ -528,9 +528,15 @@ def target_features(run: analysis.RunData) -> NDArray[np.float64] | None:
 
 
 def write_results(bag_path: str | Path, out_dir: str | Path,
-                  wall_duration_s: float | None = None, figures: bool = True
+                  wall_duration_s: float | None = None, figures: bool = True,
+                  on_metrics: Callable[[dict[str, Any]], None] | None = None
                   ) -> dict[str, Any]:
-    """Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics."""
+    """
+    Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics.
+
+    ``on_metrics(metrics)`` is called once ``metrics.json`` is written, before the figures
+    (matplotlib takes seconds): ``ibvs run`` prints the metrics then.
+    """
     out_dir = Path(out_dir)
     run, metrics = analysis.analyse_bag(bag_path)
     if wall_duration_s is not None:
@@ -538,6 +544,8 @@ def write_results(bag_path: str | Path, out_dir: str | Path,
         metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
     metrics['bag'] = str(bag_path)
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    if on_metrics is not None:
+        on_metrics(metrics)
     if not figures:
         return metrics
     from . import plots  # here: matplotlib costs seconds of start-up (issue 24)

@@ -87,3 +87,26 @@ def test_watch_names_a_node_that_died_and_a_stall():
     stalled = _watch(_Monitor(0.0, 0), stall_s=0.0).stalled
     assert isinstance(stalled, runner.RunStalled)
     assert stalled.waits == {'sim_node': 'waiting for /joint_effort_commands'}
+
+
+def test_the_metrics_are_handed_over_before_the_figures_are_drawn(monkeypatch, tmp_path):
+    # ibvs run prints the metrics as soon as they are written (issue 24: start to metrics);
+    # matplotlib's seconds come after.
+    order = []
+    run_data = type('Run', (), {'params': {}, 'run_info': {}})()
+    monkeypatch.setattr(runner.analysis, 'analyse_bag',
+                        lambda bag: (run_data, {'sim_duration_s': 1.0}))
+    monkeypatch.setattr(runner.analysis, 'load_joints', lambda bag, end: ([],))
+    monkeypatch.setattr(runner, 'target_features', lambda run: None)
+    from ibvs_experiments import plots
+    monkeypatch.setattr(plots, 'write_all', lambda *a: order.append('figures'))
+
+    def on_metrics(metrics):
+        assert (tmp_path / 'metrics.json').is_file()
+        order.append(('metrics', metrics['real_time_factor']))
+
+    runner.write_results(tmp_path / 'bag', tmp_path, 2.0, True, on_metrics)
+    assert order == [('metrics', 0.5), 'figures']
+    order.clear()
+    runner.write_results(tmp_path / 'bag', tmp_path, 2.0, False, on_metrics)
+    assert order == [('metrics', 0.5)]
