@@ -25,6 +25,7 @@ import importlib
 import sys
 
 from ibvs_common.node_main import run
+from ibvs_common.process import exit_now
 import rclpy.utilities
 
 from .graph import GRAPH
@@ -58,6 +59,12 @@ def main(args: list[str] | None = None) -> None:
         print(f'compose: {exc}\n{USAGE}', file=sys.stderr)
         sys.exit(2)
     run(classes, args=argv)
+    # Every node is destroyed and rclpy shut down. Release the DDS participant now (its
+    # peers hear that it left, and do not keep its nodes in their graph until its lease
+    # ends), then skip the interpreter's teardown: with PyBullet, EGL, OpenCV and SciPy
+    # loaded it took 0.2 s more, which every run's stop waited for (issue 24).
+    rclpy.utilities.get_default_context().destroy()
+    exit_now(0)
 
 
 if __name__ == '__main__':

@@ -102,11 +102,13 @@ def test_the_simulator_starts_last():
 
 
 class _Sub:
+
     def __init__(self, topic):
         self.topic_name = topic
 
 
 class _Local:
+
     def __init__(self, *topics):
         self.subscriptions = [_Sub(t) for t in topics]
 

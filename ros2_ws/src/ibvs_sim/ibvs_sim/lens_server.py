@@ -12,7 +12,7 @@ import signal
 import sys
 import traceback
 
-from ibvs_common.process import die_with_parent
+from ibvs_common.process import die_with_parent, exit_now
 import numpy as np
 
 from .world import World
@@ -51,3 +51,5 @@ def serve(conn: Connection) -> None:
 
 if __name__ == '__main__':
     serve(Connection(int(sys.argv[1])))
+    # The World is closed: no teardown for the simulator to wait for as it stops.
+    exit_now(0)
