@@ -178,6 +178,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         path = report.build_report(Path(args.out), quick=args.quick, address=args.address,
                                    parallel=args.parallel,
                                    domains=study.parse_domains(args.domains),
+                                   laws=False if args.no_laws else None,
                                    retry_failed=args.retry_failed)
     except report.ReportRunsFailed as exc:
         print(f'error: {exc}\nno report written; the runs that finished stay cached, and '
@@ -248,6 +249,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('-o', '--out', default='results', help='results directory')
     p.add_argument('--quick', action='store_true',
                    help='sweep endpoints only, and no servo-law comparison')
+    p.add_argument('--no-laws', action='store_true',
+                   help="the paper's reproduction alone: the whole sweep, no servo-law "
+                   'comparison')
     p.add_argument('--retry-failed', action='store_true',
                    help='run again the runs recorded as failed (a failed run stays cached '
                    'as failed otherwise)')
