@@ -61,8 +61,9 @@ CASE_STYLES = {'ideal': '-', 'limited': '--'}
 #: of the default's wall time per simulated second (PyBullet's EGL plugin) with features as
 #: accurate, 0.004 px from the true projection against 0.002 (docs/speed.md). The laws are
 #: compared on one camera, so which renderer matters less than the report's time: the
-#: study's 21 runs are 87 of its 123 simulated seconds. The paper's reproduction (the
-#: scenario studies, Figure 13) keeps the default renderer and its results to the bit.
+#: study's 24 runs are 96 of its 141 simulated seconds (make report 7 min 42 s -> 4 min
+#: 57 s, 2026-11-26). The paper's reproduction (the scenario studies, Figure 13) keeps the
+#: default renderer and its results to the bit.
 RENDERER = {'renderer': 'opengl'}
 
 
