@@ -248,9 +248,23 @@ class SimNode(Node):
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')
         teach_pose = target_from_parameters(values) if teach else None
-        # The outputs exist before the World is built (a second or more: PyBullet, EGL, the
-        # lens worker), so that the readers in other processes discover them meanwhile
-        # and the start handshake does not wait for discovery afterwards (issue 24).
+        config = SimConfig.from_values(values)
+        if not self._publish_images:  # physics only: no renderer to load, no lens worker
+            config = replace(config, renderer='tiny', render_parallel_lenses=False)
+        self.sim = Simulator(config, teach_pose=teach_pose)
+        log = self.get_logger()
+        pos_err, rot_err = self.sim.start_residual
+        log.info(f'scenario {self.sim.scenario}: true start angles '
+                 f'{np.round(np.degrees(self.sim.q_start), 3).tolist()} deg (IK residual '
+                 f'{pos_err:.2e} m, {rot_err:.2e} rad); d_q '
+                 f'{np.round(np.degrees(self.sim.d_q), 3).tolist()} deg; renderer '
+                 f'{self.sim.world.renderer if self._publish_images else "off"}; '
+                 f'{"exact" if self.sim.frames_exact else "nearest-step"} frame times')
+
+        self.diagnostics = Diagnostics(self, 'simulator')
+        self.diagnostics.update(step=0, sim_time_s=0.0, waiting_for_ns=-1, frames=0,
+                                frames_lost=0, held_steps=0, renderer=self.sim.world.renderer,
+                                start_residual_m=pos_err)
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
         # The lockstep's and the frames' messages go to their readers in this process as
         # objects, and through DDS to any elsewhere (ibvs_common.intra_process).
@@ -270,23 +284,6 @@ class SimNode(Node):
             self._pub_infos = tuple(intra_process.publisher(self, CameraInfo, topic, qos)
                                     for topic in info_topics)
         self._pub_lost = self.create_publisher(Header, contract.FRAME_LOST, contract.RELIABLE)
-        config = SimConfig.from_values(values)
-        if not self._publish_images:  # physics only: no renderer to load, no lens worker
-            config = replace(config, renderer='tiny', render_parallel_lenses=False)
-        self.sim = Simulator(config, teach_pose=teach_pose)
-        log = self.get_logger()
-        pos_err, rot_err = self.sim.start_residual
-        log.info(f'scenario {self.sim.scenario}: true start angles '
-                 f'{np.round(np.degrees(self.sim.q_start), 3).tolist()} deg (IK residual '
-                 f'{pos_err:.2e} m, {rot_err:.2e} rad); d_q '
-                 f'{np.round(np.degrees(self.sim.d_q), 3).tolist()} deg; renderer '
-                 f'{self.sim.world.renderer if self._publish_images else "off"}; '
-                 f'{"exact" if self.sim.frames_exact else "nearest-step"} frame times')
-
-        self.diagnostics = Diagnostics(self, 'simulator')
-        self.diagnostics.update(step=0, sim_time_s=0.0, waiting_for_ns=-1, frames=0,
-                                frames_lost=0, held_steps=0, renderer=self.sim.world.renderer,
-                                start_residual_m=pos_err)
         # The controllers get the calibrated camera; the images show the true one.
         pose_pub = self.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
         pose_pub.publish(pose_stamped(self.sim.calibrated_camera.pose_C_O, 0))
