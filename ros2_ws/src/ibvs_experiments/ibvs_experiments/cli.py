@@ -102,7 +102,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 2
     except runner.NodeDied as exc:
         print(f'run failed: {exc}', file=sys.stderr)
-        return 3
+        return runner.EXIT_NODE_DIED
     except runner.RunStalled as exc:
         print(f'run stalled: {exc}', file=sys.stderr)
         return 4

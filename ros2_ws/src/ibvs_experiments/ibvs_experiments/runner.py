@@ -79,6 +79,11 @@ HEARTBEAT_S = 3.0
 _WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[([^\]]+)\]: (waiting .*)$')
 
 
+#: ``ibvs run``'s exit code when a node process died during the run (:class:`NodeDied`);
+#: 2 is a refused configuration, 4 a stall (cli.cmd_run).
+EXIT_NODE_DIED = 3
+
+
 class RunStalled(RuntimeError):
     """
     Sim time stopped advancing; ``waits`` maps each node to what it said it waits for.

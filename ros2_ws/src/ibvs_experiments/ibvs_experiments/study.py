@@ -46,7 +46,7 @@ import numpy as np
 
 from . import study_spec
 from .convergence import ACCEPTANCE
-from .runner import STALL_S
+from .runner import EXIT_NODE_DIED, STALL_S
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
 CPUS_PER_RUN = 1
@@ -107,6 +107,9 @@ def execute_run(domains: tuple[int, int], run_dir: str | Path, scenario_name: st
     holds (:func:`ibvs_bringup.domains.lock_domain`). ``figures``: whether the run draws
     its figures (the spec's ``run_figures``; else ``ibvs run --no-figures``).
 
+    A run whose node process died (exit code :data:`.runner.EXIT_NODE_DIED`) is run again,
+    up to :data:`NODE_DEATH_ATTEMPTS` attempts in all (:func:`attempt_until_settled`).
+
     The body of the Ray task. Cancelled (KeyboardInterrupt from ``ray.cancel``), it sends
     SIGINT to the run, which stops its nodes cleanly, and waits for it.
     """
@@ -124,40 +127,81 @@ def execute_run(domains: tuple[int, int], run_dir: str | Path, scenario_name: st
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
                **{HELD_ENV: str(domain)},
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    start = time.monotonic()
-    cpu_start = _children_cpu_s()
     try:
-        with open(run_dir / 'runner.log', 'wb') as log:
-            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
-                                    stdin=subprocess.DEVNULL, env=env,
-                                    preexec_fn=supervised_child)
-            try:
-                code = proc.wait()
-            except KeyboardInterrupt:
-                os.killpg(proc.pid, signal.SIGINT)
-                try:
-                    proc.wait(CANCEL_GRACE_S - 5.0)
-                except subprocess.TimeoutExpired:
-                    os.killpg(proc.pid, signal.SIGKILL)
-                raise
+        record = attempt_until_settled(cmd, env, run_dir)
     finally:
         lock.close()
+    record.update(domain_id=domain, host=os.uname().nodename,
+                  ray_node=ray.get_runtime_context().get_node_id()
+                  if ray.is_initialized() else None)
+    return record
+
+
+#: Attempts of a run whose node process died. A run is deterministic, so a death of ours (an
+#: exception in a node) comes back the same on the second attempt, and costs one run more;
+#: a crash below us does not. Seen on 2026-11-26 (docs/studies.md): the simulator's lens
+#: worker (PyBullet's EGL plugin on llvmpipe) died of a segmentation fault inside libc's
+#: malloc in two reports, and the same run passed when run again.
+NODE_DEATH_ATTEMPTS = 2
+
+
+def attempt_until_settled(cmd: Sequence[str], env: Mapping[str, str], run_dir: Path,
+                          attempts: int = NODE_DEATH_ATTEMPTS) -> dict[str, Any]:
+    """
+    Run ``cmd`` (an ``ibvs run`` into ``run_dir``) until it ends other than by a node's death.
+
+    At most ``attempts`` times; an attempt that ends with :data:`.runner.EXIT_NODE_DIED`
+    before the last keeps its log as ``runner.attempt<N>.log`` and its nodes' logs as
+    ``logs.attempt<N>/``. Returns the record: ``exit_code``, ``wall_s`` and ``cpu_s`` (all
+    attempts), ``command``, ``attempts``, ``earlier_failures`` (the reason of each attempt
+    that was run again), and ``status`` 'ok' with ``metrics`` or 'failed' with ``reason``.
+    """
+    start = time.monotonic()
+    cpu_start = _children_cpu_s()
+    earlier = []
+    for attempt in range(1, attempts + 1):
+        code = _attempt(cmd, env, run_dir)
+        if code != EXIT_NODE_DIED or attempt == attempts:
+            break
+        earlier.append(_failure_reason(run_dir))
+        os.replace(run_dir / 'runner.log', run_dir / f'runner.attempt{attempt}.log')
+        if (run_dir / 'logs').is_dir():
+            os.replace(run_dir / 'logs', run_dir / f'logs.attempt{attempt}')
     # The run and its nodes are waited for, so their CPU time rolls up to this worker.
     record = {'exit_code': code, 'wall_s': time.monotonic() - start,
-              'cpu_s': _children_cpu_s() - cpu_start, 'domain_id': domain,
-              'command': cmd, 'host': os.uname().nodename,
-              'ray_node': ray.get_runtime_context().get_node_id()}
+              'cpu_s': _children_cpu_s() - cpu_start, 'command': list(cmd),
+              'attempts': attempt, 'earlier_failures': earlier}
     metrics_path = run_dir / 'metrics.json'
     if code == 0 and metrics_path.is_file():
         record.update(status='ok', metrics=json.loads(metrics_path.read_text()))
     else:
-        text = (run_dir / 'runner.log').read_text(errors='replace').splitlines()
-        why = [line for line in text if line.startswith(('run failed', 'run stalled',
-                                                         'error', '  '))
-               and not line.startswith('  [')]
-        record.update(status='failed', metrics=None,
-                      reason=' '.join(x.strip() for x in (why or text[-3:]))[:2000])
+        record.update(status='failed', metrics=None, reason=_failure_reason(run_dir))
     return record
+
+
+def _attempt(cmd, env, run_dir):
+    """Run ``cmd`` once, its output into ``run_dir``/runner.log; return its exit code."""
+    with open(run_dir / 'runner.log', 'wb') as log:
+        proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, env=env,
+                                preexec_fn=supervised_child)
+        try:
+            return proc.wait()
+        except KeyboardInterrupt:
+            os.killpg(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(CANCEL_GRACE_S - 5.0)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+            raise
+
+
+def _failure_reason(run_dir):
+    """Return why a run failed, from its runner.log (its error lines, else its last three)."""
+    text = (Path(run_dir) / 'runner.log').read_text(errors='replace').splitlines()
+    why = [line for line in text if line.startswith(('run failed', 'run stalled', 'error', '  '))
+           and not line.startswith('  [')]
+    return ' '.join(x.strip() for x in (why or text[-3:]))[:2000]
 
 
 def _children_cpu_s():
@@ -186,9 +230,11 @@ class Progress:
         filled = int(round(width * self.done / max(self.total, 1)))
         result = (f"{1e3 * record['metrics']['final_position_error_m']:.3f} mm"
                   if record['status'] == 'ok' else 'FAILED')
+        again = ''.join(f'\n    attempt {i} of {label}, run again: a node died: {why}'
+                        for i, why in enumerate(record.get('earlier_failures') or (), 1))
         print(f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
               f'({self.failed} failed, {self.cached} cached)  elapsed {_clock(elapsed)}  '
-              f'ETA {_clock(eta)}  {label}: {result}', file=self.out, flush=True)
+              f'ETA {_clock(eta)}  {label}: {result}{again}', file=self.out, flush=True)
 
 
 def _clock(seconds):
@@ -361,6 +407,7 @@ def table_rows(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]]
         row.update({name: record['swept'].get(name, '') for name in spec.swept_names()})
         row.update({k: metrics.get(k) for k in TABLE_METRICS})
         row.update(status=record['status'], success=succeeded(record),
+                   attempts=record.get('attempts', 1),
                    wall_s=record.get('wall_s'), cpu_s=record.get('cpu_s'),
                    reason=record.get('reason', ''),
                    run_dir=record['run_dir'])
