@@ -5,6 +5,7 @@ import json
 import os
 from pathlib import Path
 import signal
+import statistics
 import subprocess
 import sys
 import time
@@ -48,7 +49,13 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
                                      [{'tau_in': [0.01], 'omega_n': [10.0]},
                                       {'tau_in': [0.05], 'omega_n': [30.0]}]))
     out = tmp_path / 'studies'
-    records = study.run_studies([spec], out, parallel=2, domains=DOMAINS)['grid']
+    # A job beside the runs (as the report's model-only sweeps), and each record as it comes.
+    answers, seen = [], []
+    job = study.Job('mean', statistics.fmean, ([1.0, 2.0],), answers.append)
+    records = study.run_studies([spec], out, parallel=2, domains=DOMAINS, jobs=[job],
+                                on_record=seen.append)['grid']
+    assert answers == [1.5]
+    assert sorted(r['index'] for r in seen) == [0, 1] and all('status' in r for r in seen)
 
     assert [r['swept'] for r in records] == [
         {'tau_in': 0.01, 'omega_n': 10.0}, {'tau_in': 0.05, 'omega_n': 30.0}]
@@ -82,8 +89,10 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
     # Again: nothing runs, every record (the failure included) comes from the cache.
     stamps = {r['run_dir']: (Path(r['run_dir']) / 'run.json').stat().st_mtime_ns
               for r in records}
-    again = study.run_studies([spec], out, parallel=2, domains=DOMAINS)['grid']
+    again = study.run_studies([spec], out, parallel=2, domains=DOMAINS, jobs=[job],
+                              on_record=seen.append)['grid']
     assert all(r['cached'] for r in again)
+    assert answers == [1.5, 1.5] and len(seen) == 4  # the job in this process, no Ray
     assert [r['status'] for r in again] == status
     assert [r.get('metrics') for r in again] == [r.get('metrics') for r in records]
     assert stamps == {r['run_dir']: (Path(r['run_dir']) / 'run.json').stat().st_mtime_ns

@@ -129,10 +129,18 @@ def specs(laws: Iterable[str] = SERVO_LAWS, cases: Iterable[str] = tuple(CASES),
             for case in cases for name in scenarios]
 
 
-def read_records(records: Mapping[str, Sequence[Mapping[str, Any]]]) -> list['LawRun']:
-    """Return the :class:`LawRun` of the law studies' records (``run_studies``'s answer)."""
-    runs = [read_run(record['run_dir']) for name, rs in records.items()
-            if name.startswith(STUDY_PREFIX + '_') for record in rs if record['status'] == 'ok']
+def read_records(records: Mapping[str, Sequence[Mapping[str, Any]]],
+                 known: Mapping[str, 'LawRun'] | None = None) -> list['LawRun']:
+    """
+    Return the :class:`LawRun` of the law studies' records (``run_studies``'s answer).
+
+    ``known``: runs read already, by run folder (as the records name it); the others are
+    read here.
+    """
+    known = known or {}
+    runs = [known.get(record['run_dir']) or read_run(record['run_dir'])
+            for name, rs in records.items() if name.startswith(STUDY_PREFIX + '_')
+            for record in rs if record['status'] == 'ok']
     return _ordered(runs)
 
 

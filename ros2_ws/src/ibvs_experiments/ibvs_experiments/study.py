@@ -22,8 +22,9 @@ run (each stops its nodes as ``ibvs run`` does on SIGINT), shuts Ray down, and k
 records of the runs already finished.
 """
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 import csv
+from dataclasses import dataclass
 import hashlib
 import importlib.util
 import json
@@ -290,10 +291,30 @@ def check_spec(spec: study_spec.Spec) -> None:
         graph_params.check({**base, **run.overrides}, f'study {spec.name}, run {run.index}')
 
 
+@dataclass(frozen=True)
+class Job:
+    """
+    Work beside the runs, on their Ray session and its cores: ``func(*args)`` on one core.
+
+    ``func``: a Python function that Ray can import by name. What a report computes
+    without a graph (the law study's model-only sweeps) then runs among the graph runs
+    instead of after them, when Ray finds a core free (Ray queues each kind of task on its
+    own: a job may start before runs submitted earlier). ``done`` gets its answer in the
+    driver.
+    """
+
+    name: str
+    func: Callable[..., Any]
+    args: tuple = ()
+    done: Callable[[Any], None] = lambda result: None
+
+
 def run_studies(specs: Sequence[study_spec.Spec], out_dir: Path, address: str | None = None,
                 parallel: int | None = None, domains: tuple[int, int] = DOMAIN_IDS,
                 stall_s: float = STALL_S, retry_failed: bool = False,
-                out: TextIO = sys.stdout) -> dict[str, list[dict[str, Any]]]:
+                out: TextIO = sys.stdout, jobs: Sequence[Job] = (),
+                on_record: Callable[[Mapping[str, Any]], None] | None = None
+                ) -> dict[str, list[dict[str, Any]]]:
     """
     Run every run of ``specs`` (a list of :class:`study_spec.Spec`) in one Ray session.
 
@@ -303,6 +324,12 @@ def run_studies(specs: Sequence[study_spec.Spec], out_dir: Path, address: str | 
     run again (failed ones are with ``retry_failed``). Every run's parameters are checked
     first (:func:`check_spec`): a spec with a name no node declares or a value out of range
     runs nothing.
+
+    ``jobs`` (:class:`Job`) run on the same session after the runs are submitted (in this
+    process when every run is cached). ``on_record``: called in this process with each
+    run's record as it finishes, while the others run (cached ones first), so that reading
+    a run's output back overlaps with the runs still going. A job's exception is raised
+    once every run has finished.
     """
     for spec in specs:
         check_spec(spec)
@@ -310,10 +337,19 @@ def run_studies(specs: Sequence[study_spec.Spec], out_dir: Path, address: str | 
     cached = sum(len(r) for r in records.values()) - len(todo)
     total = cached + len(todo)
     print(f'{total} runs in {len(specs)} stud{"y" if len(specs) == 1 else "ies"}: '
-          f'{cached} cached, {len(todo)} to run', file=out, flush=True)
+          f'{cached} cached, {len(todo)} to run'
+          + (f'; {len(jobs)} job(s) beside them' if jobs else ''), file=out, flush=True)
+    if on_record is not None:
+        for spec in specs:
+            for record in records[spec.name]:
+                if record.get('cached'):
+                    on_record(record)
     if todo:
         _execute(todo, address, parallel or default_parallel(), domains, stall_s,
-                 Progress(total, cached, out))
+                 Progress(total, cached, out), jobs, on_record)
+    else:
+        for job in jobs:
+            job.done(job.func(*job.args))
     for spec in specs:
         write_results(spec, records[spec.name], out_dir / spec.name)
     return records
@@ -351,7 +387,7 @@ def plan(specs: Sequence[study_spec.Spec], out_dir: str | Path, retry_failed: bo
     return records, todo
 
 
-def _execute(todo, address, parallel, domains, stall_s, progress):
+def _execute(todo, address, parallel, domains, stall_s, progress, jobs=(), on_record=None):
     with _Ray(address, parallel) as ray:
         task = ray.remote(execute_run).options(num_cpus=CPUS_PER_RUN, max_retries=0)
         refs = {}
@@ -359,11 +395,23 @@ def _execute(todo, address, parallel, domains, stall_s, progress):
             ref = task.remote(domains, record['run_dir'], spec.scenario, record['overrides'],
                               spec.duration_s, stall_s, spec.run_figures)
             refs[ref] = record
-        pending = list(refs)
+        job_refs = {ray.remote(job.func).options(num_cpus=1, max_retries=0).remote(*job.args):
+                    (job, time.monotonic()) for job in jobs}
+        pending = list(refs) + list(job_refs)
+        failure = None
         try:
             while pending:
                 ready, pending = ray.wait(pending, num_returns=1, timeout=1.0)
                 for ref in ready:
+                    if ref in job_refs:
+                        job, submitted = job_refs[ref]
+                        try:
+                            job.done(ray.get(ref))
+                        except Exception as exc:  # raised below, once the runs are done
+                            failure = failure or exc
+                        print(f'  job {job.name}: done {_clock(time.monotonic() - submitted)} '
+                              'after it was submitted', file=progress.out, flush=True)
+                        continue
                     record = refs[ref]
                     try:
                         result = ray.get(ref)
@@ -374,6 +422,8 @@ def _execute(todo, address, parallel, domains, stall_s, progress):
                     Path(record['run_dir'], 'run.json').write_text(
                         json.dumps(record, indent=2, default=str) + '\n')
                     progress.update(f"{record['study']}#{record['index']}", record)
+                    if on_record is not None:
+                        on_record(record)
         except KeyboardInterrupt:
             print(f'\ninterrupted: stopping {len(pending)} runs (finished runs stay cached)',
                   file=progress.out, flush=True)
@@ -381,6 +431,8 @@ def _execute(todo, address, parallel, domains, stall_s, progress):
                 ray.cancel(ref)
             ray.wait(pending, num_returns=len(pending), timeout=CANCEL_GRACE_S)
             raise
+        if failure is not None:
+            raise failure
 
 
 def _load_record(run_dir, key):
