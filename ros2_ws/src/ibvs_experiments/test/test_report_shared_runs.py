@@ -121,3 +121,29 @@ def test_build_report_runs_a_shared_run_once_and_shows_it_in_every_study(tmp_pat
     table = (tmp_path / 'studies' / f'{report.SWEEP_STUDY}_quick' / 'table.md').read_text()
     assert f'{2 * len(report.QUICK_SCALES)} runs' in table
     assert '2 of them made by another study' in (tmp_path / 'report.md').read_text()
+
+
+class _FakeSweeps:
+    """What ModelOnlySweeps uses of ibvs_control.calibration_sweep, with tagged answers."""
+
+    TARGET_SOURCES = ('model', 'taught')
+
+    @staticmethod
+    def sweep(laws, targets):
+        return [(target, law, point) for target in targets for law in laws for point in (0, 1)]
+
+    @staticmethod
+    def noise_sweep(laws):
+        return {(law, sigma): (sigma, -sigma) for law in laws for sigma in (0.0, 0.3)}
+
+
+def test_the_model_only_jobs_give_the_sweeps_in_their_own_order_whatever_order_they_end():
+    from ibvs_control.servo_laws import SERVO_LAWS
+    model_only = report.ModelOnlySweeps()
+    model_only._sweep = _FakeSweeps
+    jobs = model_only.jobs()
+    assert len(jobs) == len(SERVO_LAWS) * (len(_FakeSweeps.TARGET_SOURCES) + 1)
+    for job in reversed(jobs):  # Ray hands them back in any order
+        job.done(job.func(*job.args))
+    assert model_only.calibration() == _FakeSweeps.sweep(SERVO_LAWS, _FakeSweeps.TARGET_SOURCES)
+    assert list(model_only.noise().items()) == list(_FakeSweeps.noise_sweep(SERVO_LAWS).items())
