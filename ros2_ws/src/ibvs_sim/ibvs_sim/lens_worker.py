@@ -22,6 +22,7 @@ cleanly; the simulator stops and closes it.
 
 from collections.abc import Mapping
 from multiprocessing.connection import Connection
+import signal
 import socket
 import subprocess
 import sys
@@ -40,12 +41,26 @@ class LensWorkerError(RuntimeError):
     """The lens worker could not start, failed to render, or is gone."""
 
 
+class _WorkerGone(LensWorkerError):
+    """The worker's end of the pipe closed: its process ended."""
+
+
+#: How often a worker killed by a signal is started again before :class:`LensWorkerError`.
+#: A crash below us, not an error of ours: twice on 2026-11-26 the worker died of a
+#: segmentation fault inside libc's malloc while PyBullet's EGL plugin rendered
+#: (docs/studies.md). The image depends on the joint angles and the lens only, so the new
+#: worker renders the same one. A worker that exits by itself is never started again.
+MAX_RESTARTS = 2
+
+
 class LensWorker:
     """
     Render a lens in another process: :meth:`submit`, do other work, then :meth:`result`.
 
     ``world_kwargs`` are the keyword arguments of the :class:`ibvs_sim.world.World` to build
-    there (the same robot, floor and renderer as the simulator's own).
+    there (the same robot, floor and renderer as the simulator's own). A worker killed by a
+    signal while it renders is started again and asked for the same image, up to
+    :data:`MAX_RESTARTS` times; :attr:`restarts` says why each time.
     """
 
     def __init__(self, world_kwargs: Mapping[str, Any]) -> None:
@@ -55,25 +70,34 @@ class LensWorker:
         The caller does its own start-up meanwhile: the worker's imports, EGL and URDF load
         then overlap with the simulator's (about a second of every run's start, issue 24).
         """
+        self._world_kwargs = dict(world_kwargs)
+        self._process = None
+        #: The request of the image not yet returned ((q, args)), or None.
+        self._pending = None
+        #: The renderer the worker's World uses ('egl' or 'tiny'); None until ready.
+        self.renderer = None
+        #: Why the worker was started again, once per restart (:data:`MAX_RESTARTS`).
+        self.restarts: list[str] = []
+        self._start()
+
+    def _start(self):
         ours, theirs = socket.socketpair()
         self._process = subprocess.Popen(
             [sys.executable, '-m', 'ibvs_sim.lens_server', str(theirs.fileno())],
             pass_fds=(theirs.fileno(),))
         theirs.close()
         self._conn = Connection(ours.detach())
-        self._pending = False
-        #: The renderer the worker's World uses ('egl' or 'tiny'); None until ready.
-        self.renderer = None
-        self._conn.send(world_kwargs)
+        self._ready = False
+        self._conn.send(self._world_kwargs)
 
     def wait_ready(self) -> str:
         """Wait until the worker's World is built; return its renderer (LensWorkerError if not)."""
-        if self.renderer is None:
+        if not self._ready:
             kind, detail = self._receive(START_TIMEOUT_S, 'start')
-            if kind != 'ready':
+            if kind != 'ready' or detail != (self.renderer or detail):
                 self.close()
                 raise LensWorkerError(f'the lens worker did not start: {detail}')
-            self.renderer = detail
+            self.renderer, self._ready = detail, True
         return self.renderer
 
     def _receive(self, timeout_s, what):
@@ -85,31 +109,54 @@ class LensWorker:
         try:
             return self._conn.recv()
         except (EOFError, OSError) as exc:
-            self.close()
-            raise LensWorkerError(f'the lens worker is gone ({what}): {exc!r}') from None
+            raise _WorkerGone(f'the lens worker is gone ({what}): {exc!r}') from None
 
     def submit(self, q: ArrayLike, *args: Any) -> None:
         """Ask for :meth:`World.render_lens` (``args``) with the robot at joint angles ``q``."""
-        if self._pending:
+        if self._pending is not None:
             raise LensWorkerError('submit() again before result()')
-        self.wait_ready()
+        self._pending = (np.asarray(q, dtype=float), args)
+        self._send(self._pending)
+
+    def _send(self, request):
         try:
-            self._conn.send((np.asarray(q, dtype=float), args))
-        except (BrokenPipeError, OSError) as exc:
-            self.close()
-            raise LensWorkerError(f'the lens worker is gone: {exc!r}') from None
-        self._pending = True
+            self.wait_ready()
+            self._conn.send(request)
+        except (BrokenPipeError, OSError):
+            pass  # the worker is gone: result() finds out, and why
 
     def result(self) -> NDArray[np.uint8]:
         """Return the (H, W, 3) uint8 image asked for by the last :meth:`submit`."""
-        if not self._pending:
+        if self._pending is None:
             raise LensWorkerError('result() without submit()')
-        self._pending = False
-        kind, detail = self._receive(RENDER_TIMEOUT_S, 'render')
+        request, self._pending = self._pending, None
+        while True:
+            try:
+                kind, detail = self._receive(RENDER_TIMEOUT_S, 'render')
+                break
+            except _WorkerGone as exc:
+                self._restart_or_raise(exc)
+                self._send(request)
         if kind != 'image':
             raise LensWorkerError(f'the lens worker failed to render: {detail}')
         data = self._conn.recv_bytes()
         return np.frombuffer(data, dtype=np.uint8).reshape(detail).copy()
+
+    def _restart_or_raise(self, gone):
+        """Start a worker again after one killed by a signal (MAX_RESTARTS); else raise."""
+        try:
+            code = self._process.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            code = None
+        if code is None or code >= 0 or len(self.restarts) >= MAX_RESTARTS:
+            self.close()
+            ended = 'still running' if code is None else f'exit code {code}'
+            raise LensWorkerError(f'{gone} ({ended}; {len(self.restarts)} restart(s) '
+                                  'before)') from None
+        self.restarts.append(f'the lens worker was killed by {signal.Signals(-code).name} '
+                             'while it rendered; started again, the frame rendered again')
+        self._conn.close()
+        self._start()
 
     def close(self) -> None:
         """Stop the worker (idempotent)."""

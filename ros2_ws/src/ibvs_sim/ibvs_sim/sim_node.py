@@ -263,8 +263,8 @@ class SimNode(Node):
 
         self.diagnostics = Diagnostics(self, 'simulator')
         self.diagnostics.update(step=0, sim_time_s=0.0, waiting_for_ns=-1, frames=0,
-                                frames_lost=0, held_steps=0, renderer=self.sim.world.renderer,
-                                start_residual_m=pos_err)
+                                frames_lost=0, held_steps=0, lens_worker_restarts=0,
+                                renderer=self.sim.world.renderer, start_residual_m=pos_err)
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
         # The lockstep's and the frames' messages go to their readers in this process as
         # objects, and through DDS to any elsewhere (ibvs_common.intra_process).
@@ -310,6 +310,7 @@ class SimNode(Node):
         self._frame_step = False
         self._published_at = None
         self.frames = 0
+        self._restarts_reported = 0
         self.held_steps = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._progress_since_log = True
@@ -443,6 +444,7 @@ class SimNode(Node):
             with timing.section('render'):
                 stamp, images, lost = sim.take_frame(render=self._publish_images)
             self.frames += 1
+            self._report_restarts(sim.world.lens_worker_restarts)
             if lost:
                 self._pub_lost.publish(Header(stamp=ns_stamp(stamp),
                                               frame_id=contract.CAMERA_FRAME))
@@ -458,6 +460,14 @@ class SimNode(Node):
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
                                 frames=self.frames, frames_lost=sim.frames_lost,
                                 held_steps=self.held_steps)
+
+    def _report_restarts(self, restarts):
+        """Log each new restart of the lens worker (a crash below us) and count them."""
+        for why in restarts[self._restarts_reported:]:
+            self.get_logger().warn(f'frame {self.frames}: {why}')
+        if len(restarts) != self._restarts_reported:
+            self._restarts_reported = len(restarts)
+            self.diagnostics.update(lens_worker_restarts=len(restarts))
 
     def _publish_tool_path(self):
         """Publish the true tool poses of the steps since the last batch, if any."""

@@ -358,6 +358,11 @@ class World:
         return [(self.link_pose(name)[:3, 3], MARKER_RADIUS_M)
                 for name in ('marker_1', 'marker_2') if name in self.links]
 
+    @property
+    def lens_worker_restarts(self) -> tuple[str, ...]:
+        """Return why the lens worker was started again, once per restart (lens_worker)."""
+        return () if self._lens_worker is None else tuple(self._lens_worker.restarts)
+
     def render_stereo(self, camera: StereoCamera, supersampling: int = 1,
                       focus: Iterable[tuple[ArrayLike, float]] = (),
                       focus_supersampling: int = DEFAULT_FOCUS_SUPERSAMPLING

@@ -1,6 +1,7 @@
 """The lens worker renders, in its own process, exactly what the simulator's world would."""
 
 from ibvs_model import inverse_kinematics, paper
+from ibvs_sim import lens_worker
 from ibvs_sim.lens_worker import LensWorkerError
 from ibvs_sim.rendering import lens_poses
 from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, World
@@ -39,13 +40,42 @@ def test_the_worker_draws_the_same_right_image_as_this_process(parallel_world, c
     assert not np.array_equal(left, right)  # two viewpoints: the check can fail
 
 
-def test_a_dead_worker_is_an_error_not_a_hang(camera):
+def test_a_worker_killed_by_a_signal_is_started_again_and_draws_the_same_image(camera):
+    # A crash below us (docs/studies.md): SIGKILL stands in for the SIGSEGV seen.
+    world = World(renderer='tiny', lens_worker=True)
+    try:
+        first = world.render_stereo(camera)
+        world._lens_worker._process.kill()
+        world._lens_worker._process.wait(timeout=10.0)
+        again = world.render_stereo(camera)
+        assert np.array_equal(first[1], again[1]) and np.array_equal(first[0], again[0])
+        assert len(world.lens_worker_restarts) == 1
+        assert 'killed by SIGKILL' in world.lens_worker_restarts[0]
+        assert world._lens_worker._process.poll() is None  # the new one serves
+    finally:
+        world.close()
+
+
+def test_a_worker_that_dies_again_and_again_is_an_error_not_a_hang(camera, monkeypatch):
+    monkeypatch.setattr(lens_worker, 'MAX_RESTARTS', 0)
     world = World(renderer='tiny', lens_worker=True)
     try:
         world._lens_worker._process.kill()
         world._lens_worker._process.wait(timeout=10.0)
-        with pytest.raises(LensWorkerError):
+        with pytest.raises(LensWorkerError, match='0 restart'):
             world.render_stereo(camera)
+    finally:
+        world.close()
+
+
+def test_a_worker_that_ends_by_itself_is_not_started_again(camera):
+    world = World(renderer='tiny', lens_worker=True)
+    try:
+        world._lens_worker._conn.send(None)  # what close() says: the worker returns, code 0
+        world._lens_worker._process.wait(timeout=10.0)
+        with pytest.raises(LensWorkerError, match='exit code 0'):
+            world.render_stereo(camera)
+        assert world.lens_worker_restarts == ()
     finally:
         world.close()
 

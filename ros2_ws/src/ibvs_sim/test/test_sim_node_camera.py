@@ -221,3 +221,18 @@ def test_bad_camera_parameter_stops_the_node_naming_it(context, params, name):
     with pytest.raises(ParameterError) as info:
         SimNode(context=context, parameter_overrides=_overrides(**params))
     assert f"'{name}'" in str(info.value)
+
+
+def test_a_crashed_lens_worker_is_started_again_logged_and_counted(graph, capfd):
+    """A lens worker killed by a signal (a crash below us) costs no frame and is reported."""
+    sim, vision, _, executor = graph()
+    assert sim.sim.world._lens_worker is not None  # render_parallel_lenses, the default
+    spin_until(executor, lambda: len(vision.rec['left']) >= 2)
+    worker = sim.sim.world._lens_worker._process
+    worker.kill()
+    worker.wait(timeout=10.0)
+    before = len(vision.rec['left'])
+    spin_until(executor, lambda: len(vision.rec['left']) >= before + 2)
+    assert sim.diagnostics.values['lens_worker_restarts'] == 1
+    assert 'lens worker was killed by SIGKILL' in capfd.readouterr().err
+    assert not vision.rec['lost']  # every frame was rendered
