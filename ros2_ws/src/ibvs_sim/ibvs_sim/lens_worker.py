@@ -51,6 +51,10 @@ class _WorkerGone(LensWorkerError):
 #: (docs/studies.md). The image depends on the joint angles and the lens only, so the new
 #: worker renders the same one. A worker that exits by itself is never started again.
 MAX_RESTARTS = 2
+#: The signals a worker is started again after: a crash (SIGKILL: the kernel's out-of-memory
+#: killer), not a request to stop (SIGTERM, SIGINT, SIGHUP: the run is ending).
+CRASH_SIGNALS = frozenset({signal.SIGSEGV, signal.SIGBUS, signal.SIGABRT, signal.SIGILL,
+                           signal.SIGFPE, signal.SIGKILL})
 
 
 class LensWorker:
@@ -58,9 +62,9 @@ class LensWorker:
     Render a lens in another process: :meth:`submit`, do other work, then :meth:`result`.
 
     ``world_kwargs`` are the keyword arguments of the :class:`ibvs_sim.world.World` to build
-    there (the same robot, floor and renderer as the simulator's own). A worker killed by a
-    signal while it renders is started again and asked for the same image, up to
-    :data:`MAX_RESTARTS` times; :attr:`restarts` says why each time.
+    there (the same robot, floor and renderer as the simulator's own). A worker killed by one
+    of :data:`CRASH_SIGNALS` while it renders is started again and asked for the same image,
+    up to :data:`MAX_RESTARTS` times; :attr:`restarts` says why each time.
     """
 
     def __init__(self, world_kwargs: Mapping[str, Any]) -> None:
@@ -148,7 +152,8 @@ class LensWorker:
             code = self._process.wait(timeout=5.0)
         except subprocess.TimeoutExpired:
             code = None
-        if code is None or code >= 0 or len(self.restarts) >= MAX_RESTARTS:
+        if code is None or code >= 0 or -code not in CRASH_SIGNALS or \
+                len(self.restarts) >= MAX_RESTARTS:
             self.close()
             ended = 'still running' if code is None else f'exit code {code}'
             raise LensWorkerError(f'{gone} ({ended}; {len(self.restarts)} restart(s) '

@@ -68,6 +68,19 @@ def test_a_worker_that_dies_again_and_again_is_an_error_not_a_hang(camera, monke
         world.close()
 
 
+def test_a_worker_stopped_by_sigterm_is_not_started_again(camera):
+    # SIGTERM asks a process to stop (a run ending): not a crash.
+    world = World(renderer='tiny', lens_worker=True)
+    try:
+        world._lens_worker._process.terminate()
+        world._lens_worker._process.wait(timeout=10.0)
+        with pytest.raises(LensWorkerError, match='exit code -15'):
+            world.render_stereo(camera)
+        assert world.lens_worker_restarts == ()
+    finally:
+        world.close()
+
+
 def test_a_worker_that_ends_by_itself_is_not_started_again(camera):
     world = World(renderer='tiny', lens_worker=True)
     try:
