@@ -157,6 +157,11 @@ def attempt_until_settled(cmd: Sequence[str], env: Mapping[str, str], run_dir: P
     attempts), ``command``, ``attempts``, ``earlier_failures`` (the reason of each attempt
     that was run again), and ``status`` 'ok' with ``metrics`` or 'failed' with ``reason``.
     """
+    # An earlier study's attempts of this run (--retry-failed) make way for this one's.
+    for old in run_dir.glob('logs.attempt*'):
+        shutil.rmtree(old)
+    for old in run_dir.glob('runner.attempt*.log'):
+        old.unlink()
     start = time.monotonic()
     cpu_start = _children_cpu_s()
     earlier = []

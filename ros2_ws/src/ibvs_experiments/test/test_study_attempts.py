@@ -50,6 +50,11 @@ def test_a_second_death_fails_the_run_with_both_reasons(tmp_path):
     assert record['status'] == 'failed' and record['attempts'] == study.NODE_DEATH_ATTEMPTS
     assert 'attempt 2' in record['reason']
     assert len(record['earlier_failures']) == study.NODE_DEATH_ATTEMPTS - 1
+    # Run again (ibvs study --retry-failed): the earlier study's attempts make way.
+    (tmp_path / 'count').unlink()
+    again = _run(tmp_path, [runner.EXIT_NODE_DIED, 0])
+    assert again['status'] == 'ok' and again['attempts'] == 2
+    assert (tmp_path / 'logs.attempt1' / 'lockstep.log').read_text() == 'attempt 1'
 
 
 @pytest.mark.parametrize('code', [2, 4])
