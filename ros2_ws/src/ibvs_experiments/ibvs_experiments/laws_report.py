@@ -129,6 +129,11 @@ def specs(laws: Iterable[str] = SERVO_LAWS, cases: Iterable[str] = tuple(CASES),
             for case in cases for name in scenarios]
 
 
+def is_law_study(name: str) -> bool:
+    """Return whether ``name`` is one of :func:`specs`' studies (``laws_<case>_<scenario>``)."""
+    return name.startswith(STUDY_PREFIX + '_')
+
+
 def read_records(records: Mapping[str, Sequence[Mapping[str, Any]]],
                  known: Mapping[str, 'LawRun'] | None = None) -> list['LawRun']:
     """
@@ -139,7 +144,7 @@ def read_records(records: Mapping[str, Sequence[Mapping[str, Any]]],
     """
     known = known or {}
     runs = [known.get(record['run_dir']) or read_run(record['run_dir'])
-            for name, rs in records.items() if name.startswith(STUDY_PREFIX + '_')
+            for name, rs in records.items() if is_law_study(name)
             for record in rs if record['status'] == 'ok']
     return _ordered(runs)
 

@@ -17,6 +17,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ibvs_control.servo_laws import SERVO_LAWS
 import matplotlib
 
 matplotlib.use('Agg')
@@ -247,7 +248,6 @@ class ModelOnlySweeps:
 
     def jobs(self) -> list[study.Job]:
         """Return the sweeps as jobs: calibration per target source and law, noise per law."""
-        from ibvs_control.servo_laws import SERVO_LAWS
         out = [study.Job(f'calibration sweep, {law}, {target} target', self._sweep.sweep,
                          ((law,), (target,)),
                          lambda runs, key=(target, law): self._calibration.update({key: runs}))
@@ -259,19 +259,16 @@ class ModelOnlySweeps:
 
     def calibration(self) -> list:
         """Return the calibration sweep's runs, in ``calibration_sweep.sweep``'s order."""
-        from ibvs_control.servo_laws import SERVO_LAWS
         return [run for target in self._sweep.TARGET_SOURCES for law in SERVO_LAWS
                 for run in self._calibration[target, law]]
 
     def noise(self) -> dict:
         """Return the noise sweep's results, as ``calibration_sweep.noise_sweep`` does."""
-        from ibvs_control.servo_laws import SERVO_LAWS
         return {k: v for law in SERVO_LAWS for k, v in self._noise[law].items()}
 
     def keep_law_run(self, record: Mapping[str, Any]) -> None:
         """Read a finished law run back (``run_studies``'s ``on_record``)."""
-        if record['study'].startswith(laws_report.STUDY_PREFIX + '_') and \
-                record['status'] == 'ok':
+        if laws_report.is_law_study(record['study']) and record['status'] == 'ok':
             try:
                 self.law_runs[record['run_dir']] = laws_report.read_run(record['run_dir'])
             except Exception:  # noqa: B902 read again after the runs, where it is raised
