@@ -102,7 +102,7 @@ class SimRig(Rig):
         """Create the node (no images: its inputs are the commands and /clock)."""
         from ibvs_sim.sim_node import SimNode
         node = SimNode(context=context, parameter_overrides=SIM_TIME + [
-            Parameter('publish_images', value=False), Parameter('renderer', value='tiny')])
+            Parameter('publish_images', value=False)])
         self.joints = []
         super().__init__(context, node, node.diagnostics)
         self.driver.create_subscription(JointState, contract.JOINT_STATES,
@@ -144,7 +144,7 @@ class SimPositionRig(Rig):
         from ibvs_sim.sim_node import SimNode
         node = SimNode(context=context, parameter_overrides=POSITION + [
             Parameter('position_command_type', value=command_type),
-            Parameter('publish_images', value=False), Parameter('renderer', value='tiny')])
+            Parameter('publish_images', value=False)])
         self.joints = []
         self.topic = node._sub.topic_name
         self.n = 0

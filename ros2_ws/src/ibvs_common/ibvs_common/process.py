@@ -32,8 +32,7 @@ def supervised_child() -> None:
 
     A blocked signal mask is inherited across ``exec``: a Ray worker blocks SIGINT, and the
     nodes of a study's runs then never saw the runner's SIGINT; each stopped only at SIGTERM,
-    10 s later (measured: 60 s of a 0.3 s run's 64 s, and the simulator's lens worker killed
-    mid-frame). The own process group lets the runner signal a node and whatever it started
+    10 s later (measured: 60 s of a 0.3 s run's 64 s). The own process group lets the runner signal a node and whatever it started
     (``ros2 run``'s child) at once.
     """
     os.setpgid(0, 0)

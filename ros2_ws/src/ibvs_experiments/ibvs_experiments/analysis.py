@@ -37,6 +37,10 @@ metrics stay as they were):
   time, of the sim seconds it advanced per wall second (``real_time_factor_held`` on
   /diagnostics), against ``real_time_factor`` (the overall sim/wall ratio of the run,
   start-up excluded).
+
+What drew the images (runs that rendered them; the simulator's /diagnostics):
+``render_device``, the OpenGL GL_RENDERER string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)'),
+and ``render_hardware``, true on a GPU, false on a software rasteriser (ibvs_sim.gl_renderer).
 """
 
 from collections.abc import Sequence
@@ -62,6 +66,8 @@ if TYPE_CHECKING:
 #: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
 PARAMS_KEY = 'ibvs.parameters'
 RUN_KEY = 'ibvs.run'
+#: The simulator's /diagnostics values that say what drew the images (module docstring).
+RENDER_KEYS = ('render_device', 'render_hardware')
 #: The closing window of the run over which the error's mean and maximum are reported, s.
 LAST_WINDOW_S = 0.5
 
@@ -85,6 +91,8 @@ class RunData:
     latency: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     rtf_held: np.ndarray = field(default_factory=lambda: np.zeros(0))
     camera: object = None
+    #: The simulator's render_device and render_hardware (/diagnostics), where it said them.
+    render: dict = field(default_factory=dict)
 
 
 def _settle_time(t, inside):
@@ -185,6 +193,16 @@ def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike) -> dict[str, A
     }
 
 
+def render_metrics(values: dict[str, str]) -> dict[str, Any]:
+    """Return the render metrics of the simulator's /diagnostics strings (module docstring)."""
+    out = {}
+    if 'render_device' in values:
+        out['render_device'] = values['render_device']
+    if 'render_hardware' in values:
+        out['render_hardware'] = values['render_hardware'] == 'True'
+    return out
+
+
 def _relative(value, t):
     return None if value is None else float(value - t[0])
 
@@ -216,7 +234,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     run_info = yaml.safe_load(custom.get(RUN_KEY, '{}')) or {}
     t, poses, ft, feats, mt, modes = [], [], [], [], [], []
     infos, cam_pose = {}, None
-    latency, rtf_held = [], []
+    latency, rtf_held, render = [], [], {}
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
         wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
@@ -245,6 +263,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
             elif conn.topic == contract.DIAGNOSTICS:
                 rtf_held.extend(float(kv.value) for status in msg.status
                                 for kv in status.values if kv.key == 'real_time_factor_held')
+                render.update((kv.key, kv.value) for status in msg.status
+                              for kv in status.values if kv.key in RENDER_KEYS)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -272,7 +292,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    feature_t=np.asarray(ft), features=feats, mode_t=np.asarray(mt),
                    modes=modes, camera=camera,
                    latency=np.array(latency, dtype=np.int64).reshape(-1, 2),
-                   rtf_held=np.array(rtf_held))
+                   rtf_held=np.array(rtf_held), render=render_metrics(render))
 
 
 def load_joints(bag_path: str | Path, end_s: float | None = None
@@ -396,4 +416,5 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
                               run.modes, run.run_info.get('wall_duration_s'),
                               run.params.get('scenario_name', run.params.get('scenario')))
     metrics.update(free_running_metrics(run.latency, run.rtf_held))
+    metrics.update(run.render)
     return run, metrics

@@ -8,14 +8,18 @@ whole graph (every node its own process, as ``ibvs run`` starts them) for one si
 second, at HD720 and at VGA, and the bench prints the wall time per simulated second and
 where it goes: each node times its hot sections (:mod:`ibvs_common.profiling`) and
 publishes the totals on /diagnostics, which the run records; the recorder times itself.
-The graph runs with renderer 'opengl' (issue 24) ``--runs`` times per resolution (medians
-against the targets, the load average printed before each run), then once with the
-default renderer for reference (issue 11's targets). The accuracy of the features
-(:func:`ibvs_experiments.analysis.feature_errors`) of the 'opengl' runs, and the wall time of a
+The graph runs ``--runs`` times per resolution (medians against issue 24's targets, the
+load average printed before each run; the simulator's one renderer, ibvs_sim.gl_renderer,
+on the device it chose, which the run's metrics name). The accuracy of the features
+(:func:`ibvs_experiments.analysis.feature_errors`), and the wall time of a
 0.3 s ``ibvs run`` (start-up, run, stop, analysis, figures), are printed
 against their targets too (the short run's target is start to metrics: until
-``metrics.json`` is written; start to exit, with the figures, is printed beside it). Figures
-go to stdout and ``bench/results.json``. Benchmarks print numbers; no test asserts on time.
+``metrics.json`` is written; start to exit, with the figures, is printed beside it). Last,
+the nodes alone against a real cell's clock (:mod:`.nodes_bench`, issue 35): a recorded
+real-cell run replayed at 30 Hz on the wall clock into the feature, feedback, feedforward
+and joint-controller nodes, at HD720 and VGA: frame-to-command latency (mean, p95, max)
+against one frame period, and each node's CPU. Figures go to stdout and
+``bench/results.json``. Benchmarks print numbers; no test asserts on time.
 """
 
 import argparse
@@ -47,16 +51,13 @@ BREAKDOWN = (
     ('sim_node', 'lockstep_round_trip', 'lockstep round trips (/joint_states out, command in)'),
     ('recorder', 'recording', 'recording (another process, off the lockstep)'),
 )
-#: The speed targets on this repository's 2-core machine (issue 11): wall time per simulated
-#: second of scenario 1 by resolution, and the lockstep round trip per physics step.
-WALL_PER_SIM_S_TARGET = {'HD720': 5.0, 'VGA': 2.0}
+#: The lockstep round trip per physics step (issue 11's target on this 2-core machine).
 ROUND_TRIP_MS_TARGET = 0.5
-#: Issue 24's targets, with renderer 'opengl': wall time per simulated second by resolution,
+#: Issue 24's targets: wall time per simulated second of scenario 1 by resolution,
 #: the median feature error against the true projection, and the wall time of a 0.3 s
 #: ``ibvs run`` from start to metrics: half of the 9.5 s the issue measured before (9-10 s
 #: on an idle machine).
-FAST_RENDERER = 'opengl'
-FAST_WALL_PER_SIM_S_TARGET = {'HD720': 1.0, 'VGA': 0.6}
+WALL_PER_SIM_S_TARGET = {'HD720': 1.0, 'VGA': 0.6}
 FEATURE_ERROR_PX_TARGET = 0.05
 SHORT_RUN_S = 0.3
 SHORT_RUN_WALL_S_TARGET = 9.5 / 2.0
@@ -64,6 +65,9 @@ SHORT_RUN_WALL_S_TARGET = 9.5 / 2.0
 #: process (issue 24: 0.06-0.09 ms); rendering: the same pair rendered alone (ibvs_sim.bench,
 #: pinned to one core, so on two idle cores the graph's render can come in under it).
 ROUND_TRIP_FLOOR_MS = 0.09
+#: Issue 35's target of the nodes alone: frame-to-command latency p95 at most one frame
+#: period of the ZED 2 at 30 Hz, ms.
+NODES_ALONE_P95_MS_TARGET = 1e3 / 30.0
 
 
 class Table:
@@ -90,8 +94,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help='sim seconds of scenario 1 for the real-time factor (0: skip)')
     parser.add_argument('--out', default='bench', help='directory of results.json')
     parser.add_argument('--runs', type=int, default=3,
-                        help=f'graph runs per resolution with renderer {FAST_RENDERER} and '
-                        f'{SHORT_RUN_S} s runs for the start-up (medians)')
+                        help=f'graph runs per resolution and {SHORT_RUN_S} s runs for the '
+                        'start-up (medians)')
+    parser.add_argument('--nodes-alone-s', type=float, default=20.0,
+                        help='wall seconds of replay into the nodes alone per resolution '
+                        '(0: skip)')
+    parser.add_argument('--nodes-alone-record-s', type=float, default=2.0,
+                        help='sim seconds of the real-cell run recorded for the replay (once '
+                        'per resolution: a bag in OUT/nodes_alone/<resolution> is used again)')
     args = parser.parse_args(argv)
     table = Table()
     print(f'machine: {platform.processor() or platform.machine()}, '
@@ -110,16 +120,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     graph = {}
     if args.graph_duration > 0:
         for resolution in ('HD720', 'VGA'):
-            graph[f'{FAST_RENDERER}_{resolution}'] = repeated_graph(
-                resolution, args.graph_duration, Path(args.out), args.runs, table)
-        for resolution in ('HD720', 'VGA'):
-            graph[f'default_{resolution}'] = graph_breakdown(
-                resolution, args.graph_duration, Path(args.out), table=table)
+            graph[resolution] = repeated_graph(resolution, args.graph_duration,
+                                               Path(args.out), args.runs, table)
     short = short_run(args.runs) if args.runs > 0 else {}
+    alone = {}
+    if args.nodes_alone_s > 0:
+        for resolution in ('HD720', 'VGA'):
+            alone[resolution] = nodes_alone(resolution, Path(args.out) / 'nodes_alone',
+                                            args.nodes_alone_s, args.nodes_alone_record_s)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / 'results.json').write_text(json.dumps(
-        {'pieces': table.rows, 'graph': graph, 'short_run': short}, indent=2) + '\n')
+        {'pieces': table.rows, 'graph': graph, 'short_run': short, 'nodes_alone': alone},
+        indent=2) + '\n')
     print(f'wrote {out / "results.json"}')
     return 0
 
@@ -129,17 +142,29 @@ def _load():
     return f'{os.getloadavg()[0]:.2f}'
 
 
+def nodes_alone(resolution: str, out_dir: Path, replay_s: float,
+                record_s: float) -> dict[str, Any]:
+    """Measure the nodes alone at ``resolution`` (:mod:`.nodes_bench`) against the target."""
+    from . import nodes_bench
+    result = nodes_bench.measure(resolution, out_dir, replay_s, record_s)
+    if result.get('latency_p95_ms') is not None:
+        result['target'] = _target(
+            f'frame-to-command latency p95 at {resolution}, nodes alone at 30 Hz',
+            result['latency_p95_ms'], NODES_ALONE_P95_MS_TARGET, 'ms')
+    return result
+
+
 def repeated_graph(resolution: str, duration_s: float, out_dir: Path, runs: int,
                    table: Table) -> dict[str, Any]:
-    """Run the graph ``runs`` times with the fast renderer; print medians against targets."""
-    results = [graph_breakdown(resolution, duration_s, out_dir, FAST_RENDERER, table)
+    """Run the graph ``runs`` times; print medians against targets."""
+    results = [graph_breakdown(resolution, duration_s, out_dir, table)
                for _ in range(max(runs, 1))]
     per_sim = float(np.median([r['wall_s_per_sim_s'] for r in results]))
-    print(f'graph: renderer {FAST_RENDERER} at {resolution}, median of {len(results)} runs '
+    print(f'graph at {resolution}, median of {len(results)} runs '
           f'(load averages {", ".join(r["load_average"] for r in results)}):')
     targets = {'wall_s_per_sim_s': _target(
         f'wall time per simulated second at {resolution}', per_sim,
-        FAST_WALL_PER_SIM_S_TARGET[resolution], 's')}
+        WALL_PER_SIM_S_TARGET[resolution], 's')}
     errors = [r['feature_error_median_px'] for r in results
               if r.get('feature_error_median_px') is not None]
     if errors:
@@ -183,16 +208,14 @@ def short_run(runs: int) -> dict[str, Any]:
 
 
 def graph_breakdown(resolution: str, duration_s: float, out_dir: Path,
-                    renderer: str | None = None, table: Table | None = None) -> dict[str, Any]:
+                    table: Table | None = None) -> dict[str, Any]:
     """Run scenario 1 through the graph; print and return wall time per sim second by part."""
     from . import analysis, runner
     overrides = {'resolution': resolution}
-    if renderer is not None:
-        overrides['renderer'] = renderer
     load = _load()
-    print(f'graph: scenario 1 at {resolution}, renderer {renderer or "default"}, '
-          f'{duration_s:.2f} s of sim time, all cores, load average {load}')
-    name = f'graph_scenario1_{resolution}' + (f'_{renderer}' if renderer else '')
+    print(f'graph: scenario 1 at {resolution}, {duration_s:.2f} s of sim time, all cores, '
+          f'load average {load}')
+    name = f'graph_scenario1_{resolution}'
     result = runner.run_scenario('scenario1', out_dir / name,
                                  overrides=overrides, duration_s=duration_s,
                                  progress=lambda line: print(line, flush=True))
@@ -209,7 +232,7 @@ def graph_breakdown(resolution: str, duration_s: float, out_dir: Path,
         covered = entry.get('sim_time_s', 0.0)
         per_sim_s = total / covered if covered > 0 else float('nan')
         per_pass_ms = total / count * 1e3 if count else float('nan')
-        floor = _floor_ms(section, resolution, renderer, table)
+        floor = _floor_ms(section, resolution, table)
         rows.append({'node': node, 'section': section, 'what': label,
                      'wall_s_per_sim_s': per_sim_s, 'per_pass_ms': per_pass_ms,
                      'passes': count, 'sim_time_s': covered, 'floor_ms': floor})
@@ -218,12 +241,9 @@ def graph_breakdown(resolution: str, duration_s: float, out_dir: Path,
               + floor_text)
     per_sim = wall_s / sim_s
     print(f'  {"wall time per simulated second (total)":58s} {per_sim:7.3f} s '
-          f'(real-time factor {sim_s / wall_s:.3f}; {sim_s:.3f} s sim in {wall_s:.1f} s)')
+          f'(real-time factor {sim_s / wall_s:.3f}; {sim_s:.3f} s sim in {wall_s:.1f} s; '
+          f'rendered on {result.metrics.get("render_device", "?")})')
     targets = {}
-    limit = WALL_PER_SIM_S_TARGET.get(resolution) if renderer is None else None
-    if limit is not None:
-        targets['wall_s_per_sim_s'] = _target(f'wall time per simulated second at {resolution}',
-                                              per_sim, limit, 's')
     trip = next(r['per_pass_ms'] for r in rows if r['section'] == 'lockstep_round_trip')
     targets['round_trip_ms'] = _target('lockstep round trip', trip, ROUND_TRIP_MS_TARGET, 'ms')
     errors = analysis.feature_errors(analysis.load_run(result.bag_path))
@@ -231,20 +251,21 @@ def graph_breakdown(resolution: str, duration_s: float, out_dir: Path,
     if median_error is not None:
         print(f'  {"features against the true projection, median |error|":58s} '
               f'{median_error:7.4f} px ({len(errors)} measured frames)')
-    return {'resolution': resolution, 'renderer': renderer or 'default',
-            'load_average': load, 'sim_duration_s': sim_s, 'wall_duration_s': wall_s,
+    return {'resolution': resolution, 'render_device': result.metrics.get('render_device'),
+            'render_hardware': result.metrics.get('render_hardware'), 'load_average': load,
+            'sim_duration_s': sim_s, 'wall_duration_s': wall_s,
             'wall_s_per_sim_s': per_sim, 'real_time_factor': sim_s / wall_s,
             'final_position_error_m': result.metrics.get('final_position_error_m'),
             'final_tool_axis_error_deg': result.metrics.get('final_tool_axis_error_deg'),
             'feature_error_median_px': median_error, 'breakdown': rows, 'targets': targets}
 
 
-def _floor_ms(section, resolution, renderer, table):
+def _floor_ms(section, resolution, table):
     """Return the floor (ms a pass) of a graph section where one is known, else None."""
     if section == 'lockstep_round_trip':
         return ROUND_TRIP_FLOOR_MS
     if section == 'render' and table is not None:
-        wanted = f'sim: stereo pair {resolution} ({renderer or "egl"}, simulator default'
+        wanted = f'sim: stereo pair {resolution} (opengl, simulator default'
         for row in table.rows:
             if row['name'].startswith(wanted):
                 return row['median_ms']

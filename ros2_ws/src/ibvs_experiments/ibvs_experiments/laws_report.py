@@ -57,14 +57,6 @@ CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
          'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
 #: Each case's line style in the law figures (another case: dotted).
 CASE_STYLES = {'ideal': '-', 'limited': '--'}
-#: The renderer of every law run (issue 22): our OpenGL renderer, at HD720 about a quarter
-#: of the default's wall time per simulated second (PyBullet's EGL plugin) with features as
-#: accurate, 0.004 px from the true projection against 0.002 (docs/speed.md). The laws are
-#: compared on one camera, so which renderer matters less than the report's time: the
-#: study's 24 runs are 96 of its 141 simulated seconds (make report 7 min 42 s -> 4 min
-#: 57 s, 2026-11-26). The paper's reproduction (the scenario studies, Figure 13) keeps the
-#: default renderer and its results to the bit.
-RENDERER = {'renderer': 'opengl'}
 
 
 @dataclass(frozen=True)
@@ -94,7 +86,7 @@ class LawRun:
 
 def overrides_for(law: str, case: str) -> dict[str, Any]:
     """Return the parameter overrides of one run (the law's feedforward ones included)."""
-    return {**CASES[case], **RENDERER, 'servo_law': law, **feedforward_overrides(law)}
+    return {**CASES[case], 'servo_law': law, **feedforward_overrides(law)}
 
 
 def plan(out_dir: str | Path, laws: Iterable[str] = SERVO_LAWS,

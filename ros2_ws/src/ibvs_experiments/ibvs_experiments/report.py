@@ -293,9 +293,10 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
     Run the report's studies and write ``<out_dir>/report.md``; return its path.
 
     ``laws``: also the servo laws side by side (:func:`.laws_report.specs`, 24 runs on Ray
-    with the other studies, with renderer 'opengl': :data:`.laws_report.RENDERER`);
-    default: unless ``quick``. A run that two studies name (the same :func:`run_identity`)
-    runs once (:func:`shared_runs`): the sweep's two runs at 100 % are scenario 1's.
+    with the other studies); default: unless ``quick``. A run that two studies name (the
+    same :func:`run_identity`) runs once (:func:`shared_runs`): the sweep's two runs at
+    100 % are scenario 1's, the law studies' paper runs with ideal actuators the scenario
+    studies'.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

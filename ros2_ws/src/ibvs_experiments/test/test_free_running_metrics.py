@@ -23,3 +23,14 @@ def test_latency_from_exposure_to_first_command_and_rtf_held():
 def test_a_lockstep_run_gains_no_keys():
     assert free_running_metrics(np.zeros((0, 2)), []) == {}
     assert free_running_metrics([], [0.1]) == {}
+
+
+def test_the_render_device_comes_from_the_simulators_diagnostics():
+    """render_device and render_hardware (issue 35), from /diagnostics strings."""
+    from ibvs_experiments.analysis import render_metrics
+    assert render_metrics({'render_device': 'llvmpipe (LLVM 15.0.6, 256 bits)',
+                           'render_hardware': 'False'}) == {
+        'render_device': 'llvmpipe (LLVM 15.0.6, 256 bits)', 'render_hardware': False}
+    assert render_metrics({'render_device': 'NVIDIA H100', 'render_hardware': 'True'})[
+        'render_hardware'] is True
+    assert render_metrics({}) == {}  # physics only: nothing drawn, no keys

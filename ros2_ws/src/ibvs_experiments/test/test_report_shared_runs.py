@@ -30,9 +30,14 @@ def test_the_report_runs_the_scenario_runs_that_other_studies_repeat_once():
     sweep = by_name[report.SWEEP_STUDY]
     expected = {(report.SWEEP_STUDY, index_of(sweep, l2_scale=1.0)): ('scenario1', 0),
                 (report.SWEEP_STUDY, index_of(sweep, l4_scale=1.0)): ('scenario1', 0)}
-    # The law study's paper runs with ideal actuators differ from the scenario studies' by
-    # their renderer only (laws_report.RENDERER): that is enough to run them apart.
-    assert laws_report.overrides_for('paper', 'ideal')['renderer'] == 'opengl'
+    # The law study's paper runs with ideal actuators are the scenario studies' runs (one
+    # renderer since issue 35: nothing tells them apart), so they run once.
+    for n in (1, 2, 3):
+        laws = by_name[f'laws_ideal_scenario{n}']
+        paper_run = next(run.index for run in laws.runs()
+                         if run.overrides['servo_law'] == 'paper')
+        expected[(laws.name, paper_run)] = (f'scenario{n}', 0)
+    assert 'renderer' not in laws_report.overrides_for('paper', 'ideal')
     assert shared == expected
     assert sum(len(s.runs()) for s in to_run) == \
         sum(len(s.runs()) for s in specs) - len(expected)
@@ -79,10 +84,11 @@ def test_every_run_gets_a_record_and_the_sweep_reads_scenario_1_at_its_nominal_p
     assert all(r['final_position_error_m'] == 1e-6 for r in nominal), "scenario 1's run"
     others = [r['final_position_error_m'] for r in rows if r['scale'] != 1.0]
     assert len(set(others)) == len(others) == len(rows) - 2 and 1e-6 not in others
-    for law in ('paper', 'ibvs'):  # the law study's own runs (its renderer differs)
-        run = next(r for r in records['laws_ideal_scenario2']
-                   if r['overrides']['servo_law'] == law)
-        assert run['run_dir'].startswith('/runs/laws_ideal_scenario2/') and 'same_as' not in run
+    law_runs = {r['overrides']['servo_law']: r for r in records['laws_ideal_scenario2']}
+    # the law study's own run, and its paper run: scenario 2's
+    assert law_runs['ibvs']['run_dir'].startswith('/runs/laws_ideal_scenario2/')
+    assert 'same_as' not in law_runs['ibvs']
+    assert law_runs['paper']['run_dir'].startswith('/runs/scenario2/')
 
 
 def test_build_report_runs_a_shared_run_once_and_shows_it_in_every_study(tmp_path,

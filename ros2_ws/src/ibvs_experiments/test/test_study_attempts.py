@@ -70,7 +70,7 @@ def test_the_progress_line_says_a_run_was_attempted_again():
     out = io.StringIO()
     progress = study.Progress(total=1, cached=0, out=out)
     progress.update('laws#2', {'status': 'ok', 'metrics': {'final_position_error_m': 2e-4},
-                               'earlier_failures': ['run failed: the lens worker is gone']})
+                               'earlier_failures': ['run failed: sim_node exited with -11']})
     out = out.getvalue()
     assert '1/1' in out and '0.200 mm' in out
-    assert 'attempt 1 of laws#2, run again: a node died: run failed: the lens worker' in out
+    assert 'attempt 1 of laws#2, run again: a node died: run failed: sim_node exited' in out

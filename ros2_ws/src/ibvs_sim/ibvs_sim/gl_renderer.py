@@ -1,10 +1,18 @@
 """
 A renderer of our own: the world's visual shapes drawn with OpenGL (moderngl), no PyBullet.
 
-Why. PyBullet's EGL plugin spends 5-9 ms of every ``getCameraImage`` call on llvmpipe in a
-shadow-map pass that no argument reaches, however small the image (docs/speed.md). The same
-triangles drawn directly cost a fraction of that, so ``sim_node`` offers this renderer as
-``renderer: opengl``; PyBullet's renderers stay the default.
+The simulator's renderer (:class:`ibvs_sim.rendering.Renderer`). PyBullet's own renderers
+were retired (issue 35): its EGL plugin spent 5-9 ms of every ``getCameraImage`` call on
+llvmpipe in a shadow-map pass that no argument reaches, however small the image, and the
+same triangles drawn directly cost a fraction of that (docs/speed.md).
+
+Device (:func:`device_order`). The context is opened once, at construction, on an EGL
+device: a GPU's when the EGL library lists one and a context opens on it, Mesa's software
+rasteriser (llvmpipe) otherwise; :attr:`GLRenderer.device` says which
+(:class:`ibvs_sim.rendering.RenderDevice`), and the simulator reports it in the run's
+metrics (``render_device``, ``render_hardware``). ``GLCONTEXT_DEVICE_INDEX`` (glcontext's
+variable) pins one device index. A GPU and llvmpipe may round an edge pixel differently:
+runs compare to the bit on one device.
 
 What it draws. :class:`GLRenderer` is given the scene once, as :class:`Shape` s: triangles
 (positions and normals in the frame of a *part*, e.g. a robot link), a colour, and the part
@@ -22,9 +30,9 @@ above only: measured 28 instead of 34 ms a pass at HD720, loaded machine; 2 pixe
 921600 change, where two solids of a link overlap and the depth test had a tie). Depth test
 on the depth buffer between the clipping planes of that projection.
 
-Lighting: that of PyBullet's EGL plugin (bullet3's useShadowMapInstancing shaders) without
-its shadows: a directional light towards ``light_direction`` (the simulator's, as it gives
-PyBullet: :data:`ibvs_sim.world.LIGHT`), intensity
+Lighting: that of PyBullet's former EGL plugin (bullet3's useShadowMapInstancing shaders)
+without its shadows: a directional light towards ``light_direction`` (the simulator's:
+:data:`ibvs_sim.world.LIGHT_DIRECTION`), intensity
 i = 1/2 + 1/2 clamp(n . l, -1, 1), times 0.7 on faces turned away from the light, and the
 colour rgb (1/2 + i/2); no specular highlight. The robot casts no shadow on the ground.
 Computed once a pixel from the interpolated normal, but once a vertex for the flat shapes
@@ -34,8 +42,8 @@ Cost: a pass draws only the shapes that can reach its pixels, and none that the 
 paints over (:meth:`GLRenderer.render`); a stereo pair's passes are drawn together
 (:meth:`GLRenderer.render_passes`). docs/speed.md has the measurements.
 
-Determinism: one context, fixed geometry, no blending or multisampling; llvmpipe rasterises
-the same triangles to the same pixels every time (tested to the bit).
+Determinism: one context, fixed geometry, no blending or multisampling; one device
+rasterises the same triangles to the same pixels every time (tested to the bit on llvmpipe).
 """
 
 from collections.abc import Sequence
@@ -43,11 +51,14 @@ import contextlib
 import ctypes
 from dataclasses import dataclass
 import math
+import os
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-#: Background colour: PyBullet's EGL plugin's (measured: 178, 178, 204 of 255).
+from .rendering import Pass, RenderDevice
+
+#: Background colour: PyBullet's former EGL plugin's (measured: 178, 178, 204 of 255).
 BACKGROUND_RGB = (0.7, 0.7, 0.8)
 #: Facets of a cylinder's side: a chord deviates 0.1 % of the radius from the circle.
 CYLINDER_SEGMENTS = 64
@@ -127,46 +138,70 @@ class GLRendererError(RuntimeError):
     """No OpenGL context can be created here, or the scene cannot be drawn."""
 
 
-class _CurrentEGL:
+#: The extension by which Mesa marks its software device (llvmpipe) among the EGL devices.
+SOFTWARE_DEVICE = 'EGL_MESA_device_software'
+#: GL_RENDERER names of software rasterisers (Mesa's).
+SOFTWARE_RENDERERS = ('llvmpipe', 'softpipe', 'swrast')
+#: glcontext's variable that pins the EGL device index (it wins over the argument).
+DEVICE_INDEX_VARIABLE = 'GLCONTEXT_DEVICE_INDEX'
+_EGL_EXTENSIONS = 0x3055
+_MAX_DEVICES = 32
+
+
+@dataclass(frozen=True)
+class EGLDevice:
+    """One device that EGL lists (eglQueryDevicesEXT): its index and its extensions."""
+
+    index: int
+    extensions: frozenset
+
+    @property
+    def software(self) -> bool:
+        """Return whether this is Mesa's software device."""
+        return SOFTWARE_DEVICE in self.extensions
+
+
+def egl_devices() -> list[EGLDevice]:
     """
-    Restore the EGL context, surfaces and display that were current on entry, on exit.
+    Return the EGL devices of this machine, in EGL's order (glcontext's device indices).
 
-    Another EGL user of the process (PyBullet's EGL plugin) makes its context current once,
-    with its own pbuffer surface, and expects it to stay so. moderngl makes a new standalone
-    context current and leaves it so, and its own ``with ctx`` restores the previous context
-    without its surfaces; either way the plugin then draws into nothing (measured: black
-    images). Every use of our context is wrapped in this, and after it the previous state,
-    or no context at all, is current again.
+    Empty where libEGL or its device enumeration (EGL_EXT_device_enumeration) is missing.
     """
-
-    _EGL_DRAW, _EGL_READ = 0x3059, 0x305A
-
-    def __init__(self):
-        """Bind the EGL entry points (libEGL.so.1, the library glcontext loads too)."""
+    try:
         egl = ctypes.CDLL('libEGL.so.1')
-        for name in ('eglGetCurrentDisplay', 'eglGetCurrentContext', 'eglGetCurrentSurface'):
-            getattr(egl, name).restype = ctypes.c_void_p
-        egl.eglGetCurrentSurface.argtypes = [ctypes.c_int]
-        egl.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
-        self._egl = egl
-        self._saved = []
+    except OSError:
+        return []
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    query, string = (egl.eglGetProcAddress(name) for name in
+                     (b'eglQueryDevicesEXT', b'eglQueryDeviceStringEXT'))
+    if not query or not string:
+        return []
+    query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
+                             ctypes.POINTER(ctypes.c_int))(query)
+    string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(string)
+    handles, count = (ctypes.c_void_p * _MAX_DEVICES)(), ctypes.c_int()
+    if not query(_MAX_DEVICES, handles, ctypes.byref(count)):
+        return []
+    return [EGLDevice(i, frozenset((string(handles[i], _EGL_EXTENSIONS) or b'').decode()
+                                   .split())) for i in range(count.value)]
 
-    def save(self):
-        """Remember what is current now."""
-        egl = self._egl
-        self._saved.append((egl.eglGetCurrentDisplay(), egl.eglGetCurrentSurface(self._EGL_DRAW),
-                            egl.eglGetCurrentSurface(self._EGL_READ),
-                            egl.eglGetCurrentContext()))
 
-    def restore(self):
-        """Make current again what :meth:`save` found; release ours if it found nothing."""
-        display, draw, read, context = self._saved.pop()
-        if display:
-            self._egl.eglMakeCurrent(display, draw, read, context)
-        else:
-            ours = self._egl.eglGetCurrentDisplay()
-            if ours:
-                self._egl.eglMakeCurrent(ours, None, None, None)
+def device_order(devices: Sequence[EGLDevice]) -> list[int | None]:
+    """
+    Return the device indices to try a context on, first to last.
+
+    The hardware devices (GPUs) in EGL's order, then the software ones; ``[None]`` (EGL's
+    default display) where none is listed.
+    """
+    ordered = sorted(devices, key=lambda d: (d.software, d.index))
+    return [d.index for d in ordered] or [None]
+
+
+def is_hardware(gl_renderer: str) -> bool:
+    """Return whether a GL_RENDERER string names a GPU (not a software rasteriser)."""
+    name = gl_renderer.lower()
+    return not any(soft in name for soft in SOFTWARE_RENDERERS)
 
 
 @dataclass(frozen=True)
@@ -285,17 +320,21 @@ class GLRenderer:
     """
     Draw fixed :class:`Shape` s moved by their parts' poses on a standalone EGL context.
 
-    ``shapes``: the scene; parts are numbered 0 .. P - 1 (P <= MAX_PARTS). ``near``, ``far``:
-    the clipping planes of :func:`ibvs_sim.rendering.projection_matrix`;
-    ``light_direction``: towards the light, in {O}. Raises
-    :class:`GLRendererError` when no OpenGL 3.3 context can be created.
+    The :class:`ibvs_sim.rendering.Renderer` of the simulator. ``shapes``: the scene; parts
+    are numbered 0 .. P - 1 (P <= MAX_PARTS). ``near``, ``far``: the clipping planes of
+    :func:`ibvs_sim.rendering.projection_matrix`; ``light_direction``: towards the light, in
+    {O}. ``devices``: the EGL devices to choose from (default :func:`egl_devices`), tried in
+    the order of :func:`device_order`; the first on which an OpenGL 3.3 context opens draws
+    (:attr:`device`), and why each one before it did not is kept in
+    :attr:`devices_refused`. Raises :class:`GLRendererError` when none opens.
     """
 
     def __init__(self, shapes: Sequence[Shape], near: float, far: float,
-                 light_direction: ArrayLike) -> None:
+                 light_direction: ArrayLike, devices: Sequence[EGLDevice] | None = None
+                 ) -> None:
         """Create the context, compile the shaders, upload the triangles (module docstring)."""
         try:
-            import moderngl  # here: a World without this renderer never loads OpenGL
+            import moderngl  # here: importing the module loads no OpenGL
         except ImportError as exc:
             raise GLRendererError(f'moderngl is not installed: {exc}') from None
         parts = 1 + max((s.part for s in shapes), default=0)
@@ -308,27 +347,42 @@ class GLRenderer:
             raise GLRendererError(f'light_direction must be 3 finite values, not all 0: '
                                   f'{light_direction!r}')
         self._light = tuple(light / np.linalg.norm(light))
-        try:
-            self._current = _CurrentEGL()
-        except OSError as exc:
-            raise GLRendererError(f'no libEGL here: {exc}') from None
-        self._current.save()
-        try:
-            self._ctx = moderngl.create_context(standalone=True, backend='egl', require=330)
-        except Exception as exc:  # glcontext raises plain Exceptions
-            self._current.restore()
-            raise GLRendererError(f'no standalone EGL OpenGL 3.3 context: {exc}') from None
         self._moderngl = moderngl
+        self._ctx = None
         self._fbos = []
+        #: Why a context did not open on each device tried before the one that draws.
+        self.devices_refused = []
+        order = ([None] if os.environ.get(DEVICE_INDEX_VARIABLE)
+                 else device_order(egl_devices() if devices is None else devices))
+        for index in order:
+            options = {} if index is None else {'device_index': index}
+            try:
+                self._ctx = moderngl.create_context(standalone=True, backend='egl',
+                                                    require=330, **options)
+                break
+            except Exception as exc:  # glcontext raises plain Exceptions
+                self.devices_refused.append(f'EGL device {index}: {exc}')
+        if self._ctx is None:
+            raise GLRendererError('no standalone EGL OpenGL 3.3 context: '
+                                  + '; '.join(self.devices_refused))
+        name = self._ctx.info.get('GL_RENDERER', '?')
+        #: The OpenGL implementation that draws (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)').
+        self.device = RenderDevice(name, is_hardware(name))
         try:
-            self._upload(shapes, parts)
-        finally:
-            self._current.restore()
+            with self._use():
+                self._upload(shapes, parts)
+        except Exception:
+            self._ctx.release()  # with whatever _upload made in it
+            self._ctx = None
+            raise
+
+    def __repr__(self) -> str:
+        """Name the renderer and its device."""
+        kind = 'GPU' if self.device.hardware else 'software'
+        return f'opengl on {self.device.gl_renderer} ({kind})'
 
     def _upload(self, shapes, parts):
         """Compile the shaders and upload the triangles into one vertex buffer."""
-        #: The OpenGL implementation that draws (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)').
-        self.gl_renderer = self._ctx.info.get('GL_RENDERER', '?')
         # Program 0 lights each pixel (smooth shapes), program 1 each vertex (flat shapes).
         fill = {'parts': parts, 'lighting': _LIGHTING}
         self._programs = [
@@ -390,12 +444,8 @@ class GLRenderer:
     @contextlib.contextmanager
     def _use(self):
         """Make our context current in the block, and what was current before after it."""
-        self._current.save()
-        self._ctx.__enter__()
-        try:
+        with self._ctx:
             yield
-        finally:
-            self._current.restore()
 
     def _framebuffer(self, index, width, height):
         """Return framebuffer ``index`` (one per pass), at least ``width`` x ``height``."""
@@ -435,9 +485,7 @@ class GLRenderer:
         """
         return self.render_passes(part_poses, [(view, projection, width, height, covered)])[0]
 
-    def render_passes(self, part_poses: ArrayLike,
-                      passes: Sequence[tuple[ArrayLike, ArrayLike, int, int,
-                                             Sequence[tuple[int, int, int, int]]]]
+    def render_passes(self, part_poses: ArrayLike, passes: Sequence[Pass]
                       ) -> list[NDArray[np.uint8]]:
         """
         Return the images of several passes over one state of the scene, as :meth:`render`.
@@ -543,7 +591,5 @@ class GLRenderer:
                 for fbo in self._fbos:
                     if fbo is not None:
                         self._release(fbo)
-            self._current.save()
             self._ctx.release()
-            self._current.restore()
             self._ctx = None

@@ -1,5 +1,5 @@
 """
-The geometry of rendering the stereo pair with PyBullet: pure numpy, no PyBullet, no ROS.
+The geometry of rendering the stereo pair: pure numpy, no OpenGL, no PyBullet, no ROS.
 
 Rendering. Each lens is a pinhole with the intrinsics of :class:`ibvs_model.StereoIntrinsics`
 at the pose of :class:`ibvs_model.StereoCamera` shifted by -b/2 (left) or +b/2 (right) along
@@ -9,18 +9,10 @@ convention of ibvs_model.camera (the centre of pixel (i, j) is at u = i, v = j):
 
     x_ndc = 2 (u + 1/2) / W - 1,   y_ndc = 1 - 2 (v + 1/2) / H.
 
-The two renderers need two corrections to honour this convention exactly (measured: without
-them marker centres are off by up to 0.6 px):
+OpenGL's rasteriser samples pixel (i, j) of the window at (i + 1/2, j + 1/2), so under this
+projection it samples image pixel (i, j) exactly at u = i, v = j (:mod:`.gl_renderer`).
 
-- TinyRenderer samples pixel (i, j) at its corner (window coordinates (i, H - 1 - j)), not at
-  its centre, so the projection it is given has its principal point moved by half a pixel:
-  (c_u - 1/2, c_v + 1/2).
-- The EGL plugin draws into a 1024 x 768 window and resamples larger requests by nearest
-  neighbour (bullet3 eglRendererVisualShapeConverter.cpp), which shifts features by up to
-  0.6 px at HD720. Images wider or taller than the window are rendered in tiles (each with
-  its own principal point) and put together.
-
-Pixel integration. Both renderers sample each pixel at one point, so a marker's outline is
+Pixel integration. The renderer samples each pixel at one point, so a marker's outline is
 a staircase and its measured centre jumps by a few hundredths of a pixel as it moves, which
 stereo turns into millimetres of depth. A camera pixel integrates light over its area:
 ``supersampling`` s > 1 renders s x s samples per pixel (the same pinhole with f and the
@@ -35,12 +27,15 @@ a marker moves by 0.005 px rms with its sub-pixel position instead of 0.02-0.04 
 everywhere (about 0.3 mm instead of 1.3 mm of tool position at 2.4 m), for a quarter of the
 cost (measured at HD720 near the target pose).
 
-:class:`ibvs_sim.world.World` makes the PyBullet calls with what this module computes.
+:class:`Renderer` is what :class:`ibvs_sim.world.World` draws with (one per World):
+:class:`ibvs_sim.gl_renderer.GLRenderer` implements it; World computes the passes with what
+this module computes and pastes the images together.
 """
 
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol, TYPE_CHECKING
 
 from ibvs_model.camera import merge_windows, StereoIntrinsics
 import numpy as np
@@ -52,8 +47,6 @@ if TYPE_CHECKING:
 #: Near and far clipping planes of the render, m.
 NEAR_M = 0.05
 FAR_M = 30.0
-#: Size of the EGL plugin's window (bullet3: START_WIDTH, START_HEIGHT).
-EGL_WINDOW = (1024, 768)
 #: Largest number of samples per pixel along each axis (render_stereo's supersampling).
 MAX_SUPERSAMPLING = 4
 #: The simulator's default (sim_node parameter render_supersampling): see the docstring.
@@ -66,20 +59,64 @@ DEFAULT_FOCUS_SUPERSAMPLING = 8
 FOCUS_MARGIN_PX = 2
 
 
-def projection_matrix(intrinsics: StereoIntrinsics, near: float = NEAR_M, far: float = FAR_M,
-                      renderer: str = 'egl') -> NDArray[np.float64]:
+#: One pass of :meth:`Renderer.render_passes`: (view, projection, width, height, covered).
+Pass = tuple[ArrayLike, ArrayLike, int, int, Sequence[tuple[int, int, int, int]]]
+
+
+@dataclass(frozen=True)
+class RenderDevice:
+    """
+    What draws a :class:`Renderer`'s images: the OpenGL implementation and its kind.
+
+    ``gl_renderer``: OpenGL's GL_RENDERER string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)',
+    'NVIDIA H100 80GB HBM3/PCIe/SSE2'); ``hardware``: True on a GPU, False on a software
+    rasteriser (Mesa's llvmpipe).
+    """
+
+    gl_renderer: str
+    hardware: bool
+
+
+class Renderer(Protocol):
+    """
+    What :class:`ibvs_sim.world.World` draws with: a fixed scene of parts moved by poses.
+
+    The scene (the shapes of every part) is given at construction; each call draws it with
+    the parts at ``part_poses`` (P, 4, 4), poses in {O}. :class:`ibvs_sim.gl_renderer.
+    GLRenderer` is the implementation.
+    """
+
+    #: The OpenGL implementation that draws, chosen once at construction.
+    device: RenderDevice
+
+    def render_passes(self, part_poses: ArrayLike, passes: Sequence[Pass]
+                      ) -> list[NDArray[np.uint8]]:
+        """
+        Return one (height, width, 3) uint8 image per pass, the parts at ``part_poses``.
+
+        A pass is (view, projection, width, height, covered): the OpenGL view matrix
+        (:func:`view_matrix`), the projection of the image (:func:`projection_matrix`), its
+        size, and windows (u0, v0, u1, v1) of it that the caller paints over, whose pixels
+        may then be anything.
+        """
+
+    def close(self) -> None:
+        """Release what the renderer holds (idempotent)."""
+
+
+def projection_matrix(intrinsics: StereoIntrinsics, near: float = NEAR_M, far: float = FAR_M
+                      ) -> NDArray[np.float64]:
     """
     Return the 4x4 OpenGL projection matrix of a pinhole with ``intrinsics`` (eq. 16).
 
     Eye coordinates are OpenGL's (x right, y up, looking along -z); see the module docstring
-    for the pixel convention and the half-pixel shift that ``renderer`` 'tiny' needs.
+    for the pixel convention.
     """
     k = intrinsics
     w, h = float(k.width), float(k.height)
-    cu, cv = (k.cu - 0.5, k.cv + 0.5) if renderer == 'tiny' else (k.cu, k.cv)
     return np.array([
-        [2.0 * k.fu / w, 0.0, 1.0 - 2.0 * (cu + 0.5) / w, 0.0],
-        [0.0, 2.0 * k.fv / h, 2.0 * (cv + 0.5) / h - 1.0, 0.0],
+        [2.0 * k.fu / w, 0.0, 1.0 - 2.0 * (k.cu + 0.5) / w, 0.0],
+        [0.0, 2.0 * k.fv / h, 2.0 * (k.cv + 0.5) / h - 1.0, 0.0],
         [0.0, 0.0, -(far + near) / (far - near), -2.0 * far * near / (far - near)],
         [0.0, 0.0, -1.0, 0.0],
     ])
@@ -89,12 +126,7 @@ def ground_obj(half_size_m: float) -> str:
     """
     Return a Wavefront OBJ of the ground: one square of ``half_size_m`` each side, facing up.
 
-    One-sided on purpose. The EGL plugin draws the back faces of every body into its shadow
-    map (2048 x 2048 texels, drawn again for every image, whatever the image's size); a
-    ground box's underside covered all of it, which cost 9 ms of each EGL call on llvmpipe
-    (measured) and put the box's own top in its shadow. A square seen from above only is
-    never drawn there: the ground takes the light as the rest of the scene does, and the
-    robot casts its shadow on it.
+    One-sided: seen from above only (the renderer culls back faces, :mod:`.gl_renderer`).
     """
     h = float(half_size_m)
     if not (math.isfinite(h) and h > 0.0):
@@ -104,27 +136,6 @@ def ground_obj(half_size_m: float) -> str:
     lines += [f'v {x:.6f} {y:.6f} 0.0' for x, y in corners]
     lines += ['vn 0.0 0.0 1.0', 'f 1//1 2//1 3//1', 'f 1//1 3//1 4//1']
     return '\n'.join(lines) + '\n'
-
-
-def tiles(intrinsics: StereoIntrinsics, max_width: int = EGL_WINDOW[0],
-          max_height: int = EGL_WINDOW[1]) -> list[tuple[int, int, StereoIntrinsics]]:
-    """
-    Return the tiles of an image no larger than ``max_width`` x ``max_height``.
-
-    Each tile is (u0, v0, intrinsics of the tile): the same f_u, f_v with the principal
-    point moved to (c_u - u0, c_v - v0). Tiles split the image as evenly as possible.
-    """
-    k = intrinsics
-    nu = -(-k.width // max_width)
-    nv = -(-k.height // max_height)
-    u_edges = [round(i * k.width / nu) for i in range(nu + 1)]
-    v_edges = [round(j * k.height / nv) for j in range(nv + 1)]
-    out = []
-    for v0, v1 in zip(v_edges[:-1], v_edges[1:]):
-        for u0, u1 in zip(u_edges[:-1], u_edges[1:]):
-            out.append((u0, v0, StereoIntrinsics(u1 - u0, v1 - v0, k.fu, k.fv, k.cu - u0,
-                                                 k.cv - v0, k.baseline)))
-    return out
 
 
 def supersampled(intrinsics: StereoIntrinsics, factor: int) -> StereoIntrinsics:
@@ -188,25 +199,6 @@ def focus_windows(intrinsics: StereoIntrinsics, lens_pose: ArrayLike,
     return merge_windows(boxes)
 
 
-def render_windows(windows: Sequence[tuple[int, int, int, int]], factor: int,
-                   max_size: tuple[int, int] = EGL_WINDOW) -> list[tuple[int, int, int, int]]:
-    """
-    Return the windows to render with ``factor`` x ``factor`` samples per pixel, one call each.
-
-    Each call of the EGL renderer costs about 8 ms whatever its size (measured at HD720:
-    the plugin draws its whole 1024 x 768 window and its shadow map every time), so
-    separate ``windows`` whose bounding box, ``factor`` times finer, still fits
-    ``max_size`` are rendered as that one box; otherwise they stay as they are.
-    """
-    if len(windows) < 2:
-        return list(windows)
-    box = (min(w[0] for w in windows), min(w[1] for w in windows),
-           max(w[2] for w in windows), max(w[3] for w in windows))
-    if (box[2] - box[0]) * factor <= max_size[0] and (box[3] - box[1]) * factor <= max_size[1]:
-        return [box]
-    return list(windows)
-
-
 def window_intrinsics(intrinsics: StereoIntrinsics, window: Sequence[int]) -> StereoIntrinsics:
     """Return the intrinsics of the window (u0, v0, u1, v1) of an image: c moved to its corner."""
     u0, v0, u1, v1 = window
@@ -228,8 +220,3 @@ def view_matrix(lens_pose: ArrayLike) -> NDArray[np.float64]:
     """Return the OpenGL view matrix of an optical frame (x right, y down, z forward) in {O}."""
     flip = np.diag([1.0, -1.0, -1.0, 1.0])  # optical axes -> OpenGL eye axes
     return flip @ np.linalg.inv(lens_pose)
-
-
-def gl_matrix(matrix: ArrayLike) -> list[float]:
-    """Return a 4x4 matrix as the column-major list of 16 floats that PyBullet expects."""
-    return [float(v) for v in np.asarray(matrix).T.reshape(16)]

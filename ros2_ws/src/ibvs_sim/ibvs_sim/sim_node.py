@@ -81,7 +81,6 @@ only break the physics) is rejected too; the step then happens with the holding 
 goes on and the arm holds its position. Each rejection is logged and counted on /diagnostics.
 """
 
-from dataclasses import replace
 import time
 from typing import Any
 
@@ -249,22 +248,24 @@ class SimNode(Node):
                                  'it needs publish_images true; allowed: model')
         teach_pose = target_from_parameters(values) if teach else None
         config = SimConfig.from_values(values)
-        if not self._publish_images:  # physics only: no renderer to load, no lens worker
-            config = replace(config, renderer='tiny', render_parallel_lenses=False)
-        self.sim = Simulator(config, teach_pose=teach_pose)
+        # Physics only (publish_images false): no renderer to load.
+        self.sim = Simulator(config, teach_pose=teach_pose, render=self._publish_images)
         log = self.get_logger()
         pos_err, rot_err = self.sim.start_residual
         log.info(f'scenario {self.sim.scenario}: true start angles '
                  f'{np.round(np.degrees(self.sim.q_start), 3).tolist()} deg (IK residual '
                  f'{pos_err:.2e} m, {rot_err:.2e} rad); d_q '
                  f'{np.round(np.degrees(self.sim.d_q), 3).tolist()} deg; renderer '
-                 f'{self.sim.world.renderer if self._publish_images else "off"}; '
+                 f'{self.sim.world.renderer or "off"}; '
                  f'{"exact" if self.sim.frames_exact else "nearest-step"} frame times')
 
         self.diagnostics = Diagnostics(self, 'simulator')
         self.diagnostics.update(step=0, sim_time_s=0.0, waiting_for_ns=-1, frames=0,
-                                frames_lost=0, held_steps=0, lens_worker_restarts=0,
-                                renderer=self.sim.world.renderer, start_residual_m=pos_err)
+                                frames_lost=0, held_steps=0, start_residual_m=pos_err)
+        device = self.sim.world.render_device
+        if device is not None:  # what draws the images: reported in the run's metrics
+            self.diagnostics.update(render_device=device.gl_renderer,
+                                    render_hardware=device.hardware)
         self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
         # The lockstep's and the frames' messages go to their readers in this process as
         # objects, and through DDS to any elsewhere (ibvs_common.intra_process).
@@ -310,7 +311,6 @@ class SimNode(Node):
         self._frame_step = False
         self._published_at = None
         self.frames = 0
-        self._restarts_reported = 0
         self.held_steps = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._progress_since_log = True
@@ -444,7 +444,6 @@ class SimNode(Node):
             with timing.section('render'):
                 stamp, images, lost = sim.take_frame(render=self._publish_images)
             self.frames += 1
-            self._report_restarts(sim.world.lens_worker_restarts)
             if lost:
                 self._pub_lost.publish(Header(stamp=ns_stamp(stamp),
                                               frame_id=contract.CAMERA_FRAME))
@@ -460,14 +459,6 @@ class SimNode(Node):
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
                                 frames=self.frames, frames_lost=sim.frames_lost,
                                 held_steps=self.held_steps)
-
-    def _report_restarts(self, restarts):
-        """Log each new restart of the lens worker (a crash below us) and count them."""
-        for why in restarts[self._restarts_reported:]:
-            self.get_logger().warn(f'frame {self.frames}: {why}')
-        if len(restarts) != self._restarts_reported:
-            self._restarts_reported = len(restarts)
-            self.diagnostics.update(lens_worker_restarts=len(restarts))
 
     def _publish_tool_path(self):
         """Publish the true tool poses of the steps since the last batch, if any."""

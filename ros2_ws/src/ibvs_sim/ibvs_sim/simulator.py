@@ -34,7 +34,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from .camera_effects import calibrated_intrinsics, calibrated_pose, CameraEffects
 from .config import SimConfig
-from .lens_worker import LensWorkerError
 from .world import RendererError, World
 
 
@@ -51,18 +50,18 @@ class Simulator:
     The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
 
     ``config``: the sim_node parameters (:class:`.config.SimConfig`, each value checked
-    there). ``render_parallel_lenses`` renders the right lens in a second process
-    (:mod:`ibvs_sim.lens_worker`), the same images. ``teach_pose``: a flange pose T_E^O whose
-    stereo pair to render before the run (module docstring), or None.
+    there). ``teach_pose``: a flange pose T_E^O whose stereo pair to render before the run
+    (module docstring), or None. ``render``: False builds no renderer (physics only; a
+    frame is then taken without images, :meth:`take_frame`).
 
     Raises :class:`ConfigError` at construction for what no single parameter's range
     says: a camera rate above the physics rate, a start pose (or a pose to teach) the
     simulated robot cannot reach, a camera eye and look-at point that give no camera pose,
-    and a renderer or lens worker that cannot start here.
+    and a renderer that cannot start here.
     """
 
     def __init__(self, config: SimConfig = SimConfig(),
-                 teach_pose: ArrayLike | None = None) -> None:
+                 teach_pose: ArrayLike | None = None, render: bool = True) -> None:
         """Check the combinations, solve the start pose and build the PyBullet world."""
         self.config = config
         self.dt_ns = period_ns(config.physics_rate_hz)
@@ -105,12 +104,9 @@ class Simulator:
         self.render_marker_supersampling = config.render_marker_supersampling
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)),
-                               config.renderer, mount_height_m=config.mount_height_m,
-                               lens_worker=config.render_parallel_lenses)
+                               mount_height_m=config.mount_height_m, render=render)
         except RendererError as exc:
             raise ConfigError('renderer', str(exc)) from None
-        except LensWorkerError as exc:
-            raise ConfigError('render_parallel_lenses', str(exc)) from None
         self.teach_q = self.teach_images = None
         if teach_pose is not None:
             try:

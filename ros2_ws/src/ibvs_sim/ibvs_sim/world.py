@@ -11,21 +11,16 @@ commanded joint torques with TORQUE_CONTROL. Gravity is -9.81 m/s^2 along z of {
 integrates semi-implicitly: qd_{k+1} = qd_k + h qdd_k, q_{k+1} = q_k + h qd_{k+1}, with a
 fixed step h = 1 / physics_rate_hz.
 
-Rendering: the pure geometry (OpenGL matrices of the pinhole lenses, tiles of the EGL window,
-supersampling, the windows around the fiducials) is :mod:`ibvs_sim.rendering`; this module
-makes the PyBullet calls. The EGL plugin (OpenGL without a display) is used where it loads,
-TinyRenderer otherwise; with renderer 'opengl', our own renderer (:mod:`.gl_renderer`)
-draws PyBullet's visual shapes at PyBullet's link poses, without shadows. Lighting is
-mostly ambient, without specular highlights, so that a marker keeps its hue all over its
-disc. TinyRenderer draws no shadows (``shadow`` 0); the EGL
-plugin ignores that flag and always shades with its shadow map, so there the robot casts a
-shadow on the ground (a one-sided square: :func:`ibvs_sim.rendering.ground_obj`).
+Rendering: the pure geometry (OpenGL matrices of the pinhole lenses, supersampling, the
+windows around the fiducials) is :mod:`ibvs_sim.rendering`; the World holds one
+:class:`ibvs_sim.rendering.Renderer`, our OpenGL renderer (:mod:`.gl_renderer`), given
+PyBullet's visual shapes once and their link poses at each image, without shadows.
+Lighting is mostly ambient, without specular highlights, so that a marker keeps its hue all
+over its disc.
 """
 
 from collections.abc import Iterable
-import os
 from pathlib import Path
-import pkgutil
 import tempfile
 from typing import TYPE_CHECKING
 
@@ -38,16 +33,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 import pybullet
 
-from .config import MOUNT_HEIGHT_M, RENDERER
+from .config import MOUNT_HEIGHT_M
 from .gl_renderer import (box_triangles, cylinder_triangles, GLRenderer, GLRendererError,
                           obj_triangles, Shape, transformed)
-from .lens_worker import LensWorker, LensWorkerError
 from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
-                        DEFAULT_SUPERSAMPLING, EGL_WINDOW, FAR_M, focus_windows, gl_matrix,
-                        ground_obj,
-                        lens_poses, MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M,
-                        projection_matrix, render_windows, supersampled, tiles, view_matrix,
-                        window_intrinsics)
+                        DEFAULT_SUPERSAMPLING, FAR_M, focus_windows, ground_obj, lens_poses,
+                        MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M, projection_matrix,
+                        RenderDevice, Renderer, supersampled, view_matrix, window_intrinsics)
 
 if TYPE_CHECKING:
     from ibvs_model.camera import StereoIntrinsics
@@ -61,25 +53,21 @@ GROUND_HALF_SIZE_M = 6.0
 #: the base plane (its height: :data:`.config.MOUNT_HEIGHT_M`).
 RISER_HALF_SIZE_M = (0.4, 0.4)
 RISER_RGBA = (0.35, 0.35, 0.38, 1.0)
-#: Light: mostly ambient, a little diffuse from above and behind the camera, no specular.
-LIGHT = {'lightDirection': (0.3, -1.0, 2.0), 'lightColor': (1.0, 1.0, 1.0),
-         'lightDistance': 10.0, 'shadow': 0, 'lightAmbientCoeff': 0.75,
-         'lightDiffuseCoeff': 0.35, 'lightSpecularCoeff': 0.0}
-#: PyBullet's renderers draw a URDF cylinder as the convex hull of a 32-gon prism with a
-#: collision margin of 1 mm (bullet3 EGLRendererVisualShapeConverter: setMargin(0.001)),
-#: i.e. 1 mm thicker and longer at each end than the URDF says; renderer 'opengl' draws the
-#: same, so that the thin rods across the markers (the quill, 2.5 mm, and the shaft, 2 mm)
-#: cut the notches the detector was made for (measured at the target pose: without it the
-#: detected vertical separation of the markers is 0.02 px off, 0.16 deg of tool axis).
+#: Light: towards this direction of {O}, from above and behind the camera (the lighting of
+#: :mod:`.gl_renderer`).
+LIGHT_DIRECTION = (0.3, -1.0, 2.0)
+#: PyBullet's former renderers drew a URDF cylinder as the convex hull of a 32-gon prism
+#: with a collision margin of 1 mm (bullet3 EGLRendererVisualShapeConverter:
+#: setMargin(0.001)), i.e. 1 mm thicker and longer at each end than the URDF says; ours
+#: draws the same, so that the thin rods across the markers (the quill, 2.5 mm, and the
+#: shaft, 2 mm) cut the notches the detector was made for (measured at the target pose:
+#: without it the detected vertical separation of the markers is 0.02 px off, 0.16 deg of
+#: tool axis).
 PYBULLET_CYLINDER_MARGIN_M = 0.001
-#: Mesa's variable for the number of llvmpipe rendering threads (see World, lens_worker).
-LLVMPIPE_THREADS = 'LP_NUM_THREADS'
-#: The World that holds the process's EGL plugin, if any (one at a time: see World).
-_egl_owner = None
 
 
 class RendererError(RuntimeError):
-    """The requested renderer cannot be used here (e.g. the EGL plugin does not load)."""
+    """The World cannot draw: no OpenGL context opens here, or a shape is not supported."""
 
 
 def _pose_matrix(position, quaternion):
@@ -93,61 +81,31 @@ class World:
     """
     One PyBullet physics client with the robot (``params``) on a riser and a ground plane.
 
-    ``physics_rate_hz``, ``renderer``, ``mount_height_m``: as the parameters of these names
+    ``physics_rate_hz``, ``mount_height_m``: as the parameters of these names
     (:class:`.config.SimConfig`, which checks them). ``mount_height_m``: height of the robot's
     base plane (z = 0 of {O}) above the floor,
     which the riser fills under the base; 0 puts the robot on the floor (no riser). Riser
     and floor are drawn only: they are not in the paper's model and nothing collides with
     them, so a tool driven below the floor goes on moving but the camera no longer sees it.
 
-    ``renderer``: 'egl' (fail if the plugin does not load), 'tiny', or 'auto' (EGL where it
-    loads). The attribute ``renderer`` then says which one is used: 'egl' or 'tiny'. One
-    World per process at a time can use EGL; 'auto' gives the others TinyRenderer.
-    'opengl': our own renderer (:mod:`ibvs_sim.gl_renderer`) draws PyBullet's visual shapes
-    (``getVisualShapeData``) at the link poses PyBullet computes, on a standalone EGL context
-    of its own (any number of Worlds); :class:`RendererError` if none can be created.
-
-    ``lens_worker``: render the right lens in a second process (:mod:`ibvs_sim.lens_worker`)
-    while this one renders the left, so that a stereo pair takes about one lens's time on
-    two cores; the images are the same. Both processes then draw with one llvmpipe thread
-    each (``LP_NUM_THREADS=1`` unless the environment sets it): two renderers that each
-    spread over every core fight for them (measured on two cores: 44.5 ms instead of 47-48
-    ms a VGA pair). Not with 'opengl', which draws both lenses in one context.
+    ``render``: build the :attr:`renderer` (:class:`.gl_renderer.GLRenderer`, on a standalone
+    EGL context of its own: any number of Worlds), which draws PyBullet's visual shapes
+    (``getVisualShapeData``) at the link poses PyBullet computes; :class:`RendererError` if
+    it cannot. False: physics only, no OpenGL loaded, and nothing to render with.
     """
 
     def __init__(self, params: 'RobotParams' = IRB4600,
-                 physics_rate_hz: float = PHYSICS_RATE_HZ.default,
-                 renderer: str = RENDERER.default, with_tool: bool = True,
-                 mount_height_m: float = MOUNT_HEIGHT_M.default,
-                 lens_worker: bool = False) -> None:
+                 physics_rate_hz: float = PHYSICS_RATE_HZ.default, with_tool: bool = True,
+                 mount_height_m: float = MOUNT_HEIGHT_M.default, render: bool = True) -> None:
         """Connect a DIRECT client, load the URDF and set the dynamics (module docstring)."""
         self.mount_height_m = float(mount_height_m)
         self.params = params
         self.dt = 1.0 / physics_rate_hz
         self._client = pybullet.connect(pybullet.DIRECT)
-        self._plugin = None
-        self._gl = None
-        self._lens_worker = None
-        # 'opengl' draws both lenses in one context: faster than two processes on two cores
-        # (measured: 64 against 64-78 ms a VGA pair, 121-135 against 184-186 ms at HD720,
-        # loaded machine), as llvmpipe's own threads already use both.
-        lens_worker = lens_worker and renderer != 'opengl'
+        #: What draws the images (:class:`ibvs_sim.rendering.Renderer`); None: render false.
+        self.renderer: Renderer | None = None
         try:
-            if lens_worker:  # before the EGL plugin loads here; the worker inherits it
-                os.environ.setdefault(LLVMPIPE_THREADS, '1')
-                # Started first: its start-up overlaps with this process's below.
-                self._lens_worker = LensWorker({
-                    'params': params, 'physics_rate_hz': physics_rate_hz,
-                    'renderer': renderer, 'with_tool': with_tool,
-                    'mount_height_m': self.mount_height_m})
-            # The EGL plugin only draws bodies loaded after it: load it first.
-            self.renderer = self._setup_renderer(renderer)
-            self._setup(with_tool)
-            if self._lens_worker is not None and \
-                    self._lens_worker.wait_ready() != self.renderer:
-                raise LensWorkerError(f'the lens worker renders with '
-                                      f'{self._lens_worker.renderer!r}, this process with '
-                                      f'{self.renderer!r}')
+            self._setup(with_tool, render)
         except Exception:
             self.close()
             raise
@@ -155,7 +113,7 @@ class World:
     def _call(self, func, *args, **kwargs):
         return func(*args, physicsClientId=self._client, **kwargs)
 
-    def _setup(self, with_tool):
+    def _setup(self, with_tool, render):
         floor = -self.mount_height_m
         with tempfile.TemporaryDirectory(prefix='ibvs_sim_') as tmp:
             path = write_urdf(Path(tmp) / 'irb4600.urdf', self.params, with_tool)
@@ -164,13 +122,12 @@ class World:
             ground = Path(tmp) / 'ground.obj'
             ground.write_text(ground_obj(GROUND_HALF_SIZE_M))
             shape = self._call(pybullet.createVisualShape, pybullet.GEOM_MESH,
-                               fileName=str(ground), rgbaColor=GROUND_RGBA,
-                               specularColor=[0.0, 0.0, 0.0])
+                               fileName=str(ground), rgbaColor=GROUND_RGBA)
             self.ground = self._call(pybullet.createMultiBody, baseMass=0.0,
                                      baseVisualShapeIndex=shape, basePosition=(0.0, 0.0, floor))
             self._setup_bodies(with_tool, floor)
-            if self.renderer == 'opengl':  # while the mesh files exist
-                self._gl_setup()
+            if render:  # while the mesh files exist
+                self._renderer_setup()
 
     def _setup_bodies(self, with_tool, floor):
         """Find the links and joints, set the dynamics and the colours, add the riser."""
@@ -189,22 +146,12 @@ class World:
         for link in [-1] + list(self.links.values()):
             self._call(pybullet.changeDynamics, self.body, link, linearDamping=0.0,
                        angularDamping=0.0, jointDamping=0.0)
-            # The hardware renderer's default specular highlight would whiten the markers.
-            self._call(pybullet.changeVisualShape, self.body, link,
-                       specularColor=[0.0, 0.0, 0.0])
         self.riser = (self._box((*RISER_HALF_SIZE_M, self.mount_height_m / 2.0), floor / 2.0,
                                 RISER_RGBA) if self.mount_height_m > 0.0 else None)
-        if self.renderer == 'egl':
-            # The plugin's first two images differ from all later ones of the same scene (by
-            # up to 33 grey levels on ~1 % of the pixels, shadows): draw two tiny ones here,
-            # so that every image returned is reproducible.
-            for _ in range(2):
-                self._call(pybullet.getCameraImage, 8, 8,
-                           renderer=pybullet.ER_BULLET_HARDWARE_OPENGL)
 
-    def _gl_setup(self):
+    def _renderer_setup(self):
         """
-        Build the :class:`GLRenderer` of every visual shape of the world's bodies.
+        Build the :attr:`renderer` of every visual shape of the world's bodies.
 
         A part is one (body, link): the links of the robot move, the robot's base, the
         ground and the riser do not, so their poses are taken once here.
@@ -222,8 +169,8 @@ class World:
                 elif kind == pybullet.GEOM_MESH:
                     tris = obj_triangles(Path(mesh.decode()).read_text(), dims)
                 else:
-                    raise RendererError(f'renderer opengl: visual geometry {kind} of body '
-                                        f'{body} link {link} is not supported')
+                    raise RendererError(f'visual geometry {kind} of body {body} link {link} '
+                                        'is not supported')
                 part = parts.setdefault((body, link), len(parts))
                 shapes.append(Shape(part, *transformed(*tris, _pose_matrix(xyz, quat)),
                                     tuple(rgba[:3])))
@@ -231,9 +178,9 @@ class World:
                     static[part] = self._base_frame(body)
         robot_links = sorted(link for body, link in parts if body == self.body and link >= 0)
         try:
-            self._gl = GLRenderer(shapes, NEAR_M, FAR_M, LIGHT['lightDirection'])
+            self.renderer = GLRenderer(shapes, NEAR_M, FAR_M, LIGHT_DIRECTION)
         except GLRendererError as exc:
-            raise RendererError(f'renderer opengl: {exc}') from None
+            raise RendererError(f'the OpenGL renderer cannot start here: {exc}') from None
         self._gl_links = robot_links
         self._gl_link_parts = [parts[(self.body, link)] for link in robot_links]
         self._gl_poses = np.empty((len(parts), 4, 4))
@@ -250,7 +197,7 @@ class World:
         return _pose_matrix(position, quaternion) @ np.linalg.inv(inertial)
 
     def _gl_part_poses(self):
-        """Return the poses (P, 4, 4) of the parts of :meth:`_gl_setup` now."""
+        """Return the poses (P, 4, 4) of the parts of :meth:`_renderer_setup` now."""
         states = self._call(pybullet.getLinkStates, self.body, self._gl_links,
                             computeForwardKinematics=True)
         for part, state in zip(self._gl_link_parts, states):
@@ -260,56 +207,23 @@ class World:
     def _box(self, half_extents, z_centre, rgba):
         """Add a static box (visual only) centred on the z axis of {O}; return its body."""
         shape = self._call(pybullet.createVisualShape, pybullet.GEOM_BOX,
-                           halfExtents=half_extents, rgbaColor=rgba,
-                           specularColor=[0.0, 0.0, 0.0])
+                           halfExtents=half_extents, rgbaColor=rgba)
         return self._call(pybullet.createMultiBody, baseMass=0.0, baseVisualShapeIndex=shape,
                           basePosition=(0.0, 0.0, z_centre))
 
-    def _setup_renderer(self, renderer):
-        global _egl_owner
-        if renderer in ('tiny', 'opengl'):
-            return renderer
-        if _egl_owner is not None:
-            # A second EGL plugin in one process breaks the first one's renders (measured:
-            # the first world then draws nothing), so only one World may use it at a time.
-            if renderer == 'egl':
-                raise RendererError('another World of this process uses the EGL renderer; '
-                                    "close it or use renderer 'tiny'")
-            return 'tiny'
-        loader = pkgutil.get_loader('eglRenderer')
-        try:
-            if loader is not None:
-                plugin = self._call(pybullet.loadPlugin, loader.get_filename(),
-                                    '_eglRendererPlugin')
-            else:
-                plugin = self._call(pybullet.loadPlugin, 'eglRendererPlugin')
-        except pybullet.error:
-            plugin = -1
-        if plugin < 0:
-            if renderer == 'egl':
-                raise RendererError('the PyBullet EGL renderer plugin does not load here; '
-                                    "use renderer 'tiny' or 'auto'")
-            return 'tiny'
-        self._plugin = plugin
-        _egl_owner = self
-        return 'egl'
+    @property
+    def render_device(self) -> RenderDevice | None:
+        """Return what draws the images (GL_RENDERER, hardware or not); None: render false."""
+        return None if self.renderer is None else self.renderer.device
 
     def close(self) -> None:
-        """Stop the lens worker and disconnect the client (idempotent)."""
-        global _egl_owner
-        if self._lens_worker is not None:
-            self._lens_worker.close()
-            self._lens_worker = None
-        if self._gl is not None:
-            self._gl.close()
-            self._gl = None
+        """Release the renderer and disconnect the client (idempotent)."""
+        if self.renderer is not None:
+            self.renderer.close()
+            self.renderer = None
         if self._client is not None and self._call(pybullet.isConnected):
-            if self._plugin is not None:
-                self._call(pybullet.unloadPlugin, self._plugin)
             pybullet.disconnect(physicsClientId=self._client)
         self._client = None
-        if _egl_owner is self:
-            _egl_owner = None
 
     def reset(self, q: ArrayLike, qd: ArrayLike | None = None) -> None:
         """Set the true joint angles (and velocities, default 0) without dynamics."""
@@ -358,11 +272,6 @@ class World:
         return [(self.link_pose(name)[:3, 3], MARKER_RADIUS_M)
                 for name in ('marker_1', 'marker_2') if name in self.links]
 
-    @property
-    def lens_worker_restarts(self) -> tuple[str, ...]:
-        """Return why the lens worker was started again, once per restart (lens_worker)."""
-        return () if self._lens_worker is None else tuple(self._lens_worker.restarts)
-
     def render_stereo(self, camera: StereoCamera, supersampling: int = 1,
                       focus: Iterable[tuple[ArrayLike, float]] = (),
                       focus_supersampling: int = DEFAULT_FOCUS_SUPERSAMPLING
@@ -385,15 +294,8 @@ class World:
         if focus_supersampling not in range(1, MAX_FOCUS_SUPERSAMPLING + 1):
             raise ValueError('focus_supersampling must be an int in '
                              f'[1, {MAX_FOCUS_SUPERSAMPLING}], got {focus_supersampling!r}')
-        left, right = lens_poses(camera)
-        args = (camera.intrinsics, supersampling, tuple(focus), focus_supersampling)
-        if self._gl is not None:
-            return tuple(self._gl_render_lenses((left, right), *args))
-        if self._lens_worker is None:
-            return self.render_lens(left, *args), self.render_lens(right, *args)
-        self._lens_worker.submit(self.joint_state()[0], right, *args)
-        image = self.render_lens(left, *args)
-        return image, self._lens_worker.result()
+        return tuple(self._render_lenses(lens_poses(camera), camera.intrinsics, supersampling,
+                                         tuple(focus), focus_supersampling))
 
     def render_lens(self, pose: ArrayLike, intrinsics: 'StereoIntrinsics', supersampling: int = 1,
                     focus: Iterable[tuple[ArrayLike, float]] = (),
@@ -404,30 +306,20 @@ class World:
 
         The arguments are those of :meth:`render_stereo`, checked there.
         """
-        if self._gl is not None:
-            return self._gl_render_lenses([pose], intrinsics, supersampling, tuple(focus),
-                                          focus_supersampling)[0]
-        view = view_matrix(pose)
-        image = self._render(view, intrinsics, supersampling)
-        if focus and focus_supersampling > supersampling:
-            windows = focus_windows(intrinsics, pose, focus)
-            if self.renderer == 'egl':
-                windows = render_windows(windows, focus_supersampling)
-            for window in windows:
-                u0, v0, u1, v1 = window
-                image[v0:v1, u0:u1] = self._render(
-                    view, window_intrinsics(intrinsics, window), focus_supersampling)
-        return image
+        return self._render_lenses([pose], intrinsics, supersampling, tuple(focus),
+                                   focus_supersampling)[0]
 
-    def _gl_render_lenses(self, poses, intrinsics, supersampling, focus, focus_supersampling):
+    def _render_lenses(self, poses, intrinsics, supersampling, focus, focus_supersampling):
         """
-        Return the images of lenses at ``poses`` drawn by renderer 'opengl' in one go.
+        Return the images of lenses at ``poses``, drawn in one go.
 
-        The passes of :meth:`render_lens` (each lens's image, then its marker windows) at
-        the link poses of now, drawn by one :meth:`GLRenderer.render_passes`; the full
-        images leave out what the windows cover (:meth:`GLRenderer.render`). The other
-        arguments are those of :meth:`render_stereo`.
+        The passes (each lens's image, then its marker windows) at the link poses of now,
+        drawn by one :meth:`ibvs_sim.rendering.Renderer.render_passes`; the full images
+        leave out what the windows cover. The other arguments are those of
+        :meth:`render_stereo`.
         """
+        if self.renderer is None:
+            raise RendererError('this World was built with render false: it draws nothing')
         k = supersampled(intrinsics, supersampling)
         passes, lens_windows = [], []
         for pose in poses:
@@ -441,7 +333,7 @@ class World:
                 fine = supersampled(window_intrinsics(intrinsics, window), focus_supersampling)
                 passes.append((view, projection_matrix(fine), fine.width, fine.height, ()))
             lens_windows.append(windows)
-        drawn = iter(self._gl.render_passes(self._gl_part_poses(), passes))
+        drawn = iter(self.renderer.render_passes(self._gl_part_poses(), passes))
         images = []
         for windows in lens_windows:
             image = box_downsample(next(drawn), supersampling)
@@ -449,22 +341,3 @@ class World:
                 image[v0:v1, u0:u1] = box_downsample(next(drawn), focus_supersampling)
             images.append(image)
         return images
-
-    def _render(self, view, intrinsics, supersampling):
-        """Return the image with ``intrinsics`` rendered by PyBullet, s x s samples/px."""
-        k = supersampled(intrinsics, supersampling)
-        view = gl_matrix(view)
-        if self.renderer == 'egl':
-            renderer, parts = pybullet.ER_BULLET_HARDWARE_OPENGL, tiles(k)
-        else:
-            renderer, parts = pybullet.ER_TINY_RENDERER, [(0, 0, k)]
-        image = np.empty((int(k.height), int(k.width), 3), dtype=np.uint8)
-        for u0, v0, part in parts:
-            _, _, rgba, _, _ = self._call(
-                pybullet.getCameraImage, int(part.width), int(part.height),
-                viewMatrix=view, renderer=renderer,
-                projectionMatrix=gl_matrix(projection_matrix(part, renderer=self.renderer)),
-                flags=pybullet.ER_NO_SEGMENTATION_MASK, **LIGHT)
-            rgba = np.asarray(rgba, dtype=np.uint8).reshape(part.height, part.width, 4)
-            image[v0:v0 + part.height, u0:u0 + part.width] = rgba[:, :, :3]
-        return box_downsample(image, supersampling)

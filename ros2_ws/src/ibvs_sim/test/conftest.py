@@ -8,7 +8,7 @@ from ibvs_testing.fixtures import (closed_after_module, context, domain_id,  # n
                                    executor_of)
 import pytest
 
-world = closed_after_module(World, "The paper's robot in a PyBullet world (renderer 'auto').")
+world = closed_after_module(World, "The paper's robot in a PyBullet world, drawn by its renderer.")
 
 
 @pytest.fixture(scope='module')

@@ -77,9 +77,8 @@ def test_drops_happen_at_the_set_rate_over_1000_frames(probability):
 
 
 def test_the_simulator_loses_frames_at_the_set_rate_and_keeps_its_schedule():
-    sim = Simulator(SimConfig(physics_rate_hz=100.0, camera_rate_hz=100.0, renderer='tiny',
-                              render_parallel_lenses=False, frame_drop_probability=0.1,
-                              camera_seed=5))
+    sim = Simulator(SimConfig(physics_rate_hz=100.0, camera_rate_hz=100.0,
+                              frame_drop_probability=0.1, camera_seed=5))
     try:
         lost = []
         for n in range(1000):
@@ -118,11 +117,10 @@ def test_focal_length_error_scales_f_only():
 
 
 def test_simulator_renders_true_and_publishes_calibrated_camera():
-    sim = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False,
-                              camera_pose_error_xyz_m=(0.002, 0.0, 0.0),
+    sim = Simulator(SimConfig(camera_pose_error_xyz_m=(0.002, 0.0, 0.0),
                               camera_pose_error_rpy_deg=(0.0, 0.2, 0.0),
                               focal_length_error=1.01))
-    plain = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False))
+    plain = Simulator(SimConfig())
     try:
         np.testing.assert_array_equal(sim.camera.pose_C_O, plain.camera.pose_C_O)
         assert sim.camera.intrinsics == plain.camera.intrinsics

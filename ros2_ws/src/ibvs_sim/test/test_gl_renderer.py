@@ -1,12 +1,13 @@
 """
-The OpenGL renderer (renderer 'opengl', ibvs_sim.gl_renderer): camera model, shapes, scene.
+The OpenGL renderer (ibvs_sim.gl_renderer): camera model, shapes, scene, choice of device.
 
 No ROS. The camera model is checked on the marker sphere alone (the mesh the URDF refers to,
 ibvs_model.mesh), rendered with 8 x 8 samples per pixel around it: the centroid of its
 samples is the centre of the sphere's image as ibvs_model's camera projects it
 (ibvs_sim.markers.sphere_image_centre, eq. 16-22 applied to the sphere's tangent cone).
-Every test needs a standalone EGL context; where none can be created the module is skipped
-with the reason (it can on the project's machines, with Mesa's llvmpipe).
+Every test that draws needs a standalone EGL context; where none can be created it is skipped
+with the reason (it can on the project's machines, with Mesa's llvmpipe). None needs a GPU:
+the choice of device is tested on the fallback path (a GPU that is listed but refuses).
 """
 
 from contextlib import contextmanager
@@ -15,11 +16,13 @@ from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoI
 from ibvs_model.mesh import icosphere_obj
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 from ibvs_sim import markers
-from ibvs_sim.gl_renderer import (box_triangles, cylinder_triangles, GLRenderer,
-                                  GLRendererError, obj_triangles, Shape)
+from ibvs_sim.gl_renderer import (box_triangles, cylinder_triangles, device_order,
+                                  egl_devices, EGLDevice, GLRenderer, GLRendererError,
+                                  is_hardware, obj_triangles, Shape, SOFTWARE_DEVICE)
 from ibvs_sim.rendering import (FAR_M, focus_windows, lens_poses, NEAR_M, projection_matrix,
                                 supersampled, view_matrix, window_intrinsics)
-from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, LIGHT, World
+from ibvs_sim.rendering import Renderer
+from ibvs_sim.world import DEFAULT_FOCUS_SUPERSAMPLING, LIGHT_DIRECTION, World
 import numpy as np
 import pytest
 
@@ -33,7 +36,7 @@ def sphere_renderer():
     rgb = tuple(c / 255.0 for c in MARKER_RGB[0])
     try:
         renderer = GLRenderer([Shape(0, positions, normals, rgb)], NEAR_M, FAR_M,
-                              LIGHT['lightDirection'])
+                              LIGHT_DIRECTION)
     except GLRendererError as exc:
         pytest.skip(f'no OpenGL context here: {exc}')
     yield renderer
@@ -111,7 +114,7 @@ def _sphere_view(camera, renderer, k, covered=()):
 
 def _renderer(shapes):
     try:
-        return GLRenderer(shapes, NEAR_M, FAR_M, LIGHT['lightDirection'])
+        return GLRenderer(shapes, NEAR_M, FAR_M, LIGHT_DIRECTION)
     except GLRendererError as exc:
         pytest.skip(f'no OpenGL context here: {exc}')
 
@@ -198,11 +201,11 @@ def test_passes_drawn_together_equal_passes_drawn_one_by_one(sphere_renderer):
 
 @contextmanager
 def _world_at_target(resolution):
-    """Yield (World 'opengl' with the arm at the paper's target, the paper's camera)."""
+    """Yield (World with the arm at the paper's target, the paper's camera)."""
     camera = StereoCamera(StereoIntrinsics.zed2(resolution),
                           look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
     try:
-        world = World(renderer='opengl')
+        world = World()
     except Exception as exc:
         pytest.skip(f'no OpenGL context here: {exc}')
     try:
@@ -213,7 +216,7 @@ def _world_at_target(resolution):
 
 
 def test_a_lens_alone_is_drawn_as_in_the_stereo_pair():
-    """World 'opengl': render_lens gives the image that render_stereo gives that lens."""
+    """render_lens gives the image that render_stereo gives that lens."""
     with _world_at_target('VGA') as (world, camera):
         focus = world.marker_spheres()
         pair = world.render_stereo(camera, 1, focus, DEFAULT_FOCUS_SUPERSAMPLING)
@@ -230,7 +233,7 @@ def test_flat_shapes_lit_once_a_vertex_look_as_lit_once_a_pixel():
     in principle move a pixel by one grey level (measured: none of 2 x 921600 moves).
     """
     with _world_at_target('HD720') as (world, camera):
-        renderer = world._gl
+        renderer = world.renderer
         programs = renderer._shape_program.copy()
         assert programs.sum() >= 4 and (1 - programs).sum() >= 4  # boxes, ground; the rest
         pair = world.render_stereo(camera)
@@ -273,40 +276,60 @@ def test_obj_faces_without_normals_get_flat_ones_and_polygons_are_refused():
         obj_triangles('v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n')
 
 
-def test_the_scene_is_pybullets_and_the_markers_where_its_renderer_draws_them():
-    """
-    At the target pose the OpenGL image equals the EGL plugin's on most pixels.
+def _device(index, *extensions):
+    return EGLDevice(index, frozenset(extensions))
 
-    Same shapes, camera, background and diffuse light; PyBullet adds specular highlights
-    on the robot and its shadow on the ground (measured at HD720: 80 % of the pixels equal,
-    the markers' colour centroids within 0.11 px). Both in one process also checks that
-    the OpenGL context leaves the EGL plugin working.
+
+def test_gpus_are_tried_first_in_egl_order_then_software():
+    """The selection alone (no EGL): hardware devices by index, then Mesa's software one."""
+    soft, gpu_a, gpu_b = (_device(0, SOFTWARE_DEVICE, 'EGL_EXT_device_drm_render_node'),
+                          _device(1, 'EGL_EXT_device_drm', 'EGL_NV_device_cuda'),
+                          _device(2, 'EGL_EXT_device_drm'))
+    assert soft.software and not gpu_a.software
+    assert device_order([soft, gpu_b, gpu_a]) == [1, 2, 0]
+    assert device_order([soft]) == [0]
+    assert device_order([]) == [None]  # EGL's default display where none is listed
+    assert not is_hardware('llvmpipe (LLVM 15.0.6, 256 bits)')
+    assert not is_hardware('softpipe')
+    assert is_hardware('NVIDIA H100 80GB HBM3/PCIe/SSE2')
+
+
+def test_a_gpu_that_refuses_falls_back_to_the_next_device(sphere_renderer):
     """
-    camera = StereoCamera(StereoIntrinsics.zed2('HD720'),
-                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
-    q = inverse_kinematics(paper.target_pose())
-    images = {}
+    A listed GPU on which no context opens is passed over, and why is kept.
+
+    The fallback path on any machine: a device index past EGL's list stands for a GPU whose
+    context fails; the renderer then opens where it would have without it, and draws.
+    """
+    real = egl_devices()
+    missing = _device(len(real) + 7, 'EGL_EXT_device_drm')
+    shapes = [Shape(0, *box_triangles((0.1, 0.1, 0.1)), (1.0, 0.0, 0.0))]
+    renderer = GLRenderer(shapes, NEAR_M, FAR_M, LIGHT_DIRECTION, devices=[missing, *real])
     try:
-        ours = World(renderer='opengl')
-    except Exception as exc:
-        pytest.skip(f'no OpenGL context here: {exc}')
-    try:
-        theirs = World(renderer='auto')
-        try:
-            if theirs.renderer != 'egl':
-                pytest.skip('the EGL plugin does not load here')
-            for world in (ours, theirs):
-                world.reset(q)
-                images[world.renderer] = world.render_stereo(
-                    camera, 1, world.marker_spheres(), DEFAULT_FOCUS_SUPERSAMPLING)
-        finally:
-            theirs.close()
+        assert isinstance(renderer, GLRenderer) and isinstance(renderer.device.hardware, bool)
+        assert renderer.device == sphere_renderer.device  # what this machine chose anyway
+        assert len(renderer.devices_refused) == 1
+        assert f'EGL device {missing.index}' in renderer.devices_refused[0]
+        assert f'{renderer.device.gl_renderer}' in repr(renderer)
     finally:
-        ours.close()
-    for a, b in zip(images['opengl'], images['egl']):
-        same = np.all(a == b, axis=2)
-        assert same.mean() >= 0.7, same.mean()
-        assert np.array_equal(a[:50, -300:], b[:50, -300:])  # top right: background only
-    ours_c, _ = markers.marker_centres(*images['opengl'])
-    theirs_c, _ = markers.marker_centres(*images['egl'])
-    assert np.abs(ours_c - theirs_c).max() <= 0.2
+        renderer.close()
+    with pytest.raises(GLRendererError, match=f'EGL device {missing.index}'):
+        GLRenderer(shapes, NEAR_M, FAR_M, LIGHT_DIRECTION, devices=[missing])
+
+
+def test_the_world_holds_one_renderer_and_says_what_draws():
+    """World's renderer is a Renderer; its device is the run's render_device."""
+    with _world_at_target('VGA') as (world, _):
+        assert isinstance(world.renderer, GLRenderer)
+        for name in ('render_passes', 'close', 'device'):
+            assert hasattr(Renderer, name) or name in Renderer.__annotations__
+        assert world.render_device == world.renderer.device
+        assert world.render_device.hardware == is_hardware(world.render_device.gl_renderer)
+    physics = World(render=False)
+    try:
+        assert physics.renderer is None and physics.render_device is None
+        with pytest.raises(RuntimeError, match='render false'):
+            physics.render_stereo(StereoCamera(StereoIntrinsics.zed2('VGA'),
+                                               look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT)))
+    finally:
+        physics.close()

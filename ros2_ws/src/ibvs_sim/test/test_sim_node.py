@@ -39,7 +39,7 @@ class StandIn(Node):
 
     def __init__(self, context):
         super().__init__('stand_in', context=context)
-        self.model = World(renderer='tiny')
+        self.model = World(render=False)
         self.extra = np.zeros(6)
         self.answer = True
         self.override = None
@@ -308,6 +308,8 @@ BAD_PARAMETERS = [
     ({'scenario': 1, 'l2_scale': 0.3, 'l4_scale': 0.3}, 'scenario'),
     ({'resolution': 'HD1080'}, 'resolution'),
     ({'renderer': 'vulkan'}, 'renderer'),
+    ({'renderer': 'egl'}, 'renderer'),  # retired (issue 35): refused, not ignored
+    ({'renderer': 'tiny'}, 'renderer'),
     ({'camera_eye': [1.0, 2.0, 3.0], 'camera_look_at': [1.0, 2.0, 3.0]}, 'camera_look_at'),
     ({'disturbance_deg': [0.1, 0.2]}, 'disturbance_deg'),
     ({'publish_images': 'yes'}, 'publish_images'),

@@ -50,8 +50,8 @@ class Commander(Node):
 @pytest.fixture
 def cell(context, executor_of):
     def build(images=False, **params):
-        values = {'resolution': 'VGA', 'disturbance_deg': [0.0] * 6, 'renderer': 'tiny',
-                  'publish_images': images, 'render_parallel_lenses': False,
+        values = {'resolution': 'VGA', 'disturbance_deg': [0.0] * 6,
+                  'publish_images': images,
                   'command_interface': 'position', 'lockstep': False,
                   'real_time_factor': 1.0, 'joints': REVERSED, 'render_supersampling': 1,
                   'render_marker_supersampling': 1}
@@ -148,7 +148,7 @@ def test_joint_trajectory_commands_are_mapped_by_name_and_bad_names_refused(cell
 ])
 def test_bad_configurations_are_refused_naming_the_parameter(context, params, name):
     values = {'command_interface': 'position', 'lockstep': False, 'publish_images': False,
-              'renderer': 'tiny', 'resolution': 'VGA'}
+              'resolution': 'VGA'}
     values.update(params)
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):
         SimNode(context=context, parameter_overrides=[

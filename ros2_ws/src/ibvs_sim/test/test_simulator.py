@@ -14,8 +14,8 @@ import yaml
 
 
 def config(**values):
-    """Return a SimConfig of ``values`` with TinyRenderer, both lenses in this process."""
-    return SimConfig(**{'renderer': 'tiny', 'render_parallel_lenses': False, **values})
+    """Return the SimConfig of ``values``."""
+    return SimConfig(**values)
 
 
 @pytest.fixture(scope='module')

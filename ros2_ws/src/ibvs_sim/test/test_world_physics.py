@@ -23,7 +23,7 @@ def _rot_z(angle):
                          ids=['paper', 'scaled'])
 def test_link_frames_equal_fk_on_100_random_configurations(params):
     """Every link frame, tool0 = {E} and both marker centres, to 1e-6 m and 1e-6 rad."""
-    world = World(params, renderer='tiny')
+    world = World(params, render=False)
     try:
         offsets = params.dh_table()[:, 3]
         rng = np.random.default_rng(11)
@@ -60,7 +60,7 @@ HOLD_CONFIGS = np.radians([
 
 @pytest.fixture(scope='module')
 def physics():
-    w = World(renderer='tiny')
+    w = World(render=False)
     try:
         yield w
     finally:

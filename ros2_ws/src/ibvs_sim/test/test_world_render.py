@@ -2,8 +2,8 @@
 Rendered stereo pairs agree with the pinhole model of eq. (16)-(22) (ibvs_model.camera).
 
 Marker centres are measured by image moments of each marker's colour. Renders are shared
-between assertions (module fixtures): 30 poses at HD720 with the default renderer, a few with
-the other one, and the paper's scenario starts and target.
+between assertions (module fixtures): 30 poses at HD720, and the paper's scenario starts and
+target.
 """
 
 from ibvs_common.params import ParameterError
@@ -13,7 +13,7 @@ from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
 from ibvs_sim.config import SimConfig
 from ibvs_sim.rendering import (box_downsample, focus_windows, lens_poses, projection_matrix,
-                                supersampled, tiles, view_matrix)
+                                supersampled, view_matrix)
 from ibvs_sim.world import World
 import numpy as np
 import pytest
@@ -23,52 +23,33 @@ import pytest
 VISIBLE_SHARE = 0.85
 
 
-def _project_gl(camera, points, renderer):
+def _project_gl(camera, points):
     """Pixel coordinates by the OpenGL matrices (what the renderer computes), per lens."""
     k = camera.intrinsics
-    proj = projection_matrix(k, renderer=renderer)
+    proj = projection_matrix(k)
     out = []
     for pose in lens_poses(camera):
         clip = (proj @ view_matrix(pose) @ np.c_[points, np.ones(len(points))].T).T
         ndc = clip[:, :3] / clip[:, 3:]
-        if renderer == 'tiny':  # sampled at pixel corners (world.py docstring)
-            u = (ndc[:, 0] + 1.0) * k.width / 2.0
-            v = k.height - 1.0 - (ndc[:, 1] + 1.0) * k.height / 2.0
-        else:
-            u = (ndc[:, 0] + 1.0) * k.width / 2.0 - 0.5
-            v = (1.0 - ndc[:, 1]) * k.height / 2.0 - 0.5
+        u = (ndc[:, 0] + 1.0) * k.width / 2.0 - 0.5
+        v = (1.0 - ndc[:, 1]) * k.height / 2.0 - 0.5
         out.append((u, v))
     return out
 
 
-@pytest.mark.parametrize('renderer', ['egl', 'tiny'])
 @pytest.mark.parametrize('resolution', ['HD720', 'VGA'])
-def test_gl_matrices_reproduce_the_pinhole_projection(renderer, resolution):
+def test_gl_matrices_reproduce_the_pinhole_projection(resolution):
     """Projection and view matrices map points where eq. (19)-(22) do, to 1e-9 px."""
     camera = StereoCamera(StereoIntrinsics.zed2(resolution),
                           look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
     rng = np.random.default_rng(3)
     points = camera.to_base(np.c_[rng.uniform(-1.0, 1.0, (50, 2)), rng.uniform(1.0, 4.0, 50)])
     expected = camera.project(points)
-    (ul, vl), (ur, vr) = _project_gl(camera, points, renderer)
+    (ul, vl), (ur, vr) = _project_gl(camera, points)
     assert np.allclose(ul, expected[:, 0], atol=1e-9)
     assert np.allclose(ur, expected[:, 1], atol=1e-9)
     assert np.allclose(vl, expected[:, 2], atol=1e-9)
     assert np.allclose(vr, expected[:, 2], atol=1e-9)
-
-
-@pytest.mark.parametrize('size', [(1280, 720), (672, 376), (1920, 1080), (1024, 768)])
-def test_tiles_partition_the_image_and_keep_the_projection(size):
-    k = StereoIntrinsics.from_fov(*size)
-    parts = tiles(k)
-    cover = np.zeros((k.height, k.width), dtype=int)
-    for u0, v0, part in parts:
-        assert part.width <= 1024 and part.height <= 768
-        cover[v0:v0 + part.height, u0:u0 + part.width] += 1
-        # A point at tile pixel (i, j) is at full-image pixel (u0 + i, v0 + j).
-        assert (part.fu, part.fv) == (k.fu, k.fv)
-        assert part.cu + u0 == pytest.approx(k.cu) and part.cv + v0 == pytest.approx(k.cv)
-    assert np.all(cover == 1)
 
 
 def test_sphere_image_centre_properties(camera):
@@ -131,24 +112,6 @@ def test_rendered_marker_centres_within_half_a_pixel_over_30_poses(world, thirty
     # 0.2 px left above is the ellipse's offset, not a rendering error).
     assert np.abs(measured - exact).max() < 0.3
     assert np.abs(measured - exact).mean() < 0.1
-
-
-def test_the_other_renderer_agrees_too(world, camera):
-    """The fallback (or the EGL path, when TinyRenderer is the default) on five poses."""
-    other = 'tiny' if world.renderer == 'egl' else 'egl'
-    try:
-        alt = World(renderer=other)
-    except Exception as exc:  # the EGL plugin does not load everywhere
-        pytest.skip(f'renderer {other} unavailable: {exc}')
-    try:
-        assert alt.renderer == other
-        for q in _in_view_poses(camera, 5, seed=6):
-            measured, model, exact, share = _measure(alt, camera, q)
-            assert share.min() >= VISIBLE_SHARE
-            assert np.abs(measured - model).max() < 0.5
-            assert np.abs(measured - exact).max() < 0.3
-    finally:
-        alt.close()
 
 
 @pytest.fixture(scope='module')
@@ -290,7 +253,9 @@ def test_focus_supersampling_renders_the_marker_windows_finer(world, camera):
     Around the markers the image is the finer render, elsewhere the plain one.
 
     With the windows at 2 x 2 the pixels there equal a whole 2 x 2 render (the same pinhole,
-    principal point moved), to a grey level on a few pixels.
+    principal point moved), but for a few pixels where a sample lies on an edge and float32
+    rounds it to the other side in the window's projection: one sample of four flips, at
+    most a quarter of full scale (measured at this pose, HD720: 1 pixel of 5225, by 37).
     """
     q = _in_view_poses(camera, 1, seed=8)[0]
     world.reset(q)
@@ -308,7 +273,7 @@ def test_focus_supersampling_renders_the_marker_windows_finer(world, camera):
             mask[v0:v1, u0:u1] = True
         assert np.array_equal(mixed[~mask], one[~mask])
         diff = np.abs(mixed[mask].astype(int) - two[mask].astype(int))
-        assert diff.max() <= 2 and np.mean(diff > 0) < 0.02
+        assert diff.max() <= 255 // 4 + 1 and np.mean(np.any(diff > 0, axis=1)) < 0.005
         assert not np.array_equal(mixed[mask], one[mask])
     # Not finer than the whole image: nothing is rendered again.
     same = world.render_stereo(camera, 2, spheres, 2)
@@ -331,7 +296,7 @@ def test_a_tool_below_the_base_plane_shows_on_the_riser_not_on_the_floor(camera)
     assert np.all(points[:, 2] < 0.0) and np.all(camera.in_view(points))
     shares = {}
     for height in (0.5, 0.0):
-        w = World(renderer='tiny', mount_height_m=height)
+        w = World(mount_height_m=height)
         try:
             w.reset(q)
             left, right = w.render_stereo(camera)
