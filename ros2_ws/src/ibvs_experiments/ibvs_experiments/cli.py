@@ -37,7 +37,8 @@ from ibvs_bringup import domains, graph_params, scenario
 from . import runner, study_spec
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
-                'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',
+                'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s',
+                'peak_joint_speed_ratio', 'success', 'miss_reason', 'sim_duration_s',
                 'wall_duration_s', 'real_time_factor')
 
 
