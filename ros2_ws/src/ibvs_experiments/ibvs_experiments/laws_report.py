@@ -55,6 +55,8 @@ SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
 #: model-only loop oscillates and diverges from scenario 1; at 6 / s it converges.
 CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
          'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
+#: The laws' line styles in the noise figure, in SERVO_LAWS order.
+NOISE_STYLES = ('-', '--', '-.', ':')
 #: Each case's line style in the law figures (another case: dotted).
 CASE_STYLES = {'ideal': '-', 'limited': '--'}
 #: The renderer of every law run (issue 22): our OpenGL renderer, at HD720 about a quarter
@@ -405,10 +407,14 @@ def noise_figure(results: Mapping[tuple[str, float], tuple[float, float]],
     """
     noise = sorted({sigma for _, sigma in results})
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    # Laws that end alike (paper and switching) would hide each other: each has its own
+    # marker and line style, and the first drawn is the largest.
     for i, law in enumerate(dict.fromkeys(law for law, _ in results)):
         for ax, scale, which in ((axes[0], 1e3, 0), (axes[1], 1.0, 1)):
-            ax.plot(noise, [scale * results[law, sigma][which] for sigma in noise], 'o-',
-                    color=f'C{i}', label=law)
+            ax.plot(noise, [scale * results[law, sigma][which] for sigma in noise],
+                    NOISE_STYLES[i % len(NOISE_STYLES)], marker='osD^v<>'[i % 7],
+                    ms=11 - 2 * (i % 4), mfc='none' if i % 2 == 0 else f'C{i}',
+                    color=f'C{i}', lw=1.5, label=law, zorder=2 + i)
     for ax, label in zip(axes, ('RMS position error [mm]', 'RMS tool-axis error [deg]')):
         ax.set_xlabel('feature noise, standard deviation [px]')
         ax.set_ylabel(label)
