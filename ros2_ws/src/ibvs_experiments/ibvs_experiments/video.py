@@ -5,10 +5,10 @@ Each film frame shows, above a status band:
 
 - on the left, the left and the right camera image, one above the other, each with the
   published features p_I (green +, light for marker 1, dark for marker 2) and the target
-  features p_bar (red + in a circle) drawn at the panel's own scale (so they stay legible),
-  and a magnifier (lower right) of the markers' region: the camera's pixels around them
-  enlarged, the crosses drawn after the enlargement (the magnifier never magnifies the
-  drawing);
+  features p_bar (red + in a circle, white-edged) drawn at the panel's own scale (so they
+  stay legible), and a magnifier (lower right) of the markers' region: the camera's pixels
+  around them enlarged, the crosses drawn after the enlargement (the magnifier never
+  magnifies the drawing);
 - on the right, half the width, a 3D view of the cell drawn from the bag's /tf and
   /tf_static at the frame's stamp (links, tool, markers, camera, the target's tool axis and
   the tool's path so far), as RViz would show it;
@@ -342,8 +342,11 @@ def _annotate(image, points, targets, scale, offset=(0.0, 0.0), arm=8):
     if targets is not None:
         for u, v in (np.asarray(targets) - offset) * scale:
             if np.isfinite(u) and np.isfinite(v):
-                _plus(image, u, v, arm, TARGET_RGB)
-                cv2.circle(image, (int(round(u)), int(round(v))), int(1.4 * arm), TARGET_RGB, 1)
+                # a white halo first: the red target stays visible on the red marker
+                for colour, width in ((TEXT_RGB, 3), (TARGET_RGB, 1)):
+                    _plus(image, u, v, arm, colour, width)
+                    cv2.circle(image, (int(round(u)), int(round(v))), int(1.4 * arm), colour,
+                               width)
     if points is not None:
         for k, (u, v) in enumerate((np.asarray(points) - offset) * scale):
             if np.isfinite(u) and np.isfinite(v):
