@@ -114,7 +114,7 @@ def _decide(test, ideal, limited):
     actuators = actuators_text('ideal', ideal)
     if limited is None:
         return (text, actuators, _verdict(ok, why) + (
-            "; met with ideal actuators, not run with the IRB 4600's limits" if ok else ''))
+            " with ideal actuators; not run with the IRB 4600's limits" if ok else ''))
     lim_text, lim_ok, _ = test(limited)
     actuators += '; ' + actuators_text('limited', limited)
     text += f"; with the IRB 4600's limits: {lim_text}"
@@ -546,16 +546,17 @@ def timings_section(scenarios: Mapping[str, Mapping[str, Any]]) -> list[str]:
     Return the report's lines of machine timings: each scenario run's wall time and factor.
 
     Measured on the machine that made the report, under its load: they say how fast this
-    machine simulated, not how the loop behaved (sim time is the loop's time).
+    machine simulated, not how the loop behaved (sim time is the loop's time). The columns
+    of :data:`TIMING_KEYS` that some run has (the held factors: free-running runs only).
     ``make bench`` measures them properly (docs/speed.md).
     """
+    keys = [k for k in TIMING_KEYS if any(m.get(k) is not None for m in scenarios.values())]
     lines = ['## Machine timings', '',
              'Wall time and real-time factor (sim seconds per wall second) of each scenario '
              'run on the machine that made this report, under its load: timings of the '
              'machine, not results of the loop (`make bench` and docs/speed.md measure them).',
-             '', '| scenario | ' + ' | '.join(TIMING_KEYS) + ' |',
-             '|---|' + '---|' * len(TIMING_KEYS)]
+             '', '| scenario | ' + ' | '.join(keys) + ' |', '|---|' + '---|' * len(keys)]
     lines += [f'| {name} | ' + ' | '.join(_value(m.get(k)) if m.get(k) is not None else '-'
-                                          for k in TIMING_KEYS) + ' |'
+                                          for k in keys) + ' |'
               for name, m in scenarios.items()]
     return lines + ['']

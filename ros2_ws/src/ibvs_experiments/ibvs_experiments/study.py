@@ -542,10 +542,11 @@ def write_results(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]],
 
 
 #: What decides a run's success, as the study figures draw it: (row key, label, scale to
-#: the axis unit, the tolerance of :data:`.convergence.SUCCESS` in that unit).
+#: the axis unit, the tolerance of :data:`.convergence.SUCCESS` in that unit, the unit).
 DECIDING_ERRORS = (
-    ('final_position_error_m', 'final position error [mm]', 1e3, 1e3 * SUCCESS.position_m),
-    ('final_tool_axis_error_deg', 'final tool-axis error [deg]', 1.0, SUCCESS.axis_deg))
+    ('final_position_error_m', 'final position error [mm]', 1e3, 1e3 * SUCCESS.position_m,
+     'mm'),
+    ('final_tool_axis_error_deg', 'final tool-axis error [deg]', 1.0, SUCCESS.axis_deg, 'deg'))
 
 
 def _plotted(value, scale):
@@ -562,7 +563,7 @@ def _error_panels(ax_pair, rows, x_of, xlabel, plt):
     Successes as green dots, finished runs outside :data:`.convergence.SUCCESS` as orange
     squares, failed runs as red crosses on the top edge; each tolerance a dashed line.
     """
-    for ax, (key, label, scale, tolerance) in zip(ax_pair, DECIDING_ERRORS):
+    for ax, (key, label, scale, tolerance, unit) in zip(ax_pair, DECIDING_ERRORS):
         for which, style, colour, name in (
                 (lambda r: r['success'], 'o', 'tab:green', 'success'),
                 (lambda r: r['status'] == 'ok' and not r['success'], 's', 'tab:orange',
@@ -577,7 +578,7 @@ def _error_panels(ax_pair, rows, x_of, xlabel, plt):
                     mew=2, transform=ax.get_xaxis_transform(), clip_on=False,
                     label='failed run (no metrics)')
         ax.axhline(tolerance, color='black', ls='--', lw=1,
-                   label=f'success: within {tolerance:g}')
+                   label=f'success: within {tolerance:g} {unit}')
         ax.set_yscale('log')
         ax.set_xlabel(xlabel)
         ax.set_ylabel(label)
@@ -611,11 +612,11 @@ def write_figures(spec: study_spec.Spec, rows: Sequence[Mapping[str, Any]],
     finished = [r for r in rows if r['status'] == 'ok']
     if spec.draws and finished:
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for ax, (key, label, scale, tolerance) in zip(axes, DECIDING_ERRORS):
+        for ax, (key, label, scale, tolerance, unit) in zip(axes, DECIDING_ERRORS):
             values = np.sort([_plotted(r[key], scale) for r in finished])
             ax.step(values, np.arange(1, values.size + 1) / len(rows), where='post')
             ax.axvline(tolerance, color='black', ls='--', lw=1,
-                       label=f'success: within {tolerance:g}')
+                       label=f'success: within {tolerance:g} {unit}')
             ax.set_xscale('log')
             ax.set_xlabel(label)
             ax.set_ylabel('fraction of all runs')
