@@ -555,7 +555,10 @@ def timings_section(scenarios: Mapping[str, Mapping[str, Any]]) -> list[str]:
              'Wall time and real-time factor (sim seconds per wall second) of each scenario '
              'run on the machine that made this report, under its load: timings of the '
              'machine, not results of the loop (`make bench` and docs/speed.md measure them).',
-             '', '| scenario | ' + ' | '.join(keys) + ' |', '|---|' + '---|' * len(keys)]
+             '']
+    if not keys:
+        return lines + ['No run recorded its wall time.', '']
+    lines += ['| scenario | ' + ' | '.join(keys) + ' |', '|---|' + '---|' * len(keys)]
     lines += [f'| {name} | ' + ' | '.join(_value(m.get(k)) if m.get(k) is not None else '-'
                                           for k in keys) + ' |'
               for name, m in scenarios.items()]

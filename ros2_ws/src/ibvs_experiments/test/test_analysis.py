@@ -166,7 +166,7 @@ def test_report_verdicts_follow_the_papers_words():
     assert "IRB 4600's limits, 0.067 s latency: peak joint speed 1x rated" in rows[0][3]
     assert rows[1][-1].startswith('met (at most 5 mm read as small), with ideal actuators '
                                   "and with the IRB 4600's limits")
-    assert rows[2][-1].startswith("met with ideal actuators (within 1 mm and 0.5 deg); with "
+    assert rows[2][-1].startswith('met with ideal actuators (within 1 mm and 0.5 deg); with '
                                   "the IRB 4600's limits: not met")
     assert rows[3][-1].startswith('met (within 1 mm in under 1 s), with ideal')
     assert "not run with the IRB 4600's limits" in rows[4][-1]

@@ -131,9 +131,8 @@ def test_a_report_with_failed_runs_ends_with_an_error_line_not_a_traceback(capsy
     assert 'laws_limited_scenario2#3' in err and '--retry-failed' in err
 
 
-@pytest.mark.parametrize('extra, figures, filmed', [((), True, True),
-                                                   (('--no-figures',), False, True),
-                                                   (('--no-video',), True, False)])
+@pytest.mark.parametrize('extra, figures, filmed', [
+    ((), True, True), (('--no-figures',), False, True), (('--no-video',), True, False)])
 def test_demo_runs_scenario1_and_films_that_run(monkeypatch, capsys, tmp_path, extra, figures,
                                                 filmed):
     # `make demo` once failed at once ('Namespace' object has no attribute 'figures'): the

@@ -173,4 +173,3 @@ def test_specs_put_every_law_of_a_case_and_scenario_in_one_study():
         assert [r.overrides['servo_law'] for r in runs] == list(SERVO_LAWS)
         for run in runs:
             assert run.overrides == laws_report.overrides_for(run.overrides['servo_law'], case)
-
