@@ -11,7 +11,7 @@ Each film frame shows, above a status band:
   magnifies the drawing);
 - on the right, half the width, a 3D view of the cell drawn from the bag's /tf and
   /tf_static at the frame's stamp (links, tool, markers, camera, the target's tool axis and
-  the tool's path so far), as RViz would show it;
+  the tool's path so far, from the run's 1 ms tool poses), as RViz would show it;
 - the status band: sim time, the film's speed, the position and tool-axis errors against the
   success criterion (:data:`.convergence.SUCCESS`), the feature mode, and a legend.
 
@@ -289,8 +289,14 @@ class ArmView:
         self.figure.subplots_adjust(left=0.0, right=1.0, bottom=0.02, top=0.95)
         self.path = []
 
-    def draw(self, t_s: float, poses: Mapping[str, NDArray[np.float64]]) -> NDArray[np.uint8]:
-        """Return the view (H, W, 3) uint8 of the frame poses ``poses`` at time ``t_s``."""
+    def draw(self, t_s: float, poses: Mapping[str, NDArray[np.float64]],
+             path: NDArray[np.float64] | None = None) -> NDArray[np.uint8]:
+        """
+        Return the view (H, W, 3) uint8 of the frame poses ``poses`` at time ``t_s``.
+
+        ``path``: the tool's positions (N, 3) so far (the run's 1 ms steps); without it, the
+        tool frames of the views drawn so far (one per camera frame).
+        """
         ax = self.axes
         ax.cla()
         arm = np.array([poses[f][:3, 3] for f in ARM_FRAMES if f in poses])
@@ -298,7 +304,9 @@ class ArmView:
         tool = poses.get('tool0')
         if tool is not None:
             self.path.append(tool[:3, 3])
-            ax.plot(*np.array(self.path).T, color='goldenrod', lw=2, label='tool path')
+        path = np.array(self.path) if path is None else path
+        if len(path):
+            ax.plot(*np.asarray(path).T, color='goldenrod', lw=2, label='tool path')
         for k, colour in ((1, 'red'), (2, 'blue')):
             if f'marker_{k}' in poses:
                 ax.scatter(*poses[f'marker_{k}'][:3, 3], color=colour, s=30,
@@ -451,6 +459,7 @@ class Film:
         run = load_run(Path(run_dir) / 'bag')
         self.time_map = time_map
         self.t_ns = np.round(run.t * 1e9).astype(np.int64)
+        self.position = run.position
         self.position_error = np.linalg.norm(run.position - run.target[:3, 3], axis=1)
         self.axis_error = axis_angle_deg(run.rotation, run.target[:3, :3])
         self.target = target_features(run)
@@ -470,7 +479,8 @@ class Film:
                                          frame.raw),
                             camera_panel(frame.right, 1, frame.features, self.target,
                                          frame.raw)])
-        view = self.view.draw(t_s, frame.poses)
+        step = int(np.searchsorted(self.t_ns, frame.t_ns, side='right'))
+        view = self.view.draw(t_s, frame.poses, self.position[:max(step, 1)])
         view = cv2.resize(view, (view.shape[1], images.shape[0]))
         top = np.hstack([images, view])
         position, axis = self.errors_at(frame.t_ns)
@@ -579,8 +589,6 @@ def still(run_dir: str | Path, out_path: str | Path, sim_s: float | None = None)
     for frame in read_frames(Path(run_dir) / 'bag'):
         if chosen is not None and frame.t_ns * 1e-9 > min(sim_s, film.end_s):
             break
-        if chosen is not None:
-            film.view.path.append(chosen.poses['tool0'][:3, 3])
         chosen = frame
     if chosen is None:
         raise NoImages(f'{run_dir}: no frame with both images and /tf')
