@@ -34,6 +34,7 @@ SRC = Path(__file__).resolve().parent.parent / 'ros2_ws' / 'src'
 #: ros/rosdistro rosdep/python.yaml names them (``python3-<name>-pip`` where it has only a
 #: pip rule). A dotted name (ruamel.yaml) is matched before its first component.
 PYTHON_KEYS = {
+    'av': 'python3-av',  # PyAV
     'cv2': 'python3-opencv',
     'matplotlib': 'python3-matplotlib',
     'numpy': 'python3-numpy',

@@ -23,7 +23,19 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   the last ``LAST_WINDOW_S`` = 0.5 s of the run (one final sample says little under image
   noise); the whole run when it is shorter;
 - ``time_estimated_s``: sim time during which the feature node published model estimates
-  (or blended them) instead of measurements.
+  (or blended them) instead of measurements; ``final_feature_mode``: the mode of the last
+  feature status ('measured', 'blending', 'estimated'; None without any);
+- ``success``: the run ends within :data:`.convergence.SUCCESS` (1 mm and 0.5 deg), the
+  project's one success criterion; ``miss_reason``: why not (timed out, stalled, features
+  lost, with the final errors: :func:`.convergence.miss_reason`), None on success;
+  ``time_to_success_s``: first time after which both errors stay within it;
+- ``peak_joint_speed_ratio``, ``peak_joint_torque_ratio`` (:func:`joint_metrics`; from the
+  bag's joint states and torques, :func:`analyse_bag`): the largest |qdot_i| / qd_max_i
+  (the IRB 4600's rated joint speeds) and |tau_i| / tau_max_i (the torque limits estimated
+  by :func:`ibvs_model.mass_model.joint_efforts`) over joints and time: 1 is the real
+  arm's limit, 32.7 a joint 32.7 times faster than the IRB 4600 can turn;
+- ``wall_duration_s``, ``real_time_factor``: the machine's wall time from step 0 and sim
+  time per wall second (timings of the machine, not of the loop).
 
 Free-running runs (``lockstep: false``; the keys are absent from lockstep runs, whose
 metrics stay as they were):
@@ -58,7 +70,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 import yaml
 
-from .convergence import REACHED
+from .convergence import miss_reason, REACHED, SUCCESS
 
 if TYPE_CHECKING:
     from ibvs_model.robot import RobotParams
@@ -156,19 +168,47 @@ def compute_metrics(t: ArrayLike, position: ArrayLike, rotation: ArrayLike,
         'initial_position_error_m': float(error[0]),
         'settling_time_2pct_s': _relative(_settle_time(t, error <= 0.02 * error[0]), t),
         'time_to_1mm_s': _relative(_settle_time(t, REACHED.within(error)), t),
+        'time_to_success_s': _relative(_settle_time(t, SUCCESS.within(error, axis_err)), t),
         'max_overshoot_m': float(max(past.max(), 0.0)),
         'max_lateral_excursion_m': float(lateral.max()),
         'overshoot_xyz_m': [float(v) for v in overshoot_axes],
         'max_position_error_m': float(error.max()),
         'lowest_tool_z_m': float(position[:, 2].min()),
         'time_estimated_s': estimated_time(np.asarray(mode_t, float), list(modes), t[-1]),
+        'final_feature_mode': _last_mode(mode_t, modes),
         'sim_duration_s': sim_duration,
         'wall_duration_s': wall_duration_s,
         'real_time_factor': (sim_duration / wall_duration_s
                              if wall_duration_s else None),
         'samples': int(t.size),
     }
+    metrics['success'] = SUCCESS.final(metrics)
+    metrics['miss_reason'] = miss_reason(metrics)
     return metrics
+
+
+def _last_mode(mode_t, modes):
+    """Return the mode of the latest feature status (by stamp), None without any."""
+    if not len(modes):
+        return None
+    return str(modes[int(np.argmax(np.asarray(mode_t, dtype=float)))])
+
+
+def joint_metrics(series: Sequence[ArrayLike], qd_max: ArrayLike, tau_max: ArrayLike
+                  ) -> dict[str, Any]:
+    """
+    Return ``peak_joint_speed_ratio`` and ``peak_joint_torque_ratio`` (module docstring).
+
+    ``series``: :func:`load_joints`' (t, q, qd, tau_t, tau); ``qd_max``, ``tau_max``: the six
+    joints' rated speeds (rad/s) and torque limits (N m). None where the series is empty.
+    """
+    _, _, qd, _, tau = series
+
+    def peak(values, limits):
+        values = np.abs(np.asarray(values, dtype=float)).reshape(-1, 6)
+        return float((values / np.asarray(limits, dtype=float)).max()) if values.size else None
+    return {'peak_joint_speed_ratio': peak(qd, qd_max),
+            'peak_joint_torque_ratio': peak(tau, tau_max)}
 
 
 def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike) -> dict[str, Any]:
@@ -410,11 +450,22 @@ def feature_errors(run: 'RunData', params: 'RobotParams | None' = None
 
 
 def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
-    """Return (RunData, metrics) of a recorded run."""
+    """
+    Return (RunData, metrics) of a recorded run.
+
+    The joint metrics (:func:`joint_metrics`) against the limits of the IRB 4600 with the
+    run's ``l2_scale`` and ``l4_scale``, as ``joints.png`` draws them.
+    """
+    from ibvs_model import IRB4600
+    from ibvs_model.mass_model import joint_efforts
     run = load_run(bag_path)
     metrics = compute_metrics(run.t, run.position, run.rotation, run.target, run.mode_t,
                               run.modes, run.run_info.get('wall_duration_s'),
                               run.params.get('scenario_name', run.params.get('scenario')))
+    robot = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
+                           float(run.params.get('l4_scale', 1.0)))
+    metrics.update(joint_metrics(load_joints(bag_path, run.run_info.get('duration_s')),
+                                 robot.qd_max, joint_efforts(robot)))
     metrics.update(free_running_metrics(run.latency, run.rtf_held))
     metrics.update(run.render)
     return run, metrics

@@ -8,12 +8,13 @@ Commands:
   ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
-  ``--overlays`` also records the feature node's overlay images, ``--video`` then writes
-  ``video.mp4`` of them (:mod:`ibvs_experiments.video`);
+  ``--overlays`` also records the feature node's overlay images, ``--video`` records the
+  camera images and writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
-- ``video <run dir> [-o FILE]``: the MP4 of a run recorded with ``--overlays``;
-- ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, then a
-  short run of it with overlays and its video into ``results/scenario1_video``;
+- ``video <run dir> [-o FILE] [--time-map 0.25@1,1]``: the film (H.264 MP4) of a run
+  recorded with ``--images`` (or ``--overlays``);
+- ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, with
+  its camera images in the bag and its film ``results/scenario1/video.mp4``;
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
   of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
 - ``report [--quick]``: scenarios 1-3, the L2/L4 robustness sweep and each servo law on
@@ -37,7 +38,8 @@ from ibvs_bringup import domains, graph_params, scenario
 from . import runner, study_spec
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
-                'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s', 'sim_duration_s',
+                'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s',
+                'peak_joint_speed_ratio', 'success', 'miss_reason', 'sim_duration_s',
                 'wall_duration_s', 'real_time_factor')
 
 
@@ -94,8 +96,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
-                                     record_images=args.images, stall_s=args.stall_s,
-                                     record_overlays=args.overlays or args.video,
+                                     record_images=args.images or args.video,
+                                     stall_s=args.stall_s, record_overlays=args.overlays,
                                      figures=args.figures, on_metrics=metrics_ready)
     except domains.DomainBusy as exc:
         print(f'run not started: {exc}', file=sys.stderr)
@@ -109,19 +111,22 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f'wrote {"the figures in " + str(out) + " and " if args.figures else ""}the bag '
           f'{result.bag_path}')
     if args.video:
-        return cmd_video(argparse.Namespace(run_dir=out, out=None))
+        return cmd_video(argparse.Namespace(run_dir=out, out=None, time_map=None))
     return 0
 
 
 def cmd_video(args: argparse.Namespace) -> int:
-    """Write the MP4 of a run recorded with --overlays: overlays beside a 3D view."""
+    """Write the film of a run recorded with --images: both cameras beside a 3D view."""
     from . import video
     try:
-        path, frames = video.write_video(args.run_dir, args.out)
-    except video.NoOverlays as exc:
+        time_map = video.TimeMap.parse(args.time_map) if args.time_map else \
+            video.DEFAULT_TIME_MAP
+        path, frames = video.write_video(args.run_dir, args.out, time_map)
+    except (video.NoImages, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    print(f'wrote {path} ({frames} frames)')
+    print(f'wrote {path} ({frames} frames, {frames / video.FPS:.1f} s: '
+          f'{time_map.describe()})')
     return 0
 
 
@@ -137,17 +142,13 @@ def cmd_analyse(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """Run the paper's scenario 1 (ideal actuators) into results/scenario1."""
+    """Run the paper's scenario 1 (ideal actuators) into results/scenario1, with its film."""
     args.scenario = 'scenario1'
     args.out = args.out or 'results/scenario1'
     args.param = ['actuators:=ideal'] + list(args.param)
-    code = cmd_run(args)
-    if code or not args.video_duration:
-        return code
-    # The film in a run of its own: drawing and recording the overlays costs wall time,
-    # which the timed run above does not pay.
-    return cmd_run(argparse.Namespace(**{**vars(args), 'out': args.out + '_video',
-                                         'duration': args.video_duration, 'video': True}))
+    # The film of this run, from its own bag (its camera images recorded).
+    args.video = args.video or not args.no_video
+    return cmd_run(args)
 
 
 def cmd_study(args: argparse.Namespace) -> int:
@@ -223,15 +224,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument('--overlays', action='store_true',
                        help='also record the overlay images /ibvs/debug/{left,right}/image')
         p.add_argument('--video', action='store_true',
-                       help='record the overlays and write video.mp4 (ibvs video)')
+                       help='record the camera images and write the film video.mp4 (ibvs '
+                       'video)')
         if name == 'demo':
-            p.add_argument('--video-duration', type=float, default=0.5,
-                           help='sim seconds of the demo film, in a run of its own into '
-                           '<out>_video (0: none; default %(default)s)')
+            p.add_argument('--no-video', action='store_true',
+                           help='no film (the demo records its camera images and writes '
+                           '<out>/video.mp4 by default)')
         p.set_defaults(func=func)
     p = sub.add_parser('video', help=cmd_video.__doc__)
-    p.add_argument('run_dir', help='a run directory (with bag/) recorded with --overlays')
+    p.add_argument('run_dir', help='a run directory (with bag/) recorded with --images')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
+    p.add_argument('--time-map', help='film speed over sim time, SPEED@UNTIL_S,...,SPEED '
+                   '(default 0.25@1,1: a quarter of real time for the first second, then '
+                   'real time)')
     p.set_defaults(func=cmd_video)
     p = sub.add_parser('analyse', help=cmd_analyse.__doc__)
     p.add_argument('bag', help='bag directory of a run')

@@ -10,9 +10,9 @@ ordinary ``ibvs run`` into its own folder, as studies on Ray with the report's o
 
 Per run (:class:`LawRun`, the metrics of :mod:`.analysis` plus the joint speeds of the bag):
 final position and tool-axis error, time to 1 mm (after which the tool stays within 1 mm),
-overshoot past the target along the approach, peak joint speed (rad/s, and as a share of the
-IRB 4600's limit qd_max), and converged: within :data:`.convergence.LAW_TABLE` of the
-target at the end and within 1 mm from ``time_to_1mm_s`` on.
+overshoot past the target along the approach, peak joint speed (rad/s, and as a multiple of
+the IRB 4600's rated speed qd_max: 1 is the real arm's limit), and converged: the project's
+one success criterion, :data:`.convergence.SUCCESS` (1 mm and 0.5 deg at the end).
 
 ``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and per law one figure
 of the tool's paths in 3-D and one of the features' paths in the images from the run folders
@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray  # noqa: E402
 import yaml  # noqa: E402
 
 from . import analysis  # noqa: E402
-from .convergence import LAW_TABLE  # noqa: E402
+from .convergence import miss_reason, SUCCESS  # noqa: E402
 
 if TYPE_CHECKING:
     from ibvs_control.calibration_sweep import SweepRun
@@ -55,6 +55,8 @@ SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
 #: model-only loop oscillates and diverges from scenario 1; at 6 / s it converges.
 CASES = {'ideal': {'actuators': 'ideal', 'feedback_latency_s': 0.0},
          'limited': {'actuators': 'limited', 'feedback_latency_s': 0.067, 'lambda_0': 6.0}}
+#: The laws' line styles in the noise figure, in SERVO_LAWS order.
+NOISE_STYLES = ('-', '--', '-.', ':')
 #: Each case's line style in the law figures (another case: dotted).
 CASE_STYLES = {'ideal': '-', 'limited': '--'}
 
@@ -68,7 +70,7 @@ class LawRun:
     scenario: str
     metrics: dict
     peak_joint_speed: float
-    peak_speed_share: float
+    peak_speed_ratio: float
     position: np.ndarray
     target: np.ndarray
     #: The features p_hat of each camera frame (N, 6): per marker (u_left, u_right, v), px.
@@ -80,8 +82,8 @@ class LawRun:
 
     @property
     def converged(self) -> bool:
-        """Return True when the run reached 1 mm and ended within :data:`LAW_TABLE`."""
-        return self.metrics.get('time_to_1mm_s') is not None and LAW_TABLE.final(self.metrics)
+        """Return True when the run ended within :data:`.convergence.SUCCESS`."""
+        return SUCCESS.final(self.metrics)
 
 
 def overrides_for(law: str, case: str) -> dict[str, Any]:
@@ -178,7 +180,7 @@ def summarise(params: Mapping[str, Any], metrics: Mapping[str, Any], qdot: Array
     return LawRun(law=params.get('servo_law', SERVO_LAWS[0]), case=case_of(params),
                   scenario=str(params.get('scenario_name', metrics.get('scenario'))),
                   metrics=metrics, peak_joint_speed=float(speed.max(initial=0.0)),
-                  peak_speed_share=float((speed / np.asarray(qd_max)).max(initial=0.0)),
+                  peak_speed_ratio=float((speed / np.asarray(qd_max)).max(initial=0.0)),
                   position=np.asarray(position, dtype=float),
                   target=np.asarray(target, dtype=float)[:3, 3],
                   features=np.zeros((0, 6)) if features is None
@@ -219,6 +221,12 @@ def _ordered(runs):
                                        r.scenario, order.get(r.law, 9)))
 
 
+def _miss_kind(metrics):
+    """Return the first words of :func:`.convergence.miss_reason` ('stalled', ...)."""
+    reason = miss_reason(metrics) or ''
+    return reason.split(':')[0].split(' (')[0].split(';')[0]
+
+
 def _mm(value, digits=2):
     return 'not reached' if value is None else f'{1e3 * value:.{digits}f}'
 
@@ -226,8 +234,8 @@ def _mm(value, digits=2):
 def table(runs: Sequence['LawRun']) -> list[str]:
     """Return the markdown lines of the table: one row per run."""
     lines = ['| actuators | scenario | law | final position [mm] | final axis [deg] | '
-             'time to 1 mm [s] | overshoot [mm] | peak joint speed [rad/s] (share of '
-             'limit) | converged |',
+             'time to 1 mm [s] | overshoot [mm] | peak joint speed [rad/s] (multiple of '
+             'rated) | converged |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in runs:
         m = r.metrics
@@ -237,7 +245,8 @@ def table(runs: Sequence['LawRun']) -> list[str]:
             f'{m["final_tool_axis_error_deg"]:.3f} | '
             f'{"not reached" if t1 is None else f"{t1:.3f}"} | '
             f'{_mm(m["max_overshoot_m"], 1)} | {r.peak_joint_speed:.3g} '
-            f'({r.peak_speed_share:.2f}) | {"yes" if r.converged else "no"} |')
+            f'({r.peak_speed_ratio:.2f}x) | '
+            f'{"yes" if r.converged else "no: " + _miss_kind(m)} |')
     return lines
 
 
@@ -327,8 +336,8 @@ def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure'
 
     Columns: against the camera position error (mm, no focal error) and against the focal
     length error (%, no position error); rows: the true flange's final position error
-    (mm) and final tool-axis error (deg), each with the law table's tolerance
-    (:data:`.convergence.LAW_TABLE`, dotted), and the time to 1 mm (s; x at the top of the
+    (mm) and final tool-axis error (deg), each with the success criterion's tolerance
+    (:data:`.convergence.SUCCESS`, dotted), and the time to 1 mm (s; x at the top of the
     panel: not within 1 mm at the end). One colour and marker per law, one line style per
     target source (model solid, taught dashed). Points with both errors are not drawn.
     Returns the figure, saved and closed.
@@ -337,12 +346,12 @@ def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure'
     targets = list(dict.fromkeys(r.target for r in runs))
     styles = dict(zip(targets, ('-', '--', ':', '-.')))
     markers = dict(zip(laws, 'osD^v<>'))
-    # Each row: label, value, and the LAW_TABLE tolerance drawn (the axis always shows it,
+    # Each row: label, value, and the SUCCESS tolerance drawn (the axis always shows it,
     # so that a numerical floor of 1e-7 deg is not drawn as a spread).
     rows = (('final position error [mm]', lambda r: 1e3 * r.final_position_error_m,
-             1e3 * LAW_TABLE.position_m),
+             1e3 * SUCCESS.position_m),
             ('final tool-axis error [deg]', lambda r: r.final_axis_error_deg,
-             LAW_TABLE.axis_deg),
+             SUCCESS.axis_deg),
             ('time to 1 mm [s]', lambda r: r.time_to_1mm_s, None))
     columns = (('camera position error [mm]', lambda r: 1e3 * r.position_error_m),
                ('focal length error [%]', lambda r: 100 * r.focal_error))
@@ -364,7 +373,7 @@ def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure'
                                    color=f'C{i}', transform=ax.get_xaxis_transform(),
                                    clip_on=False)
             if tolerance is not None:
-                ax.axhline(tolerance, color='grey', ls=':', lw=1, label='converged within')
+                ax.axhline(tolerance, color='grey', ls=':', lw=1, label='success within')
                 ax.set_ylim(bottom=0.0, top=max(ax.get_ylim()[1], 1.5 * tolerance))
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
@@ -390,10 +399,14 @@ def noise_figure(results: Mapping[tuple[str, float], tuple[float, float]],
     """
     noise = sorted({sigma for _, sigma in results})
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    # Laws that end alike (paper and switching) would hide each other: each has its own
+    # marker and line style, and the first drawn is the largest.
     for i, law in enumerate(dict.fromkeys(law for law, _ in results)):
         for ax, scale, which in ((axes[0], 1e3, 0), (axes[1], 1.0, 1)):
-            ax.plot(noise, [scale * results[law, sigma][which] for sigma in noise], 'o-',
-                    color=f'C{i}', label=law)
+            ax.plot(noise, [scale * results[law, sigma][which] for sigma in noise],
+                    NOISE_STYLES[i % len(NOISE_STYLES)], marker='osD^v<>'[i % 7],
+                    ms=11 - 2 * (i % 4), mfc='none' if i % 2 == 0 else f'C{i}',
+                    color=f'C{i}', lw=1.5, label=law, zorder=2 + i)
     for ax, label in zip(axes, ('RMS position error [mm]', 'RMS tool-axis error [deg]')):
         ax.set_xlabel('feature noise, standard deviation [px]')
         ax.set_ylabel(label)
@@ -424,10 +437,13 @@ def section(runs: Sequence['LawRun'], out_dir: str | Path, figure_prefix: str = 
     lines = ['## Servo laws side by side', '',
              f'Ideal actuators (the paper), and limited actuators with '
              f"{CASES['limited']['feedback_latency_s']} s latency (there lambda_0 "
-             f"{CASES['limited']['lambda_0']:g} / s for ibvs and pbvs). Converged: within "
-             f'{LAW_TABLE.position_m * 1e3:g} mm and {LAW_TABLE.axis_deg:g} deg at the '
-             'end, and within 1 mm '
-             'from the time to 1 mm on.', '']
+             f"{CASES['limited']['lambda_0']:g} / s for ibvs and pbvs). Source: each run's "
+             'bag (graph runs of the law studies, `studies/laws_*`). Converged: the success '
+             f'criterion, within {SUCCESS.describe()} at the end '
+             '(`ibvs_experiments.convergence.SUCCESS`); a miss names its kind (timed out, '
+             'stalled, features lost). Peak joint speed: the largest |qdot| over joints and '
+             "time, and as a multiple of the IRB 4600's rated speed of that joint (1: the "
+             "real arm's limit; ideal actuators are not held to it).", '']
     lines += table(runs) + ['']
     for law in dict.fromkeys(r.law for r in runs):
         name = f'law_path_{law}.png'
@@ -483,7 +499,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     (Path(args.dir) / 'laws.json').write_text(json.dumps(
         [{'law': r.law, 'case': r.case, 'scenario': r.scenario, 'converged': r.converged,
           'peak_joint_speed_rad_s': r.peak_joint_speed,
-          'peak_speed_share': r.peak_speed_share, **r.metrics} for r in runs],
+          'peak_speed_ratio': r.peak_speed_ratio, **r.metrics} for r in runs],
         indent=2) + '\n')
     print('\n'.join(lines))
     return 0

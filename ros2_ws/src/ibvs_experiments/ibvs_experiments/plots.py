@@ -2,7 +2,8 @@
 Figures of one run, in the style of the paper's Figures 10-12, and more.
 
 - ``pose_vs_time.png``: tool position (x, y, z) and tool axis a = z6 against time, with the
-  targets (paper: blue response, red target);
+  targets (paper: blue response, red target), on a time axis that fits the transient, the
+  whole run in an inset;
 - ``trajectory_3d.png``: the flange path with tool-axis arrows, start (circle), target (star)
   and the target axis (red arrow);
 - ``image_plane.png``: both markers' paths in the left and right images, measured and
@@ -38,26 +39,64 @@ MARKER_COLOURS = ('tab:red', 'tab:blue')
 #: The inset of error_vs_time.png shows this many seconds on a linear axis, from the time
 #: the error is first within 5 % of its start value (the overshoot).
 TRANSIENT_S = 0.4
+#: The shortest time axis of pose_vs_time.png's transient (s).
+TRANSIENT_MIN_S = 0.1
+
+
+def transient_window(run: 'RunData') -> float:
+    """
+    Return the sim time (s from the start) that the transient of ``run`` fits in.
+
+    Three times the 2 % settling time of the position error (the motion, its overshoot
+    and the start of the correction), at least :data:`TRANSIENT_MIN_S`; the whole run when
+    it never settles or the window would cover most of it.
+    """
+    t = run.t - run.t[0]
+    error = np.linalg.norm(run.position - run.target[:3, 3], axis=1)
+    inside = error <= 0.02 * error[0]
+    if not inside[-1]:
+        return float(t[-1])
+    outside = np.flatnonzero(~inside)
+    settle = float(t[outside[-1] + 1]) if outside.size else 0.0
+    window = max(3.0 * settle, TRANSIENT_MIN_S)
+    return float(t[-1]) if window >= 0.7 * t[-1] else window
 
 
 def pose_vs_time(run: 'RunData', path: str | Path) -> None:
-    """Plot position and tool axis against time with their targets (Figures 10-12)."""
+    """
+    Plot position and tool axis against time with their targets (Figures 10-12).
+
+    The time axis fits the transient (:func:`transient_window`); each panel's inset shows
+    the whole run, with the window shaded.
+    """
     fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True)
     t = run.t - run.t[0]
-    for i, name in enumerate('xyz'):
-        ax = axes[0, i]
-        ax.plot(t, run.position[:, i], color='tab:blue', label='tool')
-        ax.axhline(run.target[i, 3], color='tab:red', ls='--', label='target')
-        ax.set_ylabel(f'{name} [m]')
-        ax.grid(alpha=0.3)
-        ax = axes[1, i]
-        ax.plot(t, run.rotation[:, i, 2], color='tab:blue', label='tool')
-        ax.axhline(run.target[i, 2], color='tab:red', ls='--', label='target')
-        ax.set_ylabel(f'a_{name} (tool axis z6)')
-        ax.set_xlabel('sim time [s]')
-        ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc='best')
-    fig.suptitle(_title(run, 'tool pose against time'))
+    window = transient_window(run)
+    whole = window >= t[-1]
+    for row, (values, target, label) in enumerate((
+            (run.position, run.target[:3, 3], '{} [m]'),
+            (run.rotation[:, :, 2], run.target[:3, 2], 'a_{} (tool axis z6)'))):
+        for i, name in enumerate('xyz'):
+            ax = axes[row, i]
+            ax.plot(t, values[:, i], color='tab:blue', label='tool')
+            ax.axhline(target[i], color='tab:red', ls='--', label='target')
+            ax.set_ylabel(label.format(name))
+            ax.set_xlim(0.0, window)
+            ax.grid(alpha=0.3)
+            if row == 1:
+                ax.set_xlabel('sim time [s]')
+            if not whole:
+                inset = ax.inset_axes([0.58, 0.56, 0.4, 0.4])
+                inset.plot(t, values[:, i], color='tab:blue', lw=0.8)
+                inset.axhline(target[i], color='tab:red', ls='--', lw=0.8)
+                inset.axvspan(0.0, window, color='0.85')
+                inset.set_title(f'whole run, 0-{t[-1]:.2g} s', fontsize=7)
+                inset.tick_params(labelsize=6)
+    axes[0, 0].legend(loc='lower left')
+    what = ('tool pose against time' if whole else
+            f'tool pose against time, the first {window:.3g} s (the transient; inset: the '
+            'whole run)')
+    fig.suptitle(_title(run, what))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

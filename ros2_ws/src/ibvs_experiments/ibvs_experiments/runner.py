@@ -473,7 +473,8 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
             outcome.converged = True
             break
         if sim_s >= run.duration_s:
-            outcome.converged = convergence.AT_END.within(monitor.error_m)
+            outcome.converged = bool(convergence.SUCCESS.within(monitor.error_m,
+                                                                monitor.axis_deg))
             break
         if now - wall_start > wall_timeout_s:
             progress(f'  wall-clock limit {wall_timeout_s:.0f} s reached at sim '

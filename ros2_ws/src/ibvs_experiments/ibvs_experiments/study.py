@@ -46,7 +46,7 @@ from ibvs_common.process import supervised_child
 import numpy as np
 
 from . import study_spec
-from .convergence import ACCEPTANCE
+from .convergence import miss_reason, SUCCESS
 from .runner import EXIT_NODE_DIED, STALL_S
 
 #: Cores one run keeps busy (the Ray resource each run task declares).
@@ -450,13 +450,35 @@ def _load_record(run_dir, key):
 
 
 def succeeded(record: Mapping[str, Any]) -> bool:
-    """Return whether a run finished within 1 mm and 0.1 deg of the target (ACCEPTANCE)."""
-    return record.get('status') == 'ok' and ACCEPTANCE.final(record.get('metrics') or {})
+    """Return whether a run finished within :data:`.convergence.SUCCESS` (1 mm, 0.5 deg)."""
+    return record.get('status') == 'ok' and SUCCESS.final(record.get('metrics') or {})
+
+
+def why_missed(record: Mapping[str, Any]) -> str:
+    """
+    Return why a run is not a success ('' when it is one).
+
+    A failed run: its failure (a node's death, a stall of the graph, ...: the runner's
+    words); a finished run outside :data:`.convergence.SUCCESS`: what its metrics show
+    (:func:`.convergence.miss_reason`: timed out, stalled, features lost, final errors).
+    """
+    if record.get('status') != 'ok':
+        return f"run failed: {record.get('reason', '')}".strip()
+    return miss_reason(record.get('metrics') or {}) or ''
+
+
+#: Record fields that are timings of the machine, not results of the run: in the study's
+#: table.csv, and in table.md under a heading of their own.
+TIMING_COLUMNS = ('wall_s', 'cpu_s')
 
 
 def table_rows(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]]
                ) -> list[dict[str, Any]]:
-    """Return the study table as dicts: run, swept parameters, metrics, status, wall time."""
+    """
+    Return the study table as dicts: run, swept parameters, metrics, status, wall time.
+
+    ``success``: :func:`succeeded`; ``reason``: :func:`why_missed`.
+    """
     rows = []
     for record in records:
         metrics = record.get('metrics') or {}
@@ -466,7 +488,7 @@ def table_rows(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]]
         row.update(status=record['status'], success=succeeded(record),
                    attempts=record.get('attempts', 1),
                    wall_s=record.get('wall_s'), cpu_s=record.get('cpu_s'),
-                   reason=record.get('reason', ''),
+                   reason=why_missed(record),
                    run_dir=record['run_dir'])
         rows.append(row)
     return rows
@@ -482,7 +504,12 @@ def _cell(value):
 
 def write_results(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]],
                   study_dir: str | Path) -> list[dict[str, Any]]:
-    """Write ``table.csv``, ``table.md`` and the figures of one study; return the rows."""
+    """
+    Write ``table.csv``, ``table.md`` and the figures of one study; return the rows.
+
+    ``table.md``: the runs' results (from each run's bag: ``metrics.json``), then the
+    machine's timings of each run in a table of their own.
+    """
     study_dir = Path(study_dir)
     study_dir.mkdir(parents=True, exist_ok=True)
     rows = table_rows(spec, records)
@@ -490,64 +517,116 @@ def write_results(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]],
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    columns = [c for c in rows[0] if c != 'run_dir']
+    columns = [c for c in rows[0] if c != 'run_dir' and c not in TIMING_COLUMNS]
     ok = sum(r['success'] for r in rows)
     lines = [f'# Study {spec.name}', '', spec.description, '',
              f'Scenario {spec.scenario}, {len(rows)} runs, '
              f"{sum(r['status'] != 'ok' for r in rows)} failed, success (final error within "
-             f'{1e3 * ACCEPTANCE.position_m:g} mm and {ACCEPTANCE.axis_deg:g} deg): '
-             f'{ok}/{len(rows)}.',
+             f'{SUCCESS.describe()}, `ibvs_experiments.convergence.SUCCESS`): '
+             f"{ok}/{len(rows)}. Source: each run's bag (graph run), read by "
+             '`ibvs analyse`; `reason`: why a run is not a success. The metrics are defined '
+             'in docs/results.md (glossary).',
              '', '| ' + ' | '.join(columns) + ' |', '|' + '---|' * len(columns)]
     lines += ['| ' + ' | '.join(_cell(r[c]) for c in columns) + ' |' for r in rows]
     figures = write_figures(spec, rows, study_dir)
     lines += [''] + [f'![{p.stem}]({p.name})' for p in figures] + ['']
-    (study_dir / 'table.md').write_text('\n'.join(lines))
+    lines += ['## Machine timings', '',
+              'Wall and CPU seconds of each run on the machine that ran it (not results of '
+              'the loop: they change with the machine and its load).', '',
+              '| run | ' + ' | '.join(TIMING_COLUMNS) + ' |',
+              '|---|' + '---|' * len(TIMING_COLUMNS)]
+    lines += ['| ' + ' | '.join(_cell(r[c]) for c in ('run',) + TIMING_COLUMNS) + ' |'
+              for r in rows]
+    (study_dir / 'table.md').write_text('\n'.join(lines + ['']))
     return rows
+
+
+#: What decides a run's success, as the study figures draw it: (row key, label, scale to
+#: the axis unit, the tolerance of :data:`.convergence.SUCCESS` in that unit, the unit).
+DECIDING_ERRORS = (
+    ('final_position_error_m', 'final position error [mm]', 1e3, 1e3 * SUCCESS.position_m,
+     'mm'),
+    ('final_tool_axis_error_deg', 'final tool-axis error [deg]', 1.0, SUCCESS.axis_deg, 'deg'))
+
+
+def _plotted(value, scale):
+    """Return ``value * scale`` for a log axis (NaN when absent), floored at 1e-9."""
+    if value is None or not np.isfinite(value):
+        return float('nan')
+    return max(value * scale, 1e-9)
+
+
+def _error_panels(ax_pair, rows, x_of, xlabel, plt):
+    """
+    Draw both deciding errors of ``rows`` against ``x_of(row)`` on ``ax_pair``.
+
+    Successes as green dots, finished runs outside :data:`.convergence.SUCCESS` as orange
+    squares, failed runs as red crosses on the top edge; each tolerance a dashed line.
+    """
+    for ax, (key, label, scale, tolerance, unit) in zip(ax_pair, DECIDING_ERRORS):
+        for which, style, colour, name in (
+                (lambda r: r['success'], 'o', 'tab:green', 'success'),
+                (lambda r: r['status'] == 'ok' and not r['success'], 's', 'tab:orange',
+                 f'finished outside {SUCCESS.describe()}')):
+            sel = [r for r in rows if which(r)]
+            if sel:
+                ax.plot([x_of(r) for r in sel], [_plotted(r[key], scale) for r in sel],
+                        style, color=colour, label=name, ms=6)
+        bad = [r for r in rows if r['status'] != 'ok']
+        if bad:
+            ax.plot([x_of(r) for r in bad], [1.0] * len(bad), 'x', color='tab:red', ms=10,
+                    mew=2, transform=ax.get_xaxis_transform(), clip_on=False,
+                    label='failed run (no metrics)')
+        ax.axhline(tolerance, color='black', ls='--', lw=1,
+                   label=f'success: within {tolerance:g} {unit}')
+        ax.set_yscale('log')
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3, which='both')
+    ax_pair[0].legend(fontsize=8)
 
 
 def write_figures(spec: study_spec.Spec, rows: Sequence[Mapping[str, Any]],
                   study_dir: Path) -> list[Path]:
-    """Error against each swept parameter, a CDF for draws, the success rate; return paths."""
+    """
+    Draw what decides each run against each swept parameter, CDFs for draws, the outcomes.
+
+    ``error_vs_<name>.png``: the final position and tool-axis errors against a numeric swept
+    parameter (not a seed: a seed's value says nothing), with :data:`.convergence.SUCCESS`'s
+    tolerances and the misses and failures marked; ``error_cdf.png`` for draws: both errors'
+    distributions; ``success_rate.png``: successes, misses and failures. Returns the paths.
+    """
     # Here, not at import: every `ibvs` command imports this module for its defaults, and
     # pyplot costs about 1.4 s (issue 24: start-up).
     from .plots import plt
     paths = []
     for name in spec.swept_names():
         sel = [r for r in rows if r[name] != '']
-        if not sel or not all(isinstance(r[name], (int, float)) for r in sel):
+        if (not sel or name.endswith('seed')
+                or not all(isinstance(r[name], (int, float)) for r in sel)):
             continue
-        fig, ax = plt.subplots(figsize=(6, 4))
-        good = [r for r in sel if r['status'] == 'ok']
-        ax.plot([r[name] for r in good], [1e3 * r['final_position_error_m'] for r in good],
-                'o', label='finished')
-        bad = [r for r in sel if r['status'] != 'ok']
-        if bad:
-            top = max([1e3 * r['final_position_error_m'] for r in good] + [1.0])
-            ax.plot([r[name] for r in bad], [top] * len(bad), 'x', color='tab:red',
-                    ms=10, label='failed run')
-        ax.axhline(1e3 * ACCEPTANCE.position_m, color='tab:green', ls='--', label='1 mm')
-        ax.set_yscale('log')
-        ax.set_xlabel(name)
-        ax.set_ylabel('final position error [mm]')
-        ax.set_title(f'{spec.name}: final error against {name}')
-        ax.grid(alpha=0.3, which='both')
-        ax.legend()
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+        _error_panels(axes, sel, lambda r: r[name], name, plt)
+        fig.suptitle(f'{spec.name}: what decides success against {name}')
         paths.append(_save(fig, study_dir / f'error_vs_{name}.png'))
-    errors = np.sort([1e3 * r['final_position_error_m'] for r in rows if r['status'] == 'ok'])
-    if spec.draws and errors.size:
-        fig, ax = plt.subplots(figsize=(6, 4))
-        ax.step(errors, np.arange(1, errors.size + 1) / len(rows), where='post')
-        ax.axvline(1e3 * ACCEPTANCE.position_m, color='tab:green', ls='--', label='1 mm')
-        ax.set_xscale('log')
-        ax.set_xlabel('final position error [mm]')
-        ax.set_ylabel('fraction of all runs')
-        ax.set_title(f'{spec.name}: CDF over {len(rows)} runs (failed runs never reach 1)')
-        ax.grid(alpha=0.3, which='both')
-        ax.legend()
+    finished = [r for r in rows if r['status'] == 'ok']
+    if spec.draws and finished:
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+        for ax, (key, label, scale, tolerance, unit) in zip(axes, DECIDING_ERRORS):
+            values = np.sort([_plotted(r[key], scale) for r in finished])
+            ax.step(values, np.arange(1, values.size + 1) / len(rows), where='post')
+            ax.axvline(tolerance, color='black', ls='--', lw=1,
+                       label=f'success: within {tolerance:g} {unit}')
+            ax.set_xscale('log')
+            ax.set_xlabel(label)
+            ax.set_ylabel('fraction of all runs')
+            ax.grid(alpha=0.3, which='both')
+            ax.legend(fontsize=8)
+        fig.suptitle(f'{spec.name}: CDF over {len(rows)} runs (failed runs never reach 1)')
         paths.append(_save(fig, study_dir / 'error_cdf.png'))
+    missed = sum(r['status'] == 'ok' and not r['success'] for r in rows)
     counts = {'success': sum(r['success'] for r in rows),
-              'outside 1 mm / 0.1 deg': sum(r['status'] == 'ok' and not r['success']
-                                            for r in rows),
+              f'outside {SUCCESS.describe()}': missed,
               'failed run': sum(r['status'] != 'ok' for r in rows)}
     fig, ax = plt.subplots(figsize=(6, 3.5))
     ax.bar(list(counts), list(counts.values()),

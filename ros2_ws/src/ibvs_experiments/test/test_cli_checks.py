@@ -131,23 +131,26 @@ def test_a_report_with_failed_runs_ends_with_an_error_line_not_a_traceback(capsy
     assert 'laws_limited_scenario2#3' in err and '--retry-failed' in err
 
 
-@pytest.mark.parametrize('extra, figures', [((), True), (('--no-figures',), False)])
-def test_demo_runs_scenario1_and_its_film_through_run(monkeypatch, capsys, tmp_path, extra,
-                                                      figures):
+@pytest.mark.parametrize('extra, figures, filmed', [
+    ((), True, True), (('--no-figures',), False, True), (('--no-video',), True, False)])
+def test_demo_runs_scenario1_and_films_that_run(monkeypatch, capsys, tmp_path, extra, figures,
+                                                filmed):
     # `make demo` once failed at once ('Namespace' object has no attribute 'figures'): the
     # demo's arguments must be all that `ibvs run` reads. The graph itself is not started.
-    calls = []
+    # The film is the demo run's own (issue 37): its camera images are recorded, and the
+    # film is written from that run's folder, not from a run of its own.
+    calls, films = [], []
 
     def run_scenario(name, out, overrides, duration_s, **options):
         calls.append((name, Path(out), overrides, duration_s, options))
         return cli.runner.RunResult(Path(out), Path(out) / 'bag', {}, True, [])
 
     monkeypatch.setattr(cli.runner, 'run_scenario', run_scenario)
-    monkeypatch.setattr(cli, 'cmd_video', lambda args: 0)
+    monkeypatch.setattr(cli, 'cmd_video', lambda args: films.append(args.run_dir) or 0)
     out = tmp_path / 'demo'
     assert cli.main(['demo', '-o', str(out), *extra]) == 0
-    (name, first, overrides, duration, options), film = calls
+    (name, first, overrides, duration, options), = calls
     assert (name, first, overrides['actuators'], duration) == ('scenario1', out, 'ideal', None)
     assert options['figures'] is figures and not options['record_overlays']
-    assert film[1] == Path(f'{out}_video') and film[3] == 0.5
-    assert film[4]['record_overlays']
+    assert options['record_images'] is filmed
+    assert films == ([out] if filmed else [])

@@ -112,7 +112,8 @@ def test_build_report_runs_a_shared_run_once_and_shows_it_in_every_study(tmp_pat
                      'overrides': run.overrides, 'status': 'ok',
                      'run_dir': str(tmp_path / 'studies' / spec.name / 'runs' / str(run.index)),
                      'metrics': {**metrics, 'final_position_error_m': error,
-                                 'initial_position_error_m': 2.0}})
+                                 'initial_position_error_m': 2.0, 'wall_duration_s': 7.5,
+                                 'real_time_factor': 0.4}})
         return records
 
     monkeypatch.setattr(study, 'run_studies', run_studies)
@@ -126,7 +127,14 @@ def test_build_report_runs_a_shared_run_once_and_shows_it_in_every_study(tmp_pat
     assert nominal == [s1['final_position_error_m']] * 2
     table = (tmp_path / 'studies' / f'{report.SWEEP_STUDY}_quick' / 'table.md').read_text()
     assert f'{2 * len(report.QUICK_SCALES)} runs' in table
-    assert '2 of them made by another study' in (tmp_path / 'report.md').read_text()
+    text = (tmp_path / 'report.md').read_text()
+    assert '2 of them made by another study' in text
+    # the report says what it is: the claims name their actuators, timings stand apart
+    assert '| claim (paper) | paper | measured here | actuators | verdict |' in text
+    results, timings = text.split('## Machine timings')
+    assert 'wall_duration_s' not in results and '| scenario1 | 7.5 | 0.4 |' in timings
+    assert 'Source: graph runs (bags)' in results
+    assert "not run with the IRB 4600's limits" in results  # --quick runs no law study
 
 
 class _FakeSweeps:
