@@ -651,8 +651,9 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
 
     Each is checked by :func:`check_camera_info`. The baseline comes from the right
     projection matrix, b = -P[3] / f_u, and must lie within :data:`BASELINE_RANGE_M`
-    ('baseline out of range'; a right P[3] >= 0 is no right lens). Raises
-    :class:`InputError` too when the two disagree on size or intrinsics.
+    ('baseline out of range'; a right P[3] >= 0 is no right lens); the left lens is the
+    reference, its P[3] = 0 ('left lens with a baseline': e.g. a right CameraInfo on the left
+    topic). Raises :class:`InputError` too when the two disagree on size or intrinsics.
     """
     check_camera_info(left)
     check_camera_info(right)
@@ -663,6 +664,8 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
                          f'{left.width}x{left.height} vs {right.width}x{right.height}')
     if not np.allclose(pl[[0, 2, 5, 6]], pr[[0, 2, 5, 6]], rtol=1e-9, atol=1e-9):
         raise InputError('camera_info intrinsics mismatch', 'left and right P differ')
+    if pl[3] != 0.0:
+        raise InputError('left lens with a baseline', f'left P[3] = {pl[3]:.6g}, must be 0')
     baseline = float(-pr[3] / pr[0])
     if not BASELINE_RANGE_M[0] <= baseline <= BASELINE_RANGE_M[1]:
         raise InputError('baseline out of range',

@@ -105,6 +105,12 @@ def test_a_right_lens_with_a_positive_p3_has_no_baseline():
     assert _reason(conversions.intrinsics_from_infos, left, right) == 'baseline out of range'
 
 
+def test_the_left_lens_is_the_reference():
+    left, right = _infos()
+    assert _reason(conversions.intrinsics_from_infos, right, right) == \
+        'left lens with a baseline'
+
+
 def test_stamp_order_counts_duplicates_and_stamps_going_back_per_source():
     order = StampOrder()
     order.check('/a', 5)

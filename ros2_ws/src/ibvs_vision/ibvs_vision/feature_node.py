@@ -140,6 +140,7 @@ class FeatureNode(Node):
         self._topics = {}
         self._order = StampOrder()
         self._infos = {}
+        self._info_side = 'left'  # the lens whose CameraInfo came last
         self._pose = None
         self._camera_key = None
         self._camera_problem = None
@@ -291,6 +292,7 @@ class FeatureNode(Node):
             self._diag.reject(self._topics[f'{side} info'], exc.reason, exc.detail)
             return
         self._infos[side] = msg
+        self._info_side = side
         self._try_frames()
 
     def _on_pose(self, msg):
@@ -320,8 +322,8 @@ class FeatureNode(Node):
         self._camera_key = key
         try:
             camera = camera_from_msgs(left, right, self._pose)
-        except InputError as exc:  # what the lenses must agree on: counted under the left
-            self._diag.reject(self._topics['left info'], exc.reason, exc.detail)
+        except InputError as exc:  # the lenses disagree: counted under the one that came last
+            self._diag.reject(self._topics[f'{self._info_side} info'], exc.reason, exc.detail)
             self._model = self._detector = None
             self._camera_problem = f'usable camera_info ({exc.reason})'
             return self._camera_problem
