@@ -694,7 +694,8 @@ def read_camera_pose(pose_msg: PoseStamped | Pose) -> NDArray[np.float64]:
     """
     pose = pose_msg.pose if hasattr(pose_msg, 'pose') else pose_msg
     tf = pose_matrix(pose)
-    distance = float(np.linalg.norm(tf[:3, 3]))
+    x, y, z = tf[:3, 3]
+    distance = float(np.hypot(np.hypot(x, y), z))  # no overflow warning for 1e308
     if distance > MAX_CAMERA_DISTANCE_M:
         raise InputError('camera too far from the robot',
                          f'{distance:.3g} m from the base, at most {MAX_CAMERA_DISTANCE_M:g}')
