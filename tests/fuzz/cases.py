@@ -151,8 +151,8 @@ def trajectories(topic, next_ns, rows):
     return [(name, topic, make) for name, make in cases]
 
 
-def polygons(topic, next_ns, features):
-    """Bad features (PolygonStamped): values, point count, stamps."""
+def polygons(topic, next_ns, features, last_ns=None):
+    """Bad features (PolygonStamped): values, point count, stamps (``last_ns``: see joint_states)."""
     def msg(t_ns, values=features, points=2):
         out = PolygonStamped()
         out.header.stamp = ns_stamp(t_ns)
@@ -171,6 +171,9 @@ def polygons(topic, next_ns, features):
         cases.append((name, lambda s=s: [_stamped(msg(0), s)]))
     cases.append((f'burst of {BURST} far-future', lambda: [
         _stamped(msg(0), stamp(FAR_SEC - k)) for k in range(BURST)]))
+    if last_ns is not None:
+        cases += [('duplicate of the last stamp', lambda: [msg(last_ns())]),
+                  ('stamp going back 1 ms', lambda: [msg(last_ns() - 1_000_000)])]
     return [(name, topic, make) for name, make in cases]
 
 
@@ -180,13 +183,18 @@ def status(t_ns, mode):
                               name='features')
 
 
-def statuses(topic, next_ns):
+def statuses(topic, next_ns, last_ns=None):
     """Bad /ibvs/feature_status: stamps (of a measured frame), no status, an unknown mode."""
     cases = [('no status', topic, lambda: [DiagnosticArray(header=Header(
         stamp=ns_stamp(next_ns())))]),
              ('unknown mode', topic, lambda: [status(next_ns(), 'guessed')])]
     for name, s in bad_stamps(0):
         cases.append((name, topic, lambda s=s: [_stamped(status(0, 'measured'), s)]))
+    if last_ns is not None:
+        cases += [('duplicate of the last stamp', topic,
+                   lambda: [status(last_ns(), 'measured')]),
+                  ('stamp going back 1 ms', topic,
+                   lambda: [status(last_ns() - 1_000_000, 'measured')])]
     return cases
 
 

@@ -162,10 +162,10 @@ class SimPositionRig(Rig):
                                         lambda m: self.joints.append(m), contract.RELIABLE)
 
     def setup(self):
-        """Wait for the free run to start and pass :meth:`past_ns`'s first possible time."""
+        """Wait for the free run to start (trajectories: until :meth:`past_ns` is positive)."""
         assert self.spin_until(lambda: self.joints, 'free-running /joint_states')
-        assert self.spin_until(lambda: self.node.sim.t_ns > 3 * self.node._command_timeout_ns,
-                               'sim time past three command timeouts')
+        if self.topic == contract.TRAJECTORY_COMMANDS:
+            assert self.spin_until(lambda: self.past_ns() > MS, 'a stamp in the past')
 
     def past_ns(self):
         """Return a stamp whose two-point trajectory ended a command timeout ago and more."""
@@ -297,6 +297,7 @@ class VizRig(Rig):
     def off_image(self):
         """Return a measured frame's features and status, its features 1e6 px off."""
         t = self.next_ns()
+        self.n += 1  # the frame is used: the next valid one has the next stamp
         far = self.model.features(Q0) + np.r_[1e6, 1e6, 0.0, 0.0, 0.0, 0.0]
         return [(contract.FEATURES, features_msg(far, t)),
                 (contract.FEATURE_STATUS, bad.status(t, contract.FEATURE_MEASURED))]
@@ -313,10 +314,12 @@ class VizRig(Rig):
         left, right = camera_infos(self.camera.intrinsics, 0)
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
                                   last_ns=lambda: frame_ns(self.n - 1))
-                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0))
+                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0),
+                                last_ns=lambda: frame_ns(self.n - 1))
                  + [('measured features 1e6 px off the image', contract.FEATURES,
                      self.off_image)]
-                 + bad.statuses(contract.FEATURE_STATUS, self.next_ns)
+                 + bad.statuses(contract.FEATURE_STATUS, self.next_ns,
+                                last_ns=lambda: frame_ns(self.n - 1))
                  + bad.camera_infos(contract.LEFT_INFO, left)
                  + bad.camera_infos(contract.RIGHT_INFO, right)
                  + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
@@ -397,7 +400,8 @@ class AdaptiveFeedbackRig(Rig):
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
                                   ('position', 'velocity'),
                                   last_ns=lambda: frame_ns(self.n - 1))
-                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0))
+                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0),
+                                last_ns=lambda: frame_ns(self.n - 1))
                  + bad.camera_infos(contract.LEFT_INFO, left)
                  + bad.camera_infos(contract.RIGHT_INFO, right)
                  + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)

@@ -27,8 +27,9 @@ It reads /joint_states; ``ibvs run`` remaps that to /stereo/joint_states (one pe
 frame), so the node does not slow the 1 kHz lockstep. Bad inputs are rejected with a logged
 reason and counted on /diagnostics under their topic: a CameraInfo or /stereo/pose that
 cannot describe the camera (the camera drawn stays the last good one), joint positions
-beyond +-POSITION_BOUND_RAD, a joint state whose stamp is not after the last one drawn
-('duplicate stamp', 'stamp went back': :class:`ibvs_common.conversions.StampOrder`), measured
+beyond +-POSITION_BOUND_RAD, a joint state, features or feature status whose stamp is not
+after the last one taken from its topic ('duplicate stamp', 'stamp went back':
+:class:`ibvs_common.conversions.StampOrder`), measured
 features off the image (:func:`ibvs_common.conversions.check_features_in_image`), lenses
 that disagree (size or intrinsics), and every stamp through the one stamp rule
 (:func:`ibvs_common.conversions.read_stamp`: malformed, or more than ``stale_timeout_s``
@@ -242,10 +243,12 @@ class VizNode(Node):
     def _on_features(self, msg):
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            self._order.check(contract.FEATURES, t_ns)  # a second one would replace the first
             features = read_features(msg)
         except InputError as exc:
             self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
             return
+        self._order.take(contract.FEATURES, t_ns)
         self._features[t_ns] = features
         while len(self._features) > _PENDING_FEATURES:
             self._features.popitem(last=False)
@@ -253,10 +256,12 @@ class VizNode(Node):
     def _on_status(self, msg):
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            self._order.check(contract.FEATURE_STATUS, t_ns)
             mode = read_feature_status(msg).mode
         except InputError as exc:
             self._diag.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
             return
+        self._order.take(contract.FEATURE_STATUS, t_ns)
         features = self._features.pop(t_ns, None)
         if features is None or self._camera is None:
             return
