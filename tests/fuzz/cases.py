@@ -152,7 +152,7 @@ def trajectories(topic, next_ns, rows):
 
 
 def polygons(topic, next_ns, features, last_ns=None):
-    """Bad features (PolygonStamped): values, point count, stamps (``last_ns``: see joint_states)."""
+    """Bad features (PolygonStamped): values, point count, stamps (``last_ns``: joint_states)."""
     def msg(t_ns, values=features, points=2):
         out = PolygonStamped()
         out.header.stamp = ns_stamp(t_ns)
