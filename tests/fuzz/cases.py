@@ -5,10 +5,17 @@ Each builder returns a list of ``(name, make)``: ``make()`` returns the case's m
 when the case runs (stamps are those the rig expects next, so that only the fault is
 wrong). Classes: NaN / inf, 1e308, wrong lengths, wrong / missing / repeated names,
 negative stamps, ``nanosec`` >= 1e9, far-future stamps, bursts; for images wrong step, size
-or encoding; for CameraInfo an impossible size or projection; for poses a non-finite or
-non-unit quaternion, a camera looking away.
+or encoding, and valid full-size images costly to search (noise, checkerboards, many
+circles: :func:`contents`); for CameraInfo an impossible size or projection and absurd but
+finite camera models (focal length, principal point, baseline); for poses a non-finite or
+non-unit quaternion, a camera looking away; for trajectory commands what
+joint_trajectory_controller refuses (:func:`command_trajectories`).
 """
 
+import math
+
+from builtin_interfaces.msg import Duration
+import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
@@ -37,8 +44,13 @@ def bad_stamps(t_ns):
             ('future stamp, 1000 s ahead', stamp(sec + 1000, nsec))]
 
 
-def joint_states(topic, next_ns, position, fields=('position',), scale=1.0):
-    """Bad JointStates on ``topic``; ``position`` (6,) a valid value; ``fields`` read."""
+def joint_states(topic, next_ns, position, fields=('position',), scale=1.0, last_ns=None):
+    """
+    Bad JointStates on ``topic``; ``position`` (6,) a valid value; ``fields`` read.
+
+    With ``last_ns`` (the stamp of the last state the node acted on), also that stamp
+    again and one a millisecond before it: a duplicate and a stamp going back.
+    """
     def msg(t_ns, names=NAMES, **values):
         full = {'position': position, 'velocity': np.zeros(6), 'effort': np.zeros(6)}
         full.update(values)
@@ -73,6 +85,9 @@ def joint_states(topic, next_ns, position, fields=('position',), scale=1.0):
             _stamped(msg(0), dict(bad_stamps(next_ns()))[lb])]))
     cases.append((f'paced stream of {BURST} future stamps', lambda: [
         msg(next_ns() + (1000 + k) * 1_000_000_000) for k in range(BURST)]))
+    if last_ns is not None:
+        cases += [('duplicate of the last stamp', lambda: [msg(last_ns())]),
+                  ('stamp going back 1 ms', lambda: [msg(last_ns() - 1_000_000)])]
     return [(name, topic, make) for name, make in cases]
 
 
@@ -136,8 +151,8 @@ def trajectories(topic, next_ns, rows):
     return [(name, topic, make) for name, make in cases]
 
 
-def polygons(topic, next_ns, features):
-    """Bad features (PolygonStamped): values, point count, stamps."""
+def polygons(topic, next_ns, features, last_ns=None):
+    """Bad features (PolygonStamped): values, point count, stamps (``last_ns``: joint_states)."""
     def msg(t_ns, values=features, points=2):
         out = PolygonStamped()
         out.header.stamp = ns_stamp(t_ns)
@@ -156,6 +171,9 @@ def polygons(topic, next_ns, features):
         cases.append((name, lambda s=s: [_stamped(msg(0), s)]))
     cases.append((f'burst of {BURST} far-future', lambda: [
         _stamped(msg(0), stamp(FAR_SEC - k)) for k in range(BURST)]))
+    if last_ns is not None:
+        cases += [('duplicate of the last stamp', lambda: [msg(last_ns())]),
+                  ('stamp going back 1 ms', lambda: [msg(last_ns() - 1_000_000)])]
     return [(name, topic, make) for name, make in cases]
 
 
@@ -165,13 +183,18 @@ def status(t_ns, mode):
                               name='features')
 
 
-def statuses(topic, next_ns):
+def statuses(topic, next_ns, last_ns=None):
     """Bad /ibvs/feature_status: stamps (of a measured frame), no status, an unknown mode."""
     cases = [('no status', topic, lambda: [DiagnosticArray(header=Header(
         stamp=ns_stamp(next_ns())))]),
              ('unknown mode', topic, lambda: [status(next_ns(), 'guessed')])]
     for name, s in bad_stamps(0):
         cases.append((name, topic, lambda s=s: [_stamped(status(0, 'measured'), s)]))
+    if last_ns is not None:
+        cases += [('duplicate of the last stamp', topic,
+                   lambda: [status(last_ns(), 'measured')]),
+                  ('stamp going back 1 ms', topic,
+                   lambda: [status(last_ns() - 1_000_000, 'measured')])]
     return cases
 
 
@@ -198,10 +221,41 @@ def arrays(topic, good, beyond):
     return [(name, topic, make) for name, make in cases]
 
 
-def command_trajectories(topic, good, beyond):
-    """Bad JointTrajectory position commands beyond :func:`trajectories`: names, travel."""
+def command_trajectories(topic, good, beyond, past_ns):
+    """
+    Bad JointTrajectory position commands beyond :func:`trajectories`.
+
+    Names, travel, and what joint_trajectory_controller refuses
+    (:func:`ibvs_common.conversions.read_command_trajectory`): a point out of range before
+    a good last one, a stamp whose end lies beyond the command timeout in the past
+    (``past_ns()`` returns such a stamp), negative or non-increasing times, NaN velocities,
+    an inf acceleration, effort fields.
+    """
     def traj(values=good, names=NAMES):
         return joint_trajectory(0, 1_000_000, np.atleast_2d(values), names)
+
+    def with_point(change, rows=3):
+        def make():
+            msg = traj(np.tile(good, (rows, 1)))
+            change(msg)
+            return [msg]
+        return make
+
+    def times(*ns):
+        def change(msg):
+            for point, t in zip(msg.points, ns):
+                point.time_from_start = Duration(sec=t // 10 ** 9, nanosec=t % 10 ** 9)
+        return change
+
+    def field(k, name, values):
+        def change(msg):
+            setattr(msg.points[k], name, values)
+        return change
+
+    def past():
+        msg = traj(np.tile(good, (2, 1)))
+        msg.header.stamp = ns_stamp(past_ns())
+        return [msg]
 
     def long_last():
         msg = traj(np.tile(good, (3, 1)))
@@ -214,12 +268,31 @@ def command_trajectories(topic, good, beyond):
              ('missing name', lambda: [traj(good[:5], NAMES[:5])]),
              ('NaN in the last point', lambda: [traj(nan_last)]),
              ('a joint beyond its travel', lambda: [traj(beyond)]),
-             ('last point 7 positions', long_last)]
+             ('last point 7 positions', long_last),
+             ('first point beyond the travel, the last good',
+              lambda: [traj(np.vstack([beyond, good]))]),
+             ('stamp in the past beyond the command timeout', past),
+             ('negative time_from_start', with_point(times(-10 ** 9), rows=1)),
+             ('times not increasing', with_point(times(0, 2_000_000, 1_000_000))),
+             ('times repeated', with_point(times(0, 1_000_000, 1_000_000))),
+             ('NaN velocities', with_point(field(2, 'velocities', [math.nan] * 6))),
+             ('inf acceleration', with_point(field(0, 'accelerations', [0.0] * 5 + [math.inf]))),
+             ('velocities of 5 joints', with_point(field(1, 'velocities', [0.0] * 5))),
+             ('effort fields', with_point(field(2, 'effort', [0.0] * 6)))]
     return [(name, topic, make) for name, make in cases]
 
 
 def camera_infos(topic, good):
-    """Bad CameraInfo: impossible sizes and projections."""
+    """
+    Bad CameraInfo: impossible sizes and projections, absurd but finite camera models.
+
+    The absurd models (the audit's f_u = 1e308 with the right P[3] = -1e308, which made
+    b = 1 m and features of inf; P[3] = -1e300 alone) and the others of
+    :func:`ibvs_common.conversions.check_camera_info` and ``intrinsics_from_infos``: a
+    field of view of 179 deg, a principal point off the image, a lens of another size than
+    its pair, and for the right lens baselines of 1 mm and 10 m and a positive P[3], for the
+    left one a P[3] (the right's CameraInfo on the left topic).
+    """
     def info(**changes):
         msg = CameraInfo()
         msg.header, msg.width, msg.height = good.header, good.width, good.height
@@ -233,10 +306,35 @@ def camera_infos(topic, good):
     p_nan[0] = float('nan')
     p_neg = list(good.p)
     p_neg[0] = -p_neg[0]
+
+    def p_with(**changes):
+        p = list(good.p)
+        for index, value in changes.items():
+            p[int(index[1:])] = float(value)
+        return p
+
+    right = 'right' in topic
+    f = good.p[0]
+    wide = (good.width / 2.0) / math.tan(math.radians(179.0) / 2.0)
+    huge = p_with(p0=1e308, p5=1e308, **({'p3': -1e308} if right else {}))
     cases = [('100000 x 100000', lambda: [info(width=100000, height=100000)]),
              ('0 x 0', lambda: [info(width=0, height=0)]),
              ('NaN in P', lambda: [info(p=p_nan)]),
-             ('negative focal length', lambda: [info(p=p_neg)])]
+             ('negative focal length', lambda: [info(p=p_neg)]),
+             ('focal length 1e308' + (', P[3] -1e308' if right else ''),
+              lambda: [info(p=huge)]),
+             ('P[3] -1e300', lambda: [info(p=p_with(p3=-1e300))]),
+             ('focal length 1e-300', lambda: [info(p=p_with(p0=1e-300))]),
+             ('field of view 179 deg', lambda: [info(p=p_with(p0=wide))]),
+             ('principal point 1e6 px', lambda: [info(p=p_with(p2=1e6))]),
+             ('principal point -50 px', lambda: [info(p=p_with(p6=-50.0))]),
+             ('another size than its pair', lambda: [info(width=good.width + 2)])]
+    if right:
+        cases += [('baseline 1 mm', lambda: [info(p=p_with(p3=-f * 0.001))]),
+                  ('baseline 10 m', lambda: [info(p=p_with(p3=-f * 10.0))]),
+                  ('positive P[3]', lambda: [info(p=p_with(p3=f * 0.12))])]
+    else:
+        cases += [('left lens with a baseline', lambda: [info(p=p_with(p3=-f * 0.12))])]
     return [(name, topic, make) for name, make in cases]
 
 
@@ -303,3 +401,68 @@ def images(topic, frame, image):
 
 def _side(topic):
     return 'left' if 'left' in topic else 'right'
+
+
+#: Seed of the full-size image contents: the same pixels in every run.
+CONTENT_SEED = 39
+
+
+def content_images(width, height):
+    """
+    Return (name, (left, right) RGB arrays) of valid full-size images costly to search.
+
+    What a real cell can show (a lens cap off in a textured scene, a flash, sensor noise at
+    ``image_noise_stddev`` 0.5, a patterned background, confetti of the markers' colours)
+    and what costs a circle search most: uniform noise, Gaussian noise on grey, a black and
+    white and a red and blue checkerboard, and 600 discs of the markers' colours and sizes,
+    the right image the left shifted 24 px (a disparity every disc could pair with).
+    """
+    from ibvs_model.scene import MARKER_RGB
+    rng = np.random.default_rng(CONTENT_SEED)
+    shape = (height, width, 3)
+    noise = rng.integers(0, 256, shape, dtype=np.uint8)
+    grey = np.clip(128.0 + rng.normal(0.0, 0.5 * 255.0, shape), 0, 255).astype(np.uint8)
+    rows, cols = np.indices((height, width)) // 16
+    board = ((rows + cols) % 2 == 1)
+    black_white = np.repeat(board[:, :, None] * 255, 3, axis=2).astype(np.uint8)
+    red_blue = np.where(board[:, :, None], MARKER_RGB[0], MARKER_RGB[1]).astype(np.uint8)
+    discs = np.full(shape, 235, dtype=np.uint8)
+    for k in range(600):
+        centre = (int(rng.integers(0, width)), int(rng.integers(0, height)))
+        cv2.circle(discs, centre, int(rng.integers(4, 40)), MARKER_RGB[k % 2], -1,
+                   cv2.LINE_AA)
+
+    def shifted(image):
+        return np.ascontiguousarray(np.roll(image, -24, axis=1))
+
+    return [('uniform noise', (noise, shifted(noise))),
+            ('Gaussian noise 0.5 on grey', (grey, shifted(grey))),
+            ('checkerboard 16 px', (black_white, shifted(black_white))),
+            ('red and blue checkerboard 16 px', (red_blue, shifted(red_blue))),
+            ('600 discs of the marker colours', (discs, shifted(discs)))]
+
+
+def contents(topic, frame, answered, width, height):
+    """
+    Return cases of valid full-size stereo frames costly to search, each a whole frame.
+
+    ``frame(left=..., right=...)`` returns the next frame's messages (each change replaces
+    that image); ``answered(messages)`` returns the predicate that the node answered the
+    frame (published it, or dropped it with a count). Nothing is to be rejected: the
+    checks are survival, the answer and the node acting on the next frame.
+    """
+    from .harness import Case
+
+    def replace(array):
+        return lambda msg: image_msg(array, msg.header.stamp, msg.encoding,
+                                     msg.header.frame_id)
+
+    cases = []
+    for name, pair in content_images(width, height):
+        label = f'{name} {width} x {height}'
+
+        def case(label=label, pair=pair):
+            messages = frame(left=replace(pair[0]), right=replace(pair[1]))
+            return Case(label, topic, messages, counted=0, answered=answered(messages))
+        cases.append((label, topic, case))
+    return cases

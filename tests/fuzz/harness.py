@@ -18,14 +18,22 @@ Per case:
 - **stuck**: after the case the node did not act on the next valid input (the rig's
   :meth:`Rig.valid_step`) before a deadline that only guards a hang.
 
-After all its cases, a rig that records the node's outputs checks that every one was
-finite (:meth:`Rig.published_finite`).
+Every message the node publishes, on any topic (its publishers are found on the node and
+wrapped, as its subscriptions are), is scanned for a NaN or inf in its numeric fields, and a
+number written as text in a /diagnostics value (:func:`non_finite_fields`): the table's
+**non-finite outputs** counts them, and any is a failure. A rig that records the node's
+outputs also checks that they came (:meth:`Rig.published_finite`).
+
+A case may carry its own check of what must become of a valid but costly input
+(``answered``: e.g. a full-size noise pair is published or dropped with a count, never
+left pending): one that fails it counts as accepted silently.
 """
 
 from collections import Counter
 from dataclasses import dataclass, field
+import math
 import time
-from typing import Callable, List, Tuple
+from typing import Callable, List, Optional, Tuple
 
 from builtin_interfaces.msg import Time
 from rclpy.executors import SingleThreadedExecutor
@@ -45,6 +53,9 @@ class Case:
     topic: str
     messages: List[Tuple[str, object]]
     counted: int = None
+    #: For a valid input: a predicate, called after the case, true when the node answered
+    #: it as it must (published, or counted); None: the rejection count is the check.
+    answered: Optional[Callable[[], bool]] = None
 
     def __post_init__(self):
         """Count every message sent to ``topic`` unless told otherwise."""
@@ -61,6 +72,46 @@ class Outcome:
     silent: bool = False
     stuck: bool = False
     rejected: Counter = field(default_factory=Counter)
+    #: The messages the node published with a non-finite number during the case.
+    non_finite: int = 0
+
+
+def _base_type(field_type):
+    """Return the element type of a rosidl field type: 'sequence<double, 3>' -> 'double'."""
+    if field_type.startswith('sequence<'):
+        field_type = field_type[len('sequence<'):-1].split(',')[0]
+    return field_type.split('[')[0]
+
+
+def non_finite_fields(msg, path=''):
+    """
+    Return the paths of the fields of ``msg`` that hold a NaN or inf (empty: all finite).
+
+    Every float and double, alone, in an array or a sequence, of ``msg`` and of every message
+    in it; and each diagnostic_msgs/KeyValue value that reads as a non-finite float
+    ('nan', 'inf'): /diagnostics carries its numbers as text. Integers, strings and bytes
+    cannot hold one.
+    """
+    found = []
+    for name, field_type in msg.get_fields_and_field_types().items():
+        value = getattr(msg, name)
+        base = _base_type(field_type)
+        many = base != field_type
+        if base in ('float', 'double'):
+            values = list(value) if many else [value]
+            if not all(math.isfinite(v) for v in values):
+                found.append(path + name)
+        elif '/' in base:
+            for i, item in enumerate(value if many else [value]):
+                found += non_finite_fields(item, f'{path}{name}{f"[{i}]" if many else ""}.')
+        elif base == 'string' and name == 'value' and type(msg).__name__ == 'KeyValue':
+            try:
+                number = float(value)
+            except ValueError:
+                continue
+            if not math.isfinite(number):
+                found.append(path + name)
+    return found
 
 
 def stamp(sec, nanosec=0):
@@ -87,6 +138,11 @@ class Rig:
         self.executor.add_node(self.driver)
         self.handled = Counter()
         self.pubs = {}
+        #: (topic, field paths) of every message the node published with a NaN or inf.
+        self.non_finite = []
+        self.published = Counter()
+        self._scanned = set()
+        self.scan_publishers()
         for sub in node.subscriptions:
             topic = sub.topic_name
             callback = sub.callback
@@ -102,6 +158,24 @@ class Rig:
                                                             sub.qos_profile)
         self.spin_until(lambda: all(p.get_subscription_count() > 0
                                     for p in self.pubs.values()), 'discovery')
+
+    def scan_publishers(self):
+        """Wrap each publisher of the node not yet wrapped: every message it sends is scanned."""
+        for pub in self.node.publishers:
+            if id(pub) in self._scanned:
+                continue
+            self._scanned.add(id(pub))
+            publish, topic = pub.publish, pub.topic_name
+
+            def scanned(msg, publish=publish, topic=topic):
+                self.published[topic] += 1
+                if not isinstance(msg, bytes):
+                    fields = non_finite_fields(msg)
+                    if fields:
+                        self.non_finite.append((topic, fields))
+                return publish(msg)
+
+            pub.publish = scanned
 
     @property
     def topics(self):
@@ -119,6 +193,7 @@ class Rig:
 
     def deliver(self, topic, msg):
         """Publish ``msg`` on ``topic`` and spin until the node has handled it."""
+        self.scan_publishers()  # one created since (none of our nodes does, but it could)
         before = self.handled[topic]
         self.pubs[topic].publish(msg)
         assert self.spin_until(lambda: self.handled[topic] > before, f'{topic} handled'), \
@@ -156,6 +231,7 @@ class Rig:
         """Send ``case``; return its :class:`Outcome` (the three checks of the docstring)."""
         outcome = Outcome(case)
         before = self.reasons(case.topic)
+        non_finite = len(self.non_finite)
         try:
             for topic, msg in case.messages:
                 self.deliver(topic, msg)
@@ -164,10 +240,13 @@ class Rig:
             return outcome
         outcome.rejected = self.reasons(case.topic) - before
         outcome.silent = sum(outcome.rejected.values()) < case.counted
+        if case.answered is not None:
+            outcome.silent = outcome.silent or not self.spin_until(case.answered, 'answered')
         try:
             outcome.stuck = not self.recovered()
         except Exception as exc:
             outcome.crash = f'after the case, {type(exc).__name__}: {exc}'
+        outcome.non_finite = len(self.non_finite) - non_finite
         return outcome
 
     def close(self):
@@ -184,11 +263,14 @@ def table(name, rig, outcomes):
     silent = [o for o in outcomes if o.silent]
     covered = {o.case.topic for o in outcomes}
     lines = [f'{name:32s} {len(outcomes):5d} {len(crashes):7d} {len(stuck):5d} '
-             f'{len(silent):17d}   topics {len(covered)}/{len(rig.topics)}']
+             f'{len(silent):17d} {len(rig.non_finite):18d}   '
+             f'topics {len(covered)}/{len(rig.topics)}']
     for o in crashes + stuck + silent:
         lines.append(f'    {o.case.topic} {o.case.name}: '
                      f"{o.crash or ('stuck' if o.stuck else 'accepted silently')}"
                      f' (rejected {dict(o.rejected)})')
+    for topic, fields in rig.non_finite[:10]:
+        lines.append(f'    published on {topic} non-finite {", ".join(fields[:5])}')
     return lines
 
 
@@ -200,10 +282,13 @@ def run_all(name, rig, makers):
 
 
 def assert_clean(rig, outcomes):
-    """Assert 0 crashes / 0 stuck / 0 accepted silently, and every topic covered."""
-    failed = [o for o in outcomes if o.crash or o.stuck or o.silent]
+    """Assert 0 crashes / stuck / accepted silently / non-finite outputs; every topic covered."""
+    failed = [o for o in outcomes if o.crash or o.stuck or o.silent or o.non_finite]
     assert not failed, '\n'.join(
         f'{o.case.topic} {o.case.name}: crash={o.crash!r} stuck={o.stuck} '
-        f'silent={o.silent} rejected={dict(o.rejected)}' for o in failed)
+        f'silent={o.silent} rejected={dict(o.rejected)} non-finite outputs={o.non_finite}'
+        for o in failed)
+    assert not rig.non_finite, f'non-finite outputs: {rig.non_finite[:10]}'
+    assert sum(rig.published.values()) > 0, 'the node published nothing: nothing was scanned'
     uncovered = set(rig.topics) - {o.case.topic for o in outcomes}
     assert not uncovered, f'topics without a fuzz case: {sorted(uncovered)}'

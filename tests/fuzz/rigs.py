@@ -34,11 +34,19 @@ def frame_ns(n):
 
 
 def build(rig, specs):
-    """Return a case maker per (name, topic, make) of ``specs`` (messages or (topic, msg))."""
+    """
+    Return a case maker per (name, topic, make) of ``specs``.
+
+    ``make()`` returns the messages (each a message of ``topic`` or (topic, msg)), or a
+    whole :class:`~.harness.Case`.
+    """
     makers = []
     for name, topic, make in specs:
         def maker(name=name, topic=topic, make=make):
-            messages = [m if isinstance(m, tuple) else (topic, m) for m in make()]
+            made = make()
+            if isinstance(made, Case):
+                return made
+            messages = [m if isinstance(m, tuple) else (topic, m) for m in made]
             return Case(name, topic, messages)
         makers.append(maker)
     return makers
@@ -86,7 +94,8 @@ class JointControllerRig(Rig):
     def cases(self):
         """Return every case of every topic it subscribes."""
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
-                                  ('position', 'velocity'))
+                                  ('position', 'velocity'),
+                                  last_ns=lambda: self.next_ns() - MS)
                  + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
                  + bad.headers(contract.FRAME_LOST, self.next_frame_ns)
                  + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
@@ -153,8 +162,14 @@ class SimPositionRig(Rig):
                                         lambda m: self.joints.append(m), contract.RELIABLE)
 
     def setup(self):
-        """Wait for the free run to start."""
+        """Wait for the free run to start (trajectories: until :meth:`past_ns` is positive)."""
         assert self.spin_until(lambda: self.joints, 'free-running /joint_states')
+        if self.topic == contract.TRAJECTORY_COMMANDS:
+            assert self.spin_until(lambda: self.past_ns() > MS, 'a stamp in the past')
+
+    def past_ns(self):
+        """Return a stamp whose two-point trajectory ended a command timeout ago and more."""
+        return self.node.sim.t_ns - 2 * self.node._command_timeout_ns - 2 * MS
 
     @property
     def q_start(self):
@@ -186,7 +201,7 @@ class SimPositionRig(Rig):
         else:
             specs = [c for c in bad.trajectories(self.topic, lambda: 0, np.tile(q, (5, 1)))
                      if c[0] != 'wrong sample times']  # the drive takes the last point only
-            specs += bad.command_trajectories(self.topic, q, beyond)
+            specs += bad.command_trajectories(self.topic, q, beyond, self.past_ns)
         return build(self, specs)  # no /clock: the sim is the clock
 
 
@@ -231,7 +246,8 @@ class JointControllerPositionRig(Rig):
 
     def cases(self):
         """Return every case of every topic it subscribes."""
-        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
+                                  last_ns=lambda: self.t_ns)
                  + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
                  + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
                                     np.tile(Q0, (5, 1)))
@@ -267,13 +283,24 @@ class VizRig(Rig):
         return frame_ns(self.n)
 
     def valid_step(self):
-        """Send the next frame's joint state, features and feature status."""
+        """Send the next frame's CameraInfo, joint state, features and feature status."""
         t = self.next_ns()
         self.n += 1
+        for topic, info in zip((contract.LEFT_INFO, contract.RIGHT_INFO),
+                               camera_infos(self.camera.intrinsics, t)):
+            self.deliver(topic, info)  # every frame's, as the simulator and the ZED send
         self.deliver(contract.FEATURES, features_msg(self.model.features(Q0), t))
         self.deliver(contract.FEATURE_STATUS, bad.status(t, 'measured'))
         self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
         return lambda: any(stamp_ns(m.transforms[0].header.stamp) == t for m in self.tf)
+
+    def off_image(self):
+        """Return a measured frame's features and status, its features 1e6 px off."""
+        t = self.next_ns()
+        self.n += 1  # the frame is used: the next valid one has the next stamp
+        far = self.model.features(Q0) + np.r_[1e6, 1e6, 0.0, 0.0, 0.0, 0.0]
+        return [(contract.FEATURES, features_msg(far, t)),
+                (contract.FEATURE_STATUS, bad.status(t, contract.FEATURE_MEASURED))]
 
     def published_finite(self):
         """Return whether every /tf it sent was finite."""
@@ -285,9 +312,14 @@ class VizRig(Rig):
     def cases(self):
         """Return every case of every topic it subscribes."""
         left, right = camera_infos(self.camera.intrinsics, 0)
-        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
-                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0))
-                 + bad.statuses(contract.FEATURE_STATUS, self.next_ns)
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
+                                  last_ns=lambda: frame_ns(self.n - 1))
+                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0),
+                                last_ns=lambda: frame_ns(self.n - 1))
+                 + [('measured features 1e6 px off the image', contract.FEATURES,
+                     self.off_image)]
+                 + bad.statuses(contract.FEATURE_STATUS, self.next_ns,
+                                last_ns=lambda: frame_ns(self.n - 1))
                  + bad.camera_infos(contract.LEFT_INFO, left)
                  + bad.camera_infos(contract.RIGHT_INFO, right)
                  + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
@@ -366,8 +398,10 @@ class AdaptiveFeedbackRig(Rig):
         """Return every case of every topic it subscribes."""
         left, right = camera_infos(self.camera.intrinsics, 0)
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
-                                  ('position', 'velocity'))
-                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0))
+                                  ('position', 'velocity'),
+                                  last_ns=lambda: frame_ns(self.n - 1))
+                 + bad.polygons(contract.FEATURES, self.next_ns, self.model.features(Q0),
+                                last_ns=lambda: frame_ns(self.n - 1))
                  + bad.camera_infos(contract.LEFT_INFO, left)
                  + bad.camera_infos(contract.RIGHT_INFO, right)
                  + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
@@ -376,15 +410,21 @@ class AdaptiveFeedbackRig(Rig):
 
 
 class FeatureRig(Rig):
-    """feature_node: acts by publishing the features of each complete stereo frame."""
+    """
+    feature_node: acts by publishing the features of each complete stereo frame.
 
-    def __init__(self, context):
-        """Create the node (sim time); frames are VGA, black (the estimate is published)."""
+    ``resolution`` is the ZED 2's of the frames; at full size (HD720) the cases add
+    valid images costly to search (:func:`.cases.contents`).
+    """
+
+    def __init__(self, context, resolution='VGA'):
+        """Create the node (sim time); frames are black (the estimate is published)."""
         from ibvs_vision.feature_node import FeatureNode
         from geometry_msgs.msg import PolygonStamped
         node = FeatureNode(context=context, parameter_overrides=SIM_TIME)
         super().__init__(context, node, node._diag)
-        self.camera = default_camera('VGA')
+        self.resolution = resolution
+        self.camera = default_camera(resolution)
         self.n = 0
         self.out = []
         self.driver.create_subscription(PolygonStamped, contract.FEATURES,
@@ -416,6 +456,23 @@ class FeatureRig(Rig):
                 (contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6))),
                 (contract.LEFT_IMAGE, images[0]), (contract.RIGHT_IMAGE, images[1])]
 
+    def answered(self, messages):
+        """
+        Return the predicate that the frame of ``messages`` was answered.
+
+        Published (its features), or dropped with a count under its images or as a stereo
+        frame; made before the frame is sent.
+        """
+        t = stamp_ns(messages[-1][1].header.stamp)
+        topics = ('stereo frame', self.node._topics['left'], self.node._topics['right'])
+
+        def drops():
+            return sum(n for key, n in self.diagnostics.rejections.items()
+                       if key.split(': ')[0] in topics)
+        before = drops()
+        return lambda: (any(stamp_ns(m.header.stamp) == t for m in self.out)
+                        or drops() > before)
+
     def valid_step(self):
         """Send the next complete frame."""
         t = self.next_ns()
@@ -426,13 +483,18 @@ class FeatureRig(Rig):
     def cases(self):
         """Return every case of every topic it subscribes."""
         left, right = camera_infos(self.camera.intrinsics, 0)
-        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0)
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
+                                  last_ns=lambda: frame_ns(self.n - 1))
                  + bad.images(contract.LEFT_IMAGE, self.frame, self.image)
                  + bad.images(contract.RIGHT_IMAGE, self.frame, self.image)
                  + bad.camera_infos(contract.LEFT_INFO, left)
                  + bad.camera_infos(contract.RIGHT_INFO, right)
                  + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
                  + bad.clocks())
+        if self.resolution == 'HD720':
+            k = self.camera.intrinsics
+            specs += bad.contents(contract.LEFT_IMAGE, self.frame, self.answered, k.width,
+                                  k.height)
         for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
             specs += [(name, topic, make) for name, make in (
                 ('encoding 16UC1', lambda: [_encoding(self.image(0), '16UC1')]),

@@ -3,9 +3,10 @@ Bad input into every subscribed topic of every node: survival, counting, recover
 
 Each node runs in-process in a private Context (:mod:`.rigs`); every case of
 :mod:`.cases` is sent to it in turn and checked (:mod:`.harness`): no exception out of a
-callback, a ``rejected[<topic>: <reason>]`` count for each bad message, and the node acting
-on the next valid input. The per-node table (cases / crashes / stuck / accepted silently)
-is printed at the end of the session.
+callback, a ``rejected[<topic>: <reason>]`` count for each bad message (for a valid but
+costly one, its answer), the node acting on the next valid input, and nothing non-finite in
+anything it publishes. The per-node table (cases / crashes / stuck / accepted silently /
+non-finite outputs) is printed at the end of the session.
 """
 
 import pytest
@@ -16,6 +17,7 @@ from .harness import assert_clean, run_all
 RIGS = {
     'sim_node': rigs.SimRig,
     'feature_node': rigs.FeatureRig,
+    'feature_node[HD720]': lambda context: rigs.FeatureRig(context, 'HD720'),
     'adaptive_feedback_node': rigs.AdaptiveFeedbackRig,
     'feedforward_node': rigs.FeedforwardRig,
     'joint_controller_node': rigs.JointControllerRig,

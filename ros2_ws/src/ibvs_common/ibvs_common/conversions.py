@@ -118,6 +118,40 @@ def stamp_lead_ns(stale_timeout_s: float, input_period_ns: int) -> int:
     return seconds_to_ns(stale_timeout_s) + int(input_period_ns)
 
 
+class StampOrder:
+    """
+    The newest stamp taken from each source; a stamp not after it is refused.
+
+    A source (one publisher's stream, e.g. a topic) stamps its messages in order. A stamp
+    equal to the newest taken is 'duplicate stamp' (the same message again, or a second
+    publisher), one before it 'stamp went back' (a restarted or a foreign clock): both
+    raise :class:`InputError`, so that the node counts and skips the message. Only a stamp
+    the node :meth:`take` s moves the order on: a message refused for its values leaves its
+    stamp free for a good one.
+    """
+
+    def __init__(self) -> None:
+        """Start with no stamp taken from any source."""
+        self._newest = {}
+
+    def check(self, source: str, t_ns: int) -> None:
+        """Raise :class:`InputError` unless ``t_ns`` is after the newest taken from ``source``."""
+        newest = self._newest.get(source)
+        if newest is None or t_ns > newest:
+            return
+        if t_ns == newest:
+            raise InputError('duplicate stamp', f'{t_ns} ns again')
+        raise InputError('stamp went back', f'{t_ns} ns after {newest} ns')
+
+    def take(self, source: str, t_ns: int) -> None:
+        """Note that the message stamped ``t_ns`` from ``source`` was used."""
+        self._newest[source] = int(t_ns)
+
+    def newest(self, source: str) -> Optional[int]:
+        """Return the newest stamp taken from ``source`` (ns), or None."""
+        return self._newest.get(source)
+
+
 def ns_stamp(ns: int) -> Time:
     """Return integer nanoseconds as builtin_interfaces/Time."""
     ns = int(ns)
@@ -283,6 +317,94 @@ def read_trajectory(msg: JointTrajectory, period_ns: int,
                    for p in msg.points):
             raise InputError(f'non-finite {field}')
     return stamp_ns(msg.header.stamp), positions
+
+
+def read_command_trajectory(msg: JointTrajectory, now_ns: int, timeout_ns: int,
+                            names: Sequence[str] = contract.JOINT_NAMES
+                            ) -> NDArray[np.float64]:
+    """
+    Return the (N, 6) positions of a joint_trajectory_controller command, names' order.
+
+    What ros2_controllers' joint_trajectory_controller refuses (jazzy branch, 4.42.1,
+    commit ed360c9, ``joint_trajectory_controller/src/joint_trajectory_controller.cpp``,
+    ``validate_trajectory_msg`` from line 1671) is refused here, each with its reason:
+
+    - 'wrong joint names' (lines 1676-1714: every controller joint, no other) and 'empty
+      trajectory' (line 1695); our names must also be distinct;
+    - 'times not increasing': a ``time_from_start`` not after the point before (line 1755,
+      "not strictly increasing");
+    - 'trajectory ends in the past': a non-zero header stamp whose last point's time
+      (stamp + its ``time_from_start``) is before now (lines 1732-1749; a zero stamp means
+      start now). Here with ``timeout_ns`` (the command timeout) of grace: a reference
+      stamped at its publication reaches a free-running sim a few steps later, and one
+      older than the timeout would be stale on arrival anyway;
+    - 'wrong positions length', 'wrong velocities length', 'wrong accelerations length':
+      a field not one value per joint, velocities and accelerations also empty (lines
+      1796-1804, ``validate_trajectory_point_field``), and 'effort in a position command'
+      (lines 1805-1812: effort only with an effort command interface).
+
+    Not taken over: the controller's refusal of a non-zero velocity at the last point
+    (lines 1718-1730, ``allow_nonzero_velocity_at_trajectory_end``), which is about its
+    spline, not the sanity of the numbers; the drive here takes the last point only.
+
+    Stricter than the controller, which passes the numbers to the hardware as they are: a
+    negative ``time_from_start`` ('negative time_from_start': a point before the
+    trajectory's start, which trajectory_msgs does not define), a non-finite position,
+    velocity or acceleration ('non-finite ...'; a real drive, ABB EGM, refuses it), and a
+    header stamp that :func:`read_stamp` refuses (malformed, or more than ``timeout_ns``
+    after ``now_ns``). The joint range is the caller's (it knows the robot).
+
+    Parameters
+    ----------
+    msg : trajectory_msgs.msg.JointTrajectory
+        The command.
+    now_ns : int
+        The controller's time (ns).
+    timeout_ns : int
+        The command timeout (ns): how far a stamp may lead now, and the grace of a
+        trajectory that ends in the past.
+    names : sequence of str
+        The controller's joints, the order of the columns returned.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 6) positions, one row per point.
+
+    """
+    given = list(msg.joint_names)
+    if len(given) != len(names) or set(given) != set(names):
+        raise InputError('wrong joint names', f'{given}: each of {list(names)} once')
+    if not msg.points:
+        raise InputError('empty trajectory')
+    start_ns = read_stamp(msg.header.stamp, now_ns, timeout_ns)
+    times = [duration_ns(p.time_from_start) for p in msg.points]
+    for k, t in enumerate(times):
+        if t < 0:
+            raise InputError('negative time_from_start', f'point {k}: {t} ns')
+        if k and t <= times[k - 1]:
+            raise InputError('times not increasing',
+                             f'point {k} at {t} ns, point {k - 1} at {times[k - 1]} ns')
+    if start_ns != 0 and start_ns + times[-1] < now_ns - timeout_ns:
+        raise InputError('trajectory ends in the past',
+                         f'at {start_ns + times[-1]} ns, now {now_ns} ns (grace '
+                         f'{timeout_ns} ns)')
+    for k, point in enumerate(msg.points):
+        for field, may_be_empty in (('positions', False), ('velocities', True),
+                                    ('accelerations', True)):
+            values = np.asarray(getattr(point, field), dtype=float)
+            if may_be_empty and values.size == 0:
+                continue
+            if values.shape != (len(names),):
+                raise InputError(f'wrong {field} length',
+                                 f'{values.size} in point {k}, expected {len(names)}')
+            if not np.all(np.isfinite(values)):
+                raise InputError(f'non-finite {field}', f'point {k}: {values.tolist()}')
+        if len(point.effort):
+            raise InputError('effort in a position command',
+                             f'point {k}: {len(point.effort)} efforts')
+    positions = np.array([p.positions for p in msg.points], dtype=float)
+    return positions[:, [given.index(n) for n in names]]
 
 
 def pose_matrix(pose: Pose) -> NDArray[np.float64]:
@@ -460,29 +582,78 @@ def camera_infos(intrinsics: StereoIntrinsics, stamp: int | Time,
 #: Largest image side (px) a CameraInfo may give: above any stereo camera's (ZED 2: 2208),
 #: far below sizes whose images could not be held in memory.
 MAX_IMAGE_SIDE_PX = 8192
+#: Narrowest and widest field of view (deg, each axis) of a rectified pinhole lens that is
+#: read: 1 deg is a long telephoto lens, 170 deg more than a rectified fisheye keeps (a
+#: pinhole image cannot reach 180); a ZED 2 has 86 x 55 deg (``ibvs_model.camera``).
+#: f = (side / 2) / tan(fov / 2) (Appendix): f_u within 0.044 to 57 times the width, f_v
+#: the height (ZED 2 at HD720: 686 px over 1280). No overflow is left: f at most
+#: 57.3 * 8192 = 4.7e5 px.
+FOV_RANGE_DEG = (1.0, 170.0)
+#: Shortest and longest stereo baseline b (m) that is read, b = -P[3] / P[0] of the right
+#: lens: a ZED 2 has 0.12 m, a ZED Mini 0.063, the smallest stereo modules about 0.02 and
+#: wide rigs a metre or two; 5 mm to 5 m holds all of them with margin.
+BASELINE_RANGE_M = (0.005, 5.0)
+
+
+def focal_range_px(side_px: int) -> tuple[float, float]:
+    """Return (low, high) of a focal length (px) along an image side of ``side_px``."""
+    narrow, wide = FOV_RANGE_DEG
+    return ((side_px / 2.0) / math.tan(math.radians(wide) / 2.0),
+            (side_px / 2.0) / math.tan(math.radians(narrow) / 2.0))
 
 
 def check_camera_info(info: CameraInfo) -> None:
     """
     Raise :class:`InputError` unless one CameraInfo can be a lens of the stereo camera.
 
-    Its size must be 1 to :data:`MAX_IMAGE_SIDE_PX` pixels a side and its P 12 finite values
-    with f_u > 0; what the two lenses must agree on is :func:`intrinsics_from_infos`'s.
+    Read from the projection matrix P of a rectified lens ([f_u 0 c_u -f_u b; 0 f_v c_v 0;
+    0 0 1 0], the ROS convention that zed-ros2-wrapper follows), each refused with its
+    reason:
+
+    - 'bad camera_info size': a side outside 1 to :data:`MAX_IMAGE_SIDE_PX` px;
+    - 'bad camera_info': P not 12 finite values;
+    - 'focal length out of range': f_u or f_v outside :func:`focal_range_px` of its side
+      (a field of view outside :data:`FOV_RANGE_DEG`; f_u <= 0 included);
+    - 'principal point off the image': c_u outside [0, width] or c_v outside [0, height];
+    - 'baseline out of range': |P[3] / P[0]| beyond the longest of
+      :data:`BASELINE_RANGE_M` (0 on the left lens; the right's range is checked by
+      :func:`intrinsics_from_infos`, which knows which lens it is).
+
+    So a finite but absurd camera (f_u = 1e308, P[3] = -1e300) never reaches
+    :mod:`ibvs_model.camera`, where it would overflow to inf.
     """
     if not (0 < info.width <= MAX_IMAGE_SIDE_PX and 0 < info.height <= MAX_IMAGE_SIDE_PX):
         raise InputError('bad camera_info size',
                          f'{info.width} x {info.height}, each side 1 to {MAX_IMAGE_SIDE_PX}')
     p = np.asarray(info.p, dtype=float)
-    if p.shape != (12,) or not np.all(np.isfinite(p)) or p[0] <= 0.0:
-        raise InputError('bad camera_info', 'P must have 12 finite values with P[0] > 0')
+    if p.shape != (12,) or not np.all(np.isfinite(p)):
+        raise InputError('bad camera_info', 'P must have 12 finite values')
+    for name, f, side in (('f_u', p[0], info.width), ('f_v', p[5], info.height)):
+        low, high = focal_range_px(side)
+        if not low <= f <= high:
+            raise InputError('focal length out of range',
+                             f'{name} = {f:.6g} px, {low:.4g} to {high:.4g} px for a side of '
+                             f'{side} px (a field of view of {FOV_RANGE_DEG[0]:g} to '
+                             f'{FOV_RANGE_DEG[1]:g} deg)')
+    if not (0.0 <= p[2] <= info.width and 0.0 <= p[6] <= info.height):
+        raise InputError('principal point off the image',
+                         f'({p[2]:.6g}, {p[6]:.6g}) px in a {info.width} x {info.height} '
+                         f'image')
+    if abs(p[3] / p[0]) > BASELINE_RANGE_M[1]:
+        raise InputError('baseline out of range',
+                         f'P[3] / P[0] = {p[3] / p[0]:.6g} m, at most '
+                         f'{BASELINE_RANGE_M[1]:g} m')
 
 
 def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsics:
     """
     Return :class:`StereoIntrinsics` from the left and right CameraInfo.
 
-    The baseline comes from the right projection matrix, P[3] = -f_u b. Raises
-    :class:`InputError` when the two disagree on size or intrinsics, or P[3] >= 0.
+    Each is checked by :func:`check_camera_info`. The baseline comes from the right
+    projection matrix, b = -P[3] / f_u, and must lie within :data:`BASELINE_RANGE_M`
+    ('baseline out of range'; a right P[3] >= 0 is no right lens); the left lens is the
+    reference, its P[3] = 0 ('left lens with a baseline': e.g. a right CameraInfo on the left
+    topic). Raises :class:`InputError` too when the two disagree on size or intrinsics.
     """
     check_camera_info(left)
     check_camera_info(right)
@@ -493,11 +664,16 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
                          f'{left.width}x{left.height} vs {right.width}x{right.height}')
     if not np.allclose(pl[[0, 2, 5, 6]], pr[[0, 2, 5, 6]], rtol=1e-9, atol=1e-9):
         raise InputError('camera_info intrinsics mismatch', 'left and right P differ')
-    if pr[3] >= 0.0 or pl[0] <= 0.0:
-        raise InputError('bad camera_info', f'right P[3] = {pr[3]} must be -f_u * b < 0')
+    if pl[3] != 0.0:
+        raise InputError('left lens with a baseline', f'left P[3] = {pl[3]:.6g}, must be 0')
+    baseline = float(-pr[3] / pr[0])
+    if not BASELINE_RANGE_M[0] <= baseline <= BASELINE_RANGE_M[1]:
+        raise InputError('baseline out of range',
+                         f'right P[3] = {pr[3]:.6g} gives b = {baseline:.6g} m, '
+                         f'{BASELINE_RANGE_M[0]:g} to {BASELINE_RANGE_M[1]:g} m')
     try:
         return StereoIntrinsics(int(left.width), int(left.height), float(pl[0]), float(pl[5]),
-                                float(pl[2]), float(pl[6]), float(-pr[3] / pr[0]))
+                                float(pl[2]), float(pl[6]), baseline)
     except ValueError as exc:
         raise InputError('bad camera_info', str(exc)) from None
 
@@ -518,7 +694,8 @@ def read_camera_pose(pose_msg: PoseStamped | Pose) -> NDArray[np.float64]:
     """
     pose = pose_msg.pose if hasattr(pose_msg, 'pose') else pose_msg
     tf = pose_matrix(pose)
-    distance = float(np.linalg.norm(tf[:3, 3]))
+    x, y, z = tf[:3, 3]
+    distance = float(np.hypot(np.hypot(x, y), z))  # no overflow warning for 1e308
     if distance > MAX_CAMERA_DISTANCE_M:
         raise InputError('camera too far from the robot',
                          f'{distance:.3g} m from the base, at most {MAX_CAMERA_DISTANCE_M:g}')
@@ -565,6 +742,31 @@ def read_features(msg: PolygonStamped) -> NDArray[np.float64]:
     if not np.all(np.isfinite(values)):
         raise InputError('non-finite features', f'{values.tolist()}')
     return values
+
+
+#: How far (px) a measured feature may lie outside its image: the detector measures
+#: markers inside the image, with sub-pixel centres that may reach half a pixel past its
+#: edge; one pixel is the margin of the check.
+IMAGE_MARGIN_PX = 1.0
+
+
+def check_features_in_image(features: ArrayLike, intrinsics: StereoIntrinsics,
+                            margin_px: float = IMAGE_MARGIN_PX) -> None:
+    """
+    Raise :class:`InputError` ('features off the image') unless p_I lies in the image.
+
+    ``features`` (6,) as :func:`read_features` returns them (u_l, u_r, v of each marker);
+    each u within [-margin, width + margin], each v within [-margin, height + margin]. For
+    measured features only: an estimate F(q_T) may lie anywhere.
+    """
+    p = np.asarray(features, dtype=float).reshape(2, 3)
+    u, v = p[:, :2], p[:, 2]
+    k = intrinsics
+    if (np.any(u < -margin_px) or np.any(u > k.width + margin_px)
+            or np.any(v < -margin_px) or np.any(v > k.height + margin_px)):
+        raise InputError('features off the image',
+                         f'{p.reshape(6).tolist()} px, image {k.width} x {k.height} '
+                         f'(margin {margin_px:g} px)')
 
 
 class FeatureStatus(NamedTuple):

@@ -36,8 +36,12 @@ answered is rejected, not answered. Every stamp goes through the one stamp rule
 its newest joint state; 0 before either) is rejected and never stored, so that it cannot
 make every later input look stale; joint states beyond ``POSITION_BOUND_RAD`` or faster
 than ``SPEED_BOUND_RAD_S`` (:mod:`ibvs_common.conversions`) are rejected too. Each CameraInfo
-is checked on its own (:func:`ibvs_common.conversions.check_camera_info`) and a camera pose
-looking away from the robot is refused, each counted under its topic. /diagnostics: singular
+is checked on its own (:func:`ibvs_common.conversions.check_camera_info`: size, focal
+length, principal point, baseline), the pair together
+(:func:`ibvs_common.conversions.intrinsics_from_infos`), and one that differs from the pair
+the camera model was built from is refused ('camera_info changed': the model is built
+once); a camera pose looking away from the robot is refused; each is counted under its
+topic's resolved name. /diagnostics: singular
 values of C1, condition number, rank used, image error norm.
 
 Servo law (``servo_law``, :mod:`.servo_laws`): 'paper' (default) is the above. 'ibvs'
@@ -121,10 +125,12 @@ class AdaptiveFeedbackNode(Node):
         # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
         self._pub = intra_process.publisher(self, JointState, contract.Q_FEEDBACK,
                                             contract.RELIABLE)
-        intra_process.subscription(self, CameraInfo, contract.LEFT_INFO,
-                                   lambda m: self._on_info(0, m), contract.IMAGES)
-        intra_process.subscription(self, CameraInfo, contract.RIGHT_INFO,
-                                   lambda m: self._on_info(1, m), contract.IMAGES)
+        # The resolved names (the ZED wrapper's under a remap): rejections are counted there.
+        self._info_topics = [
+            intra_process.subscription(self, CameraInfo, topic,
+                                       lambda m, i=i: self._on_info(i, m),
+                                       contract.IMAGES).topic_name
+            for i, topic in enumerate((contract.LEFT_INFO, contract.RIGHT_INFO))]
         calibrated = camera_pose_from(values)
         if calibrated is None:
             self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
@@ -159,8 +165,8 @@ class AdaptiveFeedbackNode(Node):
             return []
         missing = []
         if self.feedback is None:
-            inputs = ((contract.LEFT_INFO, self._infos[0]),
-                      (contract.RIGHT_INFO, self._infos[1]),
+            inputs = ((self._info_topics[0], self._infos[0]),
+                      (self._info_topics[1], self._infos[1]),
                       (contract.STEREO_POSE, self._camera_pose))
             missing += [topic for topic, msg in inputs if msg is None]
             if self._taught and self._p_target is None:
@@ -179,14 +185,20 @@ class AdaptiveFeedbackNode(Node):
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_info(self, index, msg):
-        topic = (contract.LEFT_INFO, contract.RIGHT_INFO)[index]
+        topic = self._info_topics[index]
         try:
             check_camera_info(msg)
         except InputError as exc:
             self.diagnostics.reject(topic, exc.reason, exc.detail)
             return
-        if self.feedback is not None:
-            return  # the camera model is built once
+        if self.feedback is not None:  # the camera model is built once: it must not change
+            built = self._infos[index]
+            if (msg.width, msg.height, tuple(msg.p)) != (built.width, built.height,
+                                                         tuple(built.p)):
+                self.diagnostics.reject(topic, 'camera_info changed',
+                                        'the camera model is built once, from the first '
+                                        'usable pair; this one differs from it')
+            return
         self._infos[index] = msg
         self._try_camera(topic)
 

@@ -65,9 +65,12 @@ older than ``command_timeout_s`` (sim time) is stale: the drive stops the arm an
 logs it and says so on /diagnostics (``command: stale``) until a new one comes. A command
 with the wrong number of values, unknown, missing or repeated joint names, a non-finite
 value or a position outside the joint's range is rejected and counted; a JointTrajectory
-also for a bad point anywhere in it (as joint_trajectory_controller refuses it) or a header
-stamp that :func:`ibvs_common.conversions.read_stamp` refuses (malformed, or more than
-``command_timeout_s`` ahead of sim time; 0 means now). When the machine
+also for a point anywhere in it out of range, non-finite (velocities and accelerations
+too) or of the wrong length, times from start negative or not strictly increasing, and a
+header stamp malformed, more than ``command_timeout_s`` ahead of sim time, or (when not 0,
+which means now) ending more than ``command_timeout_s`` in the past: what
+joint_trajectory_controller refuses, its source cited by
+:func:`ibvs_common.conversions.read_command_trajectory`. When the machine
 cannot keep ``real_time_factor`` (a step's work, rendering above all, takes longer than its
 share of wall time) the node says so once a second (WARN log and /diagnostics
 ``real_time_factor_held``) and goes on at the pace it can hold: sim time is never skipped.
@@ -88,8 +91,9 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, intra_process
 from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_path,
-                                     joint_state, ns_stamp, path_msg, pose_stamped, read_joints,
-                                     read_stamp, stamp_ns)
+                                     joint_state, ns_stamp, path_msg, pose_stamped,
+                                     read_command_trajectory, read_joints, read_stamp,
+                                     stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
@@ -584,33 +588,31 @@ class SimNode(Node):
         self._take_reference(values[self._to_contract], source)
 
     def _on_trajectory_command(self, msg):
-        """Take a joint_trajectory_controller command: the last point, mapped by name."""
+        """
+        Take a joint_trajectory_controller command: the last point, mapped by name.
+
+        Refused as joint_trajectory_controller refuses it
+        (:func:`ibvs_common.conversions.read_command_trajectory`, which cites its source:
+        names, empty, times not strictly increasing or negative, a non-zero stamp whose end
+        is more than ``command_timeout_s`` in the past, a stamp more than that ahead, wrong
+        lengths, non-finite values), and for a point anywhere outside a joint's range.
+        """
         source = self._sub.topic_name
-        names = list(msg.joint_names)
-        if sorted(names) != sorted(contract.JOINT_NAMES) or len(set(names)) != 6:
-            self.diagnostics.reject(source, 'bad joint names',
-                                    f'{names}: each of {list(contract.JOINT_NAMES)} once')
-            return
-        if not msg.points:
-            self.diagnostics.reject(source, 'no points', 'an empty trajectory')
-            return
-        try:  # stamp 0: start now; one beyond the staleness bound could never be meant
-            read_stamp(msg.header.stamp, self.sim.t_ns, self._command_timeout_ns)
+        try:
+            positions = read_command_trajectory(msg, self.sim.t_ns, self._command_timeout_ns)
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        # Every point checked, as joint_trajectory_controller refuses a trajectory with a
-        # bad point anywhere; the drive then takes the last one.
-        for k, point in enumerate(msg.points):
-            values = np.asarray(point.positions, dtype=float)
-            if values.shape != (6,):
-                self.diagnostics.reject(source, 'wrong length',
-                                        f'{values.size} positions in point {k}, expected 6')
-                return
-            if not np.all(np.isfinite(values)):
-                self.diagnostics.reject(source, 'not finite', f'point {k}: {values.tolist()}')
-                return
-        self._take_reference(values[[names.index(n) for n in contract.JOINT_NAMES]], source)
+        low, high = np.asarray(IRB4600.q_min), np.asarray(IRB4600.q_max)
+        q_true = positions + self.sim.d_q
+        outside = np.flatnonzero(np.any((q_true < low) | (q_true > high), axis=1))
+        if outside.size:
+            self.diagnostics.reject(source, 'out of range',
+                                    f'point {int(outside[0])}: '
+                                    f'{positions[outside[0]].tolist()} rad: beyond a joint '
+                                    'range')
+            return
+        self._take_reference(positions[-1], source)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -138,7 +138,7 @@ def test_joint_trajectory_commands_are_mapped_by_name_and_bad_names_refused(cell
     send(scrambled, target[[2, 4, 0, 5, 1, 3]])  # another order: mapped by name
     spin_until(executor, lambda: abs(sim.servo.q[2] - target[2]) < 1e-5, what='joint_3')
     np.testing.assert_allclose(np.delete(sim.servo.q, 2), np.delete(q0, 2), atol=1e-12)
-    assert sim.diagnostics.rejections[f'{contract.TRAJECTORY_COMMANDS}: bad joint names'] == 1
+    assert sim.diagnostics.rejections[f'{contract.TRAJECTORY_COMMANDS}: wrong joint names'] == 1
 
 
 @pytest.mark.parametrize('params, name', [

@@ -33,8 +33,12 @@ goes through the one stamp rule (:func:`ibvs_common.conversions.read_stamp`) bef
 pairer sees it: a malformed one, or one more than ``stale_timeout_s`` and a camera period
 ahead of the newest time the node knows (its clock, its newest input; 0 before either), is
 rejected and never stored, so that one bad message cannot make every later frame stale.
-Joint states beyond ``POSITION_BOUND_RAD``, a CameraInfo of an impossible size and a camera pose
-looking away from the robot are rejected too; each rejection is counted under its topic.
+Joint states beyond ``POSITION_BOUND_RAD``, a joint state or an image whose stamp is not after
+the last one taken from its topic ('duplicate stamp', 'stamp went back':
+:class:`ibvs_common.conversions.StampOrder`), a CameraInfo that cannot be a lens
+(:func:`ibvs_common.conversions.check_camera_info`: size, focal length, principal point,
+baseline) and a camera pose looking away from the robot are rejected too; each rejection is
+counted under its topic's resolved name (the ZED wrapper's under its remap).
 
 Debug overlays. /ibvs/debug/left/image and /ibvs/debug/right/image (sensor_msgs/Image,
 rgb8, stamped with the frame) show each camera image with the detected markers, the
@@ -64,7 +68,8 @@ from ibvs_common import contract, intra_process, shared_params
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, feature_status_msg,
                                      features_msg, FeatureStatus, image_msg, InputError,
                                      ns_stamp, pose_stamped, position_bounds,
-                                     read_camera_pose, read_joints, read_stamp, stamp_lead_ns)
+                                     read_camera_pose, read_joints, read_stamp, stamp_lead_ns,
+                                     StampOrder)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
@@ -130,11 +135,12 @@ class FeatureNode(Node):
                                     history_ns=seconds_to_ns(p['joint_history_s']),
                                     sides=_SIDES)
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
-        self._topics = {'left': contract.LEFT_IMAGE, 'right': contract.RIGHT_IMAGE,
-                        'left teach': contract.TEACH_LEFT_IMAGE,
-                        'right teach': contract.TEACH_RIGHT_IMAGE,
-                        'left info': contract.LEFT_INFO, 'right info': contract.RIGHT_INFO}
+        #: Each input's resolved topic name (the ZED wrapper's under a remap), which its
+        #: rejections are counted under; filled as the subscriptions are created.
+        self._topics = {}
+        self._order = StampOrder()
         self._infos = {}
+        self._info_side = 'left'  # the lens whose CameraInfo came last
         self._pose = None
         self._camera_key = None
         self._camera_problem = None
@@ -164,17 +170,18 @@ class FeatureNode(Node):
         self._debug_pubs = {side: self.create_publisher(Image, topic, contract.IMAGES)
                             for side, topic in DEBUG_IMAGES.items()}
         # Each of a lens's inputs, left then right, in this order.
-        for msg_type, topics, on_message, qos in (
+        for msg_type, topics, on_message, qos, kind in (
                 (Image, (contract.LEFT_IMAGE, contract.RIGHT_IMAGE), self._on_image,
-                 contract.IMAGES),
+                 contract.IMAGES, ''),
                 (Image, (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE), self._on_teach,
-                 contract.LATCHED),
+                 contract.LATCHED, ' teach'),
                 (CameraInfo, (contract.LEFT_INFO, contract.RIGHT_INFO), self._on_info,
-                 contract.RELIABLE)):
+                 contract.RELIABLE, ' info')):
             subscribe = (self.create_subscription if qos == contract.LATCHED
                          else partial(intra_process.subscription, self))
             for side, topic in zip(('left', 'right'), topics):
-                subscribe(msg_type, topic, partial(on_message, side), qos)
+                self._topics[side + kind] = subscribe(msg_type, topic, partial(on_message, side),
+                                                      qos).topic_name
         calibrated = shared_params.camera_pose_from(p)
         if calibrated is None:
             self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
@@ -201,9 +208,16 @@ class FeatureNode(Node):
             return None
 
     def _on_image(self, side, msg):
-        t_ns = self._read_stamp(self._topics[side], msg.header.stamp)
+        topic = self._topics[side]
+        t_ns = self._read_stamp(topic, msg.header.stamp)
         if t_ns is None:
             return
+        try:  # an image of a stamp seen already would replace or follow its frame's
+            self._order.check(topic, t_ns)
+        except InputError as exc:
+            self._diag.reject(topic, exc.reason, exc.detail)
+            return
+        self._order.take(topic, t_ns)
         try:
             image, error = image_array(msg), None
         except InputError as exc:
@@ -234,7 +248,7 @@ class FeatureNode(Node):
             right = right[:, :, ::-1].copy()
         k = self._detector.intrinsics
         if any(image.shape[:2] != (k.height, k.width) for image in (left, right)):
-            self._diag.reject(contract.TEACH_LEFT_IMAGE, 'size disagrees with camera_info',
+            self._diag.reject(self._topics['left teach'], 'size disagrees with camera_info',
                               f'{left.shape[1]} x {left.shape[0]}, camera_info says '
                               f'{k.width} x {k.height}')
             return
@@ -257,11 +271,17 @@ class FeatureNode(Node):
         if t_ns is None:
             return
         try:
+            self._order.check(topic, t_ns)
+        except InputError as exc:  # not offered: the state of that stamp is there already
+            self._diag.reject(topic, exc.reason, exc.detail)
+            return
+        try:
             q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
             self._diag.reject(topic, exc.reason, exc.detail)
             self._stereo.offer_bad_joints(t_ns, exc.reason)
         else:
+            self._order.take(topic, t_ns)
             self._stereo.offer_joints(t_ns, q)
         self._try_frames()
 
@@ -272,6 +292,7 @@ class FeatureNode(Node):
             self._diag.reject(self._topics[f'{side} info'], exc.reason, exc.detail)
             return
         self._infos[side] = msg
+        self._info_side = side
         self._try_frames()
 
     def _on_pose(self, msg):
@@ -301,8 +322,8 @@ class FeatureNode(Node):
         self._camera_key = key
         try:
             camera = camera_from_msgs(left, right, self._pose)
-        except InputError as exc:
-            self._diag.reject(contract.LEFT_INFO, exc.reason, exc.detail)
+        except InputError as exc:  # the lenses disagree: counted under the one that came last
+            self._diag.reject(self._topics[f'{self._info_side} info'], exc.reason, exc.detail)
             self._model = self._detector = None
             self._camera_problem = f'usable camera_info ({exc.reason})'
             return self._camera_problem

@@ -27,7 +27,11 @@ It reads /joint_states; ``ibvs run`` remaps that to /stereo/joint_states (one pe
 frame), so the node does not slow the 1 kHz lockstep. Bad inputs are rejected with a logged
 reason and counted on /diagnostics under their topic: a CameraInfo or /stereo/pose that
 cannot describe the camera (the camera drawn stays the last good one), joint positions
-beyond +-POSITION_BOUND_RAD, and every stamp through the one stamp rule
+beyond +-POSITION_BOUND_RAD, a joint state, features or feature status whose stamp is not
+after the last one taken from its topic ('duplicate stamp', 'stamp went back':
+:class:`ibvs_common.conversions.StampOrder`), measured
+features off the image (:func:`ibvs_common.conversions.check_features_in_image`), lenses
+that disagree (size or intrinsics), and every stamp through the one stamp rule
 (:func:`ibvs_common.conversions.read_stamp`: malformed, or more than ``stale_timeout_s``
 and a camera period ahead of the newest time the node knows), so that one far-future
 joint state cannot make every later one look old. While the camera is not known it says
@@ -39,10 +43,11 @@ from collections import OrderedDict
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamped
 from ibvs_common import contract, shared_params
-from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
-                                     matrix_poses, pose_stamped, position_bounds,
-                                     read_camera_pose, read_feature_status, read_features,
-                                     read_joints, read_stamp, stamp_lead_ns)
+from ibvs_common.conversions import (camera_from_msgs, check_camera_info,
+                                     check_features_in_image, InputError, matrix_poses,
+                                     pose_stamped, position_bounds, read_camera_pose,
+                                     read_feature_status, read_features, read_joints,
+                                     read_stamp, stamp_lead_ns, StampOrder)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
@@ -134,6 +139,7 @@ class VizNode(Node):
         self._path = []
         self._last_markers_ns = None
         self._last_joint_ns = None
+        self._order = StampOrder()
         self._features = OrderedDict()
         #: The markers triangulated from the newest measured /ibvs/features (2, 3), or None
         #: when the newest frame was not measured.
@@ -160,8 +166,8 @@ class VizNode(Node):
                                      contract.LATCHED)
         else:  # a hand-eye calibration's result, as the feature and feedback nodes take it
             self._pose_msg = pose_stamped(calibrated, 0)
-        self.create_subscription(JointState, contract.JOINT_STATES, self._on_joints,
-                                 contract.RELIABLE)
+        self._joints_topic = self.create_subscription(
+            JointState, contract.JOINT_STATES, self._on_joints, contract.RELIABLE).topic_name
         self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
                                  contract.RELIABLE)
         self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
@@ -197,6 +203,7 @@ class VizNode(Node):
         pose = self._pose_msg.pose
         key = (tuple(self._infos['left'].p), tuple(self._infos['right'].p),
                (self._infos['left'].width, self._infos['left'].height),
+               (self._infos['right'].width, self._infos['right'].height),
                (pose.position.x, pose.position.y, pose.position.z, pose.orientation.x,
                 pose.orientation.y, pose.orientation.z, pose.orientation.w))
         if key == self._camera_key:
@@ -236,10 +243,12 @@ class VizNode(Node):
     def _on_features(self, msg):
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            self._order.check(contract.FEATURES, t_ns)  # a second one would replace the first
             features = read_features(msg)
         except InputError as exc:
             self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
             return
+        self._order.take(contract.FEATURES, t_ns)
         self._features[t_ns] = features
         while len(self._features) > _PENDING_FEATURES:
             self._features.popitem(last=False)
@@ -247,33 +256,37 @@ class VizNode(Node):
     def _on_status(self, msg):
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            self._order.check(contract.FEATURE_STATUS, t_ns)
             mode = read_feature_status(msg).mode
         except InputError as exc:
             self._diag.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
             return
+        self._order.take(contract.FEATURE_STATUS, t_ns)
         features = self._features.pop(t_ns, None)
         if features is None or self._camera is None:
             return
         self.measured = None
         if mode == contract.FEATURE_MEASURED:
             try:
+                check_features_in_image(features, self._camera.intrinsics)
                 self.measured = self._camera.triangulate(features.reshape(2, 3))
+            except InputError as exc:
+                self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
             except ValueError as exc:
                 self._diag.reject(contract.FEATURES, 'cannot triangulate', str(exc))
 
     # --- joint states -----------------------------------------------------------------------
 
     def _on_joints(self, msg):
+        topic = self._joints_topic
         try:
             t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
+            self._order.check(topic, t_ns)  # a duplicate would draw the same /tf again
             q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
-            self._diag.reject(contract.JOINT_STATES, exc.reason, exc.detail)
+            self._diag.reject(topic, exc.reason, exc.detail)
             return
-        if self._last_joint_ns is not None and t_ns < self._last_joint_ns:
-            self._diag.reject(contract.JOINT_STATES, 'stamp went back',
-                              f'{t_ns} ns after {self._last_joint_ns} ns')
-            return
+        self._order.take(topic, t_ns)
         self._last_joint_ns = t_ns
         q_true = q + self._d_q
         joints = scene.joint_transforms(q_true, self._params)
