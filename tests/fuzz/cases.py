@@ -9,6 +9,8 @@ or encoding; for CameraInfo an impossible size or projection; for poses a non-fi
 non-unit quaternion, a camera looking away.
 """
 
+import copy
+
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
@@ -90,6 +92,12 @@ def headers(topic, next_ns, off_grid=True):
     cases.append((f'burst of {BURST} far-future', lambda: [
         Header(stamp=stamp(FAR_SEC - k)) for k in range(BURST)]))
     return [(name, topic, make) for name, make in cases]
+
+
+def camera_info_stamps(topic, good):
+    """Bad CameraInfo stamps, for a reader that takes only a frame's time from it."""
+    return [(name, topic, lambda s=s: [_stamped(copy.deepcopy(good), s)])
+            for name, s in bad_stamps(0)]
 
 
 def clocks(topic=contract.CLOCK):

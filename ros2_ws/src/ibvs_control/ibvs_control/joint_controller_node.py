@@ -34,7 +34,8 @@ rule (:func:`ibvs_common.conversions.read_stamp`): malformed, or more than
 ``stale_timeout_s`` and one input period ahead of the newest time the node knows (its last
 answered stamp, or its /clock; 0 before either) is refused and never stored, so that a bad
 publisher cannot hold a buffer and leave the good inputs after it unanswered; a q_feedback
-or frame_lost must carry a frame's stamp (:func:`ibvs_common.timing.is_frame_stamp`). A new
+or frame_lost must carry a frame's stamp in lockstep
+(:func:`ibvs_common.timing.is_frame_stamp`). A new
 trajectory replaces the old one. A command that would not be finite is not published: the
 state is rejected ('non-finite command') and the holding torque h(q, 0) goes out instead.
 
@@ -200,7 +201,9 @@ class JointControllerNode(Node):
         # The one stamp rule (ibvs_common.conversions.read_stamp), as in the effort mode.
         self.state_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
         self.frame_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
-        self._frames = (self.camera_ns, self.dt_ns)
+        # No frame grid: a real camera stamps its frames on its own clock, not on the
+        # simulator's physics steps (the lockstep's rule, ibvs_common.timing.is_frame_stamp).
+        self._frames = None
         self.shaper = PositionShaper(values['command_rate_hz'],
                                      speed_margin=values['speed_margin'])
         self._hold = FeedbackHold(np.zeros(6))
