@@ -12,6 +12,7 @@ non-unit quaternion, a camera looking away; for trajectory commands what
 joint_trajectory_controller refuses (:func:`command_trajectories`).
 """
 
+import copy
 import math
 
 from builtin_interfaces.msg import Duration
@@ -105,6 +106,12 @@ def headers(topic, next_ns, off_grid=True):
     cases.append((f'burst of {BURST} far-future', lambda: [
         Header(stamp=stamp(FAR_SEC - k)) for k in range(BURST)]))
     return [(name, topic, make) for name, make in cases]
+
+
+def camera_info_stamps(topic, good):
+    """Bad CameraInfo stamps, for a reader that takes only a frame's time from it."""
+    return [(name, topic, lambda s=s: [_stamped(copy.deepcopy(good), s)])
+            for name, s in bad_stamps(0)]
 
 
 def clocks(topic=contract.CLOCK):

@@ -219,10 +219,19 @@ class JointControllerPositionRig(Rig):
                                         lambda m: self.commands.append(m), contract.RELIABLE)
 
     def setup(self):
-        """Send the feedforward trajectory (the arm held at Q0) and the first joint state."""
+        """Send the feedforward (the arm held at Q0), the first joint state and frame."""
         self.deliver(contract.FEEDFORWARD_TRAJECTORY,
                      joint_trajectory(0, MS, np.tile(Q0, (5, 1))))
         self.deliver(contract.JOINT_STATES, joint_state(0, Q0))
+        self.frame = 0
+        self._deliver_frame()
+
+    def _deliver_frame(self):
+        """Send the camera's frame ``self.frame`` (its camera_info) and its q_feedback."""
+        t_ns = frame_ns(self.frame)
+        info = camera_infos(default_camera('VGA').intrinsics, t_ns)[0]
+        self.deliver(contract.LEFT_INFO, info)
+        self.deliver(contract.Q_FEEDBACK, joint_state(t_ns, np.zeros(6)))
 
     def next_ns(self):
         """Return the stamp of the next joint state."""
@@ -237,6 +246,9 @@ class JointControllerPositionRig(Rig):
         self.t_ns = self.next_ns()
         before = len(self.commands)
         self.deliver(contract.JOINT_STATES, joint_state(self.t_ns, Q0))
+        while frame_ns(self.frame + 1) <= self.t_ns:  # the camera and the feedback go on
+            self.frame += 1
+            self._deliver_frame()
         self.deliver(contract.CLOCK, Clock(clock=ns_stamp(self.t_ns)))
         return lambda: len(self.commands) > before
 
@@ -251,6 +263,8 @@ class JointControllerPositionRig(Rig):
                  + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
                  + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
                                     np.tile(Q0, (5, 1)))
+                 + bad.camera_info_stamps(contract.LEFT_INFO, camera_infos(
+                     default_camera('VGA').intrinsics, 0)[0])
                  + bad.clocks())
         return build(self, specs)
 

@@ -191,6 +191,7 @@ GRAPH = Graph(
              doc_rate='once, then it unsubscribes'),
         Node('joint_controller_node', 'ibvs_control', 'ibvs_control.joint_controller_node',
              'JointControllerNode', process='lockstep', step0_reads=(contract.JOINT_STATES,),
+             zed_remaps=ZED_INFO,
              doc_module='pure: `controllers.JointLoop`, `dynamics.RobotDynamics`',
              doc_reads='/joint_states, the trajectory, /ibvs/q_feedback',
              doc_writes='/joint_effort_commands', doc_rate='one per /joint_states'),

@@ -12,7 +12,9 @@ these), and reports the :class:`Rejection` it gets back
 
 - :class:`Rejection`: why an input was refused.
 - :class:`StampHistory`: values by stamp, bounded by count and/or a horizon of sim time,
-  looked up by the first stamp at or after a time.
+  looked up by the first stamp at or after a time (or the last at or before it).
+- :class:`JointTrack`: joint states by stamp, read at any stamp between two of them by
+  linear interpolation, within a gap bound set from the rate it measures.
 - :class:`PendingQueue`: inputs waiting for their answer, in strictly increasing stamp
   order, bounded; stale and overflowing inputs are rejected with a reason.
 
@@ -22,7 +24,10 @@ missing input is named rather than waited on in silence.
 
 import bisect
 from collections import deque
-from typing import Deque, Generic, List, NamedTuple, Optional, Tuple, TypeVar
+import math
+from typing import Any, Deque, Generic, List, NamedTuple, Optional, Tuple, TypeVar
+
+import numpy as np
 
 V = TypeVar('V')
 
@@ -133,6 +138,147 @@ class StampHistory(Generic[V]):
         """
         i = bisect.bisect_left(self._stamps, t_ns)
         return (self._stamps[i], self._values[i]) if i < len(self._stamps) else None
+
+    def at_or_before(self, t_ns: int) -> Optional[Tuple[int, V]]:
+        """Return the last ``(stamp, value)`` with stamp <= ``t_ns``, or None."""
+        i = bisect.bisect_right(self._stamps, t_ns)
+        return (self._stamps[i - 1], self._values[i - 1]) if i else None
+
+    def last_stamps(self, n: int) -> List[int]:
+        """Return the newest ``n`` stamps kept (fewer when fewer are kept), oldest first."""
+        return self._stamps[-n:] if n > 0 else []
+
+
+def lerp(a: Any, b: Any, w: float) -> Any:
+    """
+    Return ``a + (b - a) * w`` for arrays, numbers or tuples of them, element by element.
+
+    ``w`` = 0 returns ``a`` itself and ``w`` = 1 ``b`` itself (no arithmetic), so that a
+    value read at one of the stamps it was kept at is that value, to the bit.
+    """
+    if w == 0.0:
+        return a
+    if w == 1.0:
+        return b
+    if isinstance(a, tuple):
+        return tuple(lerp(x, y, w) for x, y in zip(a, b))
+    return np.asarray(a) + (np.asarray(b) - np.asarray(a)) * w
+
+
+class JointTrack(Generic[V]):
+    """
+    Joint states by stamp, read at any stamp between two of them by linear interpolation.
+
+    A real cell's joint_state_broadcaster publishes /joint_states on the controller
+    manager's own cycle (250 Hz on abb_ros2), stamped when it reads the hardware, never at a
+    camera's exposure: the state of an image stamped ``t`` is interpolated between the two
+    states that bracket it (positions, velocities, any array or tuple of arrays:
+    :func:`lerp`). A state stamped exactly ``t`` is returned itself, so that the simulator's
+    lockstep, which publishes a frame's state at the frame's stamp, reads exactly what it
+    published. The two bracketing states may be at most :attr:`max_gap_ns` apart:
+    ``gap_periods`` times the median interval of the last ``rate_samples`` states, i.e. the
+    rate the track measures, not a rate it is told (one lost message at 250 Hz is still
+    interpolated over 8 ms; a gap of three periods is not). A rejected state
+    (:meth:`add_bad`) counts as a lost one, except at the very stamp looked up: there the
+    image's own state was refused, and so is the image.
+
+    Parameters
+    ----------
+    max_len, horizon_ns : int, optional
+        The bounds of the histories kept (:class:`StampHistory`).
+    strict : bool
+        Whether a state older than the newest one is rejected (:class:`StampHistory`).
+    gap_periods : float
+        The widest gap interpolated over, in measured periods (> 1).
+    rate_samples : int
+        How many of the newest intervals the period is the median of.
+
+    """
+
+    def __init__(self, *, max_len: Optional[int] = None, horizon_ns: Optional[int] = None,
+                 strict: bool = False, gap_periods: float = 2.5,
+                 rate_samples: int = 32) -> None:
+        """Create an empty track (see the class docstring for the parameters)."""
+        if not gap_periods > 1.0:
+            raise ValueError(f'gap_periods must be > 1, got {gap_periods}')
+        self.gap_periods = gap_periods
+        self.rate_samples = rate_samples
+        self.good: StampHistory[V] = StampHistory(max_len, horizon_ns, strict)
+        self.bad: StampHistory[str] = StampHistory(max_len, horizon_ns, strict=False)
+
+    def __len__(self) -> int:
+        """Return the number of good states kept."""
+        return len(self.good)
+
+    @property
+    def newest(self) -> Optional[int]:
+        """Return the newest good stamp kept, None when empty."""
+        return self.good.newest
+
+    def add(self, t_ns: int, value: V) -> Optional[Rejection]:
+        """Keep the state ``value`` at ``t_ns``; return why not (:meth:`StampHistory.add`)."""
+        return self.good.add(t_ns, value)
+
+    def add_bad(self, t_ns: int, reason: str) -> None:
+        """Note that the state stamped ``t_ns`` was rejected for ``reason``."""
+        self.bad.add(t_ns, reason)
+
+    def prune(self, now_ns: int) -> None:
+        """Forget the states older than the horizon before ``now_ns``."""
+        self.good.prune(now_ns)
+        self.bad.prune(now_ns)
+
+    def period_ns(self) -> Optional[float]:
+        """Return the median interval (ns) of the newest states, None before two."""
+        stamps = self.good.last_stamps(self.rate_samples + 1)
+        if len(stamps) < 2:
+            return None
+        return float(np.median(np.diff(stamps)))
+
+    def max_gap_ns(self) -> Optional[int]:
+        """Return the widest gap (ns) interpolated over, None before two states."""
+        period = self.period_ns()
+        return None if period is None else math.ceil(self.gap_periods * period)
+
+    def at(self, t_ns: int) -> Tuple[Optional[V], Optional[str]]:
+        """
+        Return the state at ``t_ns``: ``(value, None)``, ``(None, None)`` to wait, ``(None, why)``.
+
+        Parameters
+        ----------
+        t_ns : int
+            The stamp (ns) looked up, e.g. an image's.
+
+        Returns
+        -------
+        tuple
+            ``(value, None)``: the state kept at ``t_ns``, or interpolated between the two
+            that bracket it; ``(None, None)``: no state after ``t_ns`` yet (it may come);
+            ``(None, why)``: never (no state before it, its own state rejected, or a gap
+            wider than :meth:`max_gap_ns`).
+
+        """
+        after = self.good.at_or_after(t_ns)
+        if after is not None and after[0] == t_ns:
+            return after[1], None
+        bad = self.bad.at_or_after(t_ns)
+        if bad is not None and bad[0] == t_ns:
+            return None, f'joint state of the image rejected ({bad[1]})'
+        before = self.good.at_or_before(t_ns)
+        if before is None:
+            if after is None:
+                return None, None
+            return None, (f'no joint state at or before the image stamp {t_ns} ns (the '
+                          f'first kept is {after[0]} ns): nothing to interpolate from')
+        if after is None:
+            return None, None
+        gap = after[0] - before[0]
+        max_gap = self.max_gap_ns()
+        if gap > max_gap:
+            return None, (f'the joint states around the image stamp are {gap * 1e-6:.3f} ms '
+                          f'apart, more than {max_gap * 1e-6:.3f} ms ({self.gap_periods:g} '
+                          f'periods of the {1e9 / self.period_ns():.1f} Hz measured)')
+        return lerp(before[1], after[1], (t_ns - before[0]) / gap), None
 
 
 class PendingQueue(Generic[V]):

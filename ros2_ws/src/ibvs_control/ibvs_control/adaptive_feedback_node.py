@@ -72,6 +72,7 @@ from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RAT
                                        STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
+from ibvs_common.sync import Rejection
 from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
@@ -321,6 +322,9 @@ class AdaptiveFeedbackNode(Node):
         now_ns = self._lockstep.joints.newest
         if isinstance(features, InputError):
             pass  # counted when it came; the held q_feedback answers it
+        elif isinstance(joints, Rejection):
+            self.diagnostics.reject(self._joints_topic, joints.reason,
+                                    f'frame {t_ns} ns: {joints.detail}; q_feedback held')
         elif now_ns - t_ns > self.stale_timeout_ns:
             self.diagnostics.reject(source, 'stale features',
                                     f'frame {t_ns} ns is {(now_ns - t_ns) * 1e-9:.3f} s old '

@@ -1,23 +1,30 @@
 """
 The adaptive feedback's lockstep rule (docs/design.md §4), plain code without rclpy.
 
-Frames are answered in stamp order, each with the first joint state at or after its stamp
-and, for a law that needs it, the frame's feature status (was it measured?). Used by
+Frames are answered in stamp order, each with the joint state at its stamp (kept, or
+interpolated between the two that bracket it: :class:`ibvs_common.sync.JointTrack`) and, for
+a law that needs it, the frame's feature status (was it measured?). Used by
 :mod:`.adaptive_feedback_node`.
 """
 
 from typing import Any, Dict, List, Optional, Tuple
 
-from ibvs_common.sync import PendingQueue, Rejection, StampHistory
+from ibvs_common.sync import JointTrack, PendingQueue, Rejection
 
 
 class FrameLockstep:
     """
-    Frames answered in stamp order, each with the first joint state at or after its stamp.
+    Frames answered in stamp order, each with the joint state at its stamp.
 
-    The simulator renders frame n from the first physics step at or after n * T_cam and
-    publishes that step's joint state with it, so the joints of a frame are those of the
-    first state stamped at or after it. Optionally a frame also waits for its status (was it
+    The simulator renders frame n from the first physics step at or after n * T_cam,
+    stamps it with that step and publishes that step's joint state with it: the joints of a
+    frame are the state stamped as it is. A real cell's joint_state_broadcaster publishes on
+    its own cycle: there the state is interpolated between the two that bracket the frame
+    (:class:`ibvs_common.sync.JointTrack`). A frame whose state can never be had (none
+    before it, a gap wider than the measured rate allows) is answered all the same, with a
+    :class:`~ibvs_common.sync.Rejection` in place of its joints: the node holds its output
+    and counts it, since the joint controller waits for an answer to every frame.
+    Optionally a frame also waits for its status (was it
     measured?). The node's own preconditions (the camera model) are its business: it pops
     only once they are met.
 
@@ -42,7 +49,7 @@ class FrameLockstep:
         self.needs_status = needs_status
         self.joints_name = joints_name
         self.status_name = status_name
-        self.joints: StampHistory[Any] = StampHistory(max_len=history)
+        self.joints: JointTrack[Any] = JointTrack(max_len=history, strict=True)
         self.frames: PendingQueue[Any] = PendingQueue(history, full_note)
         self._measured: Dict[int, bool] = {}
 
@@ -83,7 +90,7 @@ class FrameLockstep:
         if t_ns is None:
             return []
         missing = []
-        if self.joints.at_or_after(t_ns) is None:
+        if self.joints.at(t_ns) == (None, None):
             missing.append(f'{self.joints_name} at or after {t_ns} ns')
         if self.needs_status and t_ns not in self._measured:
             missing.append(f'{self.status_name} of frame {t_ns} ns')
@@ -96,15 +103,18 @@ class FrameLockstep:
         Returns
         -------
         tuple of (int, item, joints, bool) or None
-            The frame's stamp and item, the joint state matched to it and whether it was
-            measured (True without statuses); None while nothing is pending or the oldest
-            frame still waits.
+            The frame's stamp and item, the joint state at its stamp (or the
+            :class:`~ibvs_common.sync.Rejection` that says why it has none) and whether it
+            was measured (True without statuses); None while nothing is pending or the
+            oldest frame still waits.
 
         """
         if not self.frames or self.waiting_for():
             return None
         t_ns, item = self.frames.pop()
-        joints = self.joints.at_or_after(t_ns)[1]
+        joints, why = self.joints.at(t_ns)
+        if joints is None:
+            joints = Rejection('no joint state', why)
         measured = self._measured.pop(t_ns, True)
         for old in [s for s in self._measured if s < t_ns]:
             del self._measured[old]

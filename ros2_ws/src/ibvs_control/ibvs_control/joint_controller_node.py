@@ -34,7 +34,8 @@ rule (:func:`ibvs_common.conversions.read_stamp`): malformed, or more than
 ``stale_timeout_s`` and one input period ahead of the newest time the node knows (its last
 answered stamp, or its /clock; 0 before either) is refused and never stored, so that a bad
 publisher cannot hold a buffer and leave the good inputs after it unanswered; a q_feedback
-or frame_lost must carry a frame's stamp (:func:`ibvs_common.timing.is_frame_stamp`). A new
+or frame_lost must carry a frame's stamp in lockstep
+(:func:`ibvs_common.timing.is_frame_stamp`). A new
 trajectory replaces the old one. A command that would not be finite is not published: the
 state is rejected ('non-finite command') and the holding torque h(q, 0) goes out instead.
 
@@ -55,6 +56,21 @@ command that uses a frame's q_feedback is reported on /ibvs/frame_latency
 stamp). Until the feedforward trajectory and a /joint_states have come nothing is sent
 (the drive holds the arm) and the node logs once a second what it waits for.
 
+Stopping safely (position interface; :mod:`.servo_status`). The node watches its inputs:
+/joint_states (``joint_state_timeout_s``), the camera (the left camera_info, one per frame,
+stamped with its exposure) and the q_feedback (``frame_timeout_s`` each), by their age on
+the node's clock, and the feedforward trajectory (once). It commands nothing until each has
+come once (status WAITING), and while one is older than its timeout it stops the arm and
+holds it: a controlled stop, the reference braked at the acceleration limits to where it
+comes to rest (:meth:`.position_interface.PositionShaper.stopping_point`; commanding the
+last measured position instead would make a moving arm turn back), and no q_feedback is
+used. Fresh input resumes the servoing from where the reference is, without a jump. The
+status is one std_msgs/Int8 code on /ibvs/servo_status (latched; on each change and once a
+second:
+:class:`.servo_status.ServoStatus`, MoveIt Servo's codes and ours: which input is stale),
+and /diagnostics says the same in words (WARN while holding). With the effort interface the
+controller runs in lockstep: no input can go stale in sim time (the simulator waits).
+
 /ibvs/q_feedback contract: six finite positions, mapped by joint name, each within
 :data:`FEEDBACK_BOUND_RAD` (the joint's whole travel: no correction can be larger). Velocity
 and effort are not read; they may be empty, but a non-finite value there rejects the
@@ -65,6 +81,7 @@ and the loop goes on as if the bad one had never come.
 from typing import Any
 
 from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract, intra_process
 from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
                                      position_bounds, read_joints, read_stamp,
@@ -84,19 +101,22 @@ import numpy as np
 from numpy.typing import NDArray
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sensor_msgs.msg import JointState, TimeReference
-from std_msgs.msg import Float64MultiArray, Header
+from sensor_msgs.msg import CameraInfo, JointState, TimeReference
+from std_msgs.msg import Float64MultiArray, Header, Int8
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .controllers import JointLoop
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
-from .node_params import ACCELERATION_MARGIN, SPEED_MARGIN, TORQUE_LIMITS
+from .node_params import (ACCELERATION_MARGIN, FRAME_TIMEOUT_S, JOINT_STATE_TIMEOUT_S,
+                          SPEED_MARGIN, TORQUE_LIMITS)
 from .position_interface import FeedbackHold, joint_permutation, PositionShaper
+from .servo_status import InputWatch, ServoStatus
 
 PARAMS = (TAU_IN, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS,
           TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN, STALE_TIMEOUT_S,
-          COMMAND_INTERFACE, COMMAND_RATE_HZ, POSITION_COMMAND_TYPE, JOINTS, LOCKSTEP)
+          COMMAND_INTERFACE, COMMAND_RATE_HZ, POSITION_COMMAND_TYPE, JOINTS, LOCKSTEP,
+          JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S)
 
 #: Steady-clock period of the 'waiting for' log.
 WAIT_LOG_S = 1.0
@@ -181,12 +201,21 @@ class JointControllerNode(Node):
         # The one stamp rule (ibvs_common.conversions.read_stamp), as in the effort mode.
         self.state_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
         self.frame_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
-        self._frames = (self.camera_ns, self.dt_ns)
+        # No frame grid: a real camera stamps its frames on its own clock, not on the
+        # simulator's physics steps (the lockstep's rule, ibvs_common.timing.is_frame_stamp).
+        self._frames = None
         self.shaper = PositionShaper(values['command_rate_hz'],
                                      speed_margin=values['speed_margin'])
         self._hold = FeedbackHold(np.zeros(6))
         self._trajectory = None
         self._measured = None
+        frame_timeout_ns = seconds_to_ns(values['frame_timeout_s'])
+        self._watch = InputWatch({'joint_states': seconds_to_ns(values['joint_state_timeout_s']),
+                                  'camera': frame_timeout_ns, 'feedback': frame_timeout_ns},
+                                 required=('feedforward',))
+        self._verdict = None
+        self._hold_target = None
+        self.holds = 0
         self.commands = 0
         self.frames_used = 0
         self.diagnostics = Diagnostics(self, 'joint controller')
@@ -200,8 +229,11 @@ class JointControllerNode(Node):
                                               contract.RELIABLE)
         self._pub_latency = self.create_publisher(TimeReference, contract.FRAME_LATENCY,
                                                   contract.RELIABLE)
+        self._pub_status = self.create_publisher(Int8, contract.SERVO_STATUS, contract.LATCHED)
         self.create_subscription(JointState, contract.JOINT_STATES, self._on_measured,
                                  contract.RELIABLE)
+        self._camera_topic = self.create_subscription(
+            CameraInfo, contract.LEFT_INFO, self._on_camera, contract.IMAGES).topic_name
         self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
                                  self._on_trajectory, contract.LATCHED)
         self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
@@ -235,27 +267,66 @@ class JointControllerNode(Node):
                                     f'{t_ns} ns, not newer than {self._measured[0]} ns')
             return
         self._measured = (t_ns, q)
+        self._watch.heard('joint_states', t_ns)
+
+    def _on_camera(self, msg):
+        """Note a camera frame (its camera_info, stamped with the exposure): its age only."""
+        try:
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.frame_lead_ns)
+        except InputError as exc:
+            self.diagnostics.reject(self._camera_topic, exc.reason, exc.detail)
+            return
+        self._watch.heard('camera', t_ns)
+
+    def _report(self, now_ns, verdict=None):
+        """Publish the status on a change (and with ``verdict`` None, once a second)."""
+        if verdict is None:
+            verdict = self._verdict
+        elif self._verdict is not None and verdict.status == self._verdict.status:
+            self._verdict = verdict  # the same status; its words (an age) may move on
+            return
+        else:
+            previous, self._verdict = self._verdict, verdict
+            if verdict.holding:
+                self.holds += 1
+                self.get_logger().warn(f'{verdict.status.name}: {verdict.detail}')
+            elif previous is not None and previous.holding:
+                self.get_logger().info(f'fresh input at {now_ns * 1e-9:.3f} s: servoing '
+                                       'resumes')
+            level = (DiagnosticStatus.WARN if verdict.holding else DiagnosticStatus.OK)
+            self.diagnostics.set_level(level, verdict.detail)
+            self.diagnostics.update(servo_status=verdict.status.name, holds=self.holds)
+        if verdict is not None:
+            self._pub_status.publish(Int8(data=int(verdict.status)))
 
     def _position_missing(self):
         """Return what the first position command still waits for (empty when ready)."""
-        missing = []
-        if self._trajectory is None:
-            missing.append(f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}')
-        if self._measured is None:
-            missing.append(f'a {contract.JOINT_STATES} (the shaper starts from it)')
-        return missing
+        inputs = {'feedforward': f'the feedforward trajectory on '
+                                 f'{contract.FEEDFORWARD_TRAJECTORY}',
+                  'joint_states': f'a {contract.JOINT_STATES} (the shaper starts from it)',
+                  'camera': f'a camera frame ({self._camera_topic})',
+                  'feedback': f'a {contract.Q_FEEDBACK}'}
+        return [inputs[name] for name in self._watch.missing()]
 
     def _command(self):
         """Send one position reference (module docstring, position interface)."""
-        if self._position_missing():
-            return
         now_ns = self.get_clock().now().nanoseconds
+        verdict = self._watch.verdict(now_ns)
+        self._report(now_ns, verdict)
+        if verdict.status == ServoStatus.WAITING:
+            return
         if not self.shaper.started:
             self.shaper.start(self._measured[1])
             self._last_command_ns = now_ns - self.command_period_ns
-        q_feedback, first_frame_ns = self._hold.use()
-        q_command = self.shaper.step(self.q_feedforward(now_ns) + q_feedback,
-                                     ns_to_seconds(now_ns - self._last_command_ns))
+        if verdict.holding:
+            if self._hold_target is None:  # a controlled stop
+                self._hold_target = self.shaper.stopping_point()
+            target, first_frame_ns = self._hold_target, None
+        else:
+            self._hold_target = None
+            q_feedback, first_frame_ns = self._hold.use()
+            target = self.q_feedforward(now_ns) + q_feedback
+        q_command = self.shaper.step(target, ns_to_seconds(now_ns - self._last_command_ns))
         self._last_command_ns = now_ns
         values = [float(v) for v in q_command[self._order]]
         if self._pub.msg_type is Float64MultiArray:
@@ -306,6 +377,8 @@ class JointControllerNode(Node):
             return
         self._trajectory = trajectory
         start_ns, positions = trajectory
+        if self.command_interface == 'position':
+            self._watch.heard('feedforward', start_ns)
         self.diagnostics.update(feedforward_start_ns=start_ns,
                                 feedforward_points=len(positions))
         if self.command_interface == 'effort':
@@ -329,6 +402,8 @@ class JointControllerNode(Node):
             rejection = self._hold.offer(t_ns, q)
             if rejection is not None:
                 self.diagnostics.reject(source, *rejection)
+            else:
+                self._watch.heard('feedback', t_ns)
             return
         rejection = self._lockstep.offer_feedback(t_ns, q)
         if rejection is not None:
@@ -399,6 +474,7 @@ class JointControllerNode(Node):
                 self.get_logger().info('waiting to send position references for '
                                        + ', '.join(missing))
             self._progress = False
+            self._report(self.get_clock().now().nanoseconds)
             return
         t_ns = self._lockstep.states.first_ns
         if t_ns is not None and not self._progress:

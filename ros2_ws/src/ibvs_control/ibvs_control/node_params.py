@@ -52,6 +52,18 @@ JOINT_LIMIT_MARGIN_RAD = Param(
     'joint_limit_margin_rad', servo_laws.JOINT_LIMIT_MARGIN_RAD,
     "servo_law 'ibvs' / 'pbvs': the joint reference stays this far inside the joint limits",
     'rad', low=0.0, high=0.5)
+JOINT_STATE_TIMEOUT_S = Param(
+    'joint_state_timeout_s', 0.1,
+    "command_interface 'position': /joint_states older than this (the node's clock less "
+    'their stamp) make the controller hold the arm and report it on /ibvs/servo_status '
+    "(MoveIt Servo's incoming_command_timeout is 0.1 s)", 's', low=0.0, high=10.0,
+    low_open=True)
+FRAME_TIMEOUT_S = Param(
+    'frame_timeout_s', 0.3,
+    "command_interface 'position': a camera frame (camera_info) or a q_feedback older than "
+    'this makes the controller hold the arm and report which on /ibvs/servo_status; above '
+    "the camera's latency (ZED 2: 67-100 ms) and feedback_latency_s", 's', low=0.0,
+    high=10.0, low_open=True)
 LAMBDA_0 = Param('lambda_0', servo_laws.LAMBDA_0,
                  "servo_law 'ibvs' / 'pbvs': gain lambda at zero error (ViSP's lambda(0); "
                  "'pbvs' uses it as its constant gain)", '1/s', low=0.0, high=1000.0,

@@ -92,6 +92,20 @@ class PositionShaper:
         self.governor.dt = dt
         return self.governor.step(np.clip(q_ref, self.low, self.high))
 
+    def stopping_point(self) -> NDArray[np.float64]:
+        """
+        Return where the reference comes to rest if braked now at the acceleration limits.
+
+        r + rd |rd| / (2 a_max) per joint, within the joint ranges: the target of a
+        controlled stop (the reference decelerates to it on its braking curve and stays, it
+        does not turn back to where the stop was asked).
+        """
+        governor = self.governor
+        if governor.a_max is None:
+            return governor.r.copy()
+        stop = governor.r + governor.rd * np.abs(governor.rd) / (2.0 * governor.a_max)
+        return np.clip(stop, self.low, self.high)
+
 
 class FeedbackHold:
     """

@@ -1,16 +1,20 @@
 """
 joint_controller_node with command_interface 'position', in an rclpy executor.
 
-A test node plays the feedforward, the feedback, the arm's /joint_states and /clock (sim
-time, so the command timer fires only when the test moves the clock), and records what a
-forward_command_controller or a joint_trajectory_controller would get.
+A test node plays the feedforward, the feedback, the camera (its camera_info), the arm's
+/joint_states and /clock (sim time, so the command timer fires only when the test moves the
+clock), and records what a forward_command_controller or a joint_trajectory_controller would
+get, and the status.
 """
 
 from ibvs_common import contract
-from ibvs_common.conversions import joint_state, joint_trajectory, ns_stamp, stamp_ns
+from ibvs_common.conversions import (camera_infos, joint_state, joint_trajectory, ns_stamp,
+                                     stamp_ns)
 from ibvs_common.params import ParameterError
+from ibvs_common.timing import frame_stamp_ns
 from ibvs_control.joint_controller_node import JointControllerNode
-from ibvs_model import inverse_kinematics, paper
+from ibvs_control.servo_status import ServoStatus
+from ibvs_model import default_camera, inverse_kinematics, paper
 from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
@@ -18,8 +22,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, TimeReference
-from std_msgs.msg import Float64MultiArray
+from sensor_msgs.msg import CameraInfo, JointState, TimeReference
+from std_msgs.msg import Float64MultiArray, Int8
 from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
@@ -35,15 +39,18 @@ def build(context, **params):
     node = JointControllerNode(context=context, parameter_overrides=[
         Parameter(k, value=v) for k, v in values.items()])
     test = Node('cell', context=context)
-    rec = {'commands': [], 'trajectories': [], 'latency': []}
+    rec = {'commands': [], 'trajectories': [], 'latency': [], 'status': []}
     test.create_subscription(Float64MultiArray, contract.POSITION_COMMANDS,
                              rec['commands'].append, contract.RELIABLE)
     test.create_subscription(JointTrajectory, contract.TRAJECTORY_COMMANDS,
                              rec['trajectories'].append, contract.RELIABLE)
     test.create_subscription(TimeReference, contract.FRAME_LATENCY, rec['latency'].append,
                              contract.RELIABLE)
+    test.create_subscription(Int8, contract.SERVO_STATUS,
+                             lambda m: rec['status'].append(m.data), contract.LATCHED)
     pubs = {topic: test.create_publisher(kind, topic, qos) for topic, kind, qos in (
         (contract.CLOCK, Clock, contract.RELIABLE),
+        (contract.LEFT_INFO, CameraInfo, contract.IMAGES),
         (contract.JOINT_STATES, JointState, contract.RELIABLE),
         (contract.Q_FEEDBACK, JointState, contract.RELIABLE),
         (contract.FEEDFORWARD_TRAJECTORY, JointTrajectory, contract.LATCHED))}
@@ -59,18 +66,38 @@ def clock_to(executor, pubs, t_ns):
     pubs[contract.CLOCK].publish(Clock(clock=ns_stamp(t_ns)))
 
 
+def frame(pubs, t_ns, q_feedback=np.zeros(6)):
+    """Publish the camera's frame at ``t_ns`` (its camera_info) and its q_feedback."""
+    pubs[contract.LEFT_INFO].publish(camera_infos(CAMERA.intrinsics, t_ns)[0])
+    pubs[contract.Q_FEEDBACK].publish(joint_state(t_ns, q_feedback))
+
+
+CAMERA = default_camera('VGA')
+
+
+def changes(codes):
+    """Return the status codes as they changed (the node repeats them once a second)."""
+    return [ServoStatus(c) for i, c in enumerate(codes) if i == 0 or c != codes[i - 1]]
+
+
 def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_latency(context):
     node, test, executor, pubs, rec = build(context)
     try:
-        rows = np.tile(Q0, (10, 1))
-        rows[5:, 0] += 0.1  # the feedforward asks joint_1 to move at 5 ms
+        rows = np.tile(Q0, (14, 1))
+        rows[9:, 0] += 0.1  # the feedforward asks joint_1 to move at 9 ms
         pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, rows))
         pubs[contract.JOINT_STATES].publish(joint_state(0, Q0, np.zeros(6)))
         spin_until(executor, lambda: node._trajectory is not None and
                    node._measured is not None, what='trajectory and joint state')
-        for t in range(4, 41, 4):
+        clock_to(executor, pubs, 4 * MS)
+        spin_until(executor, lambda: changes(rec['status']) == [ServoStatus.WAITING],
+                   what='waiting for the camera and the feedback')
+        assert not rec['commands']  # nothing moves before the loop is closed
+        frame(pubs, 0)
+        spin_until(executor, lambda: node._hold.stamp_ns == 0, what="frame 0's feedback")
+        for t in range(8, 45, 4):
             clock_to(executor, pubs, t * MS)
-            spin_until(executor, lambda n=t // 4: len(rec['commands']) >= n,
+            spin_until(executor, lambda n=t // 4 - 1: len(rec['commands']) >= n,
                        what=f'the command at {t} ms')
         first = np.asarray(rec['commands'][0].data)
         np.testing.assert_allclose(first, Q0[PERMUTATION], atol=1e-12)  # controller order
@@ -80,14 +107,16 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
         # at most a t^2 / 2 = 8 mrad in 40 ms); the others stay
         assert 0.0 < moved[0] <= 10.0 * 0.04 ** 2 / 2 + 1e-9
         np.testing.assert_allclose(moved[1:], 0.0, atol=1e-12)
-        assert not rec['latency']  # no frame used yet
+        spin_until(executor, lambda: rec['latency'], what="frame 0's latency record")
+        assert len(rec['latency']) == 1 and stamp_ns(rec['latency'][0].time_ref) == 0
+        assert changes(rec['status']) == [ServoStatus.WAITING, ServoStatus.NO_WARNING]
         # a q_feedback of the frame exposed at 34 ms: the next command uses it and says so
-        pubs[contract.Q_FEEDBACK].publish(joint_state(34 * MS, np.full(6, 1e-3)))
+        frame(pubs, 34 * MS, np.full(6, 1e-3))
         spin_until(executor, lambda: node._hold.stamp_ns == 34 * MS, what='the feedback')
-        clock_to(executor, pubs, 44 * MS)
-        spin_until(executor, lambda: rec['latency'], what='the latency record')
-        report = rec['latency'][0]
-        assert stamp_ns(report.time_ref) == 34 * MS and stamp_ns(report.header.stamp) == 44 * MS
+        clock_to(executor, pubs, 48 * MS)
+        spin_until(executor, lambda: len(rec['latency']) == 2, what='the latency record')
+        report = rec['latency'][1]
+        assert stamp_ns(report.time_ref) == 34 * MS and stamp_ns(report.header.stamp) == 48 * MS
         # an older frame's q_feedback is refused (counted), the newer one stays
         pubs[contract.Q_FEEDBACK].publish(joint_state(0, np.full(6, 5e-3)))
         spin_until(executor, lambda: node.diagnostics.rejected_total == 1,
@@ -104,8 +133,10 @@ def test_joint_trajectory_controller_gets_one_point_by_joint_name(context):
     try:
         pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, [Q0]))
         pubs[contract.JOINT_STATES].publish(joint_state(0, Q0, np.zeros(6)))
+        frame(pubs, 0)
         spin_until(executor, lambda: node._trajectory is not None and
-                   node._measured is not None, what='trajectory and joint state')
+                   node._measured is not None and node._hold.stamp_ns == 0,
+                   what='trajectory, joint state and feedback')
         clock_to(executor, pubs, 4 * MS)
         spin_until(executor, lambda: rec['trajectories'], what='a trajectory command')
         msg = rec['trajectories'][0]
@@ -113,6 +144,65 @@ def test_joint_trajectory_controller_gets_one_point_by_joint_name(context):
         assert len(msg.points) == 1
         assert stamp_ns(msg.points[0].time_from_start) == 4 * MS  # one command period
         np.testing.assert_allclose(msg.points[0].positions, Q0[PERMUTATION], atol=1e-12)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        test.destroy_node()
+
+
+def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(context):
+    """Acceptance (issue 34): hold within the timeout, the status names the input, resume."""
+    node, test, executor, pubs, rec = build(context, frame_timeout_s=0.3)
+    try:
+        target = Q0.copy()
+        target[0] += 2.0  # the feedforward asks joint_1 to move 2 rad at once
+        pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, [target]))
+        measured = Q0.copy()
+
+        frames = iter(frame_stamp_ns(n, 33_333_333, MS) for n in range(1, 100))
+        next_frame = [next(frames)]
+
+        def tick(t_ns, camera):
+            """One 4 ms command period: the arm is where it was told; 30 Hz frames."""
+            pubs[contract.JOINT_STATES].publish(joint_state(t_ns, measured, np.zeros(6)))
+            if t_ns >= next_frame[0]:
+                if camera:
+                    frame(pubs, next_frame[0])
+                next_frame[0] = next(frames)
+            clock_to(executor, pubs, t_ns)
+            count = len(rec['commands'])
+            spin_until(executor, lambda: len(rec['commands']) > count,
+                       what=f'the command at {t_ns} ns')
+
+        pubs[contract.JOINT_STATES].publish(joint_state(0, measured, np.zeros(6)))
+        frame(pubs, 0)
+        spin_until(executor, lambda: not node._watch.missing(), what='every input once')
+        commands = []
+        for k in range(1, 350):  # 1.4 s: camera on to 0.2 s, off to 1.1 s, on again
+            t_ns = k * 4 * MS
+            tick(t_ns, camera=not 0.2e9 < t_ns < 1.1e9)
+            if len(rec['commands']) > len(commands):
+                commands.append((t_ns, np.asarray(rec['commands'][-1].data)[
+                    np.argsort(PERMUTATION)]))
+                measured = commands[-1][1]
+        assert changes(rec['status'])[-3:] == [
+            ServoStatus.NO_WARNING, ServoStatus.HOLD_STALE_CAMERA, ServoStatus.NO_WARNING]
+        assert node.holds == 1
+        times = np.array([t for t, _ in commands])
+        q = np.array([c for _, c in commands])
+        # the last frame before the outage is at 200 ms: stale from 500 ms; joint_1 moves at
+        # its speed limit (3.05 rad/s) and brakes at 10 rad/s^2: at rest 0.31 s later
+        moving = (times > 0.1e9) & (times < 0.5e9)
+        assert np.ptp(q[moving, 0]) > 0.5, 'the arm moved before the outage'
+        braking = (times >= 0.5e9) & (times < 1.1e9)
+        # a controlled stop: no turning back (but the braking curve's 4 ms samples: a few urad)
+        assert np.diff(q[braking, 0]).min() > -1e-5
+        held = (times > 0.85e9) & (times < 1.1e9)
+        assert np.ptp(q[held, :], axis=0).max() < 1e-9, 'the arm holds still'
+        # it resumes toward the target; no step larger than the speed limit allows
+        assert q[-1, 0] > q[held, 0][-1]
+        steps = np.abs(np.diff(q, axis=0)) / 4e-3
+        assert np.all(steps <= np.asarray(node.shaper.governor.v_max) + 1e-9)
     finally:
         executor.shutdown()
         node.destroy_node()

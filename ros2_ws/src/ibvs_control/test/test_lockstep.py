@@ -204,16 +204,25 @@ def test_a_frame_waits_for_its_joint_state_and_status_and_says_which():
     lockstep = FrameLockstep(needs_status=True, joints_name='/joint_states',
                              status_name='/ibvs/feature_status')
     assert lockstep.waiting_for() == []
-    lockstep.offer_joints(33 * MS, 'q33')
+    lockstep.offer_joints(33 * MS, 33.0)
     lockstep.offer_frame(34 * MS, 'p')
     assert lockstep.pop_ready() is None
     assert lockstep.waiting_for() == [f'/joint_states at or after {34 * MS} ns',
                                       f'/ibvs/feature_status of frame {34 * MS} ns']
-    lockstep.offer_joints(35 * MS, 'q35')  # off the grid: the first one at or after
+    lockstep.offer_joints(35 * MS, 35.0)  # off the frame's stamp: interpolated
     lockstep.offer_status(34 * MS, False)
-    assert lockstep.pop_ready() == (34 * MS, 'p', 'q35', False)
+    assert lockstep.pop_ready() == (34 * MS, 'p', 34.0, False)
     # a status for a frame already answered is dropped without a word
     assert lockstep.offer_status(34 * MS, True) is None and lockstep.waiting_for() == []
+
+
+def test_a_frame_without_a_joint_state_is_answered_with_the_reason():
+    lockstep = FrameLockstep()
+    lockstep.offer_frame(10 * MS, 'p')   # before the first joint state: never
+    lockstep.offer_joints(12 * MS, 12.0)
+    t_ns, item, joints, measured = lockstep.pop_ready()
+    assert (t_ns, item, measured) == (10 * MS, 'p', True)
+    assert joints.reason == 'no joint state' and 'nothing to interpolate from' in joints.detail
 
 
 def test_frames_reject_stale_inputs_and_stay_bounded():

@@ -369,7 +369,7 @@ def test_feedback_holds_on_bad_and_stale_features_and_freezes(context):
         assert node.diagnostics.rejections['/ibvs/features: stale features'] == 1
         assert node.frozen
         # a fresh frame resumes the integration
-        h.publish(contract.JOINT_STATES, joint_state(401 * MS, q_target, np.zeros(6)))
+        h.publish(contract.JOINT_STATES, joint_state(12 * CAMERA_NS, q_target, np.zeros(6)))
         h.publish(contract.FEATURES, features_msg(good, 12 * CAMERA_NS))
         h.spin_until(lambda: len(out) == 5, 'fresh answer')
         assert not node.frozen and np.any(read_joints(out[4]) != held)

@@ -19,10 +19,12 @@ measured, and the share of the switch offset still blended. /diagnostics
 inputs by reason and the processing time.
 
 A frame is published as soon as both images, the joint state of its stamp, the camera infos
-and the camera pose are there. The joint state of a frame stamped t is the first one stamped
-in [t, t + 1 / physics_rate_hz): the simulator stamps a frame with the physics step it
-renders it from and publishes that step's joint state with it (lockstep), so the estimate
-uses the very angles the image shows. A frame that cannot be
+and the camera pose are there. The joint state of a frame stamped t is the one stamped t
+(the simulator's lockstep publishes the state of the step it renders from with the frame,
+so the estimate uses the very angles the image shows) or, as on a real cell whose
+joint_state_broadcaster publishes on its own cycle, the interpolation between the two that
+bracket t, at most 2.5 measured periods apart (:class:`ibvs_common.sync.JointTrack`). A
+frame that cannot be
 published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
 not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
 newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
@@ -100,7 +102,6 @@ PARAMS = (
           's', low=0.0, high=60.0, low_open=True),
     Param('publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/'
           'image for every frame even when nobody subscribes (e.g. to record them)', '-'),
-    shared_params.PHYSICS_RATE_HZ,
     shared_params.CAMERA_RATE_HZ,
     shared_params.STALE_TIMEOUT_S,
     shared_params.CAMERA_POSE,
@@ -131,7 +132,6 @@ class FeatureNode(Node):
         self._config = DetectorConfig.from_parameters(p)
         self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
         self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(p['stale_timeout_s']),
-                                    window_ns=period_ns(p['physics_rate_hz']),
                                     history_ns=seconds_to_ns(p['joint_history_s']),
                                     sides=_SIDES)
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))

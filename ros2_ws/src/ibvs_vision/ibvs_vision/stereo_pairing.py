@@ -1,8 +1,9 @@
 """
 The feature node's lockstep rule (docs/design.md §4), plain code without rclpy.
 
-Left and right images are paired by stamp, each pair matched with the joint state of its
-physics step, and a frame that never can be complete is dropped with a reason. Used by
+Left and right images are paired by stamp, each pair matched with the joint state at its
+stamp (interpolated between the two that bracket it: :class:`ibvs_common.sync.JointTrack`),
+and a frame that never can be complete is dropped with a reason. Used by
 :mod:`.feature_node`, which decodes, detects, publishes and counts.
 
 - :class:`StereoPairer`: the rule;
@@ -12,7 +13,7 @@ physics step, and a frame that never can be complete is dropped with a reason. U
 
 from typing import Any, Dict, Iterator, List, NamedTuple, Optional, Tuple, Union
 
-from ibvs_common.sync import Rejection, StampHistory
+from ibvs_common.sync import JointTrack, Rejection
 
 
 class Drop(NamedTuple):
@@ -53,19 +54,20 @@ class StereoPairer:
     Left and right images paired by stamp, each pair matched with its joint state.
 
     A frame is complete when both images of its stamp and its joint state are here: the
-    first joint state stamped in [t, t + ``window_ns``) (one physics step: the simulator
-    publishes the state of the step it renders from with the frame). It is dropped when it
-    never can be: the other side's images moved past it (left/right stamp mismatch), its
-    joint state was rejected or skipped, or it fell ``stale_timeout_ns`` behind the newest
-    input. Newer frames supersede older ones still waiting. Images older than the last
+    state at its stamp, read from the joint states by :class:`ibvs_common.sync.JointTrack`
+    (the state stamped exactly then, as the simulator's lockstep publishes it with the
+    frame, or the interpolation between the two that bracket it, as a real cell's
+    joint_state_broadcaster publishes on its own cycle). It is dropped when it never can
+    be: the other side's images moved past it (left/right stamp mismatch), its joint state
+    cannot be had (no state before it, its own state rejected, a gap wider than the
+    measured rate allows), or it fell ``stale_timeout_ns`` behind the newest input.
+    Newer frames supersede older ones still waiting. Images older than the last
     frame published or ``stale_timeout_ns`` behind the newest input are refused.
 
     Parameters
     ----------
     stale_timeout_ns : int
         How far (ns) an input may lag the newest one (the node's ``stale_timeout_s``).
-    window_ns : int
-        The physics step (ns): how far after a frame its joint state may be stamped.
     history_ns : int
         How long (ns) joint states are kept behind the newest input (``joint_history_s``).
     sides : tuple of str
@@ -73,16 +75,14 @@ class StereoPairer:
 
     """
 
-    def __init__(self, stale_timeout_ns: int, window_ns: int, history_ns: int,
+    def __init__(self, stale_timeout_ns: int, history_ns: int,
                  sides: Tuple[str, str] = ('left', 'right')) -> None:
         """Create the pairer with nothing received (see the class docstring)."""
         self.stale_timeout_ns = stale_timeout_ns
-        self.window_ns = window_ns
         self.sides = sides
         self._frames: Dict[int, _Frame] = {}
-        self._joints: StampHistory[Any] = StampHistory(horizon_ns=history_ns, strict=False)
-        self._bad_joints: StampHistory[str] = StampHistory(horizon_ns=history_ns,
-                                                           strict=False)
+        #: The joint states kept, read at each frame's stamp.
+        self.joints: JointTrack[Any] = JointTrack(horizon_ns=history_ns, strict=False)
         self._newest_image = {side: -1 for side in sides}
         #: The newest stamp of any input (images and joint states).
         self.newest_ns = -1
@@ -139,41 +139,22 @@ class StereoPairer:
     def offer_joints(self, t_ns: int, joints: Any) -> None:
         """Keep the joint state stamped ``t_ns`` (a late one is inserted in order)."""
         self._seen(t_ns)
-        self._joints.add(t_ns, joints)
-        self._prune_joints()
+        self.joints.add(t_ns, joints)
+        self.joints.prune(self.newest_ns)
 
     def offer_bad_joints(self, t_ns: int, reason: str) -> None:
         """Note that the joint state stamped ``t_ns`` was rejected for ``reason``."""
         self._seen(t_ns)
-        self._bad_joints.add(t_ns, reason)
-        self._prune_joints()
-
-    def _prune_joints(self) -> None:
-        self._joints.prune(self.newest_ns)
-        self._bad_joints.prune(self.newest_ns)
+        self.joints.add_bad(t_ns, reason)
+        self.joints.prune(self.newest_ns)
 
     def published(self, t_ns: int) -> None:
         """Note that the frame at ``t_ns`` was published: older images are out of order."""
         self.last_published_ns = t_ns
 
     def joints_at(self, t_ns: int) -> Tuple[Any, Optional[str]]:
-        """
-        Return ``(joints, None)`` for the frame at ``t_ns``, (None, None) to wait, (None, why).
-
-        The joint state is the first stamped in [t_ns, t_ns + window_ns); a rejected one
-        there, or a first one past the window, means the frame will never have one (why).
-        """
-        good = self._joints.at_or_after(t_ns)
-        bad = self._bad_joints.at_or_after(t_ns)
-        if bad is not None and (good is None or bad[0] < good[0]):
-            if bad[0] - t_ns < self.window_ns:
-                return None, f'joint state of the image rejected ({bad[1]})'
-            return None, 'no joint state within one physics step at or after the image stamp'
-        if good is None:
-            return None, None
-        if good[0] - t_ns < self.window_ns:
-            return good[1], None
-        return None, 'no joint state within one physics step at or after the image stamp'
+        """Return the joints of the frame at ``t_ns``, as :meth:`JointTrack.at` says."""
+        return self.joints.at(t_ns)
 
     def poll(self, blocker: Optional[str] = None) -> Iterator[Union[Drop, Wait, Ready]]:
         """
@@ -221,7 +202,12 @@ class StereoPairer:
                 drop = ('timed out', f'frame at {t_ns * 1e-9:.9f} s waited for '
                         + ', '.join(waiting))
             if drop is not None:
-                del self._frames[t_ns]
+                if missing and drop[0] != 'timed out':
+                    # its other image may still come: absorbed without a word
+                    frame.rejected = True
+                    frame.images.clear()
+                else:
+                    del self._frames[t_ns]
                 yield Drop(t_ns, *drop)
                 continue
             if missing or joints is None or blocker:

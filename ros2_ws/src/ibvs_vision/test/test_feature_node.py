@@ -28,16 +28,12 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
-#: 30 Hz frames stamped off the 1 kHz physics grid, frame n at n * T_CAM (a camera with its own
-#: clock; the simulator stamps a frame with its step), its joint state at the first
-#: millisecond at or after that: the node matches the first within one step.
+#: 30 Hz frames, frame n at n * T_CAM, each with its joint state stamped as the frame, as the
+#: simulator's lockstep publishes them (test_joint_states_of_a_real_cell_are_interpolated
+#: feeds a real cell's 250 Hz joint states instead).
 T_CAM_NS = 33_333_333
 DT_NS = 1_000_000
 D_Q = np.radians(paper.DISTURBANCE_DEG)
-
-
-def joint_stamp(frame_ns):
-    return -(-frame_ns // DT_NS) * DT_NS
 
 
 class Driver(Node):
@@ -92,7 +88,7 @@ class Driver(Node):
         left_img = left if left is not None else image_msg(images[0], frame_ns, 'rgb8')
         right_img = right if right is not None else image_msg(
             images[1], frame_ns if right_ns is None else right_ns, 'rgb8')
-        js_ns = joint_stamp(frame_ns)
+        js_ns = frame_ns
         self.pub['clock'].publish(Clock(clock=ns_stamp(js_ns)))
         if infos:
             for side, info in zip(('left_info', 'right_info'),
@@ -255,7 +251,7 @@ def test_one_message_per_frame_whatever_the_arrival_order(rig, q_target):
     node, driver, executor = rig()
     images = driver.render(q_target + D_Q)
     # Joint state first, then the images (the node must wait for the second image).
-    driver.pub['joints'].publish(joint_state(joint_stamp(0), q_target, np.zeros(6)))
+    driver.pub['joints'].publish(joint_state(0, q_target, np.zeros(6)))
     driver.send(0, q_target, images=images, joints=False)
     spin_until(executor, lambda: len(driver.features) == 1)
     # Images first, the joint state later: nothing is published before it arrives.
@@ -263,10 +259,10 @@ def test_one_message_per_frame_whatever_the_arrival_order(rig, q_target):
     for _ in range(20):
         executor.spin_once(timeout_sec=0.01)
     assert len(driver.features) == 1
-    driver.pub['joints'].publish(joint_state(joint_stamp(T_CAM_NS), q_target, np.zeros(6)))
+    driver.pub['joints'].publish(joint_state(T_CAM_NS, q_target, np.zeros(6)))
     spin_until(executor, lambda: len(driver.features) == 2)
     # Joint states of other physics steps between frames do not disturb the pairing.
-    for t in range(joint_stamp(T_CAM_NS) + DT_NS, 2 * T_CAM_NS, DT_NS):
+    for t in range(T_CAM_NS + DT_NS, 2 * T_CAM_NS, DT_NS):
         driver.pub['joints'].publish(joint_state(t, q_target, np.zeros(6)))
     driver.send(2 * T_CAM_NS, q_target, images=images)
     spin_until(executor, lambda: len(driver.features) == 3)

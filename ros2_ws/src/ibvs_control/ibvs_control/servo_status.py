@@ -1,0 +1,118 @@
+"""
+The joint controller's status and its watch on its inputs, without ROS (issue 34).
+
+On a cell nothing waits: if the camera, the vision or the feedback stops, a position
+controller that keeps following the feedforward with the last correction drives the arm on
+blind, and forward_command_controller holds its last command forever. MoveIt Servo halts
+when its commands are older than ``incoming_command_timeout`` and says why on ``~/status``.
+The joint controller does the same with :class:`InputWatch`: every input it needs has an
+age (the node's clock less the input's newest stamp) and a timeout; while one is older than
+its timeout the controller holds the arm where it is, and the status (:class:`ServoStatus`,
+published as one ``std_msgs/Int8`` code) says which input is stale.
+
+The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``,
+moveit2 jazzy ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp``), so
+that a supervisor written for Servo reads ours; 10 and up are this stack's.
+"""
+
+from collections.abc import Iterable, Mapping
+from enum import IntEnum
+from typing import NamedTuple
+
+
+class ServoStatus(IntEnum):
+    """One code a supervisor reads (MoveIt Servo's 0-6 and -1, ours from 10)."""
+
+    INVALID = -1
+    NO_WARNING = 0
+    DECELERATE_FOR_APPROACHING_SINGULARITY = 1
+    HALT_FOR_SINGULARITY = 2
+    DECELERATE_FOR_LEAVING_SINGULARITY = 3
+    DECELERATE_FOR_COLLISION = 4
+    HALT_FOR_COLLISION = 5
+    JOINT_BOUND = 6
+    #: Not started: an input has never come (nothing is commanded).
+    WAITING = 10
+    #: Holding: /joint_states older than their timeout (where the arm is, is not known).
+    HOLD_STALE_JOINT_STATES = 11
+    #: Holding: no new camera frame within its timeout.
+    HOLD_STALE_CAMERA = 12
+    #: Holding: frames come but no q_feedback for them within its timeout.
+    HOLD_STALE_FEEDBACK = 13
+
+
+#: Each stale input's holding code.
+HOLD_CODES = {'joint_states': ServoStatus.HOLD_STALE_JOINT_STATES,
+              'camera': ServoStatus.HOLD_STALE_CAMERA,
+              'feedback': ServoStatus.HOLD_STALE_FEEDBACK}
+
+
+class Verdict(NamedTuple):
+    """The status and the words that go with it (/diagnostics, the log)."""
+
+    status: ServoStatus
+    detail: str
+
+    @property
+    def holding(self) -> bool:
+        """Return whether the arm is to be held (an input is stale)."""
+        return self.status in HOLD_CODES.values()
+
+
+class InputWatch:
+    """
+    The ages of a controller's inputs against their timeouts.
+
+    Parameters
+    ----------
+    timeouts_ns : mapping of str to int
+        Each input's name (a key of :data:`HOLD_CODES`) and its timeout (ns), in the order
+        of precedence: the first stale one names the status (the joint states first: with
+        them stale, the others do not matter).
+    required : iterable of str
+        Inputs without an age (latched once, e.g. the feedforward trajectory) that must
+        have come before anything is commanded.
+
+    """
+
+    def __init__(self, timeouts_ns: Mapping[str, int], required: Iterable[str] = ()) -> None:
+        """Create the watch with nothing heard (see the class docstring)."""
+        for name, timeout in timeouts_ns.items():
+            if name not in HOLD_CODES:
+                raise ValueError(f'unknown input {name!r}: expected one of {list(HOLD_CODES)}')
+            if not timeout > 0:
+                raise ValueError(f'timeout of {name!r} must be > 0, got {timeout}')
+        self.timeouts_ns = dict(timeouts_ns)
+        self.required = list(required)
+        self.newest_ns: dict[str, int] = {}
+        self._present: set[str] = set()
+
+    def heard(self, name: str, t_ns: int) -> None:
+        """Note an input ``name`` stamped ``t_ns`` (an older stamp than the newest is kept out)."""
+        if name in self.timeouts_ns:
+            self.newest_ns[name] = max(t_ns, self.newest_ns.get(name, t_ns))
+        else:
+            self._present.add(name)
+
+    def missing(self) -> list[str]:
+        """Return the inputs that never came, required ones first."""
+        return ([n for n in self.required if n not in self._present]
+                + [n for n in self.timeouts_ns if n not in self.newest_ns])
+
+    def verdict(self, now_ns: int) -> Verdict:
+        """
+        Return the status at ``now_ns`` and why.
+
+        WAITING until every input came once; then the hold code of the first input (in
+        the order of ``timeouts_ns``) older than its timeout; else NO_WARNING.
+        """
+        missing = self.missing()
+        if missing:
+            return Verdict(ServoStatus.WAITING, 'waiting for ' + ', '.join(missing))
+        for name, timeout in self.timeouts_ns.items():
+            age = now_ns - self.newest_ns[name]
+            if age > timeout:
+                return Verdict(HOLD_CODES[name],
+                               f'{name} stale: newest is {age * 1e-9:.3f} s old '
+                               f'(timeout {timeout * 1e-9:g} s): holding the arm')
+        return Verdict(ServoStatus.NO_WARNING, 'ok')
