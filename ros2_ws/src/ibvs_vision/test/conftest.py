@@ -5,7 +5,7 @@ from ibvs_sim.world import World  # a test dependency: the rendered images
 from ibvs_testing.fixtures import closed_after_module, context, executor_of  # noqa: F401
 import pytest
 
-world = closed_after_module(World, "The paper's robot in a PyBullet world (renderer 'auto').")
+world = closed_after_module(World, "The paper's robot in a PyBullet world drawn by its renderer.")
 
 
 @pytest.fixture(scope='module')

@@ -11,9 +11,8 @@ Acceptance of the detector on frames rendered by the simulator's PyBullet world 
   confirm that no marker pixel shows; the detector must report 'not in view' without a
   single candidate.
 
-Rendering is the slow part (EGL or TinyRenderer, whichever loads): every frame is rendered
-once per module. The two tests at the target pose run with the simulator's other renderer,
-'opengl' (ibvs_sim.gl_renderer, issue 24), too.
+Rendering is the slow part (the simulator's OpenGL renderer, ibvs_sim.gl_renderer): every
+frame is rendered once per module.
 """
 
 from ibvs_model import (fiducial_points, forward_kinematics, ik_position_axis,
@@ -25,22 +24,10 @@ import numpy as np
 import pytest
 
 
-@pytest.fixture(scope='module')
-def opengl_world():
-    """Yield the paper's robot in a World drawn by renderer 'opengl'; skip without OpenGL."""
-    from ibvs_sim.world import RendererError, World
-    try:
-        world = World(renderer='opengl')
-    except RendererError as exc:
-        pytest.skip(f'renderer opengl unavailable here: {exc}')
-    yield world
-    world.close()
-
-
-@pytest.fixture(params=['default', 'opengl'])
-def any_world(request):
-    """Return the default renderer's World, then the 'opengl' one."""
-    return request.getfixturevalue('world' if request.param == 'default' else 'opengl_world')
+@pytest.fixture
+def any_world(world):
+    """Return the module's World (one renderer since issue 35)."""
+    return world
 
 
 def _render(world, camera, q):

@@ -51,8 +51,7 @@ def taught(sim):
                                     {'image_noise_stddev': 0.01, 'camera_seed': 4}])
 def test_taught_features_equal_the_model_ones_without_calibration_error(kwargs):
     target = paper.target_pose()
-    sim = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False,
-                              disturbance_deg=paper.DISTURBANCE_DEG, **kwargs),
+    sim = Simulator(SimConfig(disturbance_deg=paper.DISTURBANCE_DEG, **kwargs),
                     teach_pose=target)
     try:
         # the true robot (link scales, d_q) was placed exactly at the target pose
@@ -67,7 +66,7 @@ def test_taught_features_equal_the_model_ones_without_calibration_error(kwargs):
     {'focal_length_error': 1.01}])
 def test_with_calibration_error_taught_features_show_the_truth(kwargs):
     target = paper.target_pose()
-    sim = Simulator(SimConfig(renderer='tiny', render_parallel_lenses=False, **kwargs),
+    sim = Simulator(SimConfig(**kwargs),
                     teach_pose=target)
     try:
         measured = taught(sim)
@@ -84,7 +83,7 @@ class Holder(Node):
 
     def __init__(self, context):
         super().__init__('holder', context=context)
-        self.model = World(renderer='tiny')
+        self.model = World(render=False)
         self.targets = []
         self.pub = self.create_publisher(JointState, contract.EFFORT_COMMANDS,
                                          contract.RELIABLE)
@@ -107,7 +106,7 @@ def test_taught_target_through_the_nodes(context):
     """sim_node teaches, feature_node measures, adaptive_feedback_node servos on it."""
     taught_params = [Parameter('target_features_source', value='taught')]
     sim = SimNode(context=context, parameter_overrides=taught_params + [
-        Parameter('resolution', value='VGA'), Parameter('renderer', value='tiny'),
+        Parameter('resolution', value='VGA'),
         Parameter('disturbance_deg', value=list(paper.DISTURBANCE_DEG))])
     features = FeatureNode(context=context)
     feedback = AdaptiveFeedbackNode(context=context, parameter_overrides=taught_params)

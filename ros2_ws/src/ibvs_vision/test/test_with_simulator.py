@@ -35,7 +35,7 @@ class Holder(Node):
 
     def __init__(self, context):
         super().__init__('holder', context=context)
-        self.model = World(renderer='tiny')
+        self.model = World(render=False)
         self.joints = {}
         self.features = []
         self.diagnostics = []
@@ -64,7 +64,6 @@ def test_one_measured_feature_message_per_simulated_frame(context, vga_model):
     sim = SimNode(context=context, parameter_overrides=[
         Parameter('resolution', value='VGA'), Parameter('scenario', value=1),
         Parameter('disturbance_deg', value=list(paper.DISTURBANCE_DEG)),
-        Parameter('renderer', value='tiny'),
         Parameter('use_sim_time', value=True)])
     node = FeatureNode(context=context,
                        parameter_overrides=[Parameter('use_sim_time', value=True)])
