@@ -57,6 +57,12 @@ OTHER_PARAMS = (
           low_open=True),
     Param('marker_radius_m', MARKER_RADIUS_M, 'radius of the spherical fiducials', 'm',
           low=0.0, high=1.0, low_open=True, high_open=True),
+    Param('rod_radius_m', 0.0035, 'radius of the thickest rod on the tool axis as drawn (the '
+          'link-6 quill, 2.5 mm, and the 1 mm margin of the renderers)', 'm', low=0.0,
+          high=1.0),
+    Param('axis_band_px', 2.5, 'half-width of the band about the tool axis left out of a '
+          "marker's centre, beyond the rods' image radius: the reach of a rim pixel's "
+          'background (2 px) and half a pixel', 'px', low=0.0, high=100.0),
 )
 _DEFAULTS = {spec.name: spec.default for spec in NODE_PARAMS + OTHER_PARAMS}
 
@@ -81,6 +87,8 @@ class DetectorConfig:
     min_roundness: float = _DEFAULTS['min_roundness']
     radius_tolerance: float = _DEFAULTS['radius_tolerance']
     marker_radius_m: float = _DEFAULTS['marker_radius_m']
+    rod_radius_m: float = _DEFAULTS['rod_radius_m']
+    axis_band_px: float = _DEFAULTS['axis_band_px']
     marker_rgb: tuple = MARKER_RGB
 
     @classmethod

@@ -7,7 +7,7 @@ left and right image paired by the epipolar constraint, disparity sign and radiu
 """
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import cv2
@@ -18,10 +18,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from .colour import check_image, colour_scores, ENCODINGS, MarkerColour
 from .config import DetectorConfig, MARKER_NAMES, Reason
-from .refine import refine_circle, silhouette_to_centre
+from .refine import axis_band_centre, refine_circle, silhouette_to_centre
 
 _BLOCK = 8  # = 2 ** 3, see _hot_regions
 _MAX_REGIONS = 12
+#: Largest half-width of the tool axis's band, as a share of a blob's radius (_axis_centres).
+AXIS_BAND_MAX_SHARE = 0.5
 
 
 @dataclass
@@ -275,15 +277,15 @@ class StereoDetector:
     def _detect_pair(self, left, right, encoding, rois, search):
         det_l = self.detect_image(left, encoding, None if rois is None else rois[0])
         det_r = self.detect_image(right, encoding, None if rois is None else rois[1])
-        features = np.empty(6)
+        pairs = []
         problems = []
         for k in range(2):
-            row, reason, detail = self._pair_marker(k, det_l.blobs[k], det_r.blobs[k],
-                                                    det_l.rejected, det_r.rejected)
-            if row is None:
+            pair, reason, detail = self._pair_marker(k, det_l.blobs[k], det_r.blobs[k],
+                                                     det_l.rejected, det_r.rejected)
+            if pair is None:
                 problems.append((reason, detail))
             else:
-                features[3 * k:3 * k + 3] = row
+                pairs.append(pair)
         if problems:
             missing = [p for p in problems if p[0] is Reason.MARKER_MISSING]
             if len(missing) == 2 and not any(det_l.blobs) and not any(det_r.blobs) \
@@ -294,10 +296,40 @@ class StereoDetector:
                 reason = min((p[0] for p in problems), key=order.index)
             return StereoDetection(None, reason, '; '.join(p[1] for p in problems),
                                    det_l, det_r, search)
+        features = np.empty(6)
+        for k, (bl, br) in enumerate(self._axis_centres(pairs)):
+            features[3 * k:3 * k + 3] = self._centre(bl, br)
         return StereoDetection(features, None, '', det_l, det_r, search)
 
+    def _axis_centres(self, pairs):
+        """
+        Return the pairs of blobs with their centres taken outside the tool axis's band.
+
+        In each image the line through both markers' centres is the tool axis, along which
+        the rods lie (:func:`.refine.axis_band_centre`); the band's half-width is the rods'
+        image radius (``rod_radius_m`` scaled by the blob's radius) plus ``axis_band_px``.
+        A blob whose band would be wider than AXIS_BAND_MAX_SHARE of its radius keeps its
+        notch-filled centre (:func:`.refine.symmetric_centre`): the band would leave too
+        little of its rim (a marker of 4 px at VGA).
+        """
+        cfg = self.config
+        out = [list(pair) for pair in pairs]
+        for side in range(2):
+            first, second = pairs[0][side], pairs[1][side]
+            direction = (second.u - first.u, second.v - first.v)
+            if math.hypot(*direction) < 1.0:
+                continue
+            for k, blob in enumerate((first, second)):
+                half_width = cfg.axis_band_px + blob.radius * cfg.rod_radius_m \
+                    / cfg.marker_radius_m
+                if half_width > AXIS_BAND_MAX_SHARE * blob.radius:
+                    continue  # too little rim left: keep the notch-filled centre
+                u, v = axis_band_centre(blob, direction, half_width)
+                out[k][side] = replace(blob, u=u, v=v)
+        return out
+
     def _pair_marker(self, k, lefts, rights, rej_l, rej_r):
-        """Pair the candidates of marker k; return ((u_l, u_r, v), None, '') or a reason."""
+        """Pair the candidates of marker k; return ((left, right), None, '') or a reason."""
         cfg = self.config
         name = MARKER_NAMES[k]
         if not lefts or not rights:
@@ -326,8 +358,7 @@ class StereoDetector:
                 f'common epipolar line (|dv| <= {cfg.epipolar_tolerance_px} px, u_l > u_r)')
         if len(pairs) > 1:
             return None, Reason.AMBIGUOUS, f'{name}: {len(pairs)} stereo pairs fit'
-        bl, br = pairs[0]
-        return self._centre(bl, br), None, ''
+        return pairs[0], None, ''
 
     def _baseline(self):
         return self.intrinsics.baseline if self.intrinsics is not None else 1.0
