@@ -21,6 +21,7 @@ class Reason(enum.Enum):
     MARKER_MISSING = 'marker missing'
     AMBIGUOUS = 'ambiguous'
     EPIPOLAR_MISMATCH = 'epipolar mismatch'
+    OVER_BUDGET = 'over budget'
 
 
 #: The detector's tuning that feature_node declares as parameters, under these names.
