@@ -49,8 +49,14 @@ marker 2 blue):
 The result is p_I = [u_l1, u_r1, v1, u_l2, u_r2, v2] (eq. 2-3, 21-22), v the mean of the
 left and right v, or a :class:`Reason` why not. Pure numpy/OpenCV, no ROS.
 
+Every step is paid for, before it runs, from the pair's budget of estimated cost
+(:mod:`.budget`): the search stops at the first step the rest cannot pay for, and the pair
+gives Reason.OVER_BUDGET, so that no image, however noisy or crowded, holds the caller for
+longer than it allows.
+
 Modules: :mod:`.config` (tuning, reasons), :mod:`.colour` (step 1), :mod:`.stereo`
-(steps 2 and 4, :class:`StereoDetector`), :mod:`.refine` (steps 3 and 5).
+(steps 2 and 4, :class:`StereoDetector`), :mod:`.refine` (steps 3 and 5), :mod:`.budget`
+(the cost model).
 """
 
 from .colour import colour_scores, ENCODINGS
