@@ -47,8 +47,10 @@ estimate), and searches the whole images only with what is left. A pair the budg
 cover is dropped from detection: it is answered as any pair not measured (the estimate,
 blended; a law with ``feature_fallback`` 'hold' holds), counted as ``rejected[stereo frame:
 detection over budget]`` and ``frames_over_budget``, with the step that did not fit. The
-wall time of each detection is measured and reported beside the budget (``detection_ms_mean``,
-``detection_ms_max``, ``detection_budget_ms``, ``detection_cost_ms_max``: the estimate).
+wall time and the CPU time of each detection are measured and reported beside the budget
+(``detection_ms_mean``, ``detection_ms_max``, ``detection_cpu_ms_mean``,
+``detection_cpu_ms_max``, ``detection_budget_ms``, ``detection_cost_ms_max``: the estimate;
+``detection_within_budget``: the largest CPU time within the budget).
 The taught target's pair, measured once before the run, gets TEACH_BUDGET_MS.
 
 Debug overlays. /ibvs/debug/left/image and /ibvs/debug/right/image (sensor_msgs/Image,
@@ -166,8 +168,7 @@ class FeatureNode(Node):
         self._model_error = None
         self._last_measured = None
         self._times_ms = []
-        self._detection_ms = []
-        self._costs_ms = []
+        self._detection_ms = {}
         self._teach = {}
         self._teach_done = False
         self._debug_always = p['publish_debug_images']
@@ -378,12 +379,12 @@ class FeatureNode(Node):
         except BehindCameraError:
             estimate = None
         with self._diag.timing.section('detection'):
-            detection_started = time.perf_counter()
+            wall, cpu = time.perf_counter(), time.thread_time()
             detection = self._detector.detect(left, right, encoding, self._predict(estimate),
                                               self._budget_ms)
-            detection_ms = (time.perf_counter() - detection_started) * 1e3
+            wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
         self._diag.timing.reached(t_ns)
-        self._record_detection(detection, detection_ms)
+        self._record_detection(detection, wall * 1e3, cpu * 1e3)
         if not detection.ok and estimate is None:
             self._diag.reject('stereo frame', 'no estimate',
                               'a marker is behind the camera at q_T and none was measured')
@@ -414,19 +415,28 @@ class FeatureNode(Node):
             return self._last_measured
         return estimate if self._model_error is None else estimate + self._model_error
 
-    def _record_detection(self, detection, detection_ms):
-        """Count a pair over budget; keep the wall time and estimated cost of detection."""
+    def _record_detection(self, detection, wall_ms, cpu_ms):
+        """
+        Count a pair over budget; keep the wall time, CPU time and estimated cost of detection.
+
+        The CPU time is this thread's (OpenCV runs on it, OPENCV_THREADS): what the detector
+        took, whereas the wall time also holds the waits for a core that other processes
+        had. ``detection_within_budget`` compares the largest CPU time with the budget.
+        """
         d = self._diag
         if detection.reason is Reason.OVER_BUDGET:
             d.values['frames_over_budget'] += 1
             d.reject('stereo frame', 'detection over budget', detection.detail)
-        self._detection_ms = (self._detection_ms + [detection_ms])[-TIMING_WINDOW:]
-        self._costs_ms = (self._costs_ms + [detection.cost_ms])[-TIMING_WINDOW:]
-        d.update(detection_ms_last=detection_ms,
-                 detection_ms_mean=float(np.mean(self._detection_ms)),
-                 detection_ms_max=float(np.max(self._detection_ms)),
-                 detection_cost_ms_max=float(np.max(self._costs_ms)),
-                 detection_within_budget=bool(np.max(self._detection_ms) <= self._budget_ms))
+        kept = self._detection_ms
+        for key, value in (('wall', wall_ms), ('cpu', cpu_ms), ('cost', detection.cost_ms)):
+            kept[key] = (kept.get(key, []) + [value])[-TIMING_WINDOW:]
+        d.update(detection_ms_last=wall_ms,
+                 detection_ms_mean=float(np.mean(kept['wall'])),
+                 detection_ms_max=float(np.max(kept['wall'])),
+                 detection_cpu_ms_mean=float(np.mean(kept['cpu'])),
+                 detection_cpu_ms_max=float(np.max(kept['cpu'])),
+                 detection_cost_ms_max=float(np.max(kept['cost'])),
+                 detection_within_budget=bool(np.max(kept['cpu']) <= self._budget_ms))
 
     def _publish_overlays(self, t_ns, images, encoding, detection, estimate, output):
         """Draw and publish each lens's overlay that someone listens to (module docstring)."""
