@@ -291,6 +291,7 @@ class StereoDetector:
         budget = WorkBudget(budget_ms)
         search, found = 'full', ''
         try:
+            budget.pay(pass_cost_ms('pair', 0), 'a stereo pair')
             if prior is not None and self.config.roi_margin_px > 0:
                 rois = self._rois(prior, left.shape)
                 if rois is not None:
