@@ -12,8 +12,17 @@ Cost of the detector per stereo pair, for ``make bench`` (``ibvs_experiments.ben
 - a frame without markers (scenario 2/3 start), searched in full every frame.
 
 ``python -m ibvs_vision.bench`` prints median and p95 of each. No ROS involved.
+
+``python -m ibvs_vision.bench --calibrate`` measures the cost model of the detector's budget
+(:data:`ibvs_vision.detector.budget.COSTS`) again: on synthetic frames and on the hostile
+images of issue 39 (noise, checkerboard, many circles) at HD720, the wall time of each kind
+of step against what the model in use prices it (a ratio: 1 or less where the model is
+not too cheap), median and largest; then the wall time of whole detections against their
+estimated cost.
 """
 
+import argparse
+import math
 import time
 
 import cv2
@@ -23,7 +32,8 @@ from ibvs_model import (CameraRobotModel, fiducial_points, inverse_kinematics, I
 import numpy as np
 
 from . import synthetic
-from .detector import StereoDetector
+from .detector import budget, StereoDetector
+from .detector.refine import refine_circle
 
 FRAMES = {'HD720': 20, 'VGA': 20}
 REPEAT = 3
@@ -91,9 +101,112 @@ def run(report):
         cv2.setNumThreads(threads)
 
 
+def _best_of(repeat, func, *args):
+    """Return (the least wall time of ``repeat`` calls, s; the last result)."""
+    best, out = math.inf, None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        out = func(*args)
+        best = min(best, time.perf_counter() - start)
+    return best, out
+
+
+def _calibration_images(model, rng):
+    k = model.camera.intrinsics
+    images = {f'synthetic {i}': synthetic.render_stereo(model.camera, fiducial_points(q), rng)[0]
+              for i, q in enumerate(scene.in_view_poses(model, 3, rng))}
+    for kind in synthetic.HOSTILE_KINDS:
+        images[kind] = synthetic.hostile_image(kind, k.width, k.height, rng)
+    noisy = images['synthetic 0'].astype(float) + rng.normal(0.0, 0.1 * 255.0,
+                                                             images['synthetic 0'].shape)
+    images['synthetic 0, noise 0.1'] = np.clip(np.round(noisy), 0, 255).astype(np.uint8)
+    return images
+
+
+def calibrate(max_hough_edges: int = 6000) -> dict[str, list[float]]:
+    """
+    Measure the detector's cost model again and print it (module docstring).
+
+    Hough windows with more than ``max_hough_edges`` edge pixels are left out (seconds
+    each). Returns, per kind of COSTS, the measured wall time of each step over its price.
+    """
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        model = _model('HD720')
+        detector = StereoDetector(model.camera.intrinsics)
+        rng = np.random.default_rng(3)
+        measured = {kind: [] for kind in ('score', 'hot', 'edges', 'hough', 'refine')}
+        whole = []
+        for name, image in _calibration_images(model, rng).items():
+            pixels = image.shape[0] * image.shape[1]
+            seconds, scores = _best_of(REPEAT, detector._selective, image, 'rgb8')
+            measured['score'].append(seconds * 1e3 / budget.pass_cost_ms('score', pixels))
+            for k in range(2):
+                seconds, regions = _best_of(REPEAT, detector._hot_regions, scores[k])
+                measured['hot'].append(seconds * 1e3 / budget.pass_cost_ms('hot', pixels))
+                size = 129  # a window of the search near a prediction (roi_margin_px 40)
+                y0, x0 = (int(rng.integers(0, n - size)) for n in image.shape[:2])
+                windows = [(x0, y0, x0 + size, y0 + size)] + list(regions)
+                for x0, y0, x1, y1 in windows:
+                    window = np.ascontiguousarray(scores[k][y0:y1, x0:x1])
+                    _calibrate_window(detector, image, k, window, (x0, y0, x1, y1),
+                                      measured, max_hough_edges)
+            seconds, result = _best_of(1, detector.detect, image, image)
+            whole.append((name, seconds * 1e3, result.cost_ms))
+        print(f'{"kind":8s} {"ns/unit, ns/call in use":>24s} {"median":>8s} {"largest":>8s}'
+              '   wall time over price')
+        for kind, values in measured.items():
+            per_unit, per_call = budget.COSTS[kind]
+            print(f'{kind:8s} {per_unit:14.2f} {per_call:9.0f} {np.median(values):8.2f} '
+                  f'{np.max(values):8.2f}   ({len(values)} steps)')
+        print('whole detections (left image as both, full search): wall / estimated ms')
+        for name, wall_ms, cost_ms in whole:
+            print(f'  {name:28s} {wall_ms:9.2f} / {cost_ms:9.2f}')
+        return measured
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def _calibrate_window(detector, image, k, window, bounds, measured, max_hough_edges):
+    """Time the edges, the Hough transform and the refinements of one search window."""
+    cfg = detector.config
+    pixels = window.size
+
+    def edges(w):
+        blurred = cv2.GaussianBlur(w, (3, 3), 0)
+        return blurred, cv2.countNonZero(cv2.Canny(blurred, max(1.0, 0.5 * cfg.hough_canny_high),
+                                                   cfg.hough_canny_high))
+
+    seconds, (blurred, count) = _best_of(REPEAT, edges, window)
+    measured['edges'].append(seconds * 1e3 / budget.pass_cost_ms('edges', pixels))
+    if count == 0 or count > max_hough_edges:
+        return
+    seconds, circles = _best_of(1, cv2.HoughCircles, blurred, cv2.HOUGH_GRADIENT, 1,
+                                max(4.0, 2.0 * cfg.hough_min_radius_px), None,
+                                cfg.hough_canny_high, cfg.hough_votes,
+                                cfg.hough_min_radius_px, cfg.hough_max_radius_px)
+    measured['hough'].append(seconds * 1e3 / budget.hough_cost_ms(count, pixels))
+    if circles is None:
+        return
+    for u, v, r in circles[0, :cfg.max_candidates]:
+        side = 2 * int(math.ceil(2.0 * r + 6.0)) + 1
+        seconds, _ = _best_of(REPEAT, refine_circle, image, 'rgb8', k, float(u + bounds[0]),
+                              float(v + bounds[1]), float(r), bounds, cfg,
+                              detector.intrinsics)
+        measured['refine'].append(seconds * 1e3 / budget.pass_cost_ms('refine', side ** 2))
+
+
 def main():
-    """Print median and p95 of each timing (``python -m ibvs_vision.bench``)."""
-    run(print_timing)
+    """Print median and p95 of each timing, or the cost model with ``--calibrate``."""
+    parser = argparse.ArgumentParser(prog='python -m ibvs_vision.bench',
+                                     description=__doc__.split('\n\n')[0])
+    parser.add_argument('--calibrate', action='store_true',
+                        help="measure the detector budget's cost model again")
+    if parser.parse_args().calibrate:
+        calibrate()
+    else:
+        run(print_timing)
 
 
 if __name__ == '__main__':

@@ -42,6 +42,23 @@ the last one taken from its topic ('duplicate stamp', 'stamp went back':
 baseline) and a camera pose looking away from the robot are rejected too; each rejection is
 counted under its topic's resolved name (the ZED wrapper's under its remap).
 
+Bounded detection time. Each pair may cost the detector ``detection_budget_share`` of the
+frame period (default half: 16.7 ms at 30 Hz, leaving the other half of the period to the
+feedback, the joint controller and the messages, so that a frame becomes a command within
+a frame period), in the detector's estimated cost (:mod:`.detector.budget`: work counted
+and priced, not the wall clock, so that a run stays deterministic). The search starts in
+windows of ``roi_margin_px`` around the prediction F(q_T) plus the model error the last
+measurement showed (F(q_T) alone before the first one, the last measurement without an
+estimate), and searches the whole images only with what is left. A pair the budget does not
+cover is dropped from detection: it is answered as any pair not measured (the estimate,
+blended; a law with ``feature_fallback`` 'hold' holds), counted as ``rejected[stereo frame:
+detection over budget]`` and ``frames_over_budget``, with the step that did not fit. The
+wall time and the CPU time of each detection are measured and reported beside the budget
+(``detection_ms_mean``, ``detection_ms_max``, ``detection_cpu_ms_mean``,
+``detection_cpu_ms_max``, ``detection_budget_ms``, ``detection_cost_ms_max``: the estimate;
+``detection_within_budget``: the largest CPU time within the budget).
+The taught target's pair, measured once before the run, gets TEACH_BUDGET_MS.
+
 Debug overlays. /ibvs/debug/left/image and /ibvs/debug/right/image (sensor_msgs/Image,
 rgb8, stamped with the frame) show each camera image with the detected markers, the
 estimate, the published features, the target and the mode (:mod:`.overlay`, as ViSP's
@@ -85,7 +102,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from . import overlay
 from .blend import BumplessSwitch
-from .detector import DetectorConfig, StereoDetector
+from .detector import DetectorConfig, Reason, StereoDetector
 from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
 from .imageconv import image_array
 from .stereo_pairing import Drop, Ready, StereoPairer
@@ -98,6 +115,9 @@ PARAMS = (
           'the model error the last measurement showed instead of F(q_T) alone (the paper)',
           '-'),
     *DETECTOR_PARAMS,
+    Param('detection_budget_share', 0.5, 'share of the camera frame period the detector may '
+          'spend on a stereo pair, in its estimated cost (detector.budget); a pair that needs '
+          'more is not measured', '-', low=0.0, high=1.0, low_open=True),
     Param('joint_history_s', 2.0, 'how long joint states are kept to match image stamps',
           's', low=0.0, high=60.0, low_open=True),
     Param('publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/'
@@ -119,6 +139,10 @@ _LENS_FRAMES = {'left': contract.LEFT_CAMERA_FRAME, 'right': contract.RIGHT_CAME
 #: pair took 1.8 ms with one thread and 3.2 ms with two (ibvs_vision.bench, two cores), and
 #: the other core is the simulator's. The results are the same.
 OPENCV_THREADS = 1
+#: The taught target's budget (ms of estimated cost): one pair, once, before the run.
+TEACH_BUDGET_MS = 1000.0
+#: Detections whose wall time the mean and max on /diagnostics cover.
+TIMING_WINDOW = 200
 
 
 class FeatureNode(Node):
@@ -130,6 +154,7 @@ class FeatureNode(Node):
         p = declare(self, PARAMS)
         cv2.setNumThreads(OPENCV_THREADS)
         self._config = DetectorConfig.from_parameters(p)
+        self._budget_ms = p['detection_budget_share'] * 1e3 / p['camera_rate_hz']
         self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
         self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(p['stale_timeout_s']),
                                     history_ns=seconds_to_ns(p['joint_history_s']),
@@ -146,8 +171,10 @@ class FeatureNode(Node):
         self._camera_problem = None
         self._model = None
         self._detector = None
-        self._prior = None
+        self._model_error = None
+        self._last_measured = None
         self._times_ms = []
+        self._detection_ms = {}
         self._teach = {}
         self._teach_done = False
         self._debug_always = p['publish_debug_images']
@@ -158,7 +185,9 @@ class FeatureNode(Node):
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
-                          frames_estimated=0, last_switch_time_s='none', switches=0)
+                          frames_estimated=0, frames_over_budget=0,
+                          detection_budget_ms=self._budget_ms, last_switch_time_s='none',
+                          switches=0)
         # The frames' messages between nodes of one process pass as objects, and through
         # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
         self._pub = intra_process.publisher(self, PolygonStamped, contract.FEATURES,
@@ -252,7 +281,7 @@ class FeatureNode(Node):
                               f'{left.shape[1]} x {left.shape[0]}, camera_info says '
                               f'{k.width} x {k.height}')
             return
-        detection = self._detector.detect(left, right, encoding, None)
+        detection = self._detector.detect(left, right, encoding, None, TEACH_BUDGET_MS)
         if not detection.ok:
             message = (f'taught target: markers not measured on the teach pair '
                        f'({detection.reason.value}: {detection.detail}); no target features')
@@ -336,7 +365,7 @@ class FeatureNode(Node):
             except BehindCameraError:
                 self._target_features = None
         self._detector = StereoDetector(camera.intrinsics, self._config)
-        self._prior = None
+        self._model_error = self._last_measured = None
         self._camera_problem = None
         return None
 
@@ -370,10 +399,13 @@ class FeatureNode(Node):
             estimate = self._model.features(q)
         except BehindCameraError:
             estimate = None
-        prior = self._prior if self._prior is not None else estimate
         with self._diag.timing.section('detection'):
-            detection = self._detector.detect(left, right, encoding, prior)
+            wall, cpu = time.perf_counter(), time.thread_time()
+            detection = self._detector.detect(left, right, encoding, self._predict(estimate),
+                                              self._budget_ms)
+            wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
         self._diag.timing.reached(t_ns)
+        self._record_detection(detection, wall * 1e3, cpu * 1e3)
         if not detection.ok and estimate is None:
             self._diag.reject('stereo frame', 'no estimate',
                               'a marker is behind the camera at q_T and none was measured')
@@ -385,9 +417,47 @@ class FeatureNode(Node):
         self._publish_overlays(t_ns, {'left': left, 'right': right}, encoding, detection,
                                estimate, output)
         self._stereo.published(t_ns)
-        self._prior = detection.features
+        if detection.ok:
+            self._last_measured = detection.features
+            if estimate is not None:
+                self._model_error = detection.features - estimate
         elapsed_ms = (time.perf_counter() - started) * 1e3
         self._record(detection, previous, elapsed_ms)
+
+    def _predict(self, estimate):
+        """
+        Return where the markers are expected: F(q_T) plus the last model error, or None.
+
+        F(q_T) follows the arm from the joint state of the frame; the model error (measured
+        minus estimated, at the last measured frame) changes slowly. Without an estimate,
+        the last measurement; without either, None (the whole images are searched).
+        """
+        if estimate is None:
+            return self._last_measured
+        return estimate if self._model_error is None else estimate + self._model_error
+
+    def _record_detection(self, detection, wall_ms, cpu_ms):
+        """
+        Count a pair over budget; keep the wall time, CPU time and estimated cost of detection.
+
+        The CPU time is this thread's (OpenCV runs on it, OPENCV_THREADS): what the detector
+        took, whereas the wall time also holds the waits for a core that other processes
+        had. ``detection_within_budget`` compares the largest CPU time with the budget.
+        """
+        d = self._diag
+        if detection.reason is Reason.OVER_BUDGET:
+            d.values['frames_over_budget'] += 1
+            d.reject('stereo frame', 'detection over budget', detection.detail)
+        kept = self._detection_ms
+        for key, value in (('wall', wall_ms), ('cpu', cpu_ms), ('cost', detection.cost_ms)):
+            kept[key] = (kept.get(key, []) + [value])[-TIMING_WINDOW:]
+        d.update(detection_ms_last=wall_ms,
+                 detection_ms_mean=float(np.mean(kept['wall'])),
+                 detection_ms_max=float(np.max(kept['wall'])),
+                 detection_cpu_ms_mean=float(np.mean(kept['cpu'])),
+                 detection_cpu_ms_max=float(np.max(kept['cpu'])),
+                 detection_cost_ms_max=float(np.max(kept['cost'])),
+                 detection_within_budget=bool(np.max(kept['cpu']) <= self._budget_ms))
 
     def _publish_overlays(self, t_ns, images, encoding, detection, estimate, output):
         """Draw and publish each lens's overlay that someone listens to (module docstring)."""
@@ -429,7 +499,7 @@ class FeatureNode(Node):
             reason = f'{detection.reason.value}: {detection.detail}'
             key = detection.reason.value
             self._reasons[key] = self._reasons.get(key, 0) + 1
-        self._times_ms = (self._times_ms + [elapsed_ms])[-200:]
+        self._times_ms = (self._times_ms + [elapsed_ms])[-TIMING_WINDOW:]
         switch = self._switch
         d.update(mode=switch.mode, source=switch.source, detection=reason,
                  search=detection.search, switches=switch.switches,

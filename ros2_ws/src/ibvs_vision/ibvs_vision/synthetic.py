@@ -259,3 +259,54 @@ def disc_occluder(camera: StereoCamera, centre_O: ArrayLike, margin_px: float = 
     angles = np.linspace(0.0, 2.0 * math.pi, 48, endpoint=False)
     outline = np.c_[u_l + radius * np.cos(angles), v + radius * np.sin(angles)]
     return (outline, u_l - u_r, rgb)
+
+
+def hostile_image(kind: str, width: int, height: int,
+                  rng: np.random.Generator) -> NDArray[np.uint8]:
+    """
+    Return an RGB image (height, width, 3) uint8 that makes a circle search expensive.
+
+    The detector's worst cases, as the fuzz classes of issue 39 name them:
+
+    - 'noise': mid-grey with Gaussian noise of 0.5 (of the full range) per pixel and
+      channel, as ``image_noise_stddev`` 0.5 gives: edges everywhere;
+    - 'checkerboard': 8 px squares of marker 1's red on grey, and 5 px squares of marker
+      2's blue in the right half: a grid of strong edges in both markers' hues;
+    - 'circles': 800 discs of 3-30 px radius in both markers' colours, overlapping: more
+      circle centres than any budget can refine.
+
+    Parameters
+    ----------
+    kind : str
+        'noise', 'checkerboard' or 'circles' (HOSTILE_KINDS).
+    width, height : int
+        The size (px).
+    rng : numpy.random.Generator
+        The draws.
+
+    Returns
+    -------
+    ndarray of uint8, shape (height, width, 3)
+
+    """
+    if kind == 'noise':
+        return np.clip(np.round(rng.normal(127.5, 0.5 * 255.0, (height, width, 3))),
+                       0, 255).astype(np.uint8)
+    image = np.full((height, width, 3), 128, np.uint8)
+    if kind == 'checkerboard':
+        ys, xs = np.mgrid[:height, :width]
+        red = ((xs // 8 + ys // 8) % 2 == 0) & (xs < width // 2)
+        blue = ((xs // 5 + ys // 5) % 2 == 0) & (xs >= width // 2)
+        image[red], image[blue] = MARKER_RGB[0], MARKER_RGB[1]
+        return image
+    if kind == 'circles':
+        for _ in range(800):
+            centre = (int(rng.integers(0, width)), int(rng.integers(0, height)))
+            colour = tuple(int(c) for c in MARKER_RGB[int(rng.integers(2))])
+            cv2.circle(image, centre, int(rng.integers(3, 31)), colour, -1, cv2.LINE_AA)
+        return image
+    raise ValueError(f'kind must be one of {HOSTILE_KINDS}, got {kind!r}')
+
+
+#: The kinds of :func:`hostile_image`.
+HOSTILE_KINDS = ('noise', 'checkerboard', 'circles')

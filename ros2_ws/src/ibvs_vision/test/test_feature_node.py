@@ -247,6 +247,41 @@ def test_one_hidden_marker_falls_back_to_the_estimate_and_says_why(rig, vga_mode
     assert diag['last_switch'].startswith('measured -> estimated')
 
 
+def test_a_pair_over_budget_is_answered_with_the_estimate_and_counted(
+        rig, vga_model, q_target):
+    """
+    A full-size noisy pair (noise 0.5) is not measured but answered: F(q_T), and why.
+
+    Before the budget such a pair held the node, and the lockstep process with it, for
+    seconds. The next clean pair is measured again; /diagnostics counts the pair over
+    budget, gives the step that did not fit, the budget of half a 30 Hz frame period and
+    the detection's wall and CPU time (mean and max, only reported: never asserted on).
+    """
+    node, driver, executor = rig(blend_time_s=0.0)
+    k = vga_model.camera.intrinsics
+    rng = np.random.default_rng(9)
+    noise = [synthetic.hostile_image('noise', k.width, k.height, rng) for _ in range(2)]
+    driver.send(0, q_target)
+    driver.send(T_CAM_NS, q_target, images=noise)
+    driver.send(2 * T_CAM_NS, q_target)
+    spin_until(executor, lambda: len(driver.features) == 3 and len(driver.status) == 3)
+    assert np.array_equal(read_features(driver.features[1]).astype(np.float32),
+                          vga_model.features(q_target).astype(np.float32))
+    status = [{kv.key: kv.value for kv in m.status[0].values} for m in driver.status]
+    assert [s['mode'] for s in status] == ['measured', 'estimated', 'measured']
+    assert status[1]['reason'].startswith('over budget: ')
+    assert 'would cost' in status[1]['reason']
+    diag = latest_diag(driver, executor, lambda d: d.get('frames_published') == '3')
+    assert diag['frames_over_budget'] == '1'
+    assert diag['rejected[stereo frame: detection over budget]'] == '1'
+    assert diag['estimated_because[over budget]'] == '1'
+    assert float(diag['detection_budget_ms']) == pytest.approx(1e3 / 30.0 / 2.0, abs=1e-4)
+    assert 0.0 < float(diag['detection_cost_ms_max']) <= float(diag['detection_budget_ms'])
+    assert float(diag['detection_ms_max']) >= float(diag['detection_ms_mean']) > 0.0
+    assert float(diag['detection_cpu_ms_max']) >= float(diag['detection_cpu_ms_mean']) > 0.0
+    assert diag['detection_within_budget'] in ('True', 'False')
+
+
 def test_one_message_per_frame_whatever_the_arrival_order(rig, q_target):
     node, driver, executor = rig()
     images = driver.render(q_target + D_Q)
@@ -347,6 +382,9 @@ def test_bad_parameters_stop_the_node_with_the_parameter_named(context):
         FeatureNode(context=context, parameter_overrides=[
             Parameter('hough_min_radius_px', value=10),
             Parameter('hough_max_radius_px', value=5)])
+    with pytest.raises(ParameterError, match='detection_budget_share'):
+        FeatureNode(context=context,
+                    parameter_overrides=[Parameter('detection_budget_share', value=0.0)])
     with pytest.raises(ParameterError, match='epipolar_tolerance_px'):
         FeatureNode(context=context,
                     parameter_overrides=[Parameter('epipolar_tolerance_px', value='wide')])

@@ -145,25 +145,32 @@ def _simulator_error(world, camera, detector, q):
 
 def test_near_the_target_the_rods_across_the_markers_cost_no_accuracy(any_world, hd_model):
     """
-    Near the target the tool axis is within 0.1 deg and the flange within 0.5 mm, to first order.
+    Near the target the tool axis is within 0.05 deg and the flange within 0.5 mm, to first order.
 
     20 poses within a few millimetres of the target: the pose that the measured features
     imply (q - pinv(C1) e, the loop's fixed point to first order) is compared with the true
-    one. The shaft and the quill cross the top of each marker; without filling those notches
-    (area centroid alone) the vertical centres were 0.07 and 0.09 px low and the implied axis
-    0.16 deg off (rms); with it, 0.06 deg rms (measured).
+    one, and no coordinate is biased by more than 0.002 px over the 20. The quill and the
+    shaft lie on the tool axis: they cut a notch into the top of each marker and darken the
+    background behind its bottom rim. Without filling the notches (area centroid alone) the
+    vertical centres were 0.07 and 0.09 px low and the implied axis 0.16 deg off (rms);
+    filling them from the other side, 0.06 deg rms with PyBullet's images, but with the
+    'opengl' renderer's marker 1's v stayed 0.009 px low (0.088 deg rms): the bottom rim
+    it was mirrored from is itself wrong. Leaving out a band along the axis through both
+    markers (refine.axis_band_centre): biases within 0.001 px and 0.03 deg rms (measured).
     """
     camera = hd_model.camera
     detector = StereoDetector(camera.intrinsics)
     q_target = inverse_kinematics(paper.target_pose())
     rng = np.random.default_rng(1)
-    position, axis = [], []
+    position, axis, errors = [], [], []
     for _ in range(20):
         q = q_target + rng.normal(0.0, 0.003, 6)
         e = _simulator_error(any_world, camera, detector, q)
+        errors.append(e)
         q_fixed = q - np.linalg.pinv(hd_model.jacobian(q), rcond=1e-6) @ e
         t_true, t_fixed = forward_kinematics(q), forward_kinematics(q_fixed)
         position.append(np.linalg.norm(t_fixed[:3, 3] - t_true[:3, 3]))
         axis.append(np.degrees(np.arccos(np.clip(t_true[:3, 2] @ t_fixed[:3, 2], -1.0, 1.0))))
-    assert np.sqrt(np.mean(np.square(axis))) <= 0.1, axis
+    assert np.abs(np.mean(errors, axis=0)).max() <= 0.002, np.mean(errors, axis=0)
+    assert np.sqrt(np.mean(np.square(axis))) <= 0.05, axis
     assert np.sqrt(np.mean(np.square(position))) <= 0.5e-3, position

@@ -23,8 +23,17 @@ marker 2 blue):
    taking out the radial stretch 1 / cos(theta) of a sphere seen off-axis. A thin rod in
    front of the marker (the tool's shaft, link 6's quill) cuts a notch into the outline;
    the notch is filled from the point-symmetric side of the ellipse before the centroid is
-   taken (:func:`_symmetric_centre`; at the target pose this takes the vertical bias from
-   0.07-0.09 px to under 0.01 px, and the implied tool-axis error from 0.16 to 0.06 deg).
+   taken (:func:`.refine.symmetric_centre`; at the target pose this takes the vertical bias
+   from 0.07-0.09 px to under 0.01 px, and the implied tool-axis error from 0.16 to 0.06 deg).
+   Once both markers are paired, each centre is taken again without a band about the
+   line through both markers in its image (:func:`.refine.axis_band_centre`): the rods
+   lie on the tool axis, so they spoil a marker's outline at two opposite ends, a notch
+   where a rod is in front, a darker background where a rod or the other marker is
+   behind, and filling a notch from the opposite end copies that end's error. The band
+   (the rods' image radius plus ``axis_band_px``) is point-symmetric about the centre, so
+   what is left still has its centroid at the ellipse's centre. With the 'opengl'
+   renderer's images at the target this took marker 1's vertical bias from 0.009 px to
+   under 0.001 px and scenario 1's final error from 0.23 to 0.08 mm (docs/design.md §7).
 4. **Stereo pairing** by the epipolar constraint of a rectified pair: same v within a
    tolerance, positive disparity u_l - u_r (ROS signs, docs/design.md §5: the left lens at
    x = -b/2 of {C}), and radii that agree with each other and with the depth given by the
@@ -40,8 +49,14 @@ marker 2 blue):
 The result is p_I = [u_l1, u_r1, v1, u_l2, u_r2, v2] (eq. 2-3, 21-22), v the mean of the
 left and right v, or a :class:`Reason` why not. Pure numpy/OpenCV, no ROS.
 
+Every step is paid for, before it runs, from the pair's budget of estimated cost
+(:mod:`.budget`): the search stops at the first step the rest cannot pay for, and the pair
+gives Reason.OVER_BUDGET, so that no image, however noisy or crowded, holds the caller for
+longer than it allows.
+
 Modules: :mod:`.config` (tuning, reasons), :mod:`.colour` (step 1), :mod:`.stereo`
-(steps 2 and 4, :class:`StereoDetector`), :mod:`.refine` (steps 3 and 5).
+(steps 2 and 4, :class:`StereoDetector`), :mod:`.refine` (steps 3 and 5), :mod:`.budget`
+(the cost model).
 """
 
 from .colour import colour_scores, ENCODINGS

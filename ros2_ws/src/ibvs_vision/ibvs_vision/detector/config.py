@@ -6,6 +6,7 @@ import enum
 from typing import Any
 
 from ibvs_common.params import Param, ParameterError
+from ibvs_model.mass_model import QUILL_RADIUS_M
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 import numpy as np
 
@@ -21,7 +22,12 @@ class Reason(enum.Enum):
     MARKER_MISSING = 'marker missing'
     AMBIGUOUS = 'ambiguous'
     EPIPOLAR_MISMATCH = 'epipolar mismatch'
+    OVER_BUDGET = 'over budget'
 
+
+#: PyBullet draws a cylinder 1 mm thicker than the URDF's (its convex margin), and the
+#: 'opengl' renderer draws it as PyBullet does (ibvs_sim.world.PYBULLET_CYLINDER_MARGIN_M).
+RENDERED_ROD_MARGIN_M = 0.001
 
 #: The detector's tuning that feature_node declares as parameters, under these names.
 EPIPOLAR_TOLERANCE_PX = Param(
@@ -57,6 +63,12 @@ OTHER_PARAMS = (
           low_open=True),
     Param('marker_radius_m', MARKER_RADIUS_M, 'radius of the spherical fiducials', 'm',
           low=0.0, high=1.0, low_open=True, high_open=True),
+    Param('rod_radius_m', QUILL_RADIUS_M + RENDERED_ROD_MARGIN_M, 'radius of the thickest '
+          'rod on the tool axis as drawn (the link-6 quill, and the margin the renderers '
+          'draw cylinders with)', 'm', low=0.0, high=1.0),
+    Param('axis_band_px', 2.5, 'half-width of the band about the tool axis left out of a '
+          "marker's centre, beyond the rods' image radius: the reach of a rim pixel's "
+          'background (2 px) and half a pixel', 'px', low=0.0, high=100.0),
 )
 _DEFAULTS = {spec.name: spec.default for spec in NODE_PARAMS + OTHER_PARAMS}
 
@@ -81,6 +93,8 @@ class DetectorConfig:
     min_roundness: float = _DEFAULTS['min_roundness']
     radius_tolerance: float = _DEFAULTS['radius_tolerance']
     marker_radius_m: float = _DEFAULTS['marker_radius_m']
+    rod_radius_m: float = _DEFAULTS['rod_radius_m']
+    axis_band_px: float = _DEFAULTS['axis_band_px']
     marker_rgb: tuple = MARKER_RGB
 
     @classmethod

@@ -8,7 +8,7 @@ stretch, and the perspective shift between a sphere's silhouette centre and the
 projection of its centre. Pure numpy/OpenCV.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 
 import cv2
@@ -27,6 +27,8 @@ NOTCH_COVERAGE = 0.3
 NOTCH_SHARE = 0.1
 NOTCH_ITERATIONS = 3
 NOTCH_EDGE = 0.05
+#: Steps of axis_band_centre.
+AXIS_BAND_ITERATIONS = 4
 
 
 def silhouette_to_centre(u: ArrayLike, v: ArrayLike, depth: float,
@@ -100,6 +102,8 @@ class Blob:
     (u, v): centre of the silhouette (area centroid), px; ``radius``: radius of a disc of
     the same area after taking out the off-axis stretch, px; ``roundness``: smaller over
     larger second moment (1 for a disc); ``hough``: the Hough circle (u, v, r) it came from.
+    ``cover``: the coverage of each pixel of the window whose top-left pixel is ``origin``
+    (x0, y0), for :func:`axis_band_centre` (notches not filled).
     """
 
     u: float
@@ -107,6 +111,8 @@ class Blob:
     radius: float
     roundness: float
     hough: tuple
+    cover: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
+    origin: tuple = (0, 0)
 
 
 def line_of_sight_stretch(intrinsics: StereoIntrinsics | None, u: float,
@@ -235,7 +241,64 @@ def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: 
     if centre is None:
         return None, 'not round (partly occluded?)', box
     cu, cv = centre[0] + x0, centre[1] + y0
-    return Blob(u=cu, v=cv, radius=radius, roundness=roundness, hough=(u, v, r)), None, box
+    return Blob(u=cu, v=cv, radius=radius, roundness=roundness, hough=(u, v, r), cover=cover,
+                origin=(x0, y0)), None, box
+
+
+def axis_band_centre(blob: Blob, direction: ArrayLike, half_width: float,
+                     iterations: int = AXIS_BAND_ITERATIONS) -> tuple[float, float]:
+    """
+    Return the centre (u, v) of a blob's coverage outside a band along the tool axis.
+
+    The rods that carry the fiducials (link 6's quill, the screwdriver's shaft) lie on the
+    tool axis, which passes through both markers' centres: in the image they touch a
+    marker's outline only where the line through both markers' images crosses it, at two
+    opposite ends. There the coverage is wrong both ways: a rod in front of the sphere cuts
+    a notch, a rod (or the other marker) just behind the outline darkens the background
+    that a rim pixel is unmixed against, which makes it look more covered. Mirroring a notch
+    (:func:`symmetric_centre`) then copies the other end's error. Weighting out a band of
+    half-width ``half_width`` about the line through the current centre along
+    ``direction`` removes both ends at once and keeps the rest point-symmetric about the
+    ellipse's centre, whose centroid is therefore still that centre: iterated from the
+    blob's centre, each step moves towards it. The band's edge is a one-pixel ramp (a hard
+    edge would make the result depend on the centre's sub-pixel position).
+
+    Parameters
+    ----------
+    blob : Blob
+        A blob with its ``cover``.
+    direction : array_like, shape (2,)
+        The image direction of the tool axis (any length but zero).
+    half_width : float
+        Half-width of the band (px).
+    iterations : int
+        Steps from the blob's centre.
+
+    Returns
+    -------
+    tuple of (float, float)
+        The centre (u, v) in the image (px); the blob's own without a cover.
+
+    """
+    if blob.cover is None:
+        return blob.u, blob.v
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / math.hypot(d[0], d[1])
+    height, width = blob.cover.shape
+    x0, y0 = blob.origin
+    xs = np.arange(x0, x0 + width, dtype=np.float64)
+    ys = np.arange(y0, y0 + height, dtype=np.float64)
+    cu, cv = blob.u, blob.v
+    for _ in range(iterations):
+        # Distance of each pixel centre from the line through (cu, cv) along d.
+        dist = np.abs(np.subtract.outer((ys - cv) * d[0], (xs - cu) * d[1]))
+        weighted = blob.cover * np.clip(dist - half_width + 0.5, 0.0, 1.0)
+        total = float(weighted.sum())
+        if total <= 0.0:
+            return blob.u, blob.v
+        cu = float(weighted.sum(axis=0) @ xs) / total
+        cv = float(weighted.sum(axis=1) @ ys) / total
+    return cu, cv
 
 
 def symmetric_centre(cover: NDArray[np.float64], cx: float, cy: float,

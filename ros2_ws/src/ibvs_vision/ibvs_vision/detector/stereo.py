@@ -3,11 +3,12 @@ The stereo detector: Hough candidates per image, refined, then paired across the
 
 Steps 2 and 4: ``cv2.HoughCircles`` on the hue-selective channel, restricted to the blocks
 where the marker's hue is present; each circle refined (:mod:`.refine`); candidates of the
-left and right image paired by the epipolar constraint, disparity sign and radius.
+left and right image paired by the epipolar constraint, disparity sign and radius. Every
+step is paid for from the pair's :class:`.budget.WorkBudget` before it runs.
 """
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import cv2
@@ -16,12 +17,15 @@ from ibvs_model.camera import merge_windows
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .budget import hough_cost_ms, OverBudget, pass_cost_ms, WorkBudget
 from .colour import check_image, colour_scores, ENCODINGS, MarkerColour
 from .config import DetectorConfig, MARKER_NAMES, Reason
-from .refine import refine_circle, silhouette_to_centre
+from .refine import axis_band_centre, refine_circle, silhouette_to_centre
 
 _BLOCK = 8  # = 2 ** 3, see _hot_regions
 _MAX_REGIONS = 12
+#: Largest half-width of the tool axis's band, as a share of a blob's radius (_axis_centres).
+AXIS_BAND_MAX_SHARE = 0.5
 
 
 @dataclass
@@ -38,7 +42,8 @@ class StereoDetection:
     Result of one stereo pair: ``features`` p_I (6,) or None with a ``reason``.
 
     ``detail`` says which marker and which image; ``left``/``right`` keep the candidates
-    (for diagnostics and tests); ``search`` is 'roi' or 'full'.
+    (for diagnostics and tests); ``search`` is 'roi' or 'full'; ``cost_ms`` is the
+    estimated cost of the work done (:mod:`.budget`), over the budget or not.
     """
 
     features: np.ndarray = None
@@ -47,6 +52,7 @@ class StereoDetection:
     left: ImageDetections = None
     right: ImageDetections = None
     search: str = 'full'
+    cost_ms: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -86,8 +92,8 @@ class StereoDetector:
     # --- one image -------------------------------------------------------------------
 
     def detect_image(self, image: NDArray[np.uint8], encoding: str = 'rgb8',
-                     rois: Sequence[tuple[int, int, int, int] | None] | None = None
-                     ) -> ImageDetections:
+                     rois: Sequence[tuple[int, int, int, int] | None] | None = None,
+                     budget: WorkBudget | None = None) -> ImageDetections:
         """
         Return the refined candidates of both markers in one image.
 
@@ -100,34 +106,49 @@ class StereoDetector:
         rois : sequence of 2 (tuple of 4 int or None), optional
             Per marker, None or a window (x0, y0, x1, y1) to search instead of the whole
             image; None: the whole image for both.
+        budget : WorkBudget, optional
+            Pays for each step before it runs; None: no limit.
 
         Returns
         -------
         ImageDetections
 
+        Raises
+        ------
+        OverBudget
+            At the first step the budget cannot pay for.
+
         """
         check_image(image, encoding)
+        budget = budget if budget is not None else WorkBudget()
         cfg = self.config
         result = ImageDetections(blobs=([], []), rejected={})
         full = None
+        pixels = image.shape[0] * image.shape[1]
         for k, rgb in enumerate(cfg.marker_rgb):
             roi = None if rois is None else rois[k]
             if roi is None:
                 if full is None:
+                    budget.pay(pass_cost_ms('score', pixels), 'colour channels of an image')
                     full = self._selective(image, encoding)
+                budget.pay(pass_cost_ms('hot', pixels), 'hot blocks of an image')
                 regions = [(full[k][y0:y1, x0:x1], (x0, y0, x1, y1))
                            for x0, y0, x1, y1 in self._hot_regions(full[k])]
             else:
                 x0, y0, x1, y1 = roi
+                budget.pay(pass_cost_ms('score', (x1 - x0) * (y1 - y0)),
+                           'colour channels of a window')
                 regions = [(colour_scores(image[y0:y1, x0:x1], rgb, encoding)[1], roi)]
             for score, bounds in regions:
                 x0, y0 = bounds[:2]
                 seen = []  # boxes (x0, y0, x1, y1) of the objects refined so far
-                for u, v, r in self._hough(score):
+                for u, v, r in self._hough(score, budget):
                     u, v = u + x0, v + y0
                     # Several circles on one object: refine it once.
                     if any(a <= u <= c and b <= v <= d for a, b, c, d in seen):
                         continue
+                    side = 2 * int(math.ceil(2.0 * r + 6.0)) + 1  # refine_circle's window
+                    budget.pay(pass_cost_ms('refine', side * side), 'refinement of a circle')
                     blob, why, box = refine_circle(image, encoding, k, u, v, r, bounds,
                                                    cfg, self.intrinsics)
                     if box is not None:
@@ -205,13 +226,26 @@ class StereoDetector:
                           min(height, (y + h) * _BLOCK + grow)])
         return merge_windows(boxes)
 
-    def _hough(self, score):
+    def _hough(self, score, budget):
+        """
+        Return up to max_candidates circles (u, v, r) of ``score``, paid from ``budget``.
+
+        The blur and the Canny edges are paid for by the pixel, then the transform by its
+        edge pixels (:func:`.budget.hough_cost_ms`): the edges are the ones HOUGH_GRADIENT
+        finds itself (Canny thresholds param1 / 2 and param1, 3 x 3 Sobel).
+        """
         cfg = self.config
         h, w = score.shape
         if min(h, w) < 2 * cfg.hough_min_radius_px + 3:
             return []
+        budget.pay(pass_cost_ms('edges', h * w), 'edges of a window')
         # A light blur keeps the gradient of a small disc whole where a highlight dents it.
-        circles = cv2.HoughCircles(cv2.GaussianBlur(score, (3, 3), 0), cv2.HOUGH_GRADIENT,
+        blurred = cv2.GaussianBlur(score, (3, 3), 0)
+        edges = cv2.countNonZero(cv2.Canny(blurred, max(1.0, 0.5 * cfg.hough_canny_high),
+                                           cfg.hough_canny_high))
+        budget.pay(hough_cost_ms(edges, h * w),
+                   f'Hough transform of {w} x {h} px with {edges} edge pixels')
+        circles = cv2.HoughCircles(blurred, cv2.HOUGH_GRADIENT,
                                    dp=1,
                                    minDist=max(4.0, 2.0 * cfg.hough_min_radius_px),
                                    param1=cfg.hough_canny_high, param2=cfg.hough_votes,
@@ -224,7 +258,8 @@ class StereoDetector:
     # --- stereo ------------------------------------------------------------------------
 
     def detect(self, left: NDArray[np.uint8], right: NDArray[np.uint8],
-               encoding: str = 'rgb8', prior: ArrayLike | None = None) -> StereoDetection:
+               encoding: str = 'rgb8', prior: ArrayLike | None = None,
+               budget_ms: float | None = None) -> StereoDetection:
         """
         Return p_I (eq. 2-3) of a rectified stereo pair, or why not.
 
@@ -235,9 +270,15 @@ class StereoDetector:
         encoding : str
             'rgb8' or 'bgr8'.
         prior : array_like, shape (6,), optional
-            A predicted p_I, e.g. the last measurement or F(q_T): both images are first
-            searched in windows of ``roi_margin_px`` around it; if that does not give both
-            markers, the whole images are searched.
+            A predicted p_I, e.g. F(q_T) corrected by the last measurement: both images
+            are first searched in windows of ``roi_margin_px`` around it; if that does
+            not give both markers, the whole images are searched, as far as the budget
+            goes.
+        budget_ms : float, optional
+            The estimated cost (ms, :mod:`.budget`) the pair may take; None: no limit.
+            At the first step it cannot pay for, the search stops and the pair gives
+            Reason.OVER_BUDGET (the regions of interest come first, so that a pair
+            whose markers are where predicted is measured whatever the rest holds).
 
         Returns
         -------
@@ -247,13 +288,24 @@ class StereoDetector:
         if left.shape != right.shape:
             raise ValueError(f'left and right images differ in size: {left.shape} vs '
                              f'{right.shape}')
-        if prior is not None and self.config.roi_margin_px > 0:
-            rois = self._rois(prior, left.shape)
-            if rois is not None:
-                result = self._detect_pair(left, right, encoding, rois, 'roi')
-                if result.ok:
-                    return result
-        return self._detect_pair(left, right, encoding, None, 'full')
+        budget = WorkBudget(budget_ms)
+        search, found = 'full', ''
+        try:
+            budget.pay(pass_cost_ms('pair', 0), 'a stereo pair')
+            if prior is not None and self.config.roi_margin_px > 0:
+                rois = self._rois(prior, left.shape)
+                if rois is not None:
+                    search = 'roi'
+                    result = self._detect_pair(left, right, encoding, rois, 'roi', budget)
+                    if result.ok:
+                        return replace(result, cost_ms=budget.spent_ms)
+                    found = f'; near the prediction: {result.reason.value}: {result.detail}'
+            search = 'full'
+            result = self._detect_pair(left, right, encoding, None, 'full', budget)
+        except OverBudget as exc:
+            return StereoDetection(None, Reason.OVER_BUDGET, f'{search} search: {exc}{found}',
+                                   search=search, cost_ms=budget.spent_ms)
+        return replace(result, cost_ms=budget.spent_ms)
 
     def _rois(self, prior, shape):
         prior = np.asarray(prior, dtype=float)
@@ -272,18 +324,18 @@ class StereoDetector:
                 rois[side].append((x0, y0, x1, y1))
         return rois
 
-    def _detect_pair(self, left, right, encoding, rois, search):
-        det_l = self.detect_image(left, encoding, None if rois is None else rois[0])
-        det_r = self.detect_image(right, encoding, None if rois is None else rois[1])
-        features = np.empty(6)
+    def _detect_pair(self, left, right, encoding, rois, search, budget):
+        det_l = self.detect_image(left, encoding, None if rois is None else rois[0], budget)
+        det_r = self.detect_image(right, encoding, None if rois is None else rois[1], budget)
+        pairs = []
         problems = []
         for k in range(2):
-            row, reason, detail = self._pair_marker(k, det_l.blobs[k], det_r.blobs[k],
-                                                    det_l.rejected, det_r.rejected)
-            if row is None:
+            pair, reason, detail = self._pair_marker(k, det_l.blobs[k], det_r.blobs[k],
+                                                     det_l.rejected, det_r.rejected)
+            if pair is None:
                 problems.append((reason, detail))
             else:
-                features[3 * k:3 * k + 3] = row
+                pairs.append(pair)
         if problems:
             missing = [p for p in problems if p[0] is Reason.MARKER_MISSING]
             if len(missing) == 2 and not any(det_l.blobs) and not any(det_r.blobs) \
@@ -294,10 +346,40 @@ class StereoDetector:
                 reason = min((p[0] for p in problems), key=order.index)
             return StereoDetection(None, reason, '; '.join(p[1] for p in problems),
                                    det_l, det_r, search)
+        features = np.empty(6)
+        for k, (bl, br) in enumerate(self._axis_centres(pairs)):
+            features[3 * k:3 * k + 3] = self._centre(bl, br)
         return StereoDetection(features, None, '', det_l, det_r, search)
 
+    def _axis_centres(self, pairs):
+        """
+        Return the pairs of blobs with their centres taken outside the tool axis's band.
+
+        In each image the line through both markers' centres is the tool axis, along which
+        the rods lie (:func:`.refine.axis_band_centre`); the band's half-width is the rods'
+        image radius (``rod_radius_m`` scaled by the blob's radius) plus ``axis_band_px``.
+        A blob whose band would be wider than AXIS_BAND_MAX_SHARE of its radius keeps its
+        notch-filled centre (:func:`.refine.symmetric_centre`): the band would leave too
+        little of its rim (a marker of 4 px at VGA).
+        """
+        cfg = self.config
+        out = [list(pair) for pair in pairs]
+        for side in range(2):
+            first, second = pairs[0][side], pairs[1][side]
+            direction = (second.u - first.u, second.v - first.v)
+            if math.hypot(*direction) < 1.0:
+                continue
+            for k, blob in enumerate((first, second)):
+                half_width = cfg.axis_band_px + blob.radius * cfg.rod_radius_m \
+                    / cfg.marker_radius_m
+                if half_width > AXIS_BAND_MAX_SHARE * blob.radius:
+                    continue  # too little rim left: keep the notch-filled centre
+                u, v = axis_band_centre(blob, direction, half_width)
+                out[k][side] = replace(blob, u=u, v=v)
+        return out
+
     def _pair_marker(self, k, lefts, rights, rej_l, rej_r):
-        """Pair the candidates of marker k; return ((u_l, u_r, v), None, '') or a reason."""
+        """Pair the candidates of marker k; return ((left, right), None, '') or a reason."""
         cfg = self.config
         name = MARKER_NAMES[k]
         if not lefts or not rights:
@@ -326,8 +408,7 @@ class StereoDetector:
                 f'common epipolar line (|dv| <= {cfg.epipolar_tolerance_px} px, u_l > u_r)')
         if len(pairs) > 1:
             return None, Reason.AMBIGUOUS, f'{name}: {len(pairs)} stereo pairs fit'
-        bl, br = pairs[0]
-        return self._centre(bl, br), None, ''
+        return pairs[0], None, ''
 
     def _baseline(self):
         return self.intrinsics.baseline if self.intrinsics is not None else 1.0
