@@ -319,7 +319,9 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                     else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
         dds.configure()  # before rclpy.init here, and inherited by the node processes
         context = rclpy.context.Context()
-        rclpy.init(context=context)
+        # Explicit arguments: by default rclpy parses sys.argv, where rcl takes the
+        # command line's -p name:=value for a deprecated remap rule and warns about it.
+        rclpy.init(args=[], context=context)
         executor = make_executor(context)
         recorder = Recorder(run.bag_path, include_images=record_images, context=context,
                             include_overlays=record_overlays,
