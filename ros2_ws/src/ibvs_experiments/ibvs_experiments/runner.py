@@ -367,6 +367,7 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
 
     The scenario file's values, then the overrides (:func:`graph_params.check`,
     :func:`scenario.check_progress` raise here); the sim time is ``duration_s``, else the
+    ``duration_s`` parameter (the simulator's stop when started by hand) if > 0, else the
     file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
     """
     params = scenario.load_parameters(name)
@@ -374,6 +375,8 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
     graph_params.check(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
+    if duration_s is None and params.get('duration_s'):  # the simulator's stop, by hand
+        duration_s = params['duration_s']
     duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
     return params, duration_s
 
@@ -392,7 +395,8 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
     out_dir.mkdir(parents=True, exist_ok=True)
     log_dir = out_dir / 'logs'
     log_dir.mkdir(exist_ok=True)
-    runner_only = ('scenario_name', 'run_duration_s')
+    # duration_s: the runner stops the graph at the run's sim time limit itself (watch).
+    runner_only = ('scenario_name', 'run_duration_s', 'duration_s')
     node_params = {k: v for k, v in params.items() if k not in runner_only}
     params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
     bag_path = out_dir / 'bag'

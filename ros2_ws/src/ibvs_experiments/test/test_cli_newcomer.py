@@ -6,8 +6,10 @@ No graph is started: ``runner.run_scenario`` is replaced where a command would r
 
 from pathlib import Path
 
+from ibvs_bringup.scenario import ScenarioError
 from ibvs_experiments import cli
 import pytest
+import yaml
 
 
 @pytest.fixture
@@ -77,3 +79,16 @@ def test_help_names_every_scenario_and_option_with_its_default(capsys):
     with pytest.raises(SystemExit):
         cli.main(['study', 'x', '--stall-s', '0'])
     assert 'seconds > 0' in capsys.readouterr().err
+
+
+def test_the_simulators_duration_s_is_the_runs_duration_and_stays_with_the_runner(tmp_path):
+    # duration_s stops a simulator started by hand; in a run the runner stops the graph
+    # itself, so the nodes do not get it (a simulator stopped early would stall the run).
+    run = cli.runner.prepare('scenario1', tmp_path / 'a', {'duration_s': 0.7})
+    assert run.duration_s == 0.7
+    written = yaml.safe_load(run.params_file.read_text())['/**']['ros__parameters']
+    assert 'duration_s' not in written
+    assert cli.runner.resolve('scenario1', {'duration_s': 0.7}, 0.2)[1] == 0.2
+    assert cli.runner.resolve('scenario1', {'duration_s': 0.0})[1] == 3.0
+    with pytest.raises(ScenarioError, match='duration_s'):
+        cli.runner.resolve('scenario1', {'duration_s': -1.0})
