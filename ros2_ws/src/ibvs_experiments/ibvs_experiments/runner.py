@@ -68,6 +68,8 @@ STALL_S = 60.0
 START_TIMEOUT_S = 120.0
 #: Wall time between two looks of the runner at the run (progress, stall, end, node exits).
 POLL_S = 0.02
+#: Wall time between two progress lines of :func:`watch` (one only once sim time moved).
+PROGRESS_S = 2.0
 #: What the stall report says of a node that reported no wait: busy, frozen, or a node that
 #: does not report its waits.
 SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
@@ -445,10 +447,11 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     It ends when a process exits (``died``), the tool has converged (``converge_hold_s``),
     sim time reaches ``run.duration_s``, ``wall_timeout_s`` has passed since
     ``wall_start``, or sim time has not advanced for ``stall_s`` (``start_timeout_s``
-    before step 0: ``stalled``). Progress is printed every 2 s of wall time.
+    before step 0: ``stalled``). Progress is printed every :data:`PROGRESS_S` of wall time
+    when sim time has moved since the last line; before step 0, once, that the nodes start.
     """
     outcome = Outcome()
-    last_print = 0.0
+    last_print, printed_ns = 0.0, None
     last_sim_ns, last_advance = -1, time.monotonic()
     never = Future()
     while True:
@@ -464,8 +467,14 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
             break
         sim_s = ns_to_seconds(monitor.sim_ns)
         now = time.monotonic()
-        if now - last_print >= 2.0:
+        if now - last_print >= PROGRESS_S and monitor.started_wall is None:
+            if printed_ns is None:
+                progress(f'  [{run.params["scenario_name"]}] starting: the nodes start up; '
+                         'the simulator takes step 0 once every reader of it is there')
+                printed_ns = -1
             last_print = now
+        elif now - last_print >= PROGRESS_S and monitor.sim_ns != printed_ns:
+            last_print, printed_ns = now, monitor.sim_ns
             rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
             # Before the first tool pose there is no error to print yet.
             error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)
