@@ -6,9 +6,9 @@ past the scenario's duration, and Ctrl-C stopped only the foreground node. Here 
 shell functions of docs/running.md (``ibvs_nodes``, ``ibvs_nodes_stop``), taken from the
 page itself, start the graph in bash with job control, as an interactive shell has it (and
 without the ``ros2`` CLI, as this repository's venv has it), with
-``-p duration_s:=0.3``; once the simulator says it stopped at 0.3 s and every paper node
-has logged a progress line, ``ibvs_nodes_stop`` must end every node with exit code 0 and
-leave no process behind.
+``-p duration_s:=0.3``; once the simulator says it stopped at 0.3 s and every node has
+logged a progress line, ``ibvs_nodes_stop`` must end every node with exit code 0 and leave
+no process behind.
 """
 
 import os
@@ -24,6 +24,8 @@ RUNNING = ROOT / 'docs' / 'running.md'
 BLOCK = re.compile(r'^```bash\n(.*?)^```', re.MULTILINE | re.DOTALL)
 PAPER_NODES = ('sim_node', 'feature_node', 'adaptive_feedback_node', 'feedforward_node',
                'joint_controller_node')
+#: Every node ibvs_nodes starts: each logs its progress.
+LOGGING = PAPER_NODES + ('viz_node',)
 DURATION_S = 0.3
 
 
@@ -61,7 +63,7 @@ def test_nodes_started_by_hand_log_progress_stop_at_duration_and_stop_together(
         deadline = time.monotonic() + 240.0
         while time.monotonic() < deadline:
             text = log.read_text(errors='replace')
-            if stopped in text and all(f'[{n}]: progress: ' in text for n in PAPER_NODES):
+            if stopped in text and all(f'[{n}]: progress: ' in text for n in LOGGING):
                 break
             assert shell.poll() is None, text[-3000:]
             time.sleep(0.5)
@@ -69,7 +71,7 @@ def test_nodes_started_by_hand_log_progress_stop_at_duration_and_stop_together(
         assert stopped in text, text[-3000:]
         pgids = [int(p) for p in re.search(r'^pids: (.*)$', text, re.MULTILINE).group(1).split()]
         assert len(pgids) == 6
-        for node in PAPER_NODES:
+        for node in LOGGING:
             assert f'[{node}]: progress: ' in text, f'{node} logged no progress:\n{text[-3000:]}'
         # The simulator went no further than its duration, and said where it stands.
         assert re.search(rf'\[sim_node\]: progress: t = {DURATION_S:.3f} s of {DURATION_S:g} '

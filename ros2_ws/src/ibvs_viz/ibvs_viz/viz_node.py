@@ -152,6 +152,10 @@ class VizNode(Node):
         self._diag = Diagnostics(self, 'robot description, tf and markers')
         self._diag.update(waiting_for='camera_info, /stereo/pose', tf_published=0,
                           markers_published=0)
+        self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (
+            f"/tf of {self._diag.values['tf_published']} joint states (last at "
+            f'{self._last_joint_ns * 1e-9:.3f} s), '
+            f"{self._diag.values['markers_published']} /ibvs/markers"))
         self._description_pub = self.create_publisher(String, contract.ROBOT_DESCRIPTION,
                                                       contract.LATCHED)
         self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
