@@ -134,7 +134,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
-    scenario.load_parameters(args.scenario)  # a refused scenario leaves no output directory
+    # Every check before any node (runner.resolve): a refused run leaves no output directory.
+    runner.resolve(args.scenario, overrides, args.duration)
     out = Path(args.out or run_folder(args.scenario, args.param, args.duration))
     try:
         out.mkdir(parents=True, exist_ok=True)

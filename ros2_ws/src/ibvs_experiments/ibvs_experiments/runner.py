@@ -369,16 +369,22 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
 
     The scenario file's values, then the overrides (:func:`graph_params.check`,
     :func:`scenario.check_progress` raise here); the sim time is ``duration_s``, else the
-    ``duration_s`` parameter (the simulator's stop when started by hand) if > 0, else the
-    file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
+    ``duration_s`` parameter (the simulator's stop when started by hand) if > 0 (both, if
+    they differ, are refused), else the file's ``run_duration_s``, else 3 s. Nothing is
+    written (:func:`prepare` writes).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
     graph_params.check(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
-    if duration_s is None and params.get('duration_s'):  # the simulator's stop, by hand
-        duration_s = params['duration_s']
+    stop_s = params.get('duration_s')  # the simulator's stop when started by hand
+    if stop_s and duration_s is not None and float(stop_s) != float(duration_s):
+        raise scenario.ScenarioError(
+            f'duration_s = {stop_s} and a sim time limit of {duration_s} s (--duration, or '
+            "a study's duration_s): the runner stops the run, give one of them")
+    if duration_s is None and stop_s:
+        duration_s = stop_s
     duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
     return params, duration_s
 

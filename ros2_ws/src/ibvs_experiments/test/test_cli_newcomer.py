@@ -90,7 +90,18 @@ def test_the_simulators_duration_s_is_the_runs_duration_and_stays_with_the_runne
     assert run.duration_s == 0.7
     written = yaml.safe_load(run.params_file.read_text())['/**']['ros__parameters']
     assert 'duration_s' not in written
-    assert cli.runner.resolve('scenario1', {'duration_s': 0.7}, 0.2)[1] == 0.2
+    assert cli.runner.resolve('scenario1', {'duration_s': 0.7}, 0.7)[1] == 0.7
+    with pytest.raises(ScenarioError, match='give one of them'):  # which one would it be?
+        cli.runner.resolve('scenario1', {'duration_s': 0.7}, 0.2)
     assert cli.runner.resolve('scenario1', {'duration_s': 0.0})[1] == 3.0
     with pytest.raises(ScenarioError, match='duration_s'):
         cli.runner.resolve('scenario1', {'duration_s': -1.0})
+
+
+def test_a_run_refused_by_the_runners_checks_leaves_no_folder(monkeypatch, tmp_path, capsys):
+    monkeypatch.chdir(tmp_path)
+    for argv in (['-p', 'duration_s:=0.7', '--duration', '0.2'],
+                 ['-p', 'publish_images:=false']):
+        assert cli.main(['run', 'scenario1', *argv]) == 2
+        assert capsys.readouterr().err.startswith('error:')
+    assert not (tmp_path / 'results').exists()
