@@ -19,14 +19,21 @@ PYTEST_ARGS ?=
 IBVS_ROS_DOMAINS ?= 0-101
 export IBVS_ROS_DOMAINS
 
-.PHONY: all venv build test fuzz demo report bench lint lock clean
+.PHONY: all check-system venv build test fuzz demo report bench lint lock clean
 all: build
+
+check-system:
+	tools/check_system.sh $(PYTHON)
 
 # requirements-test.txt: test-only peer packages, without their declared dependencies
 # (they would pull opencv-python over the headless cv2; see the file).
 # tools/fix_cmake_exports.py: the message wheels' CMake exports name their build machine's
 # Python headers; the interface package ros2_ws/src/tf2_msgs needs this machine's.
+# tools/check_system.sh: what the system must have (Python 3.11 with venv and headers, CMake,
+# a C and a C++ compiler), checked before anything is made; it names the Debian package of
+# each missing piece (README: the one apt-get line).
 $(VENV_STAMP): requirements.txt requirements-test.txt
+	tools/check_system.sh $(PYTHON)
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r requirements.txt
 	$(VENV)/bin/pip install --quiet --disable-pip-version-check --no-deps \
@@ -41,6 +48,7 @@ venv: $(VENV_STAMP)
 # PYTHONDONTWRITEBYTECODE (set on some machines) makes setuptools warn "byte-compiling is
 # disabled" on stderr for every package, which colcon reports as "had stderr output".
 $(BUILD_STAMP): $(VENV_STAMP) $(SOURCES)
+	tools/check_system.sh $(PYTHON)
 	source $(VENV)/bin/activate && cd $(WS) && unset PYTHONDONTWRITEBYTECODE && \
 	  AMENT_PREFIX_PATH=$$VIRTUAL_ENV$${AMENT_PREFIX_PATH:+:$$AMENT_PREFIX_PATH} \
 	  colcon --log-base log build --merge-install --event-handlers console_direct- summary+ \

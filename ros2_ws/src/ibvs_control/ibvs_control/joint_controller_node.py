@@ -183,6 +183,7 @@ class JointControllerNode(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._progress = True
         self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self.diagnostics.log_progress(self._progress_line)
         self.get_logger().info(
             f"{values['actuators']} actuators, G_c at {1e9 / self.dt_ns:g} Hz, frames every "
             f'{self.camera_ns} ns, latency {self.latency_ns} ns')
@@ -466,6 +467,20 @@ class JointControllerNode(Node):
         self._progress = True
         self.diagnostics.update(commands=self.commands, last_answered_ns=t_ns,
                                 saturated_joints=int(np.count_nonzero(self.loop.saturated)))
+
+    def _progress_line(self):
+        """Return the progress line: commands sent, up to when, and how (None before)."""
+        values = self.diagnostics.values
+        if not self.commands:
+            return None
+        if self.command_interface == 'position':
+            return (f'{self.commands} position references sent (last at '
+                    f"{values['last_command_ns'] * 1e-9:.3f} s), {self.frames_used} frames "
+                    'of q_feedback used')
+        return (f'{self.commands} effort commands sent (last for t = '
+                f"{values['last_answered_ns'] * 1e-9:.3f} s), {values['actuators']} "
+                f"actuators, {values['saturated_joints']} joints at their torque limit, "
+                f'{self.frames_lost} frames lost')
 
     def _log_waiting(self):
         if self.command_interface == 'position':

@@ -4,7 +4,9 @@ Command line of the experiments: ``ros2 run ibvs_experiments ibvs <command>``.
 Commands:
 
 - ``run <scenario> [-o DIR] [--duration S] [--images] [-p name:=value ...]``: one run of a
-  scenario (``scenario1``..``scenario3`` or a parameter file) through the node graph;
+  scenario (``scenario1``..``scenario3``, ``real_cell`` or a parameter file) through the
+  node graph, into a folder of its own under ``results/runs`` named after the scenario, the
+  ``-p`` values and ``--duration`` (:func:`run_folder`) unless ``-o`` names one;
   ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
@@ -15,16 +17,19 @@ Commands:
   recorded with ``--images`` (or ``--overlays``);
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, with
   its camera images in the bag and its film ``results/scenario1/video.mp4``;
-- ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]``: every run
-  of a study spec (a grid and/or seeded draws over parameters) as Ray tasks, cached;
-- ``report [--quick]``: scenarios 1-3, the L2/L4 robustness sweep and each servo law on
-  scenarios 1-3 with ideal and with limited actuators (:mod:`ibvs_experiments.laws_report`),
-  as studies on Ray, into ``results/report.md``; ``--quick`` keeps the sweep's endpoints
-  and skips the servo laws.
+- ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]
+  [--stall-s S] [--retry-failed]``: every run of a study spec (a grid and/or seeded draws
+  over parameters) as Ray tasks, cached;
+- ``report [--quick] [--no-laws] [--retry-failed]``: scenarios 1-3, the L2/L4 robustness
+  sweep and each servo law on scenarios 1-3 with ideal and with limited actuators
+  (:mod:`ibvs_experiments.laws_report`), as studies on Ray, into ``results/report.md``;
+  ``--quick`` keeps the sweep's endpoints and skips the servo laws, ``--no-laws`` skips
+  the servo laws only.
 """
 
 import argparse
 from collections.abc import Sequence
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -36,6 +41,12 @@ from typing import Any
 from ibvs_bringup import domains, graph_params, scenario
 
 from . import runner, study_spec
+
+#: Where ``ibvs run`` writes without ``-o``: a folder per command line (:func:`run_folder`),
+#: apart from ``make demo``'s ``results/scenario1`` and the studies' ``results/studies``.
+RUNS_DIR = Path('results') / 'runs'
+#: Longest folder name :func:`run_folder` writes out in full (a file system allows 255 bytes).
+RUN_NAME_MAX = 100
 
 SUMMARY_KEYS = ('final_position_error_m', 'final_tool_axis_error_deg', 'settling_time_2pct_s',
                 'time_to_1mm_s', 'max_overshoot_m', 'time_estimated_s',
@@ -63,6 +74,52 @@ def with_servo_law(overrides: dict[str, Any]) -> dict[str, Any]:
     return overrides
 
 
+def run_folder(scenario_name: str | Path, params: Sequence[str] = (),
+               duration_s: float | None = None, root: Path = RUNS_DIR) -> Path:
+    """
+    Return the folder of ``ibvs run`` without ``-o``: named after what the command sets.
+
+    Parameters
+    ----------
+    scenario_name : str or Path
+        The scenario as given (``scenario2``, or a parameter file: its stem).
+    params : sequence of str
+        The ``-p name:=value`` texts; the last value of a name counts, names are sorted (the
+        same run, the same folder), and each value is written as typed, less brackets,
+        quotes and spaces, with ``_`` for any other character that a file name should not
+        hold.
+    duration_s : float, optional
+        ``--duration``, written as ``<seconds>s`` last; none when not given.
+    root : Path
+        The parent folder.
+
+    Returns
+    -------
+    Path
+        ``root/<scenario>[_<name>=<value>...][_<duration>s]``, for example
+        ``results/runs/scenario2_actuators=limited_feedback_latency_s=0.067`` and
+        ``results/runs/scenario1_0.5s``. A name longer than :data:`RUN_NAME_MAX` keeps its
+        first characters and ends with 8 hex digits of its SHA-1 (still one folder per
+        command line).
+
+    """
+    values = {}
+    for text in params:
+        name, _, value = text.partition(':=')
+        values[name.strip()] = value
+    parts = [Path(str(scenario_name)).stem]
+    for name in sorted(values):
+        value = re.sub(r"[\[\]{}()'\"\s]", '', values[name])
+        parts.append(f'{name}={value}')
+    if duration_s is not None:
+        parts.append(f'{duration_s:g}s')
+    folder = re.sub(r'[^A-Za-z0-9._+,=-]', '_', '_'.join(parts))
+    if len(folder) > RUN_NAME_MAX:
+        digest = hashlib.sha1(folder.encode()).hexdigest()[:8]
+        folder = f'{folder[:RUN_NAME_MAX - 9]}_{digest}'
+    return root / folder
+
+
 def positive_seconds(text: str) -> float:
     """Return ``text`` as a number of seconds > 0 (argparse type of --duration, --stall-s)."""
     try:
@@ -79,8 +136,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
-    scenario.load_parameters(args.scenario)  # a refused scenario leaves no output directory
-    out = Path(args.out or Path('results') / Path(args.scenario).stem)
+    # Every check before any node (runner.resolve): a refused run leaves no output directory.
+    runner.resolve(args.scenario, overrides, args.duration)
+    out = Path(args.out or run_folder(args.scenario, args.param, args.duration))
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -133,6 +191,8 @@ def cmd_video(args: argparse.Namespace) -> int:
 def cmd_analyse(args: argparse.Namespace) -> int:
     """Recompute metrics and figures from a bag."""
     bag = Path(args.bag)
+    if not bag.exists():  # before any folder is made for its results
+        raise FileNotFoundError(f'no bag at {bag}')
     out = Path(args.out) if args.out else bag.parent
     out.mkdir(parents=True, exist_ok=True)
     metrics = runner.write_results(bag, out)
@@ -209,11 +269,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, func in (('run', cmd_run), ('demo', cmd_demo)):
         p = sub.add_parser(name, help=func.__doc__)
         if name == 'run':
-            p.add_argument('scenario', help='scenario1..3 or a parameter file')
+            p.add_argument('scenario', help='scenario1, scenario2, scenario3, real_cell (the '
+                           'real arm and camera: docs/real_cell.md) or a parameter file')
         p.add_argument('--no-figures', dest='figures', action='store_false',
                        help='write the bag and metrics.json only (ibvs analyse draws the '
                        'figures from the bag later)')
-        p.add_argument('-o', '--out', help='output directory (default results/<scenario>)')
+        p.add_argument('-o', '--out', help='output directory (default: ' + (
+            'a folder of its own under results/runs named after the scenario, the -p values '
+            'and --duration, e.g. results/runs/scenario1_0.5s)' if name == 'run'
+            else 'results/scenario1)'))
         p.add_argument('--duration', type=positive_seconds, help='sim time limit, s (> 0)')
         p.add_argument('--images', action='store_true', help='also record raw images')
         p.add_argument('--stall-s', type=positive_seconds, default=runner.STALL_S,
@@ -245,10 +309,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = sub.add_parser('study', help=cmd_study.__doc__)
     p.add_argument('spec', help='a study spec file, or the name of an installed one')
     p.add_argument('-o', '--out', help='parent of the study directory (default results/studies)')
-    p.add_argument('--stall-s', type=float, default=runner.STALL_S,
-                   help='wall seconds without sim-time progress that fail a run')
+    p.add_argument('--stall-s', type=positive_seconds, default=runner.STALL_S,
+                   help='wall seconds without sim-time progress that fail a run (default '
+                   '%(default)s)')
     p.add_argument('--retry-failed', action='store_true',
-                   help='run again the runs recorded as failed')
+                   help='run again the runs recorded as failed (a failed run stays cached '
+                   'as failed otherwise)')
     p.set_defaults(func=cmd_study)
     p = sub.add_parser('report', help=cmd_report.__doc__)
     p.add_argument('-o', '--out', default='results', help='results directory')

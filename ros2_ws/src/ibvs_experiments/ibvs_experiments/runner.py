@@ -68,6 +68,8 @@ STALL_S = 60.0
 START_TIMEOUT_S = 120.0
 #: Wall time between two looks of the runner at the run (progress, stall, end, node exits).
 POLL_S = 0.02
+#: Wall time between two progress lines of :func:`watch` (one only once sim time moved).
+PROGRESS_S = 2.0
 #: What the stall report says of a node that reported no wait: busy, frozen, or a node that
 #: does not report its waits.
 SILENT = 'said nothing about waiting (no "waiting" log line, no /diagnostics waiting_for)'
@@ -319,7 +321,9 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                     else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
         dds.configure()  # before rclpy.init here, and inherited by the node processes
         context = rclpy.context.Context()
-        rclpy.init(context=context)
+        # Explicit arguments: by default rclpy parses sys.argv, where rcl takes the
+        # command line's -p name:=value for a deprecated remap rule and warns about it.
+        rclpy.init(args=[], context=context)
         executor = make_executor(context)
         recorder = Recorder(run.bag_path, include_images=record_images, context=context,
                             include_overlays=record_overlays,
@@ -365,13 +369,22 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
 
     The scenario file's values, then the overrides (:func:`graph_params.check`,
     :func:`scenario.check_progress` raise here); the sim time is ``duration_s``, else the
-    file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
+    ``duration_s`` parameter (the simulator's stop when started by hand) if > 0 (both, if
+    they differ, are refused), else the file's ``run_duration_s``, else 3 s. Nothing is
+    written (:func:`prepare` writes).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
     graph_params.check(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
+    stop_s = params.get('duration_s')  # the simulator's stop when started by hand
+    if stop_s and duration_s is not None and float(stop_s) != float(duration_s):
+        raise scenario.ScenarioError(
+            f'duration_s = {stop_s} and a sim time limit of {duration_s} s (--duration, or '
+            "a study's duration_s): the runner stops the run, give one of them")
+    if duration_s is None and stop_s:
+        duration_s = stop_s
     duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
     return params, duration_s
 
@@ -390,7 +403,8 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
     out_dir.mkdir(parents=True, exist_ok=True)
     log_dir = out_dir / 'logs'
     log_dir.mkdir(exist_ok=True)
-    runner_only = ('scenario_name', 'run_duration_s')
+    # duration_s: the runner stops the graph at the run's sim time limit itself (watch).
+    runner_only = ('scenario_name', 'run_duration_s', 'duration_s')
     node_params = {k: v for k, v in params.items() if k not in runner_only}
     params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
     bag_path = out_dir / 'bag'
@@ -439,10 +453,11 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     It ends when a process exits (``died``), the tool has converged (``converge_hold_s``),
     sim time reaches ``run.duration_s``, ``wall_timeout_s`` has passed since
     ``wall_start``, or sim time has not advanced for ``stall_s`` (``start_timeout_s``
-    before step 0: ``stalled``). Progress is printed every 2 s of wall time.
+    before step 0: ``stalled``). Progress is printed every :data:`PROGRESS_S` of wall time
+    when sim time has moved since the last line; before step 0, once, that the nodes start.
     """
     outcome = Outcome()
-    last_print = 0.0
+    last_print, printed_ns = 0.0, None
     last_sim_ns, last_advance = -1, time.monotonic()
     never = Future()
     while True:
@@ -458,8 +473,14 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
             break
         sim_s = ns_to_seconds(monitor.sim_ns)
         now = time.monotonic()
-        if now - last_print >= 2.0:
+        if now - last_print >= PROGRESS_S and monitor.started_wall is None:
+            if printed_ns is None:
+                progress(f'  [{run.params["scenario_name"]}] starting: the nodes start up; '
+                         'the simulator takes step 0 once every reader of it is there')
+                printed_ns = -1
             last_print = now
+        elif now - last_print >= PROGRESS_S and monitor.sim_ns != printed_ns:
+            last_print, printed_ns = now, monitor.sim_ns
             rtf = sim_s / max(now - (monitor.started_wall or now), 1e-9)
             # Before the first tool pose there is no error to print yet.
             error = (f'{monitor.error_m * 1e3:9.3f} mm' if np.isfinite(monitor.error_m)

@@ -29,6 +29,7 @@ import hashlib
 import importlib.util
 import json
 import logging
+import math
 import os
 from pathlib import Path
 import resource
@@ -215,23 +216,49 @@ def _children_cpu_s():
     return usage.ru_utime + usage.ru_stime
 
 
-class Progress:
-    """One line per finished run: count, share, failures, elapsed time and ETA."""
+def run_label(record: Mapping[str, Any]) -> str:
+    """Return a run's name in progress lines: ``<study>#<index> (<swept>=<value>, ...)``."""
+    swept = record.get('swept') or {}
+    values = ', '.join(f'{name}={value:g}' if isinstance(value, float) else f'{name}={value}'
+                       for name, value in swept.items())
+    return f"{record['study']}#{record['index']}" + (f' ({values})' if values else '')
 
-    def __init__(self, total: int, cached: int, out: TextIO = sys.stdout) -> None:
-        """Count ``total`` runs of which ``cached`` are done already."""
+
+class Progress:
+    """
+    One line per finished run: count, share, failures, elapsed time and ETA.
+
+    The ETA is the mean wall time of the runs finished in this session (each run's own,
+    from its start to its end: not the Ray session's start-up, nor the wait in Ray's queue)
+    times the rounds of ``parallel`` runs at once that are left. The first ETA of a
+    ``make report`` once said 72:45 for a run of 26:49: it was the elapsed time, start-up
+    included, per run finished, as if the runs went one at a time.
+    """
+
+    def __init__(self, total: int, cached: int, out: TextIO = sys.stdout,
+                 parallel: int = 1) -> None:
+        """Count ``total`` runs of which ``cached`` are done already, ``parallel`` at once."""
         self.total, self.done, self.failed, self.cached = total, cached, 0, cached
         self.start = time.monotonic()
         self.out = out
+        self.parallel = max(1, int(parallel))
+        self.walls = []
+
+    def eta(self) -> float:
+        """Return the wall seconds the runs left should take (NaN before the first's end)."""
+        if not self.walls:
+            return float('nan')
+        rounds = math.ceil((self.total - self.done) / self.parallel)
+        return float(np.mean(self.walls)) * rounds
 
     def update(self, label: str, record: Mapping[str, Any]) -> None:
         """Account for one finished run and print the line."""
         self.done += 1
         self.failed += record['status'] != 'ok'
         elapsed = time.monotonic() - self.start
-        fresh = self.done - self.cached
-        remaining = self.total - self.done
-        eta = elapsed / fresh * remaining if fresh else float('nan')
+        if record.get('wall_s') is not None:
+            self.walls.append(float(record['wall_s']))
+        eta = self.eta()
         width = 20
         filled = int(round(width * self.done / max(self.total, 1)))
         result = (f"{1e3 * record['metrics']['final_position_error_m']:.3f} mm"
@@ -351,7 +378,8 @@ def run_studies(specs: Sequence[study_spec.Spec], out_dir: Path, address: str | 
                     on_record(record)
     if todo:
         _execute(todo, address, parallel or default_parallel(), domains, stall_s,
-                 Progress(total, cached, out), jobs, on_record)
+                 Progress(total, cached, out, parallel or default_parallel()), jobs,
+                 on_record)
     else:
         for job in jobs:
             job.done(job.func(*job.args))
@@ -426,7 +454,7 @@ def _execute(todo, address, parallel, domains, stall_s, progress, jobs=(), on_re
                     record.update(result, cached=False)
                     Path(record['run_dir'], 'run.json').write_text(
                         json.dumps(record, indent=2, default=str) + '\n')
-                    progress.update(f"{record['study']}#{record['index']}", record)
+                    progress.update(run_label(record), record)
                     if on_record is not None:
                         on_record(record)
         except KeyboardInterrupt:

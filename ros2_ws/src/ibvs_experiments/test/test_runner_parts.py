@@ -110,3 +110,30 @@ def test_the_metrics_are_handed_over_before_the_figures_are_drawn(monkeypatch, t
     order.clear()
     runner.write_results(tmp_path / 'bag', tmp_path, 2.0, False, on_metrics)
     assert order == [('metrics', 0.5)]
+
+
+class _StartingMonitor(_Monitor):
+    """No /clock for the first 5 looks, then sim time stands for 5 looks, then moves."""
+
+    def __init__(self):
+        super().__init__(1.0, 0)
+        self.started_wall, self.looks = None, 0
+
+    def poll(self):
+        self.looks += 1
+        if self.looks > 5:
+            self.started_wall = 0.0
+        if self.looks > 10:
+            self.sim_ns += 100_000_000
+
+
+def test_progress_says_starting_once_then_prints_only_when_sim_time_moved(monkeypatch):
+    # make demo printed 'sim 0.000/3.00 s ... - mm' seven times while the nodes started.
+    monkeypatch.setattr(runner, 'PROGRESS_S', 0.0)
+    lines = []
+    run = runner.Prepared({'scenario_name': 's'}, 0.5, None, None, None, None, None)
+    runner.watch(run, _Executor(), _StartingMonitor(), [], time.monotonic(), lines.append)
+    assert lines[0] == ('  [s] starting: the nodes start up; the simulator takes step 0 once '
+                        'every reader of it is there')
+    sims = [line.split('sim ')[1].split('/')[0].strip() for line in lines[1:]]
+    assert sims == ['0.000', '0.100', '0.200', '0.300', '0.400', '0.500'], lines

@@ -74,3 +74,24 @@ def test_the_progress_line_says_a_run_was_attempted_again():
     out = out.getvalue()
     assert '1/1' in out and '0.200 mm' in out
     assert 'attempt 1 of laws#2, run again: a node died: run failed: sim_node exited' in out
+
+
+def test_progress_names_the_varied_parameters_and_its_eta_leaves_start_up_out(monkeypatch):
+    # Issue 37: 'laws_limited_scenario2#2' did not say servo_law=ibvs, and the first ETA of a
+    # make report said 72:45 for a 26:49 run (elapsed time, Ray's start-up included, per run
+    # finished, as if one run went at a time).
+    assert study.run_label({'study': 'laws_limited_scenario2', 'index': 2,
+                            'swept': {'servo_law': 'ibvs', 'l2_scale': 0.5}}) == \
+        'laws_limited_scenario2#2 (servo_law=ibvs, l2_scale=0.5)'
+    assert study.run_label({'study': 's', 'index': 0, 'swept': {}}) == 's#0'
+    clock = [100.0]
+    monkeypatch.setattr(study.time, 'monotonic', lambda: clock[0])
+    out = io.StringIO()
+    progress = study.Progress(total=11, cached=1, out=out, parallel=2)
+    clock[0] += 60.0  # Ray's start-up and the first runs: 60 s before the first ends
+    ok = {'status': 'ok', 'metrics': {'final_position_error_m': 1e-4}}
+    progress.update('s#1 (a=1)', {**ok, 'wall_s': 30.0})
+    assert progress.eta() == 30.0 * 5  # 9 runs left, 2 at once: 5 rounds of 30 s
+    assert 'ETA 2:30  s#1 (a=1): 0.100 mm' in out.getvalue()
+    progress.update('s#2', {**ok, 'wall_s': 40.0})
+    assert progress.eta() == 35.0 * 4

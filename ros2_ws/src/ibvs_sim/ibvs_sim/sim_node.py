@@ -75,6 +75,11 @@ cannot keep ``real_time_factor`` (a step's work, rendering above all, takes long
 share of wall time) the node says so once a second (WARN log and /diagnostics
 ``real_time_factor_held``) and goes on at the pace it can hold: sim time is never skipped.
 
+By hand. Every few seconds of wall time the node logs its progress (sim time, the real-time
+factor since the last line, frames); with ``duration_s`` it stops stepping once sim time
+reaches it (the last batches and /clock published, the steps in [0, duration_s) done) and
+stays up, silent, until stopped.
+
 Bad input. A command with a malformed stamp (:func:`ibvs_common.conversions.read_stamp`) is
 rejected; one with another stamp is rejected as stale (older) or early (newer) and ignored.
 A command with the right stamp but a wrong length, unknown joint names, NaN or inf, or an
@@ -165,6 +170,11 @@ DRIVE_BANDWIDTH_HZ = Param(
 DRIVE_DELAY_S = Param(
     'drive_delay_s', EGM_DELAY_S, 'position drive model: dead time from a reference to the '
     'motion (ibvs_model.drive: EGM, about 20 ms)', 's', low=0.0, high=0.5)
+DURATION_S = Param(
+    'duration_s', 0.0, 'sim time at which the simulator stops stepping, for nodes started '
+    'by hand (0: never): it publishes the last batches and /clock, logs that it stopped and '
+    'goes on spinning until stopped; ibvs run stops the graph itself (--duration) and does '
+    'not pass it', 's', low=0.0, high=1e6)
 CAMERA_TOPICS = Param(
     'camera_topics', 'ibvs', "names and format of the stereo pair: 'ibvs' (/stereo/*/image_raw "
     "in rgb8, this project's contract) or 'zed_wrapper' (what zed-ros2-wrapper 5.4 publishes "
@@ -178,7 +188,8 @@ PARAMS = SimConfig.params() + (
     MIN_JOINT_PATH_SUBSCRIBERS, MIN_CAMERA_INFO_SUBSCRIBERS,
     TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION,
     LOCKSTEP, COMMAND_INTERFACE, POSITION_COMMAND_TYPE, COMMAND_RATE_HZ, JOINTS,
-    REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS)
+    REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS,
+    DURATION_S)
 
 #: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
 CAMERA_OUTPUTS = {
@@ -239,6 +250,8 @@ class SimNode(Node):
         self._min_tool_subscribers = values['min_tool_path_subscribers']
         self._min_joint_path_subscribers = values['min_joint_path_subscribers']
         self._min_info_subscribers = values['min_camera_info_subscribers']
+        self._duration_ns = int(round(values['duration_s'] * 1e9))
+        self.finished = False
         clock_rate_hz = values['clock_rate_hz']
         if not self._lockstep and clock_rate_hz < values['command_rate_hz']:
             # A sim-time timer fires only when /clock moves: the command timer needs it.
@@ -321,6 +334,8 @@ class SimNode(Node):
         self._start_timer = self.create_timer(START_POLL_S, self._try_start,
                                               clock=self._steady)
         self._wait_timer = self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self._progress_mark = None
+        self.diagnostics.log_progress(self._progress)
 
     def _setup_position(self, values):
         """Create the position drive and its command subscription (module docstring)."""
@@ -390,6 +405,7 @@ class SimNode(Node):
         self.started = True
         self._start_timer.cancel()
         self.get_logger().info('starting at t = 0: publishing step 0')
+        self._progress_mark = (time.monotonic(), self.sim.t_ns)
         self._publish_step()
         if not self._lockstep:
             self.get_logger().info(
@@ -402,7 +418,39 @@ class SimNode(Node):
                 min(FREE_RUN_TICK_S, self.sim.dt_ns * 1e-9 / self._rtf), self._run,
                 clock=self._steady)
 
+    def _progress(self):
+        """Return the progress line: sim time, real-time factor since the last, frames."""
+        if self._progress_mark is None:
+            return None
+        now, t_ns = time.monotonic(), self.sim.t_ns
+        wall0, t0_ns = self._progress_mark
+        self._progress_mark = (now, t_ns)
+        rtf = (t_ns - t0_ns) * 1e-9 / max(now - wall0, 1e-9)
+        end = f' of {self._duration_ns * 1e-9:g} s' if self._duration_ns else ''
+        state = 'stopped at duration_s' if self.finished else f'real-time factor {rtf:.3f}'
+        return (f't = {t_ns * 1e-9:.3f} s{end} (step {self.sim.k}), {state}, '
+                f'{self.frames} frames ({self.sim.frames_lost} lost)')
+
+    def _finish(self):
+        """Stop stepping at duration_s: the last batches and /clock out, then say so."""
+        self.finished = True
+        if getattr(self, '_run_timer', None) is not None:  # free-running
+            self._run_timer.cancel()
+        t_ns = self.sim.t_ns
+        self._publish_tool_path()
+        self._publish_joint_path()
+        self._pub_clock.publish(ClockMsg(clock=ns_stamp(t_ns)))
+        self.last_clock_ns = t_ns
+        self.diagnostics.update(step=self.sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=-1,
+                                finished=True)
+        self.get_logger().info(
+            f'stopped at t = {t_ns * 1e-9:.3f} s (duration_s {self._duration_ns * 1e-9:g}): '
+            'no further step; the nodes stay up until stopped (SIGINT: Ctrl-C, or '
+            'ibvs_nodes_stop of docs/running.md)')
+
     def _log_waiting(self):
+        if self.finished:
+            return
         if not self._lockstep:
             if not self.started:
                 self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
@@ -509,6 +557,9 @@ class SimNode(Node):
         with self.diagnostics.timing.section('physics'):
             self.sim.step(torque)
         self._progress_since_log = True
+        if self._duration_ns and self.sim.t_ns >= self._duration_ns:
+            self._finish()
+            return
         self._publish_step()
 
     # -- free-running, position drive ----------------------------------------------------
@@ -521,6 +572,8 @@ class SimNode(Node):
         while self.sim.t_ns + self.sim.dt_ns <= due_ns and steps < MAX_STEPS_PER_TICK:
             self._free_step()
             steps += 1
+            if self.finished:
+                return
         if self.sim.t_ns + self.sim.dt_ns <= due_ns and \
                 due_ns - self.sim.t_ns > 10 * MAX_STEPS_PER_TICK * self.sim.dt_ns:
             # Behind by more than ten ticks' worth: go on from here at the set pace rather
@@ -555,6 +608,9 @@ class SimNode(Node):
         with self.diagnostics.timing.section('physics'):
             q, qd = self.servo.step()
             sim.move_to(q, qd)
+        if self._duration_ns and sim.t_ns >= self._duration_ns:
+            self._finish()
+            return
         self._publish_step()
 
     def _take_reference(self, q_encoder, source):

@@ -24,6 +24,7 @@ from pathlib import Path
 import tempfile
 from typing import TYPE_CHECKING
 
+from ibvs_common.process import quiet_output
 from ibvs_common.shared_params import PHYSICS_RATE_HZ
 from ibvs_model import IRB4600
 from ibvs_model.camera import StereoCamera
@@ -31,7 +32,9 @@ from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_model.urdf import JOINT_NAMES, write_urdf
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-import pybullet
+
+with quiet_output():  # PyBullet writes its build time as it loads
+    import pybullet
 
 from .config import MOUNT_HEIGHT_M
 from .gl_renderer import (box_triangles, cylinder_triangles, GLRenderer, GLRendererError,

@@ -250,6 +250,24 @@ def test_waiting_for_a_stamp_is_logged(graph, capfd):
     assert f'waiting for {contract.EFFORT_COMMANDS} stamped {sim.sim.t_ns} ns' in err
 
 
+def test_duration_s_stops_the_steps_at_that_sim_time_and_says_so(graph, capfd):
+    """Started by hand with duration_s: steps [0, duration), the last batches and /clock."""
+    period = 1_000_000
+    sim, stand_in, executor = graph(publish_images=False, duration_s=0.025)
+    spin_until(executor, lambda: sim.finished)
+    for _ in range(20):  # no step after the end, however long it spins
+        executor.spin_once(timeout_sec=0.01)
+    rec = stand_in.rec
+    assert sim.sim.t_ns == 25 * period and stand_in.last_stamp() == 24 * period
+    spin_until(executor, lambda: rec['clock'] and rec['clock'][-1] == 25 * period)
+    spin_until(executor, lambda: rec['tool'] and stamp_ns(rec['tool'][-1].header.stamp)
+               == 24 * period)
+    assert 'stopped at t = 0.025 s (duration_s 0.025)' in capfd.readouterr().err
+    assert sim._progress().startswith('t = 0.025 s of 0.025 s (step 25), stopped at duration_s')
+    sim._log_waiting()  # finished: nothing to wait for, nothing said
+    assert 'waiting' not in capfd.readouterr().err
+
+
 def _bad(msg, kind):
     cmd = joint_state(msg.header.stamp, effort=np.zeros(6))
     if kind == 'nan':
@@ -313,6 +331,7 @@ BAD_PARAMETERS = [
     ({'camera_eye': [1.0, 2.0, 3.0], 'camera_look_at': [1.0, 2.0, 3.0]}, 'camera_look_at'),
     ({'disturbance_deg': [0.1, 0.2]}, 'disturbance_deg'),
     ({'publish_images': 'yes'}, 'publish_images'),
+    ({'duration_s': -1.0}, 'duration_s'),
 ]
 
 

@@ -188,6 +188,8 @@ class FeatureNode(Node):
                           frames_estimated=0, frames_over_budget=0,
                           detection_budget_ms=self._budget_ms, last_switch_time_s='none',
                           switches=0)
+        self._images_in = dict.fromkeys(_SIDES, 0)
+        self._diag.log_progress(self._progress)
         # The frames' messages between nodes of one process pass as objects, and through
         # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
         self._pub = intra_process.publisher(self, PolygonStamped, contract.FEATURES,
@@ -236,7 +238,17 @@ class FeatureNode(Node):
             self._diag.reject(topic, exc.reason, exc.detail)
             return None
 
+    def _progress(self):
+        """Return the progress line: images in, features out, model fallbacks."""
+        v = self._diag.values
+        if not any(self._images_in.values()):
+            return None
+        return (f"images in {self._images_in['left']} left, {self._images_in['right']} right;"
+                f" features out {v['frames_published']}: {v['frames_measured']} measured, "
+                f"{v['frames_estimated']} model-estimated (fallback); mode {v['mode']}")
+
     def _on_image(self, side, msg):
+        self._images_in[side] += 1
         topic = self._topics[side]
         t_ns = self._read_stamp(topic, msg.header.stamp)
         if t_ns is None:

@@ -11,7 +11,11 @@ kinematics (:mod:`ibvs_viz.scene`; robot_state_publisher and tf2_ros are not on 
   broadcaster sends): the fixed joints of that URDF (tool0, screwdriver, markers, the
   camera's optical frames; the camera where /stereo/pose, or the ``camera_pose``
   parameter, puts it, as the controllers take it) and the target flange pose
-  ``ibvs_target``;
+  ``ibvs_target``; and, where a lens's CameraInfo names another frame than ours (the ZED
+  wrapper's ``zed_left_camera_frame_optical``), that frame at our lens's optical frame, so
+  that a viewer places the images (RViz's Camera display) and the hand-eye ``camera_pose``
+  is a transform to the images' frames (``image_frames_tf``: off where the camera driver
+  publishes those frames itself, as zed-ros2-wrapper does with its URDF);
 - /tf: the six links at each joint state, stamped with its stamp. The angles drawn are
   the true ones the simulator renders, encoder + ``disturbance_deg`` (d_q, eq. 30; 0 on a
   real cell), of the simulated robot (``l2_scale``, ``l4_scale``), so that tool0 is the
@@ -80,6 +84,10 @@ PARAMS = (
           low_open=True),
     Param('frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
           low=0.0, high=100.0, low_open=True),
+    Param('image_frames_tf', True, "publish on /tf_static the frame each lens's CameraInfo "
+          'names, where it is not ours, at our optical frame of that lens (false where the '
+          'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)',
+          '-'),
     Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
           'oldest go first)', '-', low=2, high=1_000_000),
 )
@@ -131,6 +139,7 @@ class VizNode(Node):
         self._marker_period_ns = period_ns(p['marker_rate_hz'])
         self._frustum_depth = p['frustum_depth_m']
         self._path_points = p['tool_path_points']
+        self._image_frames_tf = p['image_frames_tf']
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         self._infos = {}
         self._pose_msg = None
@@ -149,6 +158,10 @@ class VizNode(Node):
         self._diag = Diagnostics(self, 'robot description, tf and markers')
         self._diag.update(waiting_for='camera_info, /stereo/pose', tf_published=0,
                           markers_published=0)
+        self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (
+            f"/tf of {self._diag.values['tf_published']} joint states (last at "
+            f'{self._last_joint_ns * 1e-9:.3f} s), '
+            f"{self._diag.values['markers_published']} /ibvs/markers"))
         self._description_pub = self.create_publisher(String, contract.ROBOT_DESCRIPTION,
                                                       contract.LATCHED)
         self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
@@ -202,6 +215,7 @@ class VizNode(Node):
             return
         pose = self._pose_msg.pose
         key = (tuple(self._infos['left'].p), tuple(self._infos['right'].p),
+               self._infos['left'].header.frame_id, self._infos['right'].header.frame_id,
                (self._infos['left'].width, self._infos['left'].height),
                (self._infos['right'].width, self._infos['right'].height),
                (pose.position.x, pose.position.y, pose.position.z, pose.orientation.x,
@@ -222,9 +236,28 @@ class VizNode(Node):
         static = (scene.robot_fixed_transforms(self._params)
                   + scene.camera_transforms(camera.pose_C_O, baseline)
                   + [(contract.BASE_FRAME, scene.TARGET_FRAME, self._target)])
+        if self._image_frames_tf:
+            static += self._image_frames(static)
         self._static_pub.publish(transforms_msg(static, self._pose_msg.header.stamp))
         self._diag.update(waiting_for='')
         self.get_logger().info('camera known: /robot_description and /tf_static published')
+
+    def _image_frames(self, static):
+        """Return (our lens frame, the image's frame, identity) where the images name others."""
+        ours = {frame for parent, child, _ in static for frame in (parent, child)}
+        ours.update(child for _, child, _ in scene.joint_transforms(np.zeros(6), self._params))
+        out = []
+        for side, lens in zip(('left', 'right'), scene.LENS_FRAMES):
+            frame = self._infos[side].header.frame_id
+            if not frame or frame == lens:
+                continue
+            if frame in ours or frame in (f for _, f, _ in out) or frame.startswith('/'):
+                self._diag.reject(self._info_topics[side], 'frame_id not publishable',
+                                  f"'{frame}' is a frame of the cell's tree, the other "
+                                  "lens's, or not a tf2 name: not placed at the lens")
+                continue
+            out.append((lens, frame, np.eye(4)))
+        return out
 
     def _say_waiting(self):
         if self._camera is None:

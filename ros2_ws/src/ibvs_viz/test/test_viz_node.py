@@ -121,6 +121,37 @@ def test_description_static_frames_and_links_match_the_model(rig):
     np.testing.assert_allclose(pose(scene.TARGET_FRAME), target, atol=1e-9)
 
 
+def test_the_frames_the_images_name_are_placed_at_the_lenses(rig):
+    # The ZED wrapper's images carry zed_{left,right}_camera_frame_optical (issue 37).
+    executor, driver, node = rig
+    camera = default_camera('VGA')
+    infos = camera_infos(camera.intrinsics, 0,
+                         (contract.ZED_LEFT_FRAME, contract.ZED_RIGHT_FRAME))
+    for side, info in zip(('left_info', 'right_info'), infos):
+        driver.pub[side].publish(info)
+    driver.pub['pose'].publish(pose_stamped(camera.pose_C_O, 0))
+    spin_until(executor, lambda: driver.got[TF_STATIC], what='/tf_static')
+    driver.pub['joints'].publish(joint_state(0, Q))
+    spin_until(executor, lambda: driver.got[TF], what='/tf')
+    pose = chain([driver.got[TF_STATIC][-1], driver.got[TF][-1]])
+    for ours, theirs in zip(scene.LENS_FRAMES,
+                            (contract.ZED_LEFT_FRAME, contract.ZED_RIGHT_FRAME)):
+        np.testing.assert_array_equal(pose(theirs), pose(ours))
+    np.testing.assert_allclose(pose(contract.ZED_LEFT_FRAME)[:3, 3],
+                               camera.pose_C_O[:3, :3] @ [-camera.intrinsics.baseline / 2, 0, 0]
+                               + camera.pose_C_O[:3, 3], atol=1e-12)
+    # A frame id that names a frame of the cell would loop the tree: refused, counted.
+    before = len(driver.got[TF_STATIC])
+    left, right = camera_infos(camera.intrinsics, 0, ('base_link', contract.ZED_RIGHT_FRAME))
+    driver.pub['left_info'].publish(left)
+    spin_until(executor, lambda: len(driver.got[TF_STATIC]) > before, what='/tf_static again')
+    children = [t.child_frame_id for t in driver.got[TF_STATIC][-1].transforms]
+    assert contract.ZED_RIGHT_FRAME in children and children.count('base_link') == 0
+    spin_until(executor, lambda: any(
+        d.get(f'rejected[{contract.LEFT_INFO}: frame_id not publishable]') == '1'
+        for d in driver.got['diag']), what='the rejection on /diagnostics')
+
+
 def test_markers_show_measured_and_estimated_fiducials(rig):
     executor, driver, node = rig
     camera = default_camera('VGA')
@@ -157,3 +188,5 @@ def test_bad_joint_state_is_rejected_and_counted(rig):
 def test_bad_parameter_is_refused_with_its_range(context):
     with pytest.raises(ParameterError, match='marker_rate_hz'):
         VizNode(context=context, parameter_overrides=[Parameter('marker_rate_hz', value=0.0)])
+    with pytest.raises(ParameterError, match='image_frames_tf'):
+        VizNode(context=context, parameter_overrides=[Parameter('image_frames_tf', value=2)])
