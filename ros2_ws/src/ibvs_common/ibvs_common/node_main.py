@@ -1,6 +1,7 @@
 """The ``main()`` of every node, in the shape of ros2/demos ``demo_nodes_py`` (jazzy)."""
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from pathlib import Path
 import signal
 import sys
 import threading
@@ -9,12 +10,14 @@ from typing import TYPE_CHECKING
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.signals import SignalHandlerOptions
+import yaml
 
 from . import dds
 from .diagnostics import publish_last
 from .intra_process import bus_of
-from .params import ParameterError
+from .params import check_declared, ParameterError
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -104,6 +107,91 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
         executor.shutdown(timeout_sec=0.0)
 
 
+#: The ``--ros-args`` flags that take a value (rcl's arguments.h), besides -p and
+#: --params-file: skipped with their value when the parameters are read.
+_VALUED_FLAGS = ('-r', '--remap', '-e', '--enclave', '--log-level', '--log-file-name',
+                 '--log-config-file')
+
+
+def ros_parameter_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """
+    Return the names set by ``-p``/``--param`` and the ``--params-file`` paths of ``argv``.
+
+    Only what lies in a ``--ros-args`` section (up to ``--``) counts, as rcl reads it; a
+    ``-p node:name:=value`` gives ``name``.
+    """
+    names, files = [], []
+    inside, i = False, 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--':
+            inside = False
+        elif inside and arg in ('-p', '--param') and i + 1 < len(argv):
+            i += 1
+            names.append(argv[i].split(':=', 1)[0].split(':')[-1])
+        elif inside and arg == '--params-file' and i + 1 < len(argv):
+            i += 1
+            files.append(argv[i])
+        elif inside and arg in _VALUED_FLAGS:
+            i += 1
+        i += 1
+    return names, files
+
+
+def file_parameter_names(path: str) -> list[str]:
+    """
+    Return the names a parameter file sets for named nodes (not under ``/**`` or ``/*``).
+
+    Raises :class:`ParameterError` if the file cannot be read or is not a ROS 2 parameter
+    file (``node: {ros__parameters: {...}}``). Names under a wildcard are left out: the
+    graph's file (``ibvs run``'s ``params.yaml``) gives every node the parameters of all,
+    and ``ibvs run`` checks those against the whole graph.
+    """
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ParameterError(f'parameter file {path}: cannot read it: {exc.strerror}') \
+            from None
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ParameterError(f'parameter file {path}: not valid YAML: {exc}') from None
+    if not isinstance(data, dict) or not all(
+            isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)
+            for v in data.values()):
+        raise ParameterError(f"parameter file {path}: expected 'NODE: ros__parameters: "
+                             "{...}' sections (NODE /** for every node)")
+    return [name for key, section in data.items()
+            if str(key).rstrip('/').split('/')[-1] not in ('*', '**')
+            for name in section['ros__parameters']]
+
+
+def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
+    """
+    Refuse, before rclpy starts, a parameter of ``argv`` that no node of ``classes`` declares.
+
+    A node class's module lists what the node declares as ``PARAMS`` (the list the runner
+    checks a run against, :func:`ibvs_bringup.graph_params.declared`). Raises
+    :class:`ParameterError` naming the closest declared names (:func:`check_declared`,
+    the words of ``ibvs run``), or for a parameter file that cannot be read or parsed.
+    Classes whose module has no ``PARAMS`` disable the name check.
+    """
+    classes = list(classes)
+    known = []
+    for cls in classes:
+        params = getattr(sys.modules.get(cls.__module__), 'PARAMS', None)
+        if params is None:
+            known = None
+            break
+        known += [p.name for p in params]
+    names, files = ros_parameter_args(argv)
+    for path in files:
+        names += file_parameter_names(path)
+    if known is not None:
+        owner = ', '.join(cls.__name__ for cls in classes)
+        check_declared(names, known, owner=f'no node of this process ({owner})')
+
+
 def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None = None,
         name: str | None = None) -> None:
     """
@@ -118,10 +206,22 @@ def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None 
     :class:`StopRequest`).
     """
     classes = list(node_class) if isinstance(node_class, (list, tuple)) else [node_class]
+    logger = rclpy.logging.get_logger(name or classes[0].__name__)
+    try:
+        dds.domain_id()
+        check_arguments(classes, sys.argv if args is None else args)
+    except (dds.DomainError, ParameterError) as exc:
+        logger.fatal(str(exc))
+        sys.exit(2)
     stop = StopRequest()
     stop.install()
     dds.configure()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except _rclpy.RCLError as exc:
+        logger.fatal(f'the ROS arguments were refused: {exc}')
+        stop.restore()
+        sys.exit(2)
     nodes = []
     code = 0
     building = classes[0]

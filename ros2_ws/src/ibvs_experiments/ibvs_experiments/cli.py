@@ -29,6 +29,7 @@ import math
 from pathlib import Path
 import re
 import sys
+import tempfile
 import time
 from typing import Any
 
@@ -74,6 +75,8 @@ def positive_seconds(text: str) -> float:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run one scenario and print its metrics."""
+    domains.domain_id()  # a ROS_DOMAIN_ID ROS must not use stops the run before anything
+    domains.pool()
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
@@ -81,6 +84,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out or Path('results') / Path(args.scenario).stem)
     try:
         out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()  # an existing directory may be read-only
     except OSError as exc:
         print(f'error: cannot write the results to {out}: {exc.strerror}', file=sys.stderr)
         return 2
@@ -202,6 +206,11 @@ def plain_text(doc: str) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the command line and run the command."""
+    try:
+        study_defaults = _study_defaults()
+    except domains.DomainError as exc:  # a broken IBVS_ROS_DOMAINS: no command can run
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     parser = argparse.ArgumentParser(prog='ibvs', description=plain_text(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
@@ -260,17 +269,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         p = sub.choices[name]
         p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
                        'default: a local Ray started for this command')
-        p.add_argument('--domains', default='-'.join(map(str, _study_defaults()['domains'])),
+        p.add_argument('--domains', default='-'.join(map(str, study_defaults['domains'])),
                        help='pool of ROS_DOMAIN_IDs for the runs, LOW-HIGH (default '
                        '%(default)s)')
         p.add_argument('--parallel', type=int,
                        help='runs at once on the local Ray (default: one per core, '
-                       f"{_study_defaults()['parallel']} here)")
+                       f"{study_defaults['parallel']} here)")
     args = parser.parse_args(argv)
     try:
         return args.func(args)
     except (scenario.ScenarioError, study_spec.StudyError, FileNotFoundError,
-            TimeoutError) as exc:
+            TimeoutError, domains.DomainError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -313,7 +313,7 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
     with domains.held() as (domain, chosen):
-        busy = chosen and domain != domains.FREE_POOL[0]
+        busy = chosen and domain != domains.pool()[0]
         progress(f'  ROS_DOMAIN_ID {domain}'
                  + (': the first free one, lower domains are used by other runs' if busy
                     else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
@@ -364,12 +364,13 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
     Return the checked parameters of scenario ``name`` with ``overrides``, and the sim time.
 
     The scenario file's values, then the overrides (:func:`graph_params.check`,
-    :func:`scenario.check_progress` raise here); the sim time is ``duration_s``, else the
-    file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
+    :func:`graph_params.check_rules`, :func:`scenario.check_progress` raise here); the sim
+    time is ``duration_s``, else the file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
     graph_params.check(params)
+    graph_params.check_rules(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
     duration_s = float(duration_s if duration_s is not None else params.get('run_duration_s', 3.0))
