@@ -365,7 +365,8 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
 
     The scenario file's values, then the overrides (:func:`graph_params.check`,
     :func:`graph_params.check_rules`, :func:`scenario.check_progress` raise here); the sim
-    time is ``duration_s``, else the file's ``run_duration_s``, else 3 s. Nothing is written (:func:`prepare` writes).
+    time is ``duration_s``, else the file's ``run_duration_s``, else 3 s. Nothing is
+    written (:func:`prepare` writes).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
