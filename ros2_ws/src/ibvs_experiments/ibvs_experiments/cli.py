@@ -34,6 +34,7 @@ import time
 from typing import Any
 
 from ibvs_bringup import domains, graph_params, scenario
+from ibvs_bringup.recorder import recover
 
 from . import runner, study_spec
 
@@ -112,6 +113,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 4
     print(f'wrote {"the figures in " + str(out) + " and " if args.figures else ""}the bag '
           f'{result.bag_path}')
+    if result.interrupted:
+        return 130  # SIGINT: the metrics are those of the part that ran
     if args.video:
         return cmd_video(argparse.Namespace(run_dir=out, out=None))
     return 0
@@ -134,6 +137,9 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     bag = Path(args.bag)
     out = Path(args.out) if args.out else bag.parent
     out.mkdir(parents=True, exist_ok=True)
+    runner.clean_shm(print, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    if recover(bag):
+        print(f'{bag} was not closed (its recorder was killed): recovered what it holds')
     metrics = runner.write_results(bag, out)
     print(f'wrote {out}/metrics.json and figures from {bag}')
     _print_summary(metrics)

@@ -22,19 +22,22 @@ said it waits for (its once-a-second "waiting ..." log line and the ``waiting_fo
 it publishes on /diagnostics).
 """
 
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 import json
 from pathlib import Path
 import re
 import shutil
+import signal
+import threading
 import time
 from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_bringup import domains, graph_params, scenario, shm
 from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
-from ibvs_bringup.recorder import Recorder
+from ibvs_bringup.recorder import Recorder, recover
 from ibvs_bringup.supervision import expected_readers, NodeDied, NodeProcess, stop_all
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
@@ -48,6 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 import rclpy
 from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 import yaml
 
@@ -139,6 +143,8 @@ class RunResult:
     converged: bool
     #: The recorder's own cost: ibvs_common.profiling.Stopwatch values (``make bench``).
     recording: dict = None
+    #: Whether SIGINT ended the run early (the metrics are those of what was recorded).
+    interrupted: bool = False
 
 
 class Monitor:
@@ -274,6 +280,10 @@ class Outcome:
     stalled: RunStalled = None
     #: Wall time from step 0 to the end (s); None if the run never got to :func:`watch`'s end.
     wall_duration_s: float = None
+    #: SIGINT (KeyboardInterrupt) ended the run: what was recorded is analysed.
+    interrupted: bool = False
+    #: Optional processes (the viewers' node) that exited during the run: name -> exit code.
+    lost: dict = field(default_factory=dict)
 
 
 def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None = None,
@@ -303,12 +313,53 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
     simulator has not taken its first step ``start_timeout_s`` after it was launched).
+    A ``ROS_DOMAIN_ID`` or ``IBVS_ROS_DOMAINS`` that cannot be used raises
+    :class:`domains.DomainError` before anything is written. The death of an optional
+    process (the viewers', :func:`optional`) once the simulator runs is said and the run
+    goes on. SIGINT (also to a runner started with it ignored, :func:`interruptible`) stops
+    the run as its end does, and the metrics of what was recorded are written
+    (``RunResult.interrupted``); before the first step it raises KeyboardInterrupt.
 
     The parts, in order: :func:`prepare`, :func:`start`, :func:`watch`, :func:`stop`,
     :func:`write_results`.
     """
+    domains.domain_id()
+    domains.pool()
     run = prepare(name, out_dir, overrides, duration_s)
-    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    with interruptible():
+        return _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
+                             stall_s, start_timeout_s, record_overlays, figures, on_metrics)
+
+
+@contextmanager
+def interruptible() -> Iterator[None]:
+    """
+    Let SIGINT interrupt what runs inside, also where the runner was started with it ignored.
+
+    A shell starts a background job (``nohup ibvs run ... &``) with SIGINT ignored, and
+    Python then installs no handler of its own: the runner could not be stopped by SIGINT.
+    Inside, SIGINT raises KeyboardInterrupt (Python's own handler), which
+    :func:`run_scenario` turns into a clean stop and the metrics of what was recorded; the
+    handler found is put back after. Outside the main thread, where no handler can be
+    set, nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        if previous is signal.SIG_IGN:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress, stall_s,
+                  start_timeout_s, record_overlays, figures, on_metrics):
+    """Run the :class:`Prepared` ``run`` (:func:`run_scenario` after :func:`prepare`)."""
+    clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
     shm_before = shm.names()
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
@@ -319,7 +370,9 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                     else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
         dds.configure()  # before rclpy.init here, and inherited by the node processes
         context = rclpy.context.Context()
-        rclpy.init(context=context)
+        # No rclpy signal handler: SIGINT is a KeyboardInterrupt here (interruptible), and
+        # the recorder goes on receiving while the nodes stop.
+        rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
         executor = make_executor(context)
         recorder = Recorder(run.bag_path, include_images=record_images, context=context,
                             include_overlays=record_overlays,
@@ -337,25 +390,34 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
             outcome = watch(run, executor, monitor, procs, wall_start, progress,
                             converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
                             stall_s=stall_s, start_timeout_s=start_timeout_s)
+        except KeyboardInterrupt:
+            # SIGINT: stop as at the end of a run, and analyse what was recorded.
+            progress(f'  interrupted (SIGINT) at sim time {ns_to_seconds(monitor.sim_ns):.3f}'
+                     ' s: stopping the nodes, then the metrics of what was recorded')
+            outcome.interrupted = True
+            outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
         finally:
             codes = stop(procs, executor=executor)
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
-                'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
+                'exit_codes': codes, 'commands': {p.name: p.command for p in procs},
+                'interrupted': outcome.interrupted, 'lost_processes': outcome.lost}))
             recorder.close()
             executor.shutdown()
             recorder.destroy_node()
             watcher.destroy_node()
             rclpy.shutdown(context=context)
-            _clean_shm(progress, 'node processes of this run that died', shm_before)
+            clean_shm(progress, 'node processes of this run that died', shm_before)
     if outcome.died:
         raise outcome.died
     if outcome.stalled:
         raise outcome.stalled
+    if outcome.interrupted and monitor.sim_ns == 0:
+        raise KeyboardInterrupt  # nothing was simulated: no metrics to write
     metrics = write_results(run.bag_path, run.out_dir, outcome.wall_duration_s, figures,
                             on_metrics)
     return RunResult(run.out_dir, run.bag_path, metrics, outcome.converged,
-                     recorder.timing.values())
+                     recorder.timing.values(), outcome.interrupted)
 
 
 def resolve(name: str, overrides: Mapping[str, Any] | None = None,
@@ -444,6 +506,7 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     before step 0: ``stalled``). Progress is printed every 2 s of wall time.
     """
     outcome = Outcome()
+    procs = list(procs)
     last_print = 0.0
     last_sim_ns, last_advance = -1, time.monotonic()
     never = Future()
@@ -453,6 +516,14 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
         monitor.poll()
         for p in procs:
             code = p.poll()
+            if code is not None and optional(p) and monitor.started_wall is not None:
+                # A viewer: nothing of the run waits for it once the simulator has started.
+                progress(f'  the optional process {p.name} exited with code {code} at sim '
+                         f'time {ns_to_seconds(monitor.sim_ns):.3f} s (log: {p.log_path}); '
+                         'the run goes on without it')
+                outcome.lost[p.name] = code
+                procs.remove(p)
+                break
             if code is not None:
                 outcome.died = NodeDied(p.name, code, p.log_path, p.nodes)
                 break
@@ -499,6 +570,18 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     return outcome
 
 
+def optional(process: NodeProcess, graph: Graph = GRAPH) -> bool:
+    """
+    Return whether the run can go on without ``process``: it holds none of the paper's nodes.
+
+    The viewers' node (``viz_node``, :attr:`ibvs_bringup.graph.Node.paper` False) feeds
+    RViz, Foxglove and the bag's /tf; no node of the lockstep waits for it once the
+    simulator has taken its first step (before, the simulator waits for its subscriptions).
+    """
+    names = {n.name for n in graph.nodes if not n.paper}
+    return bool(process.nodes) and all(n in names for n in process.nodes)
+
+
 def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
          executor: 'Executor | None' = None) -> dict[str, int | None]:
     """
@@ -518,8 +601,14 @@ def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
     return {p.name: codes[p.name] for p in reversed(procs)}
 
 
-def _clean_shm(progress, whose, new_since=None):
-    """Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so."""
+def clean_shm(progress: Callable[[str], None], whose: str,
+              new_since: set[str] | None = None) -> None:
+    """
+    Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so.
+
+    ``whose``: who left it, in the message given to ``progress``; ``new_since``: only what
+    appeared since that :func:`shm.names` snapshot (what this run's processes left).
+    """
     count, freed = shm.clean(new_since=new_since)
     if count:
         progress(f'  removed {count} Fast DDS shared-memory files ({freed / 1e6:.0f} MB) in '
@@ -545,6 +634,7 @@ def write_results(bag_path: str | Path, out_dir: str | Path,
     (matplotlib takes seconds): ``ibvs run`` prints the metrics then.
     """
     out_dir = Path(out_dir)
+    recover(bag_path)  # the bag of a runner that was killed: readable again
     run, metrics = analysis.analyse_bag(bag_path)
     if wall_duration_s is not None:
         metrics['wall_duration_s'] = wall_duration_s
