@@ -18,24 +18,25 @@ def test_runner_refuses_a_graph_without_images(installed_workspace, tmp_path):
 
 def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run):
     """
-    A frozen lockstep process (SIGSTOP) stalls the run; the runner ends it and names each node.
+    A frozen lockstep process (SIGSTOP) stalls the run; the runner names it as stopped.
 
     The paper's nodes share the simulator's process (ibvs_bringup.graph): freezing the
-    feature node freezes them all. None of them can say what it waits for; each is named
-    as frozen (its /diagnostics heartbeat stopped) or, if no heartbeat of it had come yet,
-    as silent; the viewers' node, in a process of its own, keeps its heartbeat.
+    feature node freezes them all. None of them can say anything, not even its process's
+    watchdog; the runner sees the process stopped (state T in /proc) and names it as the
+    cause, and each of its nodes as stopped with it (issue 39: it called each of them frozen
+    and named no process). The viewers' node, in a process of its own, keeps its heartbeat.
     """
     code, out, err = signalled_run(
         ['--stall-s', '6'], lambda log: log.exists() and 'starting at t = 0' in log.read_text(),
         signal.SIGSTOP, 90.0)
     assert code == 4, (out, err)
     assert 'no sim-time progress for 6 s' in err, err
+    assert 'cause: process lockstep is stopped: its own process (pid ' in err, err
+    assert 'heartbeat stopped' not in err.splitlines()[0], err
     waits = dict(line.strip().split(': ', 1) for line in err.splitlines()
                  if line.startswith('  ') and ': ' in line)
     for node in ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
                  'joint_controller_node', 'sim_node'):
-        assert waits[node].startswith('HEARTBEAT STOPPED') or \
-            waits[node].startswith('said nothing about waiting'), err
-    # (A node whose first heartbeat had not reached the runner before the stop is silent.)
+        assert waits[node].startswith('STOPPED: the process lockstep is stopped'), err
     # Its own process goes on: what it says depends on how far step 0 got before the stop.
-    assert not waits['viz_node'].startswith('HEARTBEAT STOPPED'), err
+    assert not waits['viz_node'].startswith(('HEARTBEAT STOPPED', 'STOPPED')), err

@@ -41,7 +41,7 @@ from ibvs_bringup.recorder import Recorder, recover
 from ibvs_bringup.supervision import expected_readers, NodeDied, NodeProcess, stop_all
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
-from ibvs_common.node_main import make_executor
+from ibvs_common.node_main import make_executor, WATCHDOG
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_common.timing import ns_to_seconds
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
@@ -92,21 +92,25 @@ class RunStalled(RuntimeError):
     """
     Sim time stopped advancing; ``waits`` maps each node to what it said it waits for.
 
-    ``silent`` names the nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`):
-    a frozen or hung node, the likely cause, named first.
+    ``causes``: what holds the run, named first: a process that is stopped, a node busy in
+    one callback (its process's :class:`ibvs_common.node_main.Watchdog`). ``silent`` names
+    the other nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`): frozen or
+    hung, with no more said of them.
     """
 
     def __init__(self, what: str, sim_s: float, waits: Mapping[str, str],
-                 silent: Sequence[str] = ()) -> None:
+                 silent: Sequence[str] = (), causes: Sequence[str] = ()) -> None:
         """Keep the sim time reached and each node's wait; the message lists them."""
         lines = [f'  {node}: {text}' for node, text in waits.items()]
-        head = (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
-                f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
+        head = f'; cause: {"; ".join(causes)}' if causes else ''
+        head += (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
+                 f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
         super().__init__(f'{what} at sim time {sim_s:.3f} s{head}; what each node waits '
                          'for:\n' + '\n'.join(lines))
         self.sim_s = sim_s
         self.waits = waits
         self.silent = tuple(silent)
+        self.causes = tuple(causes)
 
 
 def last_waiting_line(log_path: str | Path, since_epoch_s: float,
@@ -174,6 +178,9 @@ class Monitor:
         self.started_wall = None
         #: Latest /diagnostics status values of each node, by node name.
         self.diagnostics = {}
+        #: What the watchdog of a node's process last said of it (the callback it is busy
+        #: in, ibvs_common.node_main.Watchdog) and when (``clock``), by node name.
+        self.busy = {}
         node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diagnostics,
                                  10)
 
@@ -196,9 +203,17 @@ class Monitor:
 
     def _on_diagnostics(self, msg):
         for status in msg.status:
-            node = status.name.split(':', 1)[0]
+            node, _, what = status.name.partition(': ')
+            if what == WATCHDOG:  # not the node's heartbeat: its process's watchdog
+                self.busy[node] = (status.message, self._clock())
+                continue
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
             self.heard[node] = self._clock()
+
+    def busy_now(self) -> dict[str, str]:
+        """Return what the watchdogs said of busy nodes in the last :data:`HEARTBEAT_S`."""
+        now = self._clock()
+        return {n: text for n, (text, when) in self.busy.items() if now - when <= HEARTBEAT_S}
 
     def silent(self, nodes: Iterable[str]) -> list[str]:
         """Return those of ``nodes`` whose heartbeat stopped (none for :data:`HEARTBEAT_S`)."""
@@ -213,16 +228,24 @@ class Monitor:
         except (TypeError, ValueError):
             return ns_to_seconds(self.sim_ns)
 
-    def waits(self, procs: Sequence[NodeProcess], since_epoch_s: float) -> dict[str, str]:
+    def waits(self, procs: Sequence[NodeProcess], since_epoch_s: float,
+              stopped: Mapping[str, str] | None = None) -> dict[str, str]:
         """
         Return, per node, what it last said it waits for (log line, /diagnostics).
 
-        Each /diagnostics value is quoted with the age of the status it comes from; a node
-        whose heartbeat stopped is said to be so first.
+        Each /diagnostics value is quoted with the age of the status it comes from. Said
+        first: that its process is stopped (``stopped``: {process name: what is stopped}),
+        that it is busy in a callback (:meth:`busy_now`), that it waits behind such a node of
+        its process (one executor runs one callback at a time), or else that its heartbeat
+        stopped.
         """
         out = {}
         now = self._clock()
+        stopped = stopped or {}
+        busy = self.busy_now()
         for p in procs:
+            name = getattr(p, 'name', p.nodes[0])
+            blocking = [n for n in p.nodes if n in busy]
             for node in p.nodes:
                 said = []
                 line = last_waiting_line(p.log_path, since_epoch_s,
@@ -235,7 +258,14 @@ class Monitor:
                          for k, v in self.diagnostics.get(node, {}).items()
                          if k.startswith('waiting') and v not in ('', '-1')]
                 out[node] = '; '.join(said) or SILENT
-                if node in self.silent([node]):
+                if name in stopped:
+                    out[node] = f'STOPPED: the process {name} {stopped[name]}; ' + out[node]
+                elif node in busy:
+                    out[node] = f'BUSY: {busy[node]}; ' + out[node]
+                elif blocking:
+                    out[node] = (f'waits behind {blocking[0]} (the process {name} runs one '
+                                 'callback at a time); ' + out[node])
+                elif node in self.silent([node]):
                     out[node] = (f'HEARTBEAT STOPPED: last /diagnostics '
                                  f'{now - self.heard[node]:.1f} s ago (frozen or hung); '
                                  + out[node])
@@ -560,14 +590,39 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
             what = (f'no sim-time progress for {limit:.0f} s of wall time'
                     if monitor.started_wall is not None
                     else f'the simulator took no step within {limit:.0f} s of its launch')
-            nodes = [n for p in procs for n in p.nodes]
+            stopped = stopped_processes(procs)
+            busy = monitor.busy_now()
+            causes = [f'process {name} {text}' for name, text in stopped.items()]
+            causes += [text for node, text in busy.items()
+                       if not any(node in p.nodes and p.name in stopped for p in procs)]
+            held = {n for p in procs if p.name in stopped or set(p.nodes) & set(busy)
+                    for n in p.nodes}
+            nodes = [n for p in procs for n in p.nodes if n not in held]
             outcome.stalled = RunStalled(what, monitor.stalled_sim_s(),
-                                         monitor.waits(procs, window_start),
-                                         monitor.silent(nodes))
+                                         monitor.waits(procs, window_start, stopped),
+                                         monitor.silent(nodes), causes)
             break
     # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
     outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
     return outcome
+
+
+def stopped_processes(procs: Sequence[NodeProcess]) -> dict[str, str]:
+    """
+    Return {process name: what of it is stopped} for the processes of ``procs`` that are.
+
+    A stopped process (SIGSTOP: state T in /proc, :meth:`NodeProcess.stopped`) runs no
+    callback and no watchdog: nothing of it reports, and it is named from outside. A
+    stopped child (a worker it waits for) is named with its command line.
+    """
+    out = {}
+    for p in procs:
+        found = p.stopped()
+        if found:
+            out[p.name] = 'is stopped: ' + ', '.join(
+                ('its own process' if pid == p.proc.pid else f'its child {cmd or "?"}')
+                + f' (pid {pid}, state T in /proc: SIGSTOP or a debugger)' for pid, cmd in found)
+    return out
 
 
 def optional(process: NodeProcess, graph: Graph = GRAPH) -> bool:
