@@ -85,7 +85,7 @@ def test_an_executable_refuses_an_undeclared_parameter_within_5_s(installed_work
     code, out, wall = start([node, '--ros-args', '-p', 'stale_timeout_ss:=1'])
     assert code == 2, out
     assert "'stale_timeout_ss'" in out and 'declares it' in out
-    if name != 'viz_node' and name != 'sim_node':  # they do not use it: nearest differs
+    if name != 'sim_node':  # the simulator does not declare it: its nearest differs
         assert "'stale_timeout_s'" in out
     assert 'Traceback' not in out and wall < 5.0, (wall, out)
 
