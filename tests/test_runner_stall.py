@@ -31,12 +31,12 @@ def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run
         signal.SIGSTOP, 90.0)
     assert code == 4, (out, err)
     assert 'no sim-time progress for 6 s' in err, err
-    assert 'cause: process lockstep is stopped: its own process (pid ' in err, err
+    assert 'cause: process lockstep is stopped (pid ' in err, err
     assert 'heartbeat stopped' not in err.splitlines()[0], err
     waits = dict(line.strip().split(': ', 1) for line in err.splitlines()
                  if line.startswith('  ') and ': ' in line)
     for node in ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
                  'joint_controller_node', 'sim_node'):
-        assert waits[node].startswith('STOPPED: the process lockstep is stopped'), err
+        assert waits[node].startswith('STOPPED: its process lockstep is stopped'), err
     # Its own process goes on: what it says depends on how far step 0 got before the stop.
     assert not waits['viz_node'].startswith(('HEARTBEAT STOPPED', 'STOPPED')), err

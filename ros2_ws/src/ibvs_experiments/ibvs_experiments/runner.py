@@ -259,7 +259,7 @@ class Monitor:
                          if k.startswith('waiting') and v not in ('', '-1')]
                 out[node] = '; '.join(said) or SILENT
                 if name in stopped:
-                    out[node] = f'STOPPED: the process {name} {stopped[name]}; ' + out[node]
+                    out[node] = f'STOPPED: its process {name} {stopped[name]}; ' + out[node]
                 elif node in busy:
                     out[node] = f'BUSY: {busy[node]}; ' + out[node]
                 elif blocking:
@@ -615,13 +615,15 @@ def stopped_processes(procs: Sequence[NodeProcess]) -> dict[str, str]:
     callback and no watchdog: nothing of it reports, and it is named from outside. A
     stopped child (a worker it waits for) is named with its command line.
     """
+    why = 'state T in /proc: SIGSTOP or a debugger'
     out = {}
     for p in procs:
         found = p.stopped()
-        if found:
-            out[p.name] = 'is stopped: ' + ', '.join(
-                ('its own process' if pid == p.proc.pid else f'its child {cmd or "?"}')
-                + f' (pid {pid}, state T in /proc: SIGSTOP or a debugger)' for pid, cmd in found)
+        said = [f'is stopped (pid {pid}, {why})' for pid, _ in found if pid == p.proc.pid]
+        said += [f'waits for its child {cmd or "?"} (pid {pid}), which is stopped ({why})'
+                 for pid, cmd in found if pid != p.proc.pid]
+        if said:
+            out[p.name] = '; '.join(said)
     return out
 
 

@@ -112,14 +112,15 @@ def test_issue39_a_stopped_process_is_named_as_stopped(tmp_path):
         os.kill(child, signal.SIGSTOP)  # a worker the process waits for
         _until(lambda: stopped_processes([proc]), 'the worker stopped')
         assert stopped_processes([proc])['lockstep'].startswith(
-            f'is stopped: its child {sys.executable} -c import time')
+            f'waits for its child {sys.executable} -c import time')
+        assert f'(pid {child}), which is stopped (state T' in stopped_processes([proc])['lockstep']
         os.kill(proc.proc.pid, signal.SIGSTOP)
-        _until(lambda: 'its own' in stopped_processes([proc])['lockstep'], 'the process')
+        _until(lambda: stopped_processes([proc])['lockstep'].startswith('is stopped'), 'it')
         text = stopped_processes([proc])['lockstep']
-        assert f'its own process (pid {proc.proc.pid}, state T' in text
+        assert text.startswith(f'is stopped (pid {proc.proc.pid}, state T in /proc')
         monitor = Monitor(_Node(), SimpleNamespace(), None, clock=lambda: 0.0)
         waits = monitor.waits([proc], 0.0, stopped_processes([proc]))
-        assert waits['sim_node'].startswith('STOPPED: the process lockstep is stopped')
+        assert waits['sim_node'].startswith('STOPPED: its process lockstep is stopped (pid')
         os.kill(child, signal.SIGKILL)
     finally:
         proc.stop(timeout_s=2.0)
