@@ -25,6 +25,18 @@ def test_this_test_process_holds_its_domain():
         assert domains.try_lock(domain) is None
 
 
+def test_a_test_process_takes_the_highest_free_domain_runs_the_lowest():
+    """Tests keep away from domain 0 (lock-free graphs) and from the runs' first domains."""
+    top, lock1 = domains.claim({}, pool=(195, 198), from_top=True)
+    below, lock2 = domains.claim({}, pool=(195, 198), from_top=True)
+    low, lock3 = domains.claim({}, pool=(195, 198))
+    try:
+        assert (top, below, low) == (198, 197, 195)
+    finally:
+        for lock in (lock1, lock2, lock3):
+            lock.close()
+
+
 def test_isolate_takes_a_free_domain_of_the_pool_and_holds_it():
     mine = isolation.domain_id_of_process()
     environ = {domains.POOL_ENV: f'{mine}-{min(mine + 1, 101)}'}

@@ -107,12 +107,15 @@ def lock_domain(low: int, high: int, poll_s: float = 0.5) -> tuple[int, TextIO]:
 
 
 def claim(environ: MutableMapping[str, str] = os.environ,
-          pool: tuple[int, int] | None = None) -> tuple[int, TextIO | None]:
+          pool: tuple[int, int] | None = None,
+          from_top: bool = False) -> tuple[int, TextIO | None]:
     """
     Return ``(domain, lock)`` for a run started with ``environ`` (module docstring).
 
     ``pool``: the domains to choose from when ROS_DOMAIN_ID is unset (default: the
-    environment's, :func:`pool`). ``lock`` is None when the parent holds the domain
+    environment's, :func:`pool`), the lowest free one, or the highest with ``from_top``
+    (a test process's: away from domain 0, where a graph that takes no lock, ``ros2 run``
+    without ROS_DOMAIN_ID, is most likely, and from the domains runs take first). ``lock`` is None when the parent holds the domain
     (``IBVS_DOMAIN_HELD``); close it when the run ends. Raises :class:`DomainError` for a
     ROS_DOMAIN_ID or IBVS_ROS_DOMAINS that cannot be used, :class:`DomainBusy` when
     ROS_DOMAIN_ID names a domain another run holds, or when every domain of the pool is held.
@@ -128,7 +131,8 @@ def claim(environ: MutableMapping[str, str] = os.environ,
                              'unset ROS_DOMAIN_ID to take the first free one')
         return domain, lock
     pool = _environ_pool(environ) if pool is None else pool
-    for domain in range(pool[0], pool[1] + 1):
+    order = range(pool[1], pool[0] - 1, -1) if from_top else range(pool[0], pool[1] + 1)
+    for domain in order:
         lock = try_lock(domain)
         if lock is not None:
             return domain, lock
