@@ -26,7 +26,7 @@ from rclpy.signals import SignalHandlerOptions
 import yaml
 
 from . import contract, dds
-from .diagnostics import publish_last
+from .diagnostics import publish_last, publisher_of
 from .intra_process import bus_of
 from .params import check_declared, ParameterError
 
@@ -122,7 +122,10 @@ class Watchdog:
                     if inspect.isfunction(func):
                         self._methods.setdefault(func.__code__, (
                             node.get_name(), f'{klass.__name__}.{name}'))
-        self._pub = nodes[0].create_publisher(DiagnosticArray, contract.DIAGNOSTICS, 10)
+        # The nodes' own /diagnostics publisher, where one has it: one publisher a node.
+        self._pub = next((pub for pub in map(publisher_of, nodes) if pub is not None),
+                         None) or nodes[0].create_publisher(DiagnosticArray,
+                                                            contract.DIAGNOSTICS, 10)
         self._hardware_id = nodes[0].get_fully_qualified_name()
         self._node = nodes[0]
         #: The call seen last: (spin count, id of its frame), its (node, callback), since.
