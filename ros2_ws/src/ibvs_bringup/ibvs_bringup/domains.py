@@ -115,8 +115,9 @@ def claim(environ: MutableMapping[str, str] = os.environ,
     ``pool``: the domains to choose from when ROS_DOMAIN_ID is unset (default: the
     environment's, :func:`pool`), the lowest free one, or the highest with ``from_top``
     (a test process's: away from domain 0, where a graph that takes no lock, ``ros2 run``
-    without ROS_DOMAIN_ID, is most likely, and from the domains runs take first). ``lock`` is None when the parent holds the domain
-    (``IBVS_DOMAIN_HELD``); close it when the run ends. Raises :class:`DomainError` for a
+    without ROS_DOMAIN_ID, is most likely, and from the domains runs take first). ``lock``
+    is None when the parent holds the domain (``IBVS_DOMAIN_HELD``); close it when the run
+    ends. Raises :class:`DomainError` for a
     ROS_DOMAIN_ID or IBVS_ROS_DOMAINS that cannot be used, :class:`DomainBusy` when
     ROS_DOMAIN_ID names a domain another run holds, or when every domain of the pool is held.
     """
