@@ -1,5 +1,6 @@
 """No silent hang: a stall in sim time ends the run with a message naming who waits for what."""
 
+import os
 import signal
 import subprocess
 import sys
@@ -40,3 +41,71 @@ def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run
         assert waits[node].startswith('STOPPED: its process lockstep is stopped'), err
     # Its own process goes on: what it says depends on how far step 0 got before the stop.
     assert not waits['viz_node'].startswith(('HEARTBEAT STOPPED', 'STOPPED')), err
+
+
+#: A test hook (``sitecustomize``, imported by every Python process of the run): the feature
+#: node's fourth camera_info callback, at the run's first frame, runs busy for 8 s, as
+#: a detection of a noisy frame did (issue 39: 12.3 s idle, 118 s under load).
+BUSY_HOOK = """
+import importlib.abc
+import importlib.util
+import sys
+import time
+
+
+class _Hook(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name != 'ibvs_vision.feature_node':
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        execute = spec.loader.exec_module
+
+        def exec_module(module):
+            execute(module)
+            original, calls = module.FeatureNode._on_info, []
+
+            def _on_info(self, *args):
+                calls.append(1)
+                if len(calls) == 4:
+                    end = time.monotonic() + 8.0
+                    while time.monotonic() < end:
+                        sum(range(1000))
+                return original(self, *args)
+            module.FeatureNode._on_info = _on_info
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+sys.meta_path.insert(0, _Hook())
+"""
+
+
+def test_runner_names_the_busy_node_not_those_behind_it(installed_workspace, tmp_path):
+    """
+    A callback busy for seconds is named as the cause; its process's other nodes wait.
+
+    Issue 39: a noisy frame's detection held the feature node for 12 s, and the report
+    called all five nodes of its process frozen. Here a test hook makes one of its callbacks
+    busy for 8 s (not a real detection); the run stalls after 4 s.
+    """
+    hook = tmp_path / 'hook'
+    hook.mkdir()
+    (hook / 'sitecustomize.py').write_text(BUSY_HOOK)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(hook)] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p]))
+    proc = subprocess.run(
+        [sys.executable, '-m', 'ibvs_experiments.cli', 'run', 'scenario1', '-o',
+         str(tmp_path / 'run'), '--duration', '5', '--no-figures', '--stall-s', '4'],
+        capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 4, (proc.stdout, proc.stderr)
+    head = next(line for line in proc.stderr.splitlines() if line.startswith('run stalled'))
+    assert 'cause: busy in feature_node FeatureNode._on_info for ' in head, proc.stderr
+    assert 'heartbeat stopped' not in head, proc.stderr
+    waits = dict(line.strip().split(': ', 1) for line in proc.stderr.splitlines()
+                 if line.startswith('  ') and ': ' in line)
+    assert waits['feature_node'].startswith('BUSY: busy in feature_node'), proc.stderr
+    for node in ('adaptive_feedback_node', 'feedforward_node', 'joint_controller_node',
+                 'sim_node'):
+        assert waits[node].startswith('waits behind feature_node (the process lockstep'), \
+            proc.stderr
