@@ -1,6 +1,19 @@
-"""Killing a node mid-run: the runner stops, names the node and its exit code, leaves nothing."""
+"""
+Killing a process of a run: what the runner does, and what is left of the run.
 
+A node of the paper's graph: the runner stops, names the node and its exit code, leaves
+nothing. The optional viewer: the run goes on. The runner itself: SIGINT writes the metrics
+of what was recorded; after SIGKILL the next ``ibvs analyse`` reads the bag and removes the
+shared memory of the killed nodes.
+"""
+
+import json
 import signal
+import subprocess
+import sys
+import time
+
+from ibvs_bringup import shm
 
 
 def test_runner_reports_a_dead_node_and_leaves_no_process(installed_workspace, signalled_run):
@@ -11,3 +24,70 @@ def test_runner_reports_a_dead_node_and_leaves_no_process(installed_workspace, s
     # The feature node runs in the simulator's process, which the message names with it.
     assert 'node lockstep (nodes feature_node, ' in err, err
     assert f'code {-signal.SIGKILL}' in err, err
+
+
+def started(log):
+    """Whether the simulator has taken its first step (its log says so)."""
+    return log.exists() and 'starting at t = 0' in log.read_text()
+
+
+def test_the_viewers_death_is_said_and_the_run_goes_on(installed_workspace, signalled_run,
+                                                       tmp_path):
+    """SIGKILL of viz_node, an optional viewer, aborted the run with exit 3 (issue 39)."""
+    code, out, err = signalled_run(['--duration', '0.3', '--no-figures'], started,
+                                   signal.SIGKILL, 240.0, victim='viz_node')
+    assert code == 0, (out, err)
+    assert f'the optional process viz_node exited with code {-signal.SIGKILL}' in out, out
+    assert 'the run goes on without it' in out
+    metrics = json.loads((tmp_path / 'metrics.json').read_text())
+    assert metrics['sim_duration_s'] > 0.25, metrics
+
+
+def test_sigint_writes_the_metrics_also_when_the_runner_ignored_it(
+        installed_workspace, signalled_run, tmp_path):
+    """
+    SIGINT to the runner gives the metrics of what was recorded, and exit code 130.
+
+    It ended a run with exit 130 and no metrics.json; a runner started as ``nohup ... &``
+    starts it (SIGINT ignored) could not be stopped by it at all (issue 39).
+    """
+    def under_way(log):
+        return started(log) and (tmp_path / 'bag' / 'bag.mcap').stat().st_size > 100_000
+
+    code, out, err = signalled_run(['--no-figures'], under_way, signal.SIGINT, 120.0,
+                                   victim='runner', sigint_ignored=True)
+    assert code == 130, (out, err)
+    assert 'interrupted (SIGINT)' in out and 'Traceback' not in err, (out, err)
+    metrics = json.loads((tmp_path / 'metrics.json').read_text())
+    assert 0.0 < metrics['sim_duration_s'] < 30.0, metrics
+
+
+def test_a_killed_runner_leaves_a_readable_bag_and_no_shared_memory(installed_workspace,
+                                                                    signalled_run, tmp_path):
+    """
+    After SIGKILL of the runner, ``ibvs analyse`` reads its bag and frees its shared memory.
+
+    It left 203 MB in /dev/shm and a bag without metadata.yaml, which ``ibvs analyse``
+    could not read (issue 39). Its nodes die with it (PR_SET_PDEATHSIG); the next
+    ``ibvs analyse`` (or run) removes their shared memory and recovers the bag.
+    """
+    before = shm.names()
+
+    def under_way(log):
+        return started(log) and (tmp_path / 'bag' / 'bag.mcap').stat().st_size > 100_000
+
+    code, out, err = signalled_run(['--no-figures'], under_way, signal.SIGKILL, 30.0,
+                                   victim='runner')
+    assert code == -signal.SIGKILL, (out, err)
+    assert not (tmp_path / 'metrics.json').exists()
+    dead = shm.zombies(new_since=before, min_age_s=0.0)
+    assert dead, 'the killed nodes left no shared memory: nothing was tested'
+    time.sleep(shm.MIN_AGE_S)  # what is younger may be a starting participant's
+    done = subprocess.run([sys.executable, '-m', 'ibvs_experiments.cli', 'analyse',
+                           str(tmp_path / 'bag')], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, (done.stdout, done.stderr)
+    assert 'was not closed (its recorder was killed)' in done.stdout, done.stdout
+    assert [p for p in dead if p.exists()] == [], 'shared memory of the killed run is left'
+    metrics = json.loads((tmp_path / 'metrics.json').read_text())
+    assert metrics['sim_duration_s'] > 0.0, metrics

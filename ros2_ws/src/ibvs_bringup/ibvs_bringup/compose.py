@@ -6,7 +6,9 @@ named nodes in that order and spins them together until SIGINT/SIGTERM
 (:func:`ibvs_common.node_main.run`): what an rclcpp component container does, for rclpy
 nodes. The ``--ros-args`` (parameter files, ``-p``, ``-r``) apply to every node of the
 process (a remapping ``-r node:topic:=other`` only to that node); a parameter a node does not
-declare is ignored by it.
+declare is ignored by it, but one that no node of the process declares is refused at start
+(:func:`ibvs_common.node_main.check_arguments`; those under ``/**`` in a parameter file
+excepted: the graph's file gives every node the parameters of all).
 
 Why. The lockstep passes two messages per physics step between the simulator and the joint
 controller, and each camera frame goes simulator -> feature node -> feedback -> joint

@@ -11,10 +11,9 @@ ignore, is refused with the nearest declared names.
 """
 
 from collections.abc import Mapping
-import difflib
 from typing import Any, TYPE_CHECKING
 
-from ibvs_common.params import Param, ParameterError, plain_value
+from ibvs_common.params import check_declared, Param, ParameterError, plain_value
 
 from .scenario import ScenarioError
 
@@ -58,12 +57,34 @@ def check(params: Mapping[str, Any], where: str = 'parameter') -> None:
             continue
         spec = specs.get(name)
         if spec is None:
-            near = difflib.get_close_matches(name, list(specs) + list(NOT_NODES), n=3)
-            raise ScenarioError(
-                f"{where} '{name}': no node of the graph declares it"
-                + (f"; did you mean {', '.join(repr(n) for n in near)}?" if near else
-                   '; `ros2 param list` on a running graph lists the declared names'))
+            try:
+                check_declared([name], list(specs) + list(NOT_NODES), where)
+            except ParameterError as exc:
+                raise ScenarioError(str(exc)) from None
+            continue  # rclpy's own (ibvs_common.params.ROS_PARAMS)
         try:
             spec.check(plain_value(value, spec.default))
         except ParameterError as exc:
             raise ScenarioError(f'{where}: {exc}') from None
+
+
+def check_rules(params: Mapping[str, Any], where: str = 'parameters') -> None:
+    """
+    Raise :class:`ScenarioError` if ``params`` break a rule between parameters.
+
+    The rules are the nodes' own functions, run on ``params`` over every declared default
+    (a parameter not given is the node's default): the command interface and the time mode
+    (:func:`ibvs_common.shared_params.check_command_interface`, which the simulator and
+    the joint controller run at their start) and a unit quaternion in ``camera_pose``
+    (:func:`ibvs_common.shared_params.camera_pose_from`). A run that breaks one is refused
+    before any node starts, not by a node seconds into its start.
+    """
+    from ibvs_common.shared_params import camera_pose_from, check_command_interface
+    values = {name: spec.default for name, spec in declared().items()}
+    values.update({name: plain_value(value, values.get(name))
+                   for name, value in params.items()})
+    try:
+        check_command_interface(values)
+        camera_pose_from(values)
+    except ParameterError as exc:
+        raise ScenarioError(f'{where}: {exc}') from None

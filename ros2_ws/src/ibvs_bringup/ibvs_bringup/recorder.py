@@ -23,6 +23,13 @@ comes, so that /stereo/pose and the feedforward trajectory are replayed transien
 its type hash (RIHS01, in metadata.yaml and on the MCAP channel as ``topic_type_hash``) and
 ``ros_distro: jazzy`` (:class:`JazzyWriter`). A topic is added to the bag with its first
 message: one that never had a message is not in it.
+
+A recorder that dies before :meth:`Recorder.close` (its runner killed with SIGKILL) leaves
+a readable bag behind: the MCAP file holds every message up to the last /clock (each
+/clock closes a chunk, :meth:`_JazzyMcapStorage.flush`), and ``metadata.yaml`` is written
+when the bag opens, with the run's custom data and :data:`IN_PROGRESS_KEY`; :func:`recover`
+(called by ``ibvs analyse`` and every analysis of a run) then ends the MCAP file after its
+last whole record and writes the metadata of what it holds.
 """
 
 from collections.abc import Mapping
@@ -41,7 +48,9 @@ from rclpy.qos import QoSProfile
 from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
                                 QosReliability, QosTime)
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, write_string
+from rosbags.rosbag2.enums import CompressionMode
+from rosbags.rosbag2.storage_mcap import (Channel, McapReader, McapWriter, write_channel,
+                                          write_string)
 from rosbags.typesys import get_typestore, Stores
 from ruamel.yaml import YAML
 
@@ -162,6 +171,123 @@ class JazzyWriter(Writer):
         self.metapath.write_text(_with_distro(self.metapath.read_text('utf8')), 'utf8')
 
 
+#: Custom-data key of the metadata written when a bag opens; the metadata that
+#: :meth:`JazzyWriter.close` writes has not got it, so a bag that has it was never closed.
+IN_PROGRESS_KEY = 'ibvs.recording'
+#: Custom-data key that :func:`recover` adds: what it did.
+RECOVERED_KEY = 'ibvs.recovered'
+#: The first and last 8 bytes of an MCAP file.
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+
+class _MetadataOnly:
+    """A storage that writes nothing: :func:`write_metadata` closes a writer through it."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def close(self, version, metadata):
+        """Leave the storage file as it is."""
+
+
+def write_metadata(bag_path: str | Path, connections: list = (),
+                   counts: Mapping[int, int] | None = None,
+                   custom_data: Mapping[str, str] | None = None,
+                   start_ns: int = 0, end_ns: int = 0) -> None:
+    """
+    Write ``bag_path/metadata.yaml`` of an MCAP bag, as :meth:`JazzyWriter.close` does.
+
+    ``connections``: rosbags ``Connection`` s of the bag's topics (none when it opens);
+    ``counts``: messages per connection id; ``start_ns``/``end_ns``: the first and last
+    message's time. The writer's own ``close`` writes the file (rosbags' format, the
+    distro of :class:`JazzyWriter`), on a writer whose storage writes nothing.
+    """
+    bag = Path(bag_path)
+    writer = JazzyWriter.__new__(JazzyWriter)
+    writer.path, writer.metapath = bag, bag / 'metadata.yaml'
+    writer.version, writer.storage_plugin = 9, StoragePlugin.MCAP
+    writer.compression_mode, writer.compression_format = CompressionMode.NONE, ''
+    writer.connections = list(connections)
+    writer.counts = dict(counts or {c.id: 0 for c in writer.connections})
+    writer.custom_data = dict(custom_data or {})
+    writer.added_types = set()
+    writer.min_timestamp, writer.max_timestamp = start_ns, end_ns
+    writer.storage = _MetadataOnly(bag / f'{bag.name}.mcap')
+    writer.close()
+
+
+def _end_mcap(path):
+    """
+    End the MCAP file ``path`` after its last whole record, with a footer without summary.
+
+    What a writer killed mid-file leaves: records up to its last flush, perhaps part of
+    one more. Return whether the file had to be ended (False: it was closed).
+    """
+    with open(path, 'r+b') as f:
+        size = f.seek(0, 2)
+        if size >= 16:
+            f.seek(size - 8)
+            if f.read(8) == MCAP_MAGIC:
+                return False
+        f.seek(0)
+        if f.read(8) != MCAP_MAGIC:
+            raise ValueError(f'{path}: not an MCAP file')
+        end = 8
+        while end + 9 <= size:
+            f.seek(end)
+            header = f.read(9)
+            length = int.from_bytes(header[1:], 'little')
+            if end + 9 + length > size or header[0] in (0x02, 0x0F):
+                break
+            end += 9 + length
+        f.truncate(end)
+        f.seek(end)
+        # DataEnd (0x0F, a zero CRC), then a Footer (0x02) with no summary, and the magic.
+        f.write(b'\x0f' + (4).to_bytes(8, 'little') + bytes(4))
+        f.write(b'\x02' + (20).to_bytes(8, 'little') + bytes(20) + MCAP_MAGIC)
+    return True
+
+
+def recover(bag_path: str | Path) -> bool:
+    """
+    Make the bag of a recorder that was not closed readable; return whether it had to.
+
+    A bag whose ``metadata.yaml`` is missing or still says :data:`IN_PROGRESS_KEY` (module
+    docstring): its MCAP file is ended after its last whole record (:func:`_end_mcap`) and
+    the metadata is written from what the file holds, with the custom data written when the
+    bag opened and :data:`RECOVERED_KEY`. A closed bag is left as it is.
+    """
+    bag = Path(bag_path)
+    mcap = bag / f'{bag.name}.mcap'
+    meta = bag / 'metadata.yaml'
+    custom = {}
+    if meta.is_file():
+        info = YAML(typ='safe').load(meta.read_text('utf8')) or {}
+        custom = dict(info.get('rosbag2_bagfile_information', info).get('custom_data') or {})
+        if IN_PROGRESS_KEY not in custom:
+            return False
+    if not mcap.is_file():
+        return False
+    ended = _end_mcap(mcap)
+    reader = McapReader(mcap)
+    reader.open()
+    try:
+        typestore = get_typestore(TYPESTORE)
+        connections = [c._replace(digest=c.digest or typestore.hash_rihs01(c.msgtype))
+                       if c.msgtype in typestore.types else c for c in reader.connections]
+        counts = {c.id: c.msgcount for c in connections}
+        start, end = reader.metadata.start_time, reader.metadata.end_time
+    finally:
+        reader.close()
+    custom.pop(IN_PROGRESS_KEY, None)
+    custom[RECOVERED_KEY] = ('the recorder was not closed: the MCAP file was ended after its '
+                             'last whole record' if ended else 'the recorder was not closed')
+    count = sum(counts.values())
+    write_metadata(bag, connections, counts, custom, start if count else 0,
+                   max(end - 1, start) if count else 0)
+    return True
+
+
 def message_class(type_name: str) -> type:
     """Return the Python class of 'pkg/msg/Type' (what rosidl_runtime_py.get_message does)."""
     pkg, kind, name = type_name.split('/')
@@ -192,6 +318,10 @@ class Recorder(Node):
         for key, value in (custom_data or {}).items():
             self._writer.set_custom_data(key, value)
         self._writer.open()
+        # What a recorder that dies leaves (recover): the run's custom data, and that the
+        # bag was not closed.
+        write_metadata(bag_path, custom_data={**self._writer.custom_data,
+                                              IN_PROGRESS_KEY: 'true'})
         self._connections = {}
         self._types = {}
         self._qos = {}

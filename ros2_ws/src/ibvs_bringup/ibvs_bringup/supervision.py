@@ -116,6 +116,22 @@ class NodeProcess:
         """Return the exit code, or None while running."""
         return self.proc.poll()
 
+    def stopped(self) -> list[tuple[int, str]]:
+        """
+        Return (pid, command) of this process and of each process below it that is stopped.
+
+        Stopped: state ``T`` or ``t`` in ``/proc/<pid>/stat`` (SIGSTOP, SIGTSTP, a
+        debugger), which handles nothing, answers nobody and publishes no heartbeat until it
+        is continued; any child it started (a worker) counts as well.
+        """
+        found, todo = [], [self.proc.pid]
+        while todo:
+            pid = todo.pop()
+            if _state(pid) in ('T', 't'):
+                found.append((pid, _command(pid)))
+            todo += _children(pid)
+        return found
+
     def stop(self, timeout_s: float = 10.0) -> int | None:
         """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
         return stop_all([self], timeout_s)[self.name]
@@ -126,6 +142,40 @@ class NodeProcess:
             os.killpg(self.proc.pid, sig)
         except (ProcessLookupError, PermissionError):
             pass
+
+
+def _state(pid):
+    """Return the state letter of ``pid`` in /proc ('' if gone)."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[-1].split()[0]
+    except (OSError, IndexError):
+        return ''
+
+
+def _children(pid):
+    """Return the pids of the children of ``pid`` (every thread's), from /proc."""
+    out = []
+    try:
+        tasks = os.listdir(f'/proc/{pid}/task')
+    except OSError:
+        return out
+    for task in tasks:
+        try:
+            with open(f'/proc/{pid}/task/{task}/children') as f:
+                out += [int(c) for c in f.read().split()]
+        except OSError:
+            pass
+    return out
+
+
+def _command(pid):
+    """Return the command line of ``pid`` as one string ('' if gone)."""
+    try:
+        with open(f'/proc/{pid}/cmdline', 'rb') as f:
+            return f.read().replace(b'\0', b' ').decode(errors='replace').strip()
+    except OSError:
+        return ''
 
 
 #: stop_all with an executor: the longest one spin blocks (s), and the spins after the last

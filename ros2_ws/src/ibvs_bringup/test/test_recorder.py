@@ -158,3 +158,49 @@ def test_finding13_messages_before_a_clock_are_on_disk_before_the_bag_is_closed(
     writer.close()
     with Reader(tmp_path / 'bag') as reader:
         assert [t for _, t, _ in reader.messages()] == [1, 2]
+
+
+def test_a_bag_left_open_is_readable_once_recovered(bag, tmp_path):
+    """
+    A runner killed with SIGKILL left a bag without metadata that no reader took (issue 39).
+
+    The recorder writes the metadata when the bag opens, marked as in progress; recover()
+    ends the MCAP file after its last whole record (here: with half a record after it) and
+    writes the metadata of what it holds, the run's custom data kept.
+    """
+    import shutil
+    from ibvs_bringup.recorder import IN_PROGRESS_KEY, JazzyWriter, RECOVERED_KEY, recover
+    from ibvs_bringup.recorder import write_metadata
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.typesys import get_typestore, Stores
+    from ruamel.yaml import YAML
+    assert not recover(bag)  # a closed bag is left alone
+    path = tmp_path / 'bag'
+    writer = JazzyWriter(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_custom_data('ibvs.parameters', 'camera_rate_hz: 30.0\n')
+    writer.open()
+    write_metadata(path, custom_data={**writer.custom_data, IN_PROGRESS_KEY: 'true'})
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    conn = writer.add_connection('/clock', 'rosgraph_msgs/msg/Clock', typestore=typestore)
+    for stamp in (10, 20, 30):
+        writer.write(conn, stamp, b'\x00\x01\x00\x00' + bytes(8))
+        writer.storage.flush()
+    writer.write(conn, 40, b'\x00\x01\x00\x00' + bytes(8))  # in memory: lost with the writer
+    killed = tmp_path / 'killed'
+    shutil.copytree(path, killed)  # the files as a SIGKILL leaves them
+    mcap = killed / 'killed.mcap'
+    (killed / 'bag.mcap').rename(mcap)
+    with open(mcap, 'ab') as f:
+        f.write(b'\x06' + (1000).to_bytes(8, 'little') + bytes(100))  # a chunk cut short
+    writer.close()
+    assert recover(killed)
+    assert not recover(killed)  # once is enough
+    with Reader(killed) as reader:
+        assert [t for _, t, _ in reader.messages()] == [10, 20, 30]
+        assert [c.topic for c in reader.connections] == ['/clock']
+    info = YAML(typ='safe').load((killed / 'metadata.yaml').read_text())
+    custom = info['rosbag2_bagfile_information']['custom_data']
+    assert custom['ibvs.parameters'] == 'camera_rate_hz: 30.0\n'
+    assert IN_PROGRESS_KEY not in custom and 'ended after its last whole record' in \
+        custom[RECOVERED_KEY]
+    assert info['rosbag2_bagfile_information']['ros_distro'] == 'jazzy'

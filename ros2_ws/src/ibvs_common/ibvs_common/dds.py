@@ -7,11 +7,16 @@ passes the stereo images through a large shared-memory segment and repairs a los
 within 5 ms instead of the default 3 s heartbeat, which otherwise stalls the lockstep for
 seconds (the file says what was measured). A user who sets the variable keeps their own
 file; other middlewares ignore it.
+
+The ROS domain is checked here too (:func:`domain_id`), by every node's ``main`` and by the
+runner before anything starts: a value that rcl would read as another number, or one
+outside the safe range, is refused with the variable named.
 """
 
 from collections.abc import MutableMapping
 import os
 from pathlib import Path
+import re
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 
@@ -35,3 +40,37 @@ def configure(environ: MutableMapping[str, str] = os.environ) -> str | None:
         if path is not None:
             environ[PROFILES_ENV] = str(path)
     return environ.get(PROFILES_ENV)
+
+
+#: The environment variable of the ROS domain (rcl's ``RCL_DOMAIN_ID_ENV_VAR``).
+DOMAIN_ENV = 'ROS_DOMAIN_ID'
+#: The ROS domains ROS 2 documents as safe on Linux (inclusive): above 101 a domain's ports
+#: can collide with the kernel's ephemeral ports (and from 233 on Fast DDS's port numbers
+#: overflow: "port number too high").
+SAFE_RANGE = (0, 101)
+
+
+class DomainError(ValueError):
+    """An environment variable of the ROS domain holds a value ROS must not be started with."""
+
+
+def domain_id(environ: MutableMapping[str, str] = os.environ) -> int | None:
+    """
+    Return ``ROS_DOMAIN_ID`` as the domain ROS will use, None if unset; else DomainError.
+
+    rcl reads the variable with ``strtoul`` (base 0): ``-1`` wraps round, ``010`` is
+    octal 8, an empty value means the default domain 0. A lock taken on the text's own
+    number would then not be on the domain the graph uses, so only a plain decimal number
+    (no sign, no leading zero, no blank) within :data:`SAFE_RANGE` is taken; anything else,
+    an empty value included, raises :class:`DomainError` naming the variable.
+    """
+    text = environ.get(DOMAIN_ENV)
+    if text is None:
+        return None
+    low, high = SAFE_RANGE
+    if not re.fullmatch(r'0|[1-9][0-9]{0,5}', text) or not low <= int(text) <= high:
+        raise DomainError(
+            f'{DOMAIN_ENV}={text!r} is not a ROS domain this graph can use: expected a '
+            f'decimal number from {low} to {high} (the domains ROS 2 documents as safe on '
+            f'Linux), or {DOMAIN_ENV} unset to take the first free domain')
+    return int(text)

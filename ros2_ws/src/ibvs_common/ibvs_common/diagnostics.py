@@ -23,6 +23,7 @@ from .sim_time import guard_clock
 
 if TYPE_CHECKING:
     from rclpy.node import Node
+    from rclpy.publisher import Publisher
 
 
 #: Wall seconds between two progress lines of a node (:meth:`Diagnostics.log_progress`):
@@ -47,6 +48,17 @@ def publish_last(node: 'Node') -> None:
     """
     for diagnostics in _OF_NODE.get(node, ()):
         diagnostics.publish()
+
+
+def publisher_of(node: 'Node') -> 'Publisher | None':
+    """
+    Return the /diagnostics publisher of ``node``'s first :class:`Diagnostics`, or None.
+
+    For :class:`ibvs_common.node_main.Watchdog`, which publishes on it from its own thread
+    (rcl's publish is thread-safe), so that the graph has one /diagnostics publisher a node.
+    """
+    found = _OF_NODE.get(node)
+    return found[0]._pub if found else None
 
 
 class Diagnostics:

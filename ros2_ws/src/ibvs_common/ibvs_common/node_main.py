@@ -1,20 +1,34 @@
-"""The ``main()`` of every node, in the shape of ros2/demos ``demo_nodes_py`` (jazzy)."""
+"""
+The ``main()`` of every node, in the shape of ros2/demos ``demo_nodes_py`` (jazzy).
 
-from collections.abc import Sequence
+:func:`run` checks the configuration before rclpy starts, builds the nodes, spins them
+until SIGINT/SIGTERM, and keeps a :class:`Watchdog` beside the executor: a thread that
+says on /diagnostics which callback has been running for how long, while the executor, and
+with it every heartbeat of the process, waits for that callback.
+"""
+
+from collections.abc import Callable, Iterable, Sequence
+import inspect
+import os
+from pathlib import Path
 import signal
 import sys
 import threading
+import time
 from typing import TYPE_CHECKING
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.signals import SignalHandlerOptions
+import yaml
 
-from . import dds
-from .diagnostics import publish_last
+from . import contract, dds
+from .diagnostics import publish_last, publisher_of
 from .intra_process import bus_of
-from .params import ParameterError
+from .params import check_declared, ParameterError
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -65,6 +79,122 @@ class StopRequest:
         return self._event.is_set()
 
 
+#: How long a callback runs before the :class:`Watchdog` says so (s): longer than any
+#: callback of a healthy run (a frame's detection, 10-100 ms), shorter than the runner's
+#: heartbeat timeout (``ibvs_experiments.runner.HEARTBEAT_S``, 3 s).
+BUSY_S = 1.0
+#: How often the :class:`Watchdog` looks at the spinning thread (s).
+WATCH_S = 0.25
+#: The second half of the name of the Watchdog's /diagnostics status (``<node>: watchdog``).
+WATCHDOG = 'watchdog'
+
+
+class Watchdog:
+    """
+    A thread that names the callback a node process has been busy in, and for how long.
+
+    The executor runs one callback at a time: while one runs long (a detection of a noisy
+    frame, a hang), no timer fires and every node of the process falls silent, those that
+    only wait behind it included. The watchdog looks at the spinning thread's Python stack
+    every ``period_s`` (:func:`sys._current_frames`; OpenCV and numpy release the GIL, and
+    Python switches threads every 5 ms otherwise): the outermost frame of a method of one
+    of the nodes, below the spin loop, is the running callback. Once the same call has run
+    for ``busy_s``, it publishes, at most once a second, a WARN status
+    ``<node>: watchdog`` on /diagnostics (on the node's own publisher): ``busy in <node> <Class.method> for <s> s``, with
+    ``busy_callback``, ``busy_s`` and ``pid``. A call inside a C extension that holds the GIL
+    (PyBullet) delays it until it returns.
+    """
+
+    def __init__(self, nodes: 'Sequence[Node]', spin_code: object,
+                 period_s: float = WATCH_S, busy_s: float = BUSY_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        """Watch the calling thread, which spins ``nodes`` in the function of ``spin_code``."""
+        self._ident = threading.get_ident()
+        self._spin_code = spin_code
+        self._period_s, self._busy_s, self._clock = period_s, busy_s, clock
+        self._methods = {}
+        for node in nodes:
+            for klass in type(node).__mro__:
+                if klass.__module__.startswith('rclpy') or klass is object:
+                    continue
+                for name, member in vars(klass).items():
+                    func = inspect.unwrap(getattr(member, '__func__', member))
+                    if inspect.isfunction(func):
+                        self._methods.setdefault(func.__code__, (
+                            node.get_name(), f'{klass.__name__}.{name}'))
+        # The nodes' own /diagnostics publisher, where one has it: one publisher a node.
+        self._pub = next((pub for pub in map(publisher_of, nodes) if pub is not None),
+                         None) or nodes[0].create_publisher(DiagnosticArray,
+                                                            contract.DIAGNOSTICS, 10)
+        self._hardware_id = nodes[0].get_fully_qualified_name()
+        self._node = nodes[0]
+        #: The call seen last: (spin count, id of its frame), its (node, callback), since.
+        self._call = None
+        self._said = 0.0
+        #: Incremented by the spin loop at each ``spin_once``: a new call, even at the same
+        #: frame address, is another call.
+        self.spins = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='ibvs-watchdog', daemon=True)
+
+    def start(self) -> None:
+        """Start watching."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop watching (before the nodes are destroyed)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+
+    def running(self) -> tuple[str, str, float] | None:
+        """Return (node, callback, seconds it has run) of the callback now running, or None."""
+        frame = sys._current_frames().get(self._ident)
+        found = None
+        while frame is not None and frame.f_code is not self._spin_code:
+            if frame.f_code in self._methods:
+                found = frame  # the outermost method of a node so far
+            frame = frame.f_back
+        if frame is None or found is None:  # not in the spin loop, or waiting for events
+            self._call = None
+            return None
+        key = (self.spins, id(found), found.f_code)
+        now = self._clock()
+        if self._call is None or self._call[0] != key:
+            self._call = (key, self._methods[found.f_code], now)
+        (node, callback), since = self._call[1], self._call[2]
+        return node, callback, now - since
+
+    def _run(self):
+        while not self._stop.wait(self._period_s):
+            try:
+                self.check()
+            except Exception:  # never take the process down: the watchdog only reports
+                pass
+
+    def check(self) -> DiagnosticArray | None:
+        """Look once; publish and return the status if a callback is busy (else None)."""
+        running = self.running()
+        if running is None or running[2] < self._busy_s:
+            return None
+        now = self._clock()
+        if now - self._said < 1.0:
+            return None
+        self._said = now
+        node, callback, seconds = running
+        msg = DiagnosticArray()
+        msg.header.stamp = self._node.get_clock().now().to_msg()
+        msg.status = [DiagnosticStatus(
+            level=DiagnosticStatus.WARN, name=f'{node}: {WATCHDOG}',
+            message=f'busy in {node} {callback} for {seconds:.1f} s',
+            hardware_id=self._hardware_id,
+            values=[KeyValue(key='busy_callback', value=callback),
+                    KeyValue(key='busy_s', value=f'{seconds:.1f}'),
+                    KeyValue(key='pid', value=str(os.getpid()))])]
+        self._pub.publish(msg)
+        return msg
+
+
 def make_executor(context: 'Context') -> EventsExecutor:
     """
     Return the executor every node of the graph spins in: rclpy's ``EventsExecutor``.
@@ -84,7 +214,8 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
     Spin ``nodes`` (one node or several of one context) until ``stop`` or shutdown.
 
     The executor also delivers the messages that the nodes of the process pass to each
-    other directly (:mod:`.intra_process`): a task, in turn with the other callbacks.
+    other directly (:mod:`.intra_process`): a task, in turn with the other callbacks. A
+    :class:`Watchdog` says which callback keeps the executor busy, and for how long.
     """
     nodes = list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
     context = nodes[0].context
@@ -93,15 +224,104 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
         executor.add_node(node)
     bus = bus_of(context)
     bus.attach(lambda: executor.create_task(bus.drain_task))
+    watchdog = Watchdog(nodes, spin_until_stopped.__code__)
+    watchdog.start()
     try:
         while context.ok() and not stop.is_set():
+            watchdog.spins += 1
             executor.spin_once(timeout_sec=poll_s)
             bus.raise_failure()
     finally:
+        watchdog.stop()
         bus.detach()
         for node in nodes:
             executor.remove_node(node)
         executor.shutdown(timeout_sec=0.0)
+
+
+#: The ``--ros-args`` flags that take a value (rcl's arguments.h), besides -p and
+#: --params-file: skipped with their value when the parameters are read.
+_VALUED_FLAGS = ('-r', '--remap', '-e', '--enclave', '--log-level', '--log-file-name',
+                 '--log-config-file')
+
+
+def ros_parameter_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """
+    Return the names set by ``-p``/``--param`` and the ``--params-file`` paths of ``argv``.
+
+    Only what lies in a ``--ros-args`` section (up to ``--``) counts, as rcl reads it; a
+    ``-p node:name:=value`` gives ``name``.
+    """
+    names, files = [], []
+    inside, i = False, 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--':
+            inside = False
+        elif inside and arg in ('-p', '--param') and i + 1 < len(argv):
+            i += 1
+            names.append(argv[i].split(':=', 1)[0].split(':')[-1])
+        elif inside and arg == '--params-file' and i + 1 < len(argv):
+            i += 1
+            files.append(argv[i])
+        elif inside and arg in _VALUED_FLAGS:
+            i += 1
+        i += 1
+    return names, files
+
+
+def file_parameter_names(path: str) -> list[str]:
+    """
+    Return the names a parameter file sets for named nodes (not under ``/**`` or ``/*``).
+
+    Raises :class:`ParameterError` if the file cannot be read or is not a ROS 2 parameter
+    file (``node: {ros__parameters: {...}}``). Names under a wildcard are left out: the
+    graph's file (``ibvs run``'s ``params.yaml``) gives every node the parameters of all,
+    and ``ibvs run`` checks those against the whole graph.
+    """
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ParameterError(f'parameter file {path}: cannot read it: {exc.strerror}') \
+            from None
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ParameterError(f'parameter file {path}: not valid YAML: {exc}') from None
+    if not isinstance(data, dict) or not all(
+            isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)
+            for v in data.values()):
+        raise ParameterError(f"parameter file {path}: expected 'NODE: ros__parameters: "
+                             "{...}' sections (NODE /** for every node)")
+    return [name for key, section in data.items()
+            if str(key).rstrip('/').split('/')[-1] not in ('*', '**')
+            for name in section['ros__parameters']]
+
+
+def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
+    """
+    Refuse, before rclpy starts, a parameter of ``argv`` that no node of ``classes`` declares.
+
+    A node class's module lists what the node declares as ``PARAMS`` (the list the runner
+    checks a run against, :func:`ibvs_bringup.graph_params.declared`). Raises
+    :class:`ParameterError` naming the closest declared names (:func:`check_declared`,
+    the words of ``ibvs run``), or for a parameter file that cannot be read or parsed.
+    Classes whose module has no ``PARAMS`` disable the name check.
+    """
+    classes = list(classes)
+    known = []
+    for cls in classes:
+        params = getattr(sys.modules.get(cls.__module__), 'PARAMS', None)
+        if params is None:
+            known = None
+            break
+        known += [p.name for p in params]
+    names, files = ros_parameter_args(argv)
+    for path in files:
+        names += file_parameter_names(path)
+    if known is not None:
+        owner = ', '.join(cls.__name__ for cls in classes)
+        check_declared(names, known, owner=f'no node of this process ({owner})')
 
 
 def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None = None,
@@ -118,10 +338,22 @@ def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None 
     :class:`StopRequest`).
     """
     classes = list(node_class) if isinstance(node_class, (list, tuple)) else [node_class]
+    logger = rclpy.logging.get_logger(name or classes[0].__name__)
+    try:
+        dds.domain_id()
+        check_arguments(classes, sys.argv if args is None else args)
+    except (dds.DomainError, ParameterError) as exc:
+        logger.fatal(str(exc))
+        sys.exit(2)
     stop = StopRequest()
     stop.install()
     dds.configure()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except _rclpy.RCLError as exc:
+        logger.fatal(f'the ROS arguments were refused: {exc}')
+        stop.restore()
+        sys.exit(2)
     nodes = []
     code = 0
     building = classes[0]

@@ -10,11 +10,15 @@ a test directly.
 
 A bad value raises :class:`ParameterError` with a message that names the parameter and
 the allowed range; :func:`ibvs_common.node_main.run` turns it into a fatal log line and a
-non-zero exit code.
+non-zero exit code. A name that nobody declares is refused by :func:`check_declared`, with
+the closest declared names: by ``ibvs run`` for the graph
+(:func:`ibvs_bringup.graph_params.check`) and by each node's executable for its process
+(:func:`ibvs_common.node_main.check_arguments`), in the same words.
 """
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields
+import difflib
 import math
 from typing import Any, Self, TYPE_CHECKING
 
@@ -145,6 +149,32 @@ class Param:
             if self.high is not None and (v > self.high or (self.high_open and v == self.high)):
                 fail('out of range')
         return value
+
+
+#: Parameters that rclpy declares on every node itself, never refused as undeclared
+#: (``qos_overrides.*`` too, the QoS overrides a node may accept).
+ROS_PARAMS = ('use_sim_time', 'start_type_description_service')
+
+
+def check_declared(names: Iterable[str], known: Iterable[str], where: str = 'parameter',
+                   owner: str = 'no node of the graph') -> None:
+    """
+    Raise :class:`ParameterError` for the first of ``names`` that is not in ``known``.
+
+    The message names it, says that ``owner`` does not declare it, and offers the closest
+    names of ``known`` (``where`` starts it: e.g. ``-p`` or a scenario file). rclpy keeps
+    an override that no declaration takes and says nothing: a misspelt name would leave the
+    parameter at its default. :data:`ROS_PARAMS` and ``qos_overrides.*`` always pass.
+    """
+    known = list(known)
+    for name in names:
+        if name in known or name in ROS_PARAMS or str(name).startswith('qos_overrides.'):
+            continue
+        near = difflib.get_close_matches(str(name), known, n=3)
+        raise ParameterError(
+            f"{where} '{name}': {owner} declares it"
+            + (f"; did you mean {', '.join(repr(n) for n in near)}?" if near else
+               '; `ros2 param list` on a running graph lists the declared names'), name)
 
 
 def plain_value(value: Any, default: Any) -> Any:

@@ -35,10 +35,12 @@ import math
 from pathlib import Path
 import re
 import sys
+import tempfile
 import time
 from typing import Any
 
 from ibvs_bringup import domains, graph_params, scenario
+from ibvs_bringup.recorder import recover
 
 from . import runner, study_spec
 
@@ -133,6 +135,8 @@ def positive_seconds(text: str) -> float:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """Run one scenario and print its metrics."""
+    domains.domain_id()  # a ROS_DOMAIN_ID ROS must not use stops the run before anything
+    domains.pool()
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
@@ -141,6 +145,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out or run_folder(args.scenario, args.param, args.duration))
     try:
         out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()  # an existing directory may be read-only
     except OSError as exc:
         print(f'error: cannot write the results to {out}: {exc.strerror}', file=sys.stderr)
         return 2
@@ -168,6 +173,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 4
     print(f'wrote {"the figures in " + str(out) + " and " if args.figures else ""}the bag '
           f'{result.bag_path}')
+    if result.interrupted:
+        return 130  # SIGINT: the metrics are those of the part that ran
     if args.video:
         return cmd_video(argparse.Namespace(run_dir=out, out=None, time_map=None))
     return 0
@@ -195,6 +202,9 @@ def cmd_analyse(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f'no bag at {bag}')
     out = Path(args.out) if args.out else bag.parent
     out.mkdir(parents=True, exist_ok=True)
+    runner.clean_shm(print, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    if recover(bag):
+        print(f'{bag} was not closed (its recorder was killed): recovered what it holds')
     metrics = runner.write_results(bag, out)
     print(f'wrote {out}/metrics.json and figures from {bag}')
     _print_summary(metrics)
@@ -263,6 +273,11 @@ def plain_text(doc: str) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the command line and run the command."""
+    try:
+        study_defaults = _study_defaults()
+    except domains.DomainError as exc:  # a broken IBVS_ROS_DOMAINS: no command can run
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     parser = argparse.ArgumentParser(prog='ibvs', description=plain_text(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True)
@@ -331,17 +346,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         p = sub.choices[name]
         p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
                        'default: a local Ray started for this command')
-        p.add_argument('--domains', default='-'.join(map(str, _study_defaults()['domains'])),
+        p.add_argument('--domains', default='-'.join(map(str, study_defaults['domains'])),
                        help='pool of ROS_DOMAIN_IDs for the runs, LOW-HIGH (default '
                        '%(default)s)')
         p.add_argument('--parallel', type=int,
                        help='runs at once on the local Ray (default: one per core, '
-                       f"{_study_defaults()['parallel']} here)")
+                       f"{study_defaults['parallel']} here)")
     args = parser.parse_args(argv)
     try:
         return args.func(args)
     except (scenario.ScenarioError, study_spec.StudyError, FileNotFoundError,
-            TimeoutError) as exc:
+            TimeoutError, domains.DomainError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -22,23 +22,26 @@ said it waits for (its once-a-second "waiting ..." log line and the ``waiting_fo
 it publishes on /diagnostics).
 """
 
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 import json
 from pathlib import Path
 import re
 import shutil
+import signal
+import threading
 import time
 from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_bringup import domains, graph_params, scenario, shm
 from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
-from ibvs_bringup.recorder import Recorder
+from ibvs_bringup.recorder import Recorder, recover
 from ibvs_bringup.supervision import expected_readers, NodeDied, NodeProcess, stop_all
 from ibvs_common import contract, dds
 from ibvs_common.conversions import pose_matrix
-from ibvs_common.node_main import make_executor
+from ibvs_common.node_main import make_executor, WATCHDOG
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_common.timing import ns_to_seconds
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
@@ -48,6 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 import rclpy
 from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 import yaml
 
@@ -90,21 +94,25 @@ class RunStalled(RuntimeError):
     """
     Sim time stopped advancing; ``waits`` maps each node to what it said it waits for.
 
-    ``silent`` names the nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`):
-    a frozen or hung node, the likely cause, named first.
+    ``causes``: what holds the run, named first: a process that is stopped, a node busy in
+    one callback (its process's :class:`ibvs_common.node_main.Watchdog`). ``silent`` names
+    the other nodes whose /diagnostics heartbeat stopped (:meth:`Monitor.silent`): frozen or
+    hung, with no more said of them.
     """
 
     def __init__(self, what: str, sim_s: float, waits: Mapping[str, str],
-                 silent: Sequence[str] = ()) -> None:
+                 silent: Sequence[str] = (), causes: Sequence[str] = ()) -> None:
         """Keep the sim time reached and each node's wait; the message lists them."""
         lines = [f'  {node}: {text}' for node, text in waits.items()]
-        head = (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
-                f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
+        head = f'; cause: {"; ".join(causes)}' if causes else ''
+        head += (f'; heartbeat stopped: {", ".join(silent)} (no /diagnostics for more than '
+                 f'{HEARTBEAT_S:g} s: frozen or hung)' if silent else '')
         super().__init__(f'{what} at sim time {sim_s:.3f} s{head}; what each node waits '
                          'for:\n' + '\n'.join(lines))
         self.sim_s = sim_s
         self.waits = waits
         self.silent = tuple(silent)
+        self.causes = tuple(causes)
 
 
 def last_waiting_line(log_path: str | Path, since_epoch_s: float,
@@ -141,6 +149,8 @@ class RunResult:
     converged: bool
     #: The recorder's own cost: ibvs_common.profiling.Stopwatch values (``make bench``).
     recording: dict = None
+    #: Whether SIGINT ended the run early (the metrics are those of what was recorded).
+    interrupted: bool = False
 
 
 class Monitor:
@@ -170,6 +180,9 @@ class Monitor:
         self.started_wall = None
         #: Latest /diagnostics status values of each node, by node name.
         self.diagnostics = {}
+        #: What the watchdog of a node's process last said of it (the callback it is busy
+        #: in, ibvs_common.node_main.Watchdog) and when (``clock``), by node name.
+        self.busy = {}
         node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, self._on_diagnostics,
                                  10)
 
@@ -192,9 +205,17 @@ class Monitor:
 
     def _on_diagnostics(self, msg):
         for status in msg.status:
-            node = status.name.split(':', 1)[0]
+            node, _, what = status.name.partition(': ')
+            if what == WATCHDOG:  # not the node's heartbeat: its process's watchdog
+                self.busy[node] = (status.message, self._clock())
+                continue
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
             self.heard[node] = self._clock()
+
+    def busy_now(self) -> dict[str, str]:
+        """Return what the watchdogs said of busy nodes in the last :data:`HEARTBEAT_S`."""
+        now = self._clock()
+        return {n: text for n, (text, when) in self.busy.items() if now - when <= HEARTBEAT_S}
 
     def silent(self, nodes: Iterable[str]) -> list[str]:
         """Return those of ``nodes`` whose heartbeat stopped (none for :data:`HEARTBEAT_S`)."""
@@ -209,16 +230,24 @@ class Monitor:
         except (TypeError, ValueError):
             return ns_to_seconds(self.sim_ns)
 
-    def waits(self, procs: Sequence[NodeProcess], since_epoch_s: float) -> dict[str, str]:
+    def waits(self, procs: Sequence[NodeProcess], since_epoch_s: float,
+              stopped: Mapping[str, str] | None = None) -> dict[str, str]:
         """
         Return, per node, what it last said it waits for (log line, /diagnostics).
 
-        Each /diagnostics value is quoted with the age of the status it comes from; a node
-        whose heartbeat stopped is said to be so first.
+        Each /diagnostics value is quoted with the age of the status it comes from. Said
+        first: that its process is stopped (``stopped``: {process name: what is stopped}),
+        that it is busy in a callback (:meth:`busy_now`), that it waits behind such a node of
+        its process (one executor runs one callback at a time), or else that its heartbeat
+        stopped.
         """
         out = {}
         now = self._clock()
+        stopped = stopped or {}
+        busy = self.busy_now()
         for p in procs:
+            name = getattr(p, 'name', p.nodes[0])
+            blocking = [n for n in p.nodes if n in busy]
             for node in p.nodes:
                 said = []
                 line = last_waiting_line(p.log_path, since_epoch_s,
@@ -231,7 +260,14 @@ class Monitor:
                          for k, v in self.diagnostics.get(node, {}).items()
                          if k.startswith('waiting') and v not in ('', '-1')]
                 out[node] = '; '.join(said) or SILENT
-                if node in self.silent([node]):
+                if name in stopped:
+                    out[node] = f'STOPPED: its process {name} {stopped[name]}; ' + out[node]
+                elif node in busy:
+                    out[node] = f'BUSY: {busy[node]}; ' + out[node]
+                elif blocking:
+                    out[node] = (f'waits behind {blocking[0]} (the process {name} runs one '
+                                 'callback at a time); ' + out[node])
+                elif node in self.silent([node]):
                     out[node] = (f'HEARTBEAT STOPPED: last /diagnostics '
                                  f'{now - self.heard[node]:.1f} s ago (frozen or hung); '
                                  + out[node])
@@ -276,6 +312,10 @@ class Outcome:
     stalled: RunStalled = None
     #: Wall time from step 0 to the end (s); None if the run never got to :func:`watch`'s end.
     wall_duration_s: float = None
+    #: SIGINT (KeyboardInterrupt) ended the run: what was recorded is analysed.
+    interrupted: bool = False
+    #: Optional processes (the viewers' node) that exited during the run: name -> exit code.
+    lost: dict = field(default_factory=dict)
 
 
 def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None = None,
@@ -305,17 +345,58 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
     simulator has not taken its first step ``start_timeout_s`` after it was launched).
+    A ``ROS_DOMAIN_ID`` or ``IBVS_ROS_DOMAINS`` that cannot be used raises
+    :class:`domains.DomainError` before anything is written. The death of an optional
+    process (the viewers', :func:`optional`) once the simulator runs is said and the run
+    goes on. SIGINT (also to a runner started with it ignored, :func:`interruptible`) stops
+    the run as its end does, and the metrics of what was recorded are written
+    (``RunResult.interrupted``); before the first step it raises KeyboardInterrupt.
 
     The parts, in order: :func:`prepare`, :func:`start`, :func:`watch`, :func:`stop`,
     :func:`write_results`.
     """
+    domains.domain_id()
+    domains.pool()
     run = prepare(name, out_dir, overrides, duration_s)
-    _clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
+    with interruptible():
+        return _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
+                             stall_s, start_timeout_s, record_overlays, figures, on_metrics)
+
+
+@contextmanager
+def interruptible() -> Iterator[None]:
+    """
+    Let SIGINT interrupt what runs inside, also where the runner was started with it ignored.
+
+    A shell starts a background job (``nohup ibvs run ... &``) with SIGINT ignored, and
+    Python then installs no handler of its own: the runner could not be stopped by SIGINT.
+    Inside, SIGINT raises KeyboardInterrupt (Python's own handler), which
+    :func:`run_scenario` turns into a clean stop and the metrics of what was recorded; the
+    handler found is put back after. Outside the main thread, where no handler can be
+    set, nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        if previous is signal.SIG_IGN:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress, stall_s,
+                  start_timeout_s, record_overlays, figures, on_metrics):
+    """Run the :class:`Prepared` ``run`` (:func:`run_scenario` after :func:`prepare`)."""
+    clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
     shm_before = shm.names()
 
     # A domain of its own (ibvs_bringup.domains), for this process and its nodes.
     with domains.held() as (domain, chosen):
-        busy = chosen and domain != domains.FREE_POOL[0]
+        busy = chosen and domain != domains.pool()[0]
         progress(f'  ROS_DOMAIN_ID {domain}'
                  + (': the first free one, lower domains are used by other runs' if busy
                     else ' (set by ROS_DOMAIN_ID)' if not chosen else ''))
@@ -323,7 +404,9 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
         context = rclpy.context.Context()
         # Explicit arguments: by default rclpy parses sys.argv, where rcl takes the
         # command line's -p name:=value for a deprecated remap rule and warns about it.
-        rclpy.init(args=[], context=context)
+        # No rclpy signal handler: SIGINT is a KeyboardInterrupt here (interruptible), and
+        # the recorder goes on receiving while the nodes stop.
+        rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
         executor = make_executor(context)
         recorder = Recorder(run.bag_path, include_images=record_images, context=context,
                             include_overlays=record_overlays,
@@ -341,25 +424,34 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
             outcome = watch(run, executor, monitor, procs, wall_start, progress,
                             converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
                             stall_s=stall_s, start_timeout_s=start_timeout_s)
+        except KeyboardInterrupt:
+            # SIGINT: stop as at the end of a run, and analyse what was recorded.
+            progress(f'  interrupted (SIGINT) at sim time {ns_to_seconds(monitor.sim_ns):.3f}'
+                     ' s: stopping the nodes, then the metrics of what was recorded')
+            outcome.interrupted = True
+            outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
         finally:
             codes = stop(procs, executor=executor)
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
-                'exit_codes': codes, 'commands': {p.name: p.command for p in procs}}))
+                'exit_codes': codes, 'commands': {p.name: p.command for p in procs},
+                'interrupted': outcome.interrupted, 'lost_processes': outcome.lost}))
             recorder.close()
             executor.shutdown()
             recorder.destroy_node()
             watcher.destroy_node()
             rclpy.shutdown(context=context)
-            _clean_shm(progress, 'node processes of this run that died', shm_before)
+            clean_shm(progress, 'node processes of this run that died', shm_before)
     if outcome.died:
         raise outcome.died
     if outcome.stalled:
         raise outcome.stalled
+    if outcome.interrupted and monitor.sim_ns == 0:
+        raise KeyboardInterrupt  # nothing was simulated: no metrics to write
     metrics = write_results(run.bag_path, run.out_dir, outcome.wall_duration_s, figures,
                             on_metrics)
     return RunResult(run.out_dir, run.bag_path, metrics, outcome.converged,
-                     recorder.timing.values())
+                     recorder.timing.values(), outcome.interrupted)
 
 
 def resolve(name: str, overrides: Mapping[str, Any] | None = None,
@@ -368,14 +460,16 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
     Return the checked parameters of scenario ``name`` with ``overrides``, and the sim time.
 
     The scenario file's values, then the overrides (:func:`graph_params.check`,
-    :func:`scenario.check_progress` raise here); the sim time is ``duration_s``, else the
-    ``duration_s`` parameter (the simulator's stop when started by hand) if > 0 (both, if
-    they differ, are refused), else the file's ``run_duration_s``, else 3 s. Nothing is
+    :func:`graph_params.check_rules`, :func:`scenario.check_progress` raise here); the sim
+    time is ``duration_s``, else the ``duration_s`` parameter (the simulator's stop when
+    started by hand) if > 0 (both, if they differ, are refused), else the file's
+    ``run_duration_s``, else 3 s. Nothing is
     written (:func:`prepare` writes).
     """
     params = scenario.load_parameters(name)
     params.update(overrides or {})
     graph_params.check(params)
+    graph_params.check_rules(params)
     scenario.check_progress(params)
     params.setdefault('scenario_name', Path(str(name)).stem)
     stop_s = params.get('duration_s')  # the simulator's stop when started by hand
@@ -457,6 +551,7 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     when sim time has moved since the last line; before step 0, once, that the nodes start.
     """
     outcome = Outcome()
+    procs = list(procs)
     last_print, printed_ns = 0.0, None
     last_sim_ns, last_advance = -1, time.monotonic()
     never = Future()
@@ -466,6 +561,14 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
         monitor.poll()
         for p in procs:
             code = p.poll()
+            if code is not None and optional(p) and monitor.started_wall is not None:
+                # A viewer: nothing of the run waits for it once the simulator has started.
+                progress(f'  the optional process {p.name} exited with code {code} at sim '
+                         f'time {ns_to_seconds(monitor.sim_ns):.3f} s (log: {p.log_path}); '
+                         'the run goes on without it')
+                outcome.lost[p.name] = code
+                procs.remove(p)
+                break
             if code is not None:
                 outcome.died = NodeDied(p.name, code, p.log_path, p.nodes)
                 break
@@ -509,14 +612,53 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
             what = (f'no sim-time progress for {limit:.0f} s of wall time'
                     if monitor.started_wall is not None
                     else f'the simulator took no step within {limit:.0f} s of its launch')
-            nodes = [n for p in procs for n in p.nodes]
+            stopped = stopped_processes(procs)
+            busy = monitor.busy_now()
+            causes = [f'process {name} {text}' for name, text in stopped.items()]
+            causes += [text for node, text in busy.items()
+                       if not any(node in p.nodes and p.name in stopped for p in procs)]
+            held = {n for p in procs if p.name in stopped or set(p.nodes) & set(busy)
+                    for n in p.nodes}
+            nodes = [n for p in procs for n in p.nodes if n not in held]
             outcome.stalled = RunStalled(what, monitor.stalled_sim_s(),
-                                         monitor.waits(procs, window_start),
-                                         monitor.silent(nodes))
+                                         monitor.waits(procs, window_start, stopped),
+                                         monitor.silent(nodes), causes)
             break
     # From step 0 on: the nodes' start-up (PyBullet, EGL, discovery) is not sim time.
     outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
     return outcome
+
+
+def stopped_processes(procs: Sequence[NodeProcess]) -> dict[str, str]:
+    """
+    Return {process name: what of it is stopped} for the processes of ``procs`` that are.
+
+    A stopped process (SIGSTOP: state T in /proc, :meth:`NodeProcess.stopped`) runs no
+    callback and no watchdog: nothing of it reports, and it is named from outside. A
+    stopped child (a worker it waits for) is named with its command line.
+    """
+    why = 'state T in /proc: SIGSTOP or a debugger'
+    out = {}
+    for p in procs:
+        found = p.stopped()
+        said = [f'is stopped (pid {pid}, {why})' for pid, _ in found if pid == p.proc.pid]
+        said += [f'waits for its child {cmd or "?"} (pid {pid}), which is stopped ({why})'
+                 for pid, cmd in found if pid != p.proc.pid]
+        if said:
+            out[p.name] = '; '.join(said)
+    return out
+
+
+def optional(process: NodeProcess, graph: Graph = GRAPH) -> bool:
+    """
+    Return whether the run can go on without ``process``: it holds none of the paper's nodes.
+
+    The viewers' node (``viz_node``, :attr:`ibvs_bringup.graph.Node.paper` False) feeds
+    RViz, Foxglove and the bag's /tf; no node of the lockstep waits for it once the
+    simulator has taken its first step (before, the simulator waits for its subscriptions).
+    """
+    names = {n.name for n in graph.nodes if not n.paper}
+    return bool(process.nodes) and all(n in names for n in process.nodes)
 
 
 def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
@@ -538,8 +680,14 @@ def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
     return {p.name: codes[p.name] for p in reversed(procs)}
 
 
-def _clean_shm(progress, whose, new_since=None):
-    """Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so."""
+def clean_shm(progress: Callable[[str], None], whose: str,
+              new_since: set[str] | None = None) -> None:
+    """
+    Remove the Fast DDS shared memory dead processes left (:mod:`.shm`); say so.
+
+    ``whose``: who left it, in the message given to ``progress``; ``new_since``: only what
+    appeared since that :func:`shm.names` snapshot (what this run's processes left).
+    """
     count, freed = shm.clean(new_since=new_since)
     if count:
         progress(f'  removed {count} Fast DDS shared-memory files ({freed / 1e6:.0f} MB) in '
@@ -565,6 +713,7 @@ def write_results(bag_path: str | Path, out_dir: str | Path,
     (matplotlib takes seconds): ``ibvs run`` prints the metrics then.
     """
     out_dir = Path(out_dir)
+    recover(bag_path)  # the bag of a runner that was killed: readable again
     run, metrics = analysis.analyse_bag(bag_path)
     if wall_duration_s is not None:
         metrics['wall_duration_s'] = wall_duration_s

@@ -316,11 +316,14 @@ def check_spec(spec: study_spec.Spec) -> None:
 
     Each run's parameters (its scenario's, the spec's ``parameters``, its grid point and
     draws) are checked as ``ibvs run`` checks them (:func:`graph_params.check`): the nodes'
-    declared names and ranges.
+    declared names and ranges, and the rules between parameters
+    (:func:`graph_params.check_rules`).
     """
     base = scenario.load_parameters(spec.scenario)
     for run in spec.runs():
-        graph_params.check({**base, **run.overrides}, f'study {spec.name}, run {run.index}')
+        where = f'study {spec.name}, run {run.index}'
+        graph_params.check({**base, **run.overrides}, where)
+        graph_params.check_rules({**base, **run.overrides}, where)
 
 
 @dataclass(frozen=True)

@@ -154,3 +154,13 @@ def test_demo_runs_scenario1_and_films_that_run(monkeypatch, capsys, tmp_path, e
     assert options['figures'] is figures and not options['record_overlays']
     assert options['record_images'] is filmed
     assert films == ([out] if filmed else [])
+
+
+def test_issue39_a_study_is_checked_against_the_rules_between_parameters(capsys, tmp_path):
+    spec = tmp_path / 'position.yaml'
+    spec.write_text('scenario: scenario1\ngrid: {command_interface: [effort, position]}\n')
+    code, err = run(capsys, 'study', str(spec), '-o', str(tmp_path / 'out'))
+    assert code == 2 and "run 1: parameter 'lockstep' = True is invalid" in err, err
+    with pytest.raises(ScenarioError, match='quaternion'):
+        graph_params.check_rules({'camera_pose': [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0]})
+    graph_params.check_rules({'command_interface': 'position', 'lockstep': False})

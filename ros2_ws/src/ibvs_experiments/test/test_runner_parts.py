@@ -40,11 +40,14 @@ class _Monitor:
     def stalled_sim_s(self):
         return self.sim_ns * 1e-9
 
-    def waits(self, procs, since):
+    def waits(self, procs, since, stopped=None):
         return {'sim_node': 'waiting for /joint_effort_commands'}
 
     def silent(self, nodes):
         return ()
+
+    def busy_now(self):
+        return {}
 
 
 class _Executor:
@@ -55,11 +58,14 @@ class _Executor:
 
 class _Process:
 
-    def __init__(self, code=None):
-        self.name, self.nodes, self.log_path, self.code = 'lockstep', ('sim_node',), '/x', code
+    def __init__(self, code=None, name='lockstep', nodes=('sim_node',)):
+        self.name, self.nodes, self.log_path, self.code = name, nodes, '/x', code
 
     def poll(self):
         return self.code
+
+    def stopped(self):
+        return []
 
 
 def _watch(monitor, procs=(), **kwargs):
@@ -87,6 +93,24 @@ def test_watch_names_a_node_that_died_and_a_stall():
     stalled = _watch(_Monitor(0.0, 0), stall_s=0.0).stalled
     assert isinstance(stalled, runner.RunStalled)
     assert stalled.waits == {'sim_node': 'waiting for /joint_effort_commands'}
+
+
+def test_watch_goes_on_without_an_optional_viewer_once_the_simulator_runs():
+    """SIGKILL of viz_node, a viewer nothing waits for, aborted the run (issue 39)."""
+    said = []
+    run = runner.Prepared({'scenario_name': 's'}, 0.5, None, None, None, None, None)
+    viewer = _Process(code=-9, name='viz_node', nodes=('viz_node',))
+    done = runner.watch(run, _Executor(), _Monitor(0.0, 100_000_000), [viewer, _Process()],
+                        time.monotonic(), said.append)
+    assert done.died is None and done.lost == {'viz_node': -9}
+    assert any('the optional process viz_node exited with code -9' in s for s in said)
+    # Before the simulator's first step it waits for the viewer's subscriptions: fatal then.
+    monitor = _Monitor(0.0, 100_000_000)
+    monitor.started_wall = None
+    died = runner.watch(run, _Executor(), monitor, [viewer], time.monotonic(),
+                        said.append).died
+    assert isinstance(died, NodeDied) and died.node == 'viz_node'
+    assert not runner.optional(_Process()) and runner.optional(viewer)
 
 
 def test_the_metrics_are_handed_over_before_the_figures_are_drawn(monkeypatch, tmp_path):

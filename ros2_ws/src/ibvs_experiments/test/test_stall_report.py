@@ -1,9 +1,21 @@
-"""Finding 12 of issue 26: the stall report names the frozen node and dates what it quotes."""
+"""
+The stall report names what holds the run and dates what it quotes.
 
+Finding 12 of issue 26: the frozen node. Issue 39, item 2: the node busy in a callback (not
+the nodes that wait behind it in its process), and a stopped process.
+"""
+
+import os
+import signal
+import sys
+import time
 from types import SimpleNamespace
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from ibvs_experiments.runner import HEARTBEAT_S, Monitor, RunStalled
+from ibvs_bringup.supervision import NodeProcess
+from ibvs_common.node_main import WATCHDOG
+from ibvs_experiments.runner import HEARTBEAT_S, Monitor, RunStalled, stopped_processes
+from ibvs_testing.proc_tools import ProcTools
 
 
 class _Node:
@@ -38,3 +50,77 @@ def test_finding12_the_report_names_the_node_whose_heartbeat_stopped(tmp_path):
     assert 'at sim time 0.567 s' in str(report)
     assert 'heartbeat stopped: adaptive_feedback_node' in str(report)
     assert HEARTBEAT_S < 5.0
+
+
+def _watchdog(node, callback, seconds):
+    return DiagnosticArray(status=[DiagnosticStatus(
+        name=f'{node}: {WATCHDOG}', message=f'busy in {node} {callback} for {seconds} s',
+        values=[KeyValue(key='busy_callback', value=callback)])])
+
+
+def test_issue39_the_report_names_the_busy_node_not_those_behind_it(tmp_path):
+    """
+    A busy detection froze its whole process; every node of it was called frozen.
+
+    The process's watchdog names the callback: that node is the cause, the others of its
+    process wait behind it, and a node of another process keeps its own account.
+    """
+    now = [100.0]
+    monitor = Monitor(_Node(), SimpleNamespace(), None, clock=lambda: now[0])
+    for node in ('feature_node', 'sim_node', 'viz_node'):
+        monitor._on_diagnostics(_status(node, waiting_for='nothing'))
+    now[0] += 5.0
+    monitor._on_diagnostics(_status('viz_node', waiting_for='nothing'))
+    monitor._on_diagnostics(_watchdog('feature_node', 'FeatureNode._on_images', 4.5))
+    assert monitor.busy_now() == {
+        'feature_node': 'busy in feature_node FeatureNode._on_images for 4.5 s'}
+    lockstep = SimpleNamespace(name='lockstep', nodes=('feature_node', 'sim_node'),
+                               log_path=tmp_path / 'lockstep.log')
+    viz = SimpleNamespace(name='viz_node', nodes=('viz_node',), log_path=tmp_path / 'v.log')
+    waits = monitor.waits([lockstep, viz], 0.0)
+    assert waits['feature_node'].startswith('BUSY: busy in feature_node '
+                                            'FeatureNode._on_images for 4.5 s')
+    assert waits['sim_node'].startswith('waits behind feature_node (the process lockstep')
+    assert not waits['viz_node'].startswith(('BUSY', 'waits behind', 'HEARTBEAT'))
+    report = str(RunStalled('no progress', 0.1, waits, (),
+                            ['busy in feature_node FeatureNode._on_images for 4.5 s']))
+    assert 'cause: busy in feature_node FeatureNode._on_images' in report
+    assert 'heartbeat stopped' not in report
+    # The watchdog's word is not the node's heartbeat, and it goes stale.
+    assert monitor.diagnostics['feature_node'] == {'waiting_for': 'nothing'}
+    now[0] += HEARTBEAT_S + 1.0
+    assert monitor.busy_now() == {}
+
+
+def _until(condition, what, deadline_s=30.0):
+    end = time.monotonic() + deadline_s
+    while not condition():
+        assert time.monotonic() < end, what
+        time.sleep(0.01)
+
+
+def test_issue39_a_stopped_process_is_named_as_stopped(tmp_path):
+    """A SIGSTOP'd process (or a worker it waits for) is named from outside: it says nothing."""
+    proc = NodeProcess.of_command(
+        [sys.executable, '-c', 'import subprocess, sys, time; '
+         'subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]); '
+         'time.sleep(60)'], 'lockstep', tmp_path / 'lockstep.log', ('sim_node', 'feature_node'))
+    try:
+        assert stopped_processes([proc]) == {}
+        _until(lambda: ProcTools.children(proc.proc.pid), 'the worker')
+        child = ProcTools.children(proc.proc.pid)[0]
+        os.kill(child, signal.SIGSTOP)  # a worker the process waits for
+        _until(lambda: stopped_processes([proc]), 'the worker stopped')
+        assert stopped_processes([proc])['lockstep'].startswith(
+            f'waits for its child {sys.executable} -c import time')
+        assert f'(pid {child}), which is stopped (state T' in stopped_processes([proc])['lockstep']
+        os.kill(proc.proc.pid, signal.SIGSTOP)
+        _until(lambda: stopped_processes([proc])['lockstep'].startswith('is stopped'), 'it')
+        text = stopped_processes([proc])['lockstep']
+        assert text.startswith(f'is stopped (pid {proc.proc.pid}, state T in /proc')
+        monitor = Monitor(_Node(), SimpleNamespace(), None, clock=lambda: 0.0)
+        waits = monitor.waits([proc], 0.0, stopped_processes([proc]))
+        assert waits['sim_node'].startswith('STOPPED: its process lockstep is stopped (pid')
+        os.kill(child, signal.SIGKILL)
+    finally:
+        proc.stop(timeout_s=2.0)

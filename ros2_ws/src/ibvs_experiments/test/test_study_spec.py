@@ -109,20 +109,22 @@ def test_domain_locks_are_exclusive_and_released():
 def test_a_run_claims_a_free_domain_or_refuses_a_busy_one():
     """Two runs never share a domain: unset takes the next free, a busy explicit one stops."""
     import pytest
-    from ibvs_bringup.domains import claim, DomainBusy, HELD_ENV
+    from ibvs_bringup.domains import claim, DomainBusy, HELD_ENV, lock_domain
     first, lock1 = claim({}, pool=(197, 198))
     second, lock2 = claim({}, pool=(197, 198))
     assert (first, second) == (197, 198)
     with pytest.raises(DomainBusy, match='every ROS domain'):
         claim({}, pool=(197, 198))
-    with pytest.raises(DomainBusy, match='ROS_DOMAIN_ID=197 is used by another run'):
-        claim({'ROS_DOMAIN_ID': '197'})
+    # An explicit ROS_DOMAIN_ID must be one ROS may use (0-101): one no other run holds.
+    mine, lock4 = lock_domain(0, 101)
+    with pytest.raises(DomainBusy, match=f'ROS_DOMAIN_ID={mine} is used by another run'):
+        claim({'ROS_DOMAIN_ID': str(mine)})
     # A study's run: the parent holds the lock and says so.
-    assert claim({'ROS_DOMAIN_ID': '197', HELD_ENV: '197'}) == (197, None)
-    lock1.close()
-    again, lock3 = claim({'ROS_DOMAIN_ID': '197'})
-    assert again == 197
-    for lock in (lock2, lock3):
+    assert claim({'ROS_DOMAIN_ID': str(mine), HELD_ENV: str(mine)}) == (mine, None)
+    lock4.close()
+    again, lock3 = claim({'ROS_DOMAIN_ID': str(mine)})
+    assert again == mine
+    for lock in (lock1, lock2, lock3):
         lock.close()
 
 
