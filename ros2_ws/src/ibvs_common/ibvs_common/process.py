@@ -35,8 +35,8 @@ def supervised_child() -> None:
 
     A blocked signal mask is inherited across ``exec``: a Ray worker blocks SIGINT, and the
     nodes of a study's runs then never saw the runner's SIGINT; each stopped only at SIGTERM,
-    10 s later (measured: 60 s of a 0.3 s run's 64 s). The own process group lets the runner signal a node and whatever it started
-    (``ros2 run``'s child) at once.
+    10 s later (measured: 60 s of a 0.3 s run's 64 s). The own process group lets the runner
+    signal a node and whatever it started (``ros2 run``'s child) at once.
     """
     os.setpgid(0, 0)
     signal.pthread_sigmask(signal.SIG_SETMASK, [])

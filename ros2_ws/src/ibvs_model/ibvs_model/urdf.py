@@ -94,13 +94,19 @@ def _principal_axes(inertia):
 
     PyBullet's inverse dynamics rejects an inertia whose products it rebuilds as
     I(i, j) != I(j, i) by one rounding error; written in principal axes, the tensor it builds
-    is exactly symmetric. A tensor that is diagonal already is kept as it is.
+    is exactly symmetric. A tensor that is diagonal already is kept as it is. An eigenvector's
+    sign is LAPACK's choice, which differs between CPU kernels: the first two axes are turned
+    so that their largest component is positive and the third is their cross product (a
+    right-handed frame), so that the frame is the same on every machine (to its last bits,
+    which differ between CPU kernels).
     """
     if not np.any(inertia - np.diag(np.diag(inertia))):
         return (0.0, 0.0, 0.0), inertia
     moments, axes = np.linalg.eigh(inertia)
-    if np.linalg.det(axes) < 0.0:
-        axes[:, 0] = -axes[:, 0]
+    for k in (0, 1):
+        if axes[np.argmax(np.abs(axes[:, k])), k] < 0.0:
+            axes[:, k] = -axes[:, k]
+    axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
     return matrix_rpy(axes), np.diag(moments)
 
 
