@@ -47,8 +47,7 @@ def test_the_docs_define_both_functions():
 def test_nodes_started_by_hand_log_progress_stop_at_duration_and_stop_together(
         installed_workspace, tmp_path):
     script = (f'set -m\n{functions_block()}\n'
-              'ibvs_nodes ros2_ws/src/ibvs_bringup/config/scenario1.yaml '
-              f'-p duration_s:={DURATION_S}\n'
+              f'ibvs_nodes {DURATION_S} ros2_ws/src/ibvs_bringup/config/scenario1.yaml\n'
               'echo "pids:" $(jobs -p)\nread -r _\nibvs_nodes_stop\n')
     log = tmp_path / 'nodes.log'
     env = {k: v for k, v in os.environ.items() if k != 'PYTEST_XDIST_WORKER'}

@@ -254,6 +254,7 @@ DOCKERFILE = ROOT / 'docker' / 'Dockerfile'
 #: Each third-party module that the workspace's code imports, optional imports included
 #: (``try: import moderngl``), and the requirements.in name that installs it.
 MODULE_REQUIREMENT = {
+    'av': 'av',
     'cv2': 'opencv-python-headless',
     'matplotlib': 'matplotlib',
     'moderngl': 'moderngl',
@@ -282,6 +283,7 @@ DOCKER = {
     'opencv-python-headless': ('apt', 'python3-opencv'),
     'pybullet': ('pip', 'pybullet'),
     'moderngl': ('pip', 'moderngl'),
+    'av': ('pip', 'av'),
     'matplotlib': ('apt', 'python3-matplotlib'),
     'pyyaml': ('apt', 'python3-yaml'),
     'ray': ('pip', 'ray'),

@@ -37,7 +37,9 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
     assert zed[ProcessSpec('ibvs_viz', 'viz_node')] == _remaps(*FRAME, *info)
     assert zed[ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep')] == (
         _remaps(*FRAME, images[0], images[1], *info, node='feature_node')
-        + _remaps(*FRAME, *info, node='adaptive_feedback_node'))
+        + _remaps(*FRAME, *info, node='adaptive_feedback_node')
+        # the joint controller watches the camera (its camera_info) in position mode
+        + _remaps(*info, node='joint_controller_node'))
 
 
 def test_the_step0_readers_are_the_runners_of_before():

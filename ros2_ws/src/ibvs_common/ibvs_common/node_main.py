@@ -100,8 +100,8 @@ class Watchdog:
     Python switches threads every 5 ms otherwise): the outermost frame of a method of one
     of the nodes, below the spin loop, is the running callback. Once the same call has run
     for ``busy_s``, it publishes, at most once a second, a WARN status
-    ``<node>: watchdog`` on /diagnostics (on the node's own publisher): ``busy in <node> <Class.method> for <s> s``, with
-    ``busy_callback``, ``busy_s`` and ``pid``. A call inside a C extension that holds the GIL
+    ``<node>: watchdog`` on /diagnostics (on the node's own publisher): ``busy in <node>
+    <Class.method> for <s> s``, with ``busy_callback``, ``busy_s`` and ``pid``. A call inside a C extension that holds the GIL
     (PyBullet) delays it until it returns.
     """
 
