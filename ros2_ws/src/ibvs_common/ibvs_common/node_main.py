@@ -101,8 +101,8 @@ class Watchdog:
     of the nodes, below the spin loop, is the running callback. Once the same call has run
     for ``busy_s``, it publishes, at most once a second, a WARN status
     ``<node>: watchdog`` on /diagnostics (on the node's own publisher): ``busy in <node>
-    <Class.method> for <s> s``, with ``busy_callback``, ``busy_s`` and ``pid``. A call inside a C extension that holds the GIL
-    (PyBullet) delays it until it returns.
+    <Class.method> for <s> s``, with ``busy_callback``, ``busy_s`` and ``pid``. A call
+    inside a C extension that holds the GIL (PyBullet) delays it until it returns.
     """
 
     def __init__(self, nodes: 'Sequence[Node]', spin_code: object,
