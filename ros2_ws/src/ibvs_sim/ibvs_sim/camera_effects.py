@@ -1,5 +1,5 @@
 """
-What a real stereo camera adds to the simulator's perfect one; numpy and scipy only, no ROS.
+What a real stereo camera adds to the simulator's perfect one; numpy, scipy and OpenCV, no ROS.
 
 Four imperfections, each off by default (sim_node parameters of the same names):
 
@@ -20,13 +20,16 @@ Four imperfections, each off by default (sim_node parameters of the same names):
   (ibvs_common.timing.feedback_frame_ns).
 
 Randomness comes from one numpy Generator seeded with ``camera_seed``; per frame it draws the
-drop decision first and, for a frame that is kept, the noise of the left image and then of
-the right one, so that a run is the same every time.
+drop decision first and, for a frame that is kept, the seed of the left image's noise and
+then of the right one's, so that a run is the same every time. The noise itself is OpenCV's
+normal draw (``cv2.randn``) from that seed: 7 ms an HD720 image, where numpy's float64 draw
+took 57 ms and made a noisy run three to four times slower than a noiseless one (issue 39).
 """
 
 from collections.abc import Iterable
 import math
 
+import cv2
 from ibvs_model import StereoIntrinsics
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,9 +57,11 @@ def add_image_noise(image: ArrayLike, stddev: float, rng: np.random.Generator
     Return an 8-bit image with additive Gaussian noise of ``stddev`` (module docstring).
 
     ``image``: uint8 array (any shape, e.g. (H, W, 3)); ``stddev``: standard deviation in
-    intensity units of [0, 1]; ``rng``: numpy Generator. The noise is drawn for every
-    element (pixel and channel), added to image / 255, clipped to [0, 1] and rounded to
-    uint8. ``stddev`` 0 returns the image unchanged and draws nothing.
+    intensity units of [0, 1]; ``rng``: numpy Generator, which draws the seed of OpenCV's
+    generator for this image. The noise is drawn for every element (pixel and channel) in
+    float32, 255 ``stddev`` in 8-bit units, added to the image, rounded and saturated to
+    uint8 (``cv2.add``): image / 255 plus noise of ``stddev``, clipped to [0, 1]. ``stddev``
+    0 returns the image unchanged and draws nothing.
     """
     image = np.asarray(image)
     if image.dtype != np.uint8:
@@ -65,8 +70,11 @@ def add_image_noise(image: ArrayLike, stddev: float, rng: np.random.Generator
         raise ValueError(f'stddev must be finite and >= 0, got {stddev}')
     if stddev == 0.0:
         return image
-    noisy = image.astype(np.float64) / 255.0 + rng.normal(0.0, stddev, size=image.shape)
-    return np.rint(np.clip(noisy, 0.0, 1.0) * 255.0).astype(np.uint8)
+    cv2.setRNGSeed(int(rng.integers(2 ** 31)))
+    column = np.ascontiguousarray(image).reshape(-1, 1)  # one channel: every element drawn
+    noise = np.empty(column.shape, np.float32)
+    cv2.randn(noise, 0.0, stddev * 255.0)
+    return cv2.add(column, noise, dtype=cv2.CV_8U).reshape(image.shape)
 
 
 def error_transform(xyz_m: ArrayLike, rpy_deg: ArrayLike) -> NDArray[np.float64]:
