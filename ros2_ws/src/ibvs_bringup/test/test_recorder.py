@@ -96,8 +96,13 @@ def test_each_topic_has_its_publishers_qos_and_its_type_hash(bag):
     with Reader(bag) as reader:
         conns = {c.topic: c for c in reader.connections}
         hashes = {c.topic: c.digest for c in reader.connections}
-    assert set(conns) == {contract.STEREO_POSE, contract.CLOCK, contract.JOINT_PATH}
+    # /diagnostics may be there too: the nodes of an earlier test's graph on this test
+    # process's domain publish it once a second while they shut down (seen under make test).
+    assert set(conns) - {contract.DIAGNOSTICS} == {
+        contract.STEREO_POSE, contract.CLOCK, contract.JOINT_PATH}
     for topic, conn in conns.items():
+        if topic == contract.DIAGNOSTICS:
+            continue
         qos = conn.ext.offered_qos_profiles
         assert len(qos) == 1, topic
         assert qos[0].reliability == QosReliability.RELIABLE

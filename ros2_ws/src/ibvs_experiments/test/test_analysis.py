@@ -190,7 +190,10 @@ def write_bag(context, executor_of):
                    what='discovery')
         for topic, msg in messages:
             pubs[topic].publish(msg)
-        spin_until(executor, lambda: sum(recorder.counts.values()) == len(messages),
+        # Its own topics only: a /diagnostics of an earlier test's nodes, still shutting
+        # down on this process's domain, must not end the wait early.
+        topics = {t for t, _ in messages}
+        spin_until(executor, lambda: sum(recorder.counts[t] for t in topics) == len(messages),
                    what='messages')
         recorder.close()
     return write
