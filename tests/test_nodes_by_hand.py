@@ -87,6 +87,10 @@ def test_nodes_started_by_hand_log_progress_stop_at_duration_and_stop_together(
         assert ends == ['Done'] * len(pgids), ends
     finally:
         if shell.poll() is None:
+            if not pgids:  # failed before reading them: the nodes must not outlive the test
+                found = re.search(r'^pids: (.*)$', log.read_text(errors='replace'),
+                                  re.MULTILINE)
+                pgids = [int(p) for p in found.group(1).split()] if found else []
             for pgid in pgids:
                 try:
                     os.killpg(pgid, 9)
