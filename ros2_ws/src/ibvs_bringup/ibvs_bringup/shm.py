@@ -8,8 +8,9 @@ DDS's own (``fastdds shm clean``, tools/fastdds/shm/clean.py of eProsima/Fast-DD
 segment ``fastrtps_<16 characters>`` and each port ``fastrtps_port<N>`` has a lock file
 (``_el`` or ``_sl`` appended) that its owner holds with ``flock`` while it is alive; a lock
 file that can be locked belongs to a dead owner, and its segment can go. Unlike that tool
-this module leaves alone files younger than :data:`MIN_AGE_S`, so that it cannot race a
-participant that has created its lock file but not yet locked it, and it removes
+this module leaves alone files younger than :data:`MIN_AGE_S` that a live process has open
+(or, when it cannot see every process's descriptors, any such file), so that it cannot
+race a participant that has created its lock file but not yet locked it, and it removes
 participants' segments only, not ports: a segment has a name of its own, drawn at random by
 its one owner, and holds the memory (about 68 MB per killed lockstep process); a port
 (52 kB) is shared by the participants of its domain, and a participant that was opening a
@@ -53,6 +54,40 @@ def names(shm_dir: str | Path = SHM_DIR) -> set[str]:
         return set()
 
 
+def open_files(shm_dir: str | Path = SHM_DIR, proc: str | Path = '/proc'
+               ) -> tuple[set[str], bool]:
+    """
+    Return the files of ``shm_dir`` a live process has open, and whether all were seen.
+
+    The second value says whether every process's descriptors could be read (as root: yes;
+    else only one's own).
+
+    A participant holds its lock file open from the moment it creates it (``flock`` needs an
+    open file): a lock file nobody has open belongs to a dead owner, however young it is.
+    """
+    shm_dir = os.path.realpath(shm_dir)
+    found, complete = set(), True
+    for pid in os.listdir(proc):
+        if not pid.isdigit():
+            continue
+        fd_dir = os.path.join(proc, pid, 'fd')
+        try:
+            fds = os.listdir(fd_dir)
+        except FileNotFoundError:  # ended meanwhile
+            continue
+        except PermissionError:
+            complete = False
+            continue
+        for fd in fds:
+            try:
+                target = os.readlink(os.path.join(fd_dir, fd))
+            except OSError:
+                continue
+            if os.path.dirname(target) == shm_dir:
+                found.add(os.path.basename(target))
+    return found, complete
+
+
 def zombies(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
             now: float | None = None, new_since: Container[str] | None = None) -> list[Path]:
     """
@@ -62,19 +97,23 @@ def zombies(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
     processes started and died since then left. Files younger than ``min_age_s`` are left
     in either case: another graph (a study's parallel run, a test) may be starting on this
     machine, and a lock file its participant has created but not yet locked looks dead
-    (removing it made that participant fail with "open_and_lock_file failed"). What a
-    process of the run left in its last ``min_age_s`` goes at the next run's start.
+    (removing it made that participant fail with "open_and_lock_file failed"), unless no
+    live process has it open (:func:`open_files`, which sees every process's descriptors
+    when run as root): then even a young one is a dead owner's, so that what a run killed
+    in its first seconds left goes at the next run's start too.
     """
     now = time.time() if now is None else now
+    held_open, complete = open_files(shm_dir)
     found = []
     for name in sorted(names(shm_dir)):
         if not LOCK_FILE.match(name) or (new_since is not None and name in new_since):
             continue
         lock = Path(shm_dir) / name
         try:
-            if now - lock.stat().st_mtime < min_age_s:
-                continue
+            young = now - lock.stat().st_mtime < min_age_s
         except FileNotFoundError:
+            continue
+        if young and (not complete or name in held_open):
             continue
         if _locked(lock):
             continue

@@ -33,9 +33,24 @@ def test_finding11_young_files_are_left_and_new_since_keeps_what_was_there(tmp_p
     before = shm.names(tmp_path)
     new = 'fastrtps_00000000000000cc'
     _files(tmp_path, new, f'{new}_el')
-    young = 'fastrtps_00000000000000bb'  # another graph's participant may be starting
+    young = 'fastrtps_00000000000000bb'  # another graph's participant may be starting:
     _files(tmp_path, young, f'{young}_el', age_s=0.0)
-    assert shm.zombies(tmp_path) == [tmp_path / f'{old}_el', tmp_path / old,
-                                     tmp_path / f'{new}_el', tmp_path / new]
-    assert shm.clean(tmp_path, new_since=before) == (2, 2000)
-    assert sorted(os.listdir(tmp_path)) == sorted([old, f'{old}_el', young, f'{young}_el'])
+    with open(tmp_path / f'{young}_el', 'rb'):  # created, not yet locked
+        assert shm.zombies(tmp_path) == [tmp_path / f'{old}_el', tmp_path / old,
+                                         tmp_path / f'{new}_el', tmp_path / new]
+        assert shm.clean(tmp_path, new_since=before) == (2, 2000)
+        assert sorted(os.listdir(tmp_path)) == sorted([old, f'{old}_el', young, f'{young}_el'])
+
+
+def test_a_young_file_nobody_has_open_is_a_dead_owners(tmp_path):
+    """Issue 39: what a run killed in its first seconds left goes at the next run's start."""
+    young = 'fastrtps_00000000000000dd'
+    _files(tmp_path, young, f'{young}_el', age_s=0.0)
+    held_open, complete = shm.open_files(tmp_path)
+    assert f'{young}_el' not in held_open
+    with open(tmp_path / f'{young}_el', 'rb'):
+        assert f'{young}_el' in shm.open_files(tmp_path)[0]
+    if complete:  # every process's descriptors seen (root): age does not matter
+        assert shm.zombies(tmp_path) == [tmp_path / f'{young}_el', tmp_path / young]
+    else:  # some processes' descriptors unseen: a young file is left, as before
+        assert shm.zombies(tmp_path) == []
