@@ -10,9 +10,11 @@ age (the node's clock less the input's newest stamp) and a timeout; while one is
 its timeout the controller holds the arm where it is, and the status (:class:`ServoStatus`,
 published as one ``std_msgs/Int8`` code) says which input is stale.
 
-The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``,
-moveit2 jazzy ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp``), so
-that a supervisor written for Servo reads ours; 10 and up are this stack's.
+The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``, moveit2 jazzy
+4d84106 ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp`` L51-61), so
+that a supervisor written for Servo reads ours; 10 and up are this stack's. The 0.1 s
+default of ``joint_state_timeout_s`` is Servo's ``incoming_command_timeout``
+(``moveit_ros/moveit_servo/config/servo_parameters.yaml`` L102-104).
 """
 
 from collections.abc import Iterable, Mapping

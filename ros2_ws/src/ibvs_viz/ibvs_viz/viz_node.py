@@ -12,7 +12,9 @@ kinematics (:mod:`ibvs_viz.scene`; robot_state_publisher and tf2_ros are not on 
   camera's optical frames; the camera where /stereo/pose, or the ``camera_pose``
   parameter, puts it, as the controllers take it) and the target flange pose
   ``ibvs_target``; and, where a lens's CameraInfo names another frame than ours (the ZED
-  wrapper's ``zed_left_camera_frame_optical``), that frame at our lens's optical frame, so
+  wrapper's ``zed_left_camera_frame_optical``: zed-ros2-wrapper master 33dfefa,
+  ``zed_components/src/zed_camera/src/zed_camera_component_main.cpp`` L2251, camera name
+  ``zed`` by default), that frame at our lens's optical frame, so
   that a viewer places the images (RViz's Camera display) and the hand-eye ``camera_pose``
   is a transform to the images' frames (``image_frames_tf``: off where the camera driver
   publishes those frames itself, as zed-ros2-wrapper does with its URDF);
