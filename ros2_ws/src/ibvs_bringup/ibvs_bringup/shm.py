@@ -103,7 +103,7 @@ def zombies(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
     in its first seconds left goes at the next run's start too.
     """
     now = time.time() if now is None else now
-    held_open, complete = open_files(shm_dir)
+    held = None  # open_files(), read once and only for a young lock file
     found = []
     for name in sorted(names(shm_dir)):
         if not LOCK_FILE.match(name) or (new_since is not None and name in new_since):
@@ -113,8 +113,10 @@ def zombies(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
             young = now - lock.stat().st_mtime < min_age_s
         except FileNotFoundError:
             continue
-        if young and (not complete or name in held_open):
-            continue
+        if young:
+            held = held or open_files(shm_dir)
+            if not held[1] or name in held[0]:
+                continue
         if _locked(lock):
             continue
         found += [lock, lock.with_name(name[:-3])]

@@ -89,8 +89,12 @@ class FrameLockstep:
         t_ns = self.frames.first_ns if t_ns is None else t_ns
         if t_ns is None:
             return []
+        joints, why = self.joints.at(t_ns)
+        return self._missing(t_ns, joints is None and why is None)
+
+    def _missing(self, t_ns: int, no_joints_yet: bool) -> List[str]:
         missing = []
-        if self.joints.at(t_ns) == (None, None):
+        if no_joints_yet:
             missing.append(f'{self.joints_name} at or after {t_ns} ns')
         if self.needs_status and t_ns not in self._measured:
             missing.append(f'{self.status_name} of frame {t_ns} ns')
@@ -109,10 +113,13 @@ class FrameLockstep:
             oldest frame still waits.
 
         """
-        if not self.frames or self.waiting_for():
+        if not self.frames:
+            return None
+        t_ns = self.frames.first_ns
+        joints, why = self.joints.at(t_ns)  # once a frame: it may interpolate
+        if self._missing(t_ns, joints is None and why is None):
             return None
         t_ns, item = self.frames.pop()
-        joints, why = self.joints.at(t_ns)
         if joints is None:
             joints = Rejection('no joint state', why)
         measured = self._measured.pop(t_ns, True)

@@ -105,6 +105,11 @@ class RunData:
     camera: object = None
     #: The simulator's render_device and render_hardware (/diagnostics), where it said them.
     render: dict = field(default_factory=dict)
+    #: Set by :func:`analyse_bag`: the joint series (:func:`load_joints`, to the run's
+    #: duration) and the limits of the run's robot (q_min, q_max, qd_max, torque), which
+    #: the metrics and ``joints.png`` both use.
+    joints: tuple | None = None
+    joint_limits: tuple | None = None
 
 
 def _settle_time(t, inside):
@@ -464,8 +469,9 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
                               run.params.get('scenario_name', run.params.get('scenario')))
     robot = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
                            float(run.params.get('l4_scale', 1.0)))
-    metrics.update(joint_metrics(load_joints(bag_path, run.run_info.get('duration_s')),
-                                 robot.qd_max, joint_efforts(robot)))
+    run.joints = load_joints(bag_path, run.run_info.get('duration_s'))
+    run.joint_limits = (robot.q_min, robot.q_max, robot.qd_max, joint_efforts(robot))
+    metrics.update(joint_metrics(run.joints, robot.qd_max, run.joint_limits[3]))
     metrics.update(free_running_metrics(run.latency, run.rtf_held))
     metrics.update(run.render)
     return run, metrics

@@ -79,6 +79,7 @@ def read_recording(bag_path: str | Path) -> Recording:
     """Read a real-cell bag recorded with its images (module docstring, step 1)."""
     from geometry_msgs.msg import PoseStamped
     from ibvs_common import contract
+    from ibvs_common.conversions import stamp_ns
     from rclpy.serialization import deserialize_message
     from rosbags.highlevel import AnyReader
     from sensor_msgs.msg import CameraInfo, Image
@@ -102,7 +103,7 @@ def read_recording(bag_path: str | Path) -> Recording:
         for conn, _, raw in reader.messages(connections=conns):
             msg = deserialize_message(bytes(raw), types[conn.topic])
             if conn.topic in camera:
-                stamp = msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
+                stamp = stamp_ns(msg.header.stamp)
                 by_stamp.setdefault(stamp, {})[conn.topic] = msg
             else:
                 latched.setdefault(conn.topic, msg)
@@ -166,8 +167,8 @@ class Replayer:
     def __init__(self, node: Any, recording: Recording, joint_rate_hz: float,
                  camera_rate_hz: float, physics_rate_hz: float) -> None:
         """Create the publishers on ``node`` with the graph's QoS."""
-        from builtin_interfaces.msg import Time
         from ibvs_common import contract
+        from ibvs_common.conversions import ns_stamp
         from ibvs_model.urdf import JOINT_NAMES
         from sensor_msgs.msg import CameraInfo, Image, JointState
 
@@ -190,7 +191,7 @@ class Replayer:
             self.latched.append(pub)
         #: Frame stamp (ns) -> wall time (ns) its first image was published.
         self.sent = {}
-        self._joint_state, self._time_msg = JointState, Time
+        self._joint_state, self._ns_stamp = JointState, ns_stamp
 
     def readers(self) -> dict[str, int]:
         """Return the number of subscribers of /joint_states, the left image and its info."""
@@ -237,7 +238,7 @@ class Replayer:
 
     def _time(self, t_ns):
         """Return ``t_ns`` as a builtin_interfaces Time."""
-        return self._time_msg(sec=t_ns // 10 ** 9, nanosec=t_ns % 10 ** 9)
+        return self._ns_stamp(t_ns)
 
     def _joint(self, t_ns, start, cycle_ns):
         """Publish the recorded joint state of ``t_ns - start`` into the cycle, stamped t_ns."""
@@ -270,6 +271,7 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
     from ibvs_bringup.graph import GRAPH
     from ibvs_bringup.supervision import NodeProcess, stop_all
     from ibvs_common import contract, dds
+    from ibvs_common.conversions import stamp_ns
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import TimeReference
@@ -294,8 +296,7 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
             commands = []
             node.create_subscription(
                 TimeReference, contract.FRAME_LATENCY,
-                lambda m: commands.append((m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec,
-                                           m.time_ref.sec * 10 ** 9 + m.time_ref.nanosec)),
+                lambda m: commands.append((stamp_ns(m.header.stamp), stamp_ns(m.time_ref))),
                 contract.RELIABLE)
             replayer = Replayer(node, recording, joint_rate, camera_rate, physics_rate)
             executor = SingleThreadedExecutor(context=context)

@@ -53,11 +53,10 @@ def transient_window(run: 'RunData') -> float:
     """
     t = run.t - run.t[0]
     error = np.linalg.norm(run.position - run.target[:3, 3], axis=1)
-    inside = error <= 0.02 * error[0]
-    if not inside[-1]:
+    from .analysis import _settle_time  # the rule of settling_time_2pct_s
+    settle = _settle_time(t, error <= 0.02 * error[0])
+    if settle is None:
         return float(t[-1])
-    outside = np.flatnonzero(~inside)
-    settle = float(t[outside[-1] + 1]) if outside.size else 0.0
     window = max(3.0 * settle, TRANSIENT_MIN_S)
     return float(t[-1]) if window >= 0.7 * t[-1] else window
 

@@ -45,7 +45,6 @@ from ibvs_common.node_main import make_executor, WATCHDOG
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_common.timing import ns_to_seconds
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
-from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 from numpy.typing import NDArray
@@ -726,10 +725,6 @@ def write_results(bag_path: str | Path, out_dir: str | Path,
         return metrics
     from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
     plots.write_all(run, out_dir, target_features(run))
-    params = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
-                            float(run.params.get('l4_scale', 1.0)))
-    series = analysis.load_joints(bag_path, run.run_info.get('duration_s'))
-    if len(series[0]):
-        plots.joints(series, (params.q_min, params.q_max, params.qd_max, joint_efforts(params)),
-                     out_dir / 'joints.png', plots.title_of(run))
+    if len(run.joints[0]):  # read and limited once, by analyse_bag
+        plots.joints(run.joints, run.joint_limits, out_dir / 'joints.png', plots.title_of(run))
     return metrics

@@ -117,10 +117,10 @@ def test_the_metrics_are_handed_over_before_the_figures_are_drawn(monkeypatch, t
     # ibvs run prints the metrics as soon as they are written (issue 24: start to metrics);
     # matplotlib's seconds come after.
     order = []
-    run_data = type('Run', (), {'params': {}, 'run_info': {}})()
+    run_data = type('Run', (), {'params': {}, 'run_info': {}, 'joints': ([],),
+                                'joint_limits': None})()
     monkeypatch.setattr(runner.analysis, 'analyse_bag',
                         lambda bag: (run_data, {'sim_duration_s': 1.0}))
-    monkeypatch.setattr(runner.analysis, 'load_joints', lambda bag, end: ([],))
     monkeypatch.setattr(runner, 'target_features', lambda run: None)
     from ibvs_experiments import plots
     monkeypatch.setattr(plots, 'write_all', lambda *a: order.append('figures'))

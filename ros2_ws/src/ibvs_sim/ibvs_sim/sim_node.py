@@ -613,15 +613,19 @@ class SimNode(Node):
             return
         self._publish_step()
 
-    def _take_reference(self, q_encoder, source):
+    def _beyond_range(self, q_encoder):
+        """Return, per row of encoder angles, whether a true angle (+ d_q) leaves its range."""
+        q_true = np.atleast_2d(q_encoder) + self.sim.d_q
+        return np.any((q_true < np.asarray(IRB4600.q_min))
+                      | (q_true > np.asarray(IRB4600.q_max)), axis=1)
+
+    def _take_reference(self, q_encoder, source, checked=False):
         """Take a reference in encoder angles (contract order): range check, then the drive."""
-        low, high = np.asarray(IRB4600.q_min), np.asarray(IRB4600.q_max)
-        q_true = q_encoder + self.sim.d_q
-        if np.any(q_true < low) or np.any(q_true > high):
+        if not checked and self._beyond_range(q_encoder)[0]:
             self.diagnostics.reject(source, 'out of range', f'{q_encoder.tolist()} rad: '
                                     'beyond a joint range')
             return
-        self.servo.command(q_true)
+        self.servo.command(q_encoder + self.sim.d_q)
         self._command_ns = self.sim.t_ns
         self.commands += 1
         if self._stale:
@@ -659,16 +663,14 @@ class SimNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
-        low, high = np.asarray(IRB4600.q_min), np.asarray(IRB4600.q_max)
-        q_true = positions + self.sim.d_q
-        outside = np.flatnonzero(np.any((q_true < low) | (q_true > high), axis=1))
+        outside = np.flatnonzero(self._beyond_range(positions))
         if outside.size:
             self.diagnostics.reject(source, 'out of range',
                                     f'point {int(outside[0])}: '
                                     f'{positions[outside[0]].tolist()} rad: beyond a joint '
                                     'range')
             return
-        self._take_reference(positions[-1], source)
+        self._take_reference(positions[-1], source, checked=True)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -33,7 +33,7 @@ import numpy as np
 
 from . import synthetic
 from .detector import budget, StereoDetector
-from .detector.refine import refine_circle
+from .detector.refine import refine_circle, window_half
 
 FRAMES = {'HD720': 20, 'VGA': 20}
 REPEAT = 3
@@ -190,7 +190,7 @@ def _calibrate_window(detector, image, k, window, bounds, measured, max_hough_ed
     if circles is None:
         return
     for u, v, r in circles[0, :cfg.max_candidates]:
-        side = 2 * int(math.ceil(2.0 * r + 6.0)) + 1
+        side = 2 * window_half(r) + 1
         seconds, _ = _best_of(REPEAT, refine_circle, image, 'rgb8', k, float(u + bounds[0]),
                               float(v + bounds[1]), float(r), bounds, cfg,
                               detector.intrinsics)

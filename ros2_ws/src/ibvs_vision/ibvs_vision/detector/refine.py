@@ -143,6 +143,11 @@ def line_of_sight_stretch(intrinsics: StereoIntrinsics | None, u: float,
     return direction, math.sqrt(1.0 + rho * rho)
 
 
+def window_half(r: float) -> int:
+    """Return the half side (px) of :func:`refine_circle`'s window around a circle of radius r."""
+    return int(math.ceil(2.0 * r + 6.0))
+
+
 def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: float,
                   r: float, bounds: tuple[int, int, int, int], config: DetectorConfig,
                   intrinsics: StereoIntrinsics | None = None
@@ -175,7 +180,7 @@ def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: 
 
     """
     cfg = config
-    half = int(math.ceil(2.0 * r + 6.0))
+    half = window_half(r)
     iu, iv = int(round(u)), int(round(v))
     x0, y0 = max(iu - half, bounds[0]), max(iv - half, bounds[1])
     x1, y1 = min(iu + half + 1, bounds[2]), min(iv + half + 1, bounds[3])

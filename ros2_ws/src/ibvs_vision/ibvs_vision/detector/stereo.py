@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from .budget import hough_cost_ms, OverBudget, pass_cost_ms, WorkBudget
 from .colour import check_image, colour_scores, ENCODINGS, MarkerColour
 from .config import DetectorConfig, MARKER_NAMES, Reason
-from .refine import axis_band_centre, refine_circle, silhouette_to_centre
+from .refine import axis_band_centre, refine_circle, silhouette_to_centre, window_half
 
 _BLOCK = 8  # = 2 ** 3, see _hot_regions
 _MAX_REGIONS = 12
@@ -147,7 +147,7 @@ class StereoDetector:
                     # Several circles on one object: refine it once.
                     if any(a <= u <= c and b <= v <= d for a, b, c, d in seen):
                         continue
-                    side = 2 * int(math.ceil(2.0 * r + 6.0)) + 1  # refine_circle's window
+                    side = 2 * window_half(r) + 1
                     budget.pay(pass_cost_ms('refine', side * side), 'refinement of a circle')
                     blob, why, box = refine_circle(image, encoding, k, u, v, r, bounds,
                                                    cfg, self.intrinsics)
