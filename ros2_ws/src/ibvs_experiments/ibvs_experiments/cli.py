@@ -30,7 +30,6 @@ Commands:
 import argparse
 from collections.abc import Sequence
 import hashlib
-import json
 import math
 from pathlib import Path
 import re
@@ -361,11 +360,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
-
-
-def metrics_json(path: str | Path) -> Any:
-    """Return the metrics dict stored at ``path``."""
-    return json.loads(Path(path).read_text())
 
 
 if __name__ == '__main__':
