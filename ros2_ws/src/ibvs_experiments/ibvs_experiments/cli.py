@@ -10,13 +10,13 @@ Commands:
   ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
-  ``--overlays`` also records the feature node's overlay images, ``--video`` records the
-  camera images and writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`);
+  ``--images`` records the camera images, ``--overlays`` the feature node's overlay images,
+  ``--video`` writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`: its
+  camera images rendered again from the recorded joint states unless recorded);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
-- ``video <run dir> [-o FILE] [--time-map 0.25@1,1]``: the film (H.264 MP4) of a run
-  recorded with ``--images`` (or ``--overlays``);
+- ``video <run dir> [-o FILE] [--time-map 0.25@1,1]``: the film (H.264 MP4) of a run;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, with
-  its camera images in the bag and its film ``results/scenario1/video.mp4``;
+  its film ``results/scenario1/video.mp4``;
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]
   [--stall-s S] [--retry-failed]``: every run of a study spec (a grid and/or seeded draws
   over parameters) as Ray tasks, cached;
@@ -158,7 +158,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
-                                     record_images=args.images or args.video,
+                                     record_images=args.images,
                                      stall_s=args.stall_s, record_overlays=args.overlays,
                                      figures=args.figures, on_metrics=metrics_ready)
     except domains.DomainBusy as exc:
@@ -180,7 +180,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_video(args: argparse.Namespace) -> int:
-    """Write the film of a run recorded with --images: both cameras beside a 3D view."""
+    """Write the film of a run: both cameras (recorded or rendered again) beside a 3D view."""
     from . import video
     try:
         time_map = video.TimeMap.parse(args.time_map) if args.time_map else \
@@ -215,7 +215,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     args.scenario = 'scenario1'
     args.out = args.out or 'results/scenario1'
     args.param = ['actuators:=ideal'] + list(args.param)
-    # The film of this run, from its own bag (its camera images recorded).
+    # The film of this run, from its own bag (its camera images rendered again from its
+    # joint states after the run: recording them would slow the run, issue 35).
     args.video = args.video or not args.no_video
     return cmd_run(args)
 
@@ -302,15 +303,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument('--overlays', action='store_true',
                        help='also record the overlay images /ibvs/debug/{left,right}/image')
         p.add_argument('--video', action='store_true',
-                       help='record the camera images and write the film video.mp4 (ibvs '
-                       'video)')
+                       help='write the film video.mp4 (ibvs video; the camera images '
+                       "rendered again from the run's joint states unless --images)")
         if name == 'demo':
             p.add_argument('--no-video', action='store_true',
-                           help='no film (the demo records its camera images and writes '
-                           '<out>/video.mp4 by default)')
+                           help='no film (the demo writes <out>/video.mp4 by default)')
         p.set_defaults(func=func)
     p = sub.add_parser('video', help=cmd_video.__doc__)
-    p.add_argument('run_dir', help='a run directory (with bag/) recorded with --images')
+    p.add_argument('run_dir', help='a run directory (with bag/)')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
     p.add_argument('--time-map', help='film speed over sim time, SPEED@UNTIL_S,...,SPEED '
                    '(default 0.25@1,1: a quarter of real time for the first second, then '
