@@ -214,8 +214,9 @@ def cell_parameters(params_file: str | Path | None = None,
     """
     Return the checked parameters of a cell: the file's, the overrides, the controller's.
 
-    Raises :class:`CellError` for a name the cell's nodes do not declare (a simulator's:
-    none of them would read it), a ``position_command_type`` other than the controller's,
+    The controller sets ``position_command_type`` (the file's is replaced). Raises
+    :class:`CellError` for a name the cell's nodes do not declare (a simulator's: none of
+    them would read it), a ``-p position_command_type`` other than the controller's,
     a value out of its range or a rule between parameters broken
     (:func:`graph_params.check`, :func:`graph_params.check_rules`: position interface,
     free-running).
@@ -225,10 +226,11 @@ def cell_parameters(params_file: str | Path | None = None,
         params = scenario.load_parameters(path)
     except scenario.ScenarioError as exc:
         raise CellError(str(exc)) from None
-    params.update(overrides or {})
+    overrides = dict(overrides or {})
+    params.update(overrides)
     spec = _controller(controller)
-    given = params.get('position_command_type', spec.command_type)
-    if given != spec.command_type:
+    given = overrides.get('position_command_type', spec.command_type)
+    if given != spec.command_type:  # the file's is the default controller's: replaced
         raise CellError(f'position_command_type {given!r} with --controller {controller}: '
                         f'the controller takes {spec.command_type!r} (leave it out, '
                         '--controller sets it)')
