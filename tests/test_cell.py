@@ -1,7 +1,8 @@
 """
-``ibvs cell`` as a user starts it: on an empty domain it names what is missing; against the
-simulator standing in for the arm and the ZED wrapper it starts, reports, and stops on one
-SIGINT leaving no process behind.
+``ibvs cell`` as a user starts it, on an empty domain and against the simulator.
+
+On an empty domain it names what is missing; against the simulator standing in for the arm
+and the ZED wrapper it starts, reports, and stops on one SIGINT leaving no process behind.
 
 The simulator stands in as docs/real_cell.md "By hand" says: ``sim_node`` alone, free-running
 with real_cell.yaml's keys (``camera_topics: zed_wrapper``: the wrapper's topic names), its

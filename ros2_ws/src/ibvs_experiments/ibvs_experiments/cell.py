@@ -238,7 +238,7 @@ def cell_parameters(params_file: str | Path | None = None,
     foreign = simulator_only(params)
     if foreign:
         raise CellError(f'{", ".join(foreign)}: not read by any node of a cell (feature, '
-                        'feedback, feedforward, joint controller); the simulator\'s only '
+                        "feedback, feedforward, joint controller); the simulator's only "
                         'or unknown: leave it out')
     try:
         graph_params.check(params, str(path))
@@ -514,7 +514,7 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         try:
-            print_line(f'ibvs cell: ROS_DOMAIN_ID {domain}; checking the cell\'s topics (up to '
+            print_line(f"ibvs cell: ROS_DOMAIN_ID {domain}; checking the cell's topics (up to "
                        f'{check_timeout_s:g} s): ' + ', '.join(e.topic for e in expected))
             found = wait_for_topics(node, expected, check_timeout_s)
             if found:

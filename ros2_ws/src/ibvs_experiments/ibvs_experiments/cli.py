@@ -345,17 +345,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--controller', choices=tuple(cell.CONTROLLERS), default='forward_command',
                    help="the arm's position controller: forward_command (abb_ros2's "
                    'forward_command_controller_position, std_msgs/Float64MultiArray) or '
-                   "joint_trajectory (its joint_trajectory_controller); default %(default)s")
+                   'joint_trajectory (its joint_trajectory_controller); default %(default)s')
     p.add_argument('--controller-name', help="the controller's name if not abb_ros2's "
                    '(forward_command_controller_position, joint_trajectory_controller)')
     p.add_argument('--camera-name', default=cell.DEFAULT_CAMERA,
                    help="the ZED wrapper's camera_name (its topics /<name>/zed_node/...; "
                    'default %(default)s)')
-    p.add_argument('--params-file', help='the nodes\' parameters (default: the installed '
+    p.add_argument('--params-file', help="the nodes' parameters (default: the installed "
                    'config/cell.yaml; a copy with camera_pose calibrated, for instance)')
     p.add_argument('-p', '--param', action='append', default=[],
                    help='override a parameter: name:=value (repeatable)')
-    p.add_argument('-o', '--out', help='folder for params.yaml and the nodes\' logs '
+    p.add_argument('-o', '--out', help="folder for params.yaml and the nodes' logs "
                    '(default results/cell/<date-time>)')
     p.add_argument('--check-timeout', type=cell.check_seconds, default=cell.CHECK_TIMEOUT_S,
                    help="wall seconds the cell's topics have to appear before the nodes "

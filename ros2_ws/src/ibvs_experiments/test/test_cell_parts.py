@@ -100,7 +100,7 @@ def endpoint(msg_type, reliability='reliable', durability='volatile'):
 
 
 def everything(expected):
-    """The endpoints of a cell where everything is there, as our side asks."""
+    """Return the endpoints of a cell where everything is there, as our side asks."""
     return {e.topic: [endpoint(e.msg_type, e.reliability, e.durability)] for e in expected}
 
 
