@@ -50,9 +50,14 @@ def test_nothing_on_the_domain_exits_naming_the_image_topic(installed_workspace,
     assert not list((tmp_path / 'cell' / 'logs').glob('*.log'))  # nothing was started
 
 
-@pytest.mark.slow
-def test_against_the_simulator_it_reports_and_one_sigint_stops_all(installed_workspace,
-                                                                   tmp_path):
+@pytest.fixture
+def cell_under_way(installed_workspace, tmp_path):
+    """
+    Start sim_node as the cell, then ``ibvs cell`` on it; yield once it reports.
+
+    Yields ``(cell, out_path, seen)``: the ``ibvs cell`` process, its stdout's file (a status
+    line already in it) and the pids seen below it. Teardown kills whatever is left.
+    """
     sim_log = open(tmp_path / 'sim.log', 'w')
     sim = subprocess.Popen(
         [str(Path(installed_workspace) / 'lib' / 'ibvs_sim' / 'sim_node'), '--ros-args',
@@ -77,26 +82,56 @@ def test_against_the_simulator_it_reports_and_one_sigint_stops_all(installed_wor
             if 'frames used' in text and 'servo 0 NO_WARNING' in text:
                 break
             time.sleep(0.5)
-        text = out_path.read_text()
-        assert 'started feature_node' in text, text
-        assert '] servo' in text and 'frames used' in text, text
-        nodes = {name: [p for p in seen if name in ProcTools.cmdline(p)] for name in CELL_NODES}
-        assert all(nodes.values()), nodes
-        assert not any('sim_node' in ProcTools.cmdline(p) for p in seen)
         seen.update(ProcTools.descendants(cell.pid))
-        os.kill(cell.pid, signal.SIGINT)
-        assert cell.wait(60.0) == 0, (out_path.read_text(), cell.stderr.read())
-        text = out_path.read_text()
-        assert 'stopped: feature_node exit 0' in text, text
-        leftovers = [p for p in seen if ProcTools.alive(p)]
-        assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]
+        yield cell, out_path, seen
         assert sim.poll() is None  # the stand-in for the cell is not ibvs cell's to stop
     finally:
-        for proc in (cell, sim):
-            if proc is not None and proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGKILL) if proc is sim else proc.kill()
-                proc.wait()
+        if cell is not None and cell.poll() is None:
+            cell.kill()
+            cell.wait()
+        if sim.poll() is None:
+            os.killpg(sim.pid, signal.SIGKILL)
+            sim.wait()
         for pid in seen:
             if ProcTools.alive(pid):
                 os.kill(pid, signal.SIGKILL)
         sim_log.close()
+
+
+def node_pids(seen):
+    """Return {node: pids whose command line names it} of the cell's nodes."""
+    return {name: [p for p in seen if name in ProcTools.cmdline(p)] for name in CELL_NODES}
+
+
+@pytest.mark.slow
+def test_against_the_simulator_it_reports_and_one_sigint_stops_all(cell_under_way):
+    cell, out_path, seen = cell_under_way
+    text = out_path.read_text()
+    assert 'started feature_node' in text, text
+    assert '] servo' in text and 'frames used' in text, text
+    nodes = node_pids(seen)
+    assert all(nodes.values()), nodes
+    assert not any('sim_node' in ProcTools.cmdline(p) for p in seen)
+    # The joint controller commands abb_ros2's controller by remapping alone.
+    assert any('/forward_position_controller/commands:='
+               '/forward_command_controller_position/commands' in ProcTools.cmdline(p)
+               for p in nodes['joint_controller_node'])
+    os.kill(cell.pid, signal.SIGINT)
+    assert cell.wait(60.0) == 0, (out_path.read_text(), cell.stderr.read())
+    text = out_path.read_text()
+    assert 'stopped: feature_node exit 0' in text, text
+    leftovers = [p for p in seen if ProcTools.alive(p)]
+    assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]
+
+
+@pytest.mark.slow
+def test_a_node_that_dies_ends_the_session_and_the_others_stop(cell_under_way):
+    cell, out_path, seen = cell_under_way
+    victim = node_pids(seen)['feature_node']
+    assert victim, out_path.read_text()
+    os.kill(victim[0], signal.SIGKILL)
+    assert cell.wait(60.0) == 3, out_path.read_text()
+    err = cell.stderr.read()
+    assert 'node feature_node exited with code -9' in err, err
+    leftovers = [p for p in seen if ProcTools.alive(p)]
+    assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]

@@ -481,7 +481,8 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
 
     ``params``: :func:`cell_parameters`'s. Returns the exit code: 0 after SIGINT with
     every process stopped, :data:`EXIT_CHECK_FAILED` when the check fails (nothing
-    started), :data:`runner.EXIT_NODE_DIED` when a node exits. ``live``: rewrite one status
+    started), :data:`runner.EXIT_NODE_DIED` when a node exits, 130 after a SIGINT during
+    the check (nothing started). ``live``: rewrite one status
     line in place (a terminal) instead of a line each second. Raises
     :class:`domains.DomainBusy` when another run holds the cell's domain.
     """
@@ -569,11 +570,13 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
         except KeyboardInterrupt:
             if live:
                 print_line('')
-            print_line(f'SIGINT: stopping {", ".join(p.name for p in procs) or "nothing"}')
-            codes = stop_all(procs) if procs else {}
+            if not procs:  # during the check: nothing to stop, and the session never ran
+                print_line('SIGINT during the check: no node started')
+                return 130
+            print_line(f'SIGINT: stopping {", ".join(p.name for p in procs)}')
+            codes = stop_all(procs)
             procs = []
-            print_line('stopped: ' + (', '.join(f'{n} exit {c}' for n, c in codes.items())
-                                      or 'no node had started'))
+            print_line('stopped: ' + ', '.join(f'{n} exit {c}' for n, c in codes.items()))
             return 0
         finally:
             if procs:
