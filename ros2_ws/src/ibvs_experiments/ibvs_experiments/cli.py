@@ -20,6 +20,12 @@ Commands:
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]
   [--stall-s S] [--retry-failed]``: every run of a study spec (a grid and/or seeded draws
   over parameters) as Ray tasks, cached;
+- ``cell [--controller forward_command|joint_trajectory] [--camera-name zed]
+  [--controller-name NAME] [--params-file FILE] [-p name:=value ...] [-o DIR]
+  [--check-timeout S]``: the controller side of a real cell (docs/real_cell.md): checks
+  that the camera's and the arm's topics are there, starts the feature, feedback,
+  feedforward and joint controller nodes with ``config/cell.yaml`` (no simulator), prints
+  their status once a second; Ctrl-C stops them all (:mod:`ibvs_experiments.cell`);
 - ``report [--quick] [--no-laws] [--retry-failed]``: scenarios 1-3, the L2/L4 robustness
   sweep and each servo law on scenarios 1-3 with ideal and with limited actuators
   (:mod:`ibvs_experiments.laws_report`), as studies on Ray, into ``results/report.md``;
@@ -41,7 +47,7 @@ from typing import Any
 from ibvs_bringup import domains, graph_params, scenario
 from ibvs_bringup.recorder import recover
 
-from . import runner, study_spec
+from . import cell, runner, study_spec
 
 #: Where ``ibvs run`` writes without ``-o``: a folder per command line (:func:`run_folder`),
 #: apart from ``make demo``'s ``results/scenario1`` and the studies' ``results/studies``.
@@ -136,6 +142,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run one scenario and print its metrics."""
     domains.domain_id()  # a ROS_DOMAIN_ID ROS must not use stops the run before anything
     domains.pool()
+    if str(args.scenario) == Path(cell.CELL_CONFIG).stem:
+        raise scenario.ScenarioError(
+            f'{args.scenario} is the controller side of a real cell, no scenario: it starts no '
+            'simulator (ibvs cell starts it against the real arm and camera)')
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
@@ -177,6 +187,27 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.video:
         return cmd_video(argparse.Namespace(run_dir=out, out=None, time_map=None))
     return 0
+
+
+def cmd_cell(args: argparse.Namespace) -> int:
+    """Start the controller side of a real cell (no simulator); Ctrl-C stops it."""
+    domains.domain_id()
+    overrides = dict(scenario.parse_override(p) for p in args.param)
+    try:
+        params = cell.cell_parameters(args.params_file, overrides, args.controller)
+        # The names first: a bad camera or controller name is refused before anything.
+        cell.remaps(args.controller, args.camera_name, args.controller_name)
+    except cell.CellError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else cell.session_dir()
+    try:
+        return cell.run_cell(params, out, args.controller, args.camera_name,
+                             args.controller_name, args.check_timeout,
+                             live=sys.stdout.isatty())
+    except domains.DomainBusy as exc:
+        print(f'cell not started: {exc}', file=sys.stderr)
+        return 2
 
 
 def cmd_video(args: argparse.Namespace) -> int:
@@ -309,6 +340,26 @@ def main(argv: Sequence[str] | None = None) -> int:
             p.add_argument('--no-video', action='store_true',
                            help='no film (the demo writes <out>/video.mp4 by default)')
         p.set_defaults(func=func)
+    p = sub.add_parser('cell', help=cmd_cell.__doc__)
+    p.add_argument('--controller', choices=tuple(cell.CONTROLLERS), default='forward_command',
+                   help="the arm's position controller: forward_command (abb_ros2's "
+                   'forward_command_controller_position, std_msgs/Float64MultiArray) or '
+                   'joint_trajectory (its joint_trajectory_controller); default %(default)s')
+    p.add_argument('--controller-name', help="the controller's name if not abb_ros2's "
+                   '(forward_command_controller_position, joint_trajectory_controller)')
+    p.add_argument('--camera-name', default=cell.DEFAULT_CAMERA,
+                   help="the ZED wrapper's camera_name (its topics /<name>/zed_node/...; "
+                   'default %(default)s)')
+    p.add_argument('--params-file', help="the nodes' parameters (default: the installed "
+                   'config/cell.yaml; a copy with camera_pose calibrated, for instance)')
+    p.add_argument('-p', '--param', action='append', default=[],
+                   help='override a parameter: name:=value (repeatable)')
+    p.add_argument('-o', '--out', help="folder for params.yaml and the nodes' logs "
+                   '(default results/cell/<date-time>)')
+    p.add_argument('--check-timeout', type=cell.check_seconds, default=cell.CHECK_TIMEOUT_S,
+                   help="wall seconds the cell's topics have to appear before the nodes "
+                   'start (default %(default)s; exit code 5 if they do not)')
+    p.set_defaults(func=cmd_cell)
     p = sub.add_parser('video', help=cmd_video.__doc__)
     p.add_argument('run_dir', help='a run directory (with bag/)')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
