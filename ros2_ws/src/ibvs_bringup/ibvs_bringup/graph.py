@@ -189,7 +189,7 @@ GRAPH = Graph(
              remaps=FRAME_STATES, paper=False, sim_side=True,
              step0_reads=(contract.FRAME_JOINT_STATES,),
              doc_module="pure: `ibvs_model.abb_urdf`; the simulator's stand-in for "
-                        "robot_state_publisher, §12",
+                        'robot_state_publisher, §12',
              doc_reads='/joint_states',
              doc_writes="/robot_description (ABB's frames), /tf (base_link -> link_1..link_6), "
                         '/tf_static (base, flange, tool0)',

@@ -8,8 +8,7 @@ on either side; each link frame is the DH-framed link of ibvs_model.urdf times a
 import io
 import math
 
-from ibvs_model import forward_kinematics, IRB4600
-from ibvs_model import abb_urdf
+from ibvs_model import abb_urdf, forward_kinematics, IRB4600
 from ibvs_model.urdf import joint_origins as dh_origins
 import numpy as np
 import pytest

@@ -95,7 +95,7 @@ PARAMS = (
           'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)',
           '-'),
     Param('tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, "
-          'marker_2) on /tf_static fixed to tool0 (false where the cell\'s URDF has the tool)',
+          "marker_2) on /tf_static fixed to tool0 (false where the cell's URDF has the tool)",
           '-'),
     Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
           'oldest go first)', '-', low=2, high=1_000_000),
@@ -241,7 +241,7 @@ class VizNode(Node):
         self._camera = camera
         self._publish_static()
         self._diag.update(waiting_for='')
-        self.get_logger().info("camera known: its frames published on /tf_static")
+        self.get_logger().info('camera known: its frames published on /tf_static')
 
     def _publish_static(self):
         """Publish every fixed frame of this node in one /tf_static message (module doc)."""
