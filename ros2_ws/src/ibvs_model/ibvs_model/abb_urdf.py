@@ -25,8 +25,9 @@ L153-158), ``flange`` at link_6 (``joint_6-flange``, L161-166), ``tool0`` in ``f
 at rpy (0, pi/2, 0) (``link_6-tool0``, L169-174). The top file ``irb4600_60_205.xacro``
 adds only ``<ros2_control>`` (L13-20).
 
-robot_state_publisher (ros/robot_state_publisher 3.3.3, the version Jazzy ships, rolling
-commit e0f77e62457ae01f8dbf3b5c4cc62d15fa36dfad, ``src/robot_state_publisher.cpp``)
+robot_state_publisher (ros/robot_state_publisher 3.3.3, rolling commit
+e0f77e62457ae01f8dbf3b5c4cc62d15fa36dfad, ``src/robot_state_publisher.cpp``; its jazzy branch
+was not in the mirror)
 publishes, for each moving joint, the KDL segment pose ``origin * Rot(axis, q)`` from parent
 to child link on /tf stamped with the joint state's stamp (``publishTransforms``, L253-276)
 and each fixed joint once on /tf_static (``publishFixedTransforms``, L279-298).

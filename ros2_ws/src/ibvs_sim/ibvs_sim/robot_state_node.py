@@ -7,8 +7,8 @@ from that topic. In simulation this node stands in for it, and nothing else publ
 (the viewers' node publishes only what a cell lacks: docs/visualisation.md). It is the
 simulator's (``ibvs_bringup.graph``: ``sim_side``), so it does not run beside a real cell's
 driver. What it publishes, as robot_state_publisher does (ros/robot_state_publisher 3.3.3,
-the version Jazzy ships; rolling commit e0f77e62457ae01f8dbf3b5c4cc62d15fa36dfad,
-``src/robot_state_publisher.cpp``):
+rolling commit e0f77e62457ae01f8dbf3b5c4cc62d15fa36dfad, the newest the mirror holds: its
+jazzy branch was not there to read; ``src/robot_state_publisher.cpp``):
 
 - /robot_description (std_msgs/String), once at start, QoS depth 1, transient local,
   reliable (``rclcpp::QoS(1).transient_local()``, L132-135; ``contract.LATCHED``):
