@@ -25,7 +25,7 @@ BLOCK = re.compile(r'^```bash\n(.*?)^```', re.MULTILINE | re.DOTALL)
 PAPER_NODES = ('sim_node', 'feature_node', 'adaptive_feedback_node', 'feedforward_node',
                'joint_controller_node')
 #: Every node ibvs_nodes starts: each logs its progress.
-LOGGING = PAPER_NODES + ('viz_node',)
+LOGGING = PAPER_NODES + ('viz_node', 'robot_state_node')
 DURATION_S = 0.3
 
 
@@ -69,7 +69,7 @@ def test_nodes_started_by_hand_log_progress_stop_at_duration_and_stop_together(
         text = log.read_text(errors='replace')
         assert stopped in text, text[-3000:]
         pgids = [int(p) for p in re.search(r'^pids: (.*)$', text, re.MULTILINE).group(1).split()]
-        assert len(pgids) == 6
+        assert len(pgids) == len(LOGGING)
         for node in LOGGING:
             assert f'[{node}]: progress: ' in text, f'{node} logged no progress:\n{text[-3000:]}'
         # The simulator went no further than its duration, and said where it stands.

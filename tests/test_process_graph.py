@@ -16,7 +16,10 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
 NODE_NAMES = {'sim_node', 'feature_node', 'joint_controller_node', 'feedforward_node',
-              'adaptive_feedback_node'}
+              'adaptive_feedback_node', 'robot_state_node'}
+#: The paper's nodes and the simulator's stand-in for robot_state_publisher.
+EXECUTABLES = GRAPH.paper_nodes() + tuple((n.package, n.name) for n in GRAPH.nodes
+                                          if n.sim_side and not n.paper)
 
 #: topic -> (type, publishers, subscribers): the contract of docs/design.md §3.
 EXPECTED = {
@@ -34,7 +37,11 @@ EXPECTED = {
     '/joint_effort_commands': ('sensor_msgs/msg/JointState', 1, 1),
     '/ibvs/tool_path': ('nav_msgs/msg/Path', 1, 0),
     '/stereo/joint_states': ('sensor_msgs/msg/JointState', 1, 0),
-    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 5, 0),
+    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 6, 0),
+    # robot_state_node alone (ABB's frames); the viewers' node is not started here
+    '/robot_description': ('std_msgs/msg/String', 1, 0),
+    '/tf': ('tf2_msgs/msg/TFMessage', 1, 0),
+    '/tf_static': ('tf2_msgs/msg/TFMessage', 1, 0),
 }
 #: Who must read what (subscriber counts of at least these).
 MIN_SUBSCRIBERS = {
@@ -54,7 +61,7 @@ def test_executables_form_the_contract_graph_and_stop_on_sigint(context, install
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(observer)
     try:
-        for package, executable in GRAPH.paper_nodes():
+        for package, executable in EXECUTABLES:
             procs.append(NodeProcess(package, executable, params_file, tmp_path))
         deadline = time.monotonic() + 90.0
         topics = {}

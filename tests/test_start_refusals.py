@@ -25,7 +25,8 @@ import pytest
 #: (package, executable) of every node executable, and compose holding the lockstep pair.
 EXECUTABLES = (('ibvs_sim', 'sim_node'), ('ibvs_vision', 'feature_node'),
                ('ibvs_control', 'adaptive_feedback_node'), ('ibvs_control', 'feedforward_node'),
-               ('ibvs_control', 'joint_controller_node'), ('ibvs_viz', 'viz_node'))
+               ('ibvs_control', 'joint_controller_node'), ('ibvs_viz', 'viz_node'),
+               ('ibvs_sim', 'robot_state_node'))
 #: Values of ROS_DOMAIN_ID refused: rcl reads -1 and 010 as other domains, 102-232 are
 #: outside the safe range, 233 and 1000 overflow Fast DDS's ports, '' is domain 0 to rcl.
 BAD_DOMAINS = ('-1', 'abc', '102', '233', '1000', '', '010', ' 7')

@@ -13,6 +13,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
 
 from . import cases as bad
 from .cases import NAMES
@@ -270,19 +271,24 @@ class JointControllerPositionRig(Rig):
 
 
 class VizRig(Rig):
-    """viz_node: acts by publishing /tf at each joint state, stamped with its stamp."""
+    """
+    viz_node: acts by /ibvs/markers at each joint state, stamped with its stamp.
+
+    ``marker_rate_hz`` 1000: a frame's joint state (33 ms after the last) always draws.
+    """
 
     def __init__(self, context):
         """Create the node (sim time, as ``ibvs run`` starts it)."""
         from ibvs_viz.viz_node import VizNode
-        node = VizNode(context=context, parameter_overrides=SIM_TIME)
+        node = VizNode(context=context, parameter_overrides=SIM_TIME + [
+            Parameter('marker_rate_hz', value=1000.0)])
         super().__init__(context, node, node._diag)
         self.camera = default_camera('HD720')
         self.model = CameraRobotModel(self.camera, IRB4600)
         self.n = 0
-        self.tf = []
-        self.driver.create_subscription(TFMessage, contract.TF, lambda m: self.tf.append(m),
-                                        100)
+        self.drawn = []
+        self.driver.create_subscription(MarkerArray, contract.MARKERS,
+                                        lambda m: self.drawn.append(m), 10)
 
     def setup(self):
         """Send the camera: both CameraInfo and /stereo/pose."""
@@ -306,7 +312,7 @@ class VizRig(Rig):
         self.deliver(contract.FEATURES, features_msg(self.model.features(Q0), t))
         self.deliver(contract.FEATURE_STATUS, bad.status(t, 'measured'))
         self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
-        return lambda: any(stamp_ns(m.transforms[0].header.stamp) == t for m in self.tf)
+        return lambda: any(stamp_ns(m.markers[0].header.stamp) == t for m in self.drawn)
 
     def off_image(self):
         """Return a measured frame's features and status, its features 1e6 px off."""
@@ -317,11 +323,11 @@ class VizRig(Rig):
                 (contract.FEATURE_STATUS, bad.status(t, contract.FEATURE_MEASURED))]
 
     def published_finite(self):
-        """Return whether every /tf it sent was finite."""
-        return bool(self.tf) and all(
-            np.all(np.isfinite([t.transform.translation.x, t.transform.translation.y,
-                                t.transform.translation.z, t.transform.rotation.w]))
-            for m in self.tf for t in m.transforms)
+        """Return whether every /ibvs/markers it sent was finite (poses and points)."""
+        return bool(self.drawn) and all(
+            np.all(np.isfinite([[p.x, p.y, p.z] for p in m.points]
+                               + [[m.pose.position.x, m.pose.position.y, m.pose.position.z]]))
+            for a in self.drawn for m in a.markers)
 
     def cases(self):
         """Return every case of every topic it subscribes."""
@@ -337,6 +343,45 @@ class VizRig(Rig):
                  + bad.camera_infos(contract.LEFT_INFO, left)
                  + bad.camera_infos(contract.RIGHT_INFO, right)
                  + bad.poses(contract.STEREO_POSE, self.camera.pose_C_O)
+                 + bad.clocks())
+        return build(self, specs)
+
+
+class RobotStateRig(Rig):
+    """robot_state_node: acts by publishing /tf at each joint state, stamped with its stamp."""
+
+    def __init__(self, context):
+        """Create the node (sim time, as ``ibvs run`` starts it)."""
+        from ibvs_sim.robot_state_node import RobotStateNode
+        node = RobotStateNode(context=context, parameter_overrides=SIM_TIME)
+        super().__init__(context, node, node._diag)
+        self.n = 0
+        self.tf = []
+        self.driver.create_subscription(TFMessage, contract.TF, lambda m: self.tf.append(m),
+                                        100)
+
+    def next_ns(self):
+        """Return the stamp of the next frame."""
+        return frame_ns(self.n)
+
+    def valid_step(self):
+        """Send the next frame's joint state."""
+        t = self.next_ns()
+        self.n += 1
+        self.deliver(contract.JOINT_STATES, joint_state(t, Q0, np.zeros(6)))
+        return lambda: any(stamp_ns(m.transforms[0].header.stamp) == t for m in self.tf)
+
+    def published_finite(self):
+        """Return whether every /tf it sent was finite."""
+        return bool(self.tf) and all(
+            np.all(np.isfinite([t.transform.translation.x, t.transform.translation.y,
+                                t.transform.translation.z, t.transform.rotation.w]))
+            for m in self.tf for t in m.transforms)
+
+    def cases(self):
+        """Return every case of every topic it subscribes."""
+        specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
+                                  last_ns=lambda: frame_ns(self.n - 1))
                  + bad.clocks())
         return build(self, specs)
 

@@ -201,7 +201,7 @@ def test_fuzz_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
         rig.close()
 
 
-def test_fuzz_a_far_future_joint_state_does_not_stop_the_viz_tf(context):
+def test_fuzz_a_far_future_joint_state_does_not_stop_the_viz_markers(context):
     rig = _run(rigs.VizRig(context))
     try:
         far = joint_state(0, Q0, np.zeros(6))

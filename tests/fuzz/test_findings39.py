@@ -132,10 +132,10 @@ def test_finding8_viz_neither_redraws_a_duplicate_stamp_nor_draws_off_the_image(
     rig = _run(rigs.VizRig(context))
     try:
         last = rigs.frame_ns(rig.n - 1)
-        tf_before = len(rig.tf)
+        drawn_before = len(rig.drawn)
         rig.deliver(contract.JOINT_STATES, joint_state(last, Q0, np.zeros(6)))
         assert rig.reasons(contract.JOINT_STATES)['duplicate stamp'] == 1
-        assert not rig.spin_until(lambda: len(rig.tf) > tf_before, deadline_s=0.3)
+        assert not rig.spin_until(lambda: len(rig.drawn) > drawn_before, deadline_s=0.3)
         for topic, msg in rig.off_image():
             rig.deliver(topic, msg)
         assert rig.reasons(contract.FEATURES)['features off the image'] == 1

@@ -25,6 +25,7 @@ RIGS = {
     'sim_node[trajectory]': lambda context: rigs.SimPositionRig(context, 'joint_trajectory'),
     'joint_controller_node[position]': rigs.JointControllerPositionRig,
     'viz_node': rigs.VizRig,
+    'robot_state_node': rigs.RobotStateRig,
 }
 
 

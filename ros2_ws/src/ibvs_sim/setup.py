@@ -25,6 +25,7 @@ setup(
     entry_points={
         'console_scripts': [
             'sim_node = ibvs_sim.sim_node:main',
+            'robot_state_node = ibvs_sim.robot_state_node:main',
         ],
     },
 )

@@ -47,7 +47,10 @@ class Node:
     the ZED wrapper's names (``camera_topics: zed_wrapper``). ``step0_reads``: the topics of
     step 0 it must be subscribed to before the simulator publishes them (volatile: a node
     that misses them waits for ever). ``paper``: one of the paper's nodes (the viewers' node
-    is not). The ``doc_*`` fields are its row of docs/design.md §1.
+    is not). ``sim_side``: the simulator's, standing in for the cell (the simulator itself,
+    and robot_state_node for the driver's robot_state_publisher): a run beside a real cell
+    (``ibvs cell``) leaves these out (:meth:`Graph.cell_nodes`). The ``doc_*`` fields are
+    its row of docs/design.md §1.
     """
 
     name: str
@@ -59,6 +62,7 @@ class Node:
     zed_remaps: dict = field(default_factory=dict)
     step0_reads: tuple = ()
     paper: bool = True
+    sim_side: bool = False
     doc_module: str = ''
     doc_reads: str = ''
     doc_writes: str = ''
@@ -119,6 +123,14 @@ class Graph:
         """
         return replace(self, nodes=tuple(replace(n, process='') for n in self.nodes))
 
+    def sim_side(self) -> tuple[str, ...]:
+        """Return the names of the simulator's nodes (``Node.sim_side``), in start order."""
+        return tuple(n.name for n in self.nodes if n.sim_side)
+
+    def cell_nodes(self) -> tuple['Node', ...]:
+        """Return the nodes that run beside a real cell: all but the simulator's."""
+        return tuple(n for n in self.nodes if not n.sim_side)
+
     def shared(self, process: str) -> tuple[str, ...]:
         """Return the names of the nodes of the shared process ``process``, in order."""
         return tuple(n.name for n in self.nodes if n.process == process)
@@ -164,11 +176,16 @@ class Graph:
 #: joint loop is serial anyway (issue 24: 2.45 -> 1.56 s per simulated second at HD720 with
 #: the 'opengl' renderer). Each node keeps its executable for ``ros2 run`` and a real cell,
 #: where the joint controller and the vision run without the simulator. ibvs_viz's viz_node
-#: is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag
-#: /robot_description, /tf, /tf_static and /ibvs/markers, from the frames' joint states, so
-#: nothing in the lockstep waits for it once it runs; it runs on its own, and the simulator's
-#: first step waits for its subscriptions like any reader of step 0, so that /tf starts
-#: at t = 0 in the bag.
+#: is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag what a
+#: cell lacks (tool, camera and target frames on /tf_static, /ibvs/markers), from the frames'
+#: joint states, so nothing in the lockstep waits for it once it runs; it runs on its own,
+#: and the simulator's first step waits for its subscriptions like any reader of step 0, so
+#: that its markers start at t = 0 in the bag. ibvs_sim's robot_state_node is the simulated
+#: cell's robot_state_publisher (abb_ros2's bringup starts one on a cell): the only
+#: publisher of /robot_description and of the arm's link frames (ABB's, ibvs_model.abb_urdf),
+#: from the frames' joint states like the viewers' node (its step-0 wait: /tf from t = 0);
+#: it is the simulator's (``sim_side``), so it does not run beside a real cell, whose driver
+#: publishes those.
 GRAPH = Graph(
     nodes=(
         Node('viz_node', 'ibvs_viz', 'ibvs_viz.viz_node', 'VizNode',
@@ -178,8 +195,17 @@ GRAPH = Graph(
              doc_module="pure: `ibvs_viz.scene`; not one of the paper's nodes, §12",
              doc_reads='/joint_states, camera_info, /stereo/pose, /ibvs/features, '
                        '/ibvs/feature_status',
-             doc_writes='/robot_description, /tf, /tf_static, /ibvs/markers',
+             doc_writes='/tf_static (camera, tool, target frames), /ibvs/markers',
              doc_rate='one per frame; nothing waits for it'),
+        Node('robot_state_node', 'ibvs_sim', 'ibvs_sim.robot_state_node', 'RobotStateNode',
+             remaps=FRAME_STATES, paper=False, sim_side=True,
+             step0_reads=(contract.FRAME_JOINT_STATES,),
+             doc_module="pure: `ibvs_model.abb_urdf`; the simulator's stand-in for "
+                        'robot_state_publisher, §12',
+             doc_reads='/joint_states',
+             doc_writes="/robot_description (ABB's frames), /tf (base_link -> link_1..link_6), "
+                        '/tf_static (base, flange, tool0)',
+             doc_rate='/tf one per frame; nothing waits for it'),
         Node('feature_node', 'ibvs_vision', 'ibvs_vision.feature_node', 'FeatureNode',
              process='lockstep', remaps=FRAME_STATES, zed_remaps=ZED_TOPICS,
              step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
@@ -207,6 +233,7 @@ GRAPH = Graph(
              doc_reads='/joint_states, the trajectory, /ibvs/q_feedback',
              doc_writes='/joint_effort_commands', doc_rate='one per /joint_states'),
         Node('sim_node', 'ibvs_sim', 'ibvs_sim.sim_node', 'SimNode', process='lockstep',
+             sim_side=True,
              doc_module='core: `ibvs_sim.simulator.Simulator`, `ibvs_sim.world.World`',
              doc_reads='/joint_effort_commands',
              doc_writes='/joint_states: every physics step (`physics_rate_hz`, 1 kHz); '

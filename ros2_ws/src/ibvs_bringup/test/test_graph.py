@@ -26,6 +26,7 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
     plan = graph.process_plan({})
     assert plan == [
         (ProcessSpec('ibvs_viz', 'viz_node'), _remaps(*FRAME)),
+        (ProcessSpec('ibvs_sim', 'robot_state_node'), _remaps(*FRAME)),
         (ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep'),
          _remaps(*FRAME, node='feature_node') + _remaps(*FRAME, node='adaptive_feedback_node')),
     ]
@@ -35,6 +36,7 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
     images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
               f'{contract.RIGHT_IMAGE}:={contract.ZED_RIGHT_IMAGE}')
     assert zed[ProcessSpec('ibvs_viz', 'viz_node')] == _remaps(*FRAME, *info)
+    assert zed[ProcessSpec('ibvs_sim', 'robot_state_node')] == _remaps(*FRAME)
     assert zed[ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep')] == (
         _remaps(*FRAME, images[0], images[1], *info, node='feature_node')
         + _remaps(*FRAME, *info, node='adaptive_feedback_node')
@@ -45,7 +47,8 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
 def test_the_step0_readers_are_the_runners_of_before():
     assert GRAPH.step0_readers() == {
         contract.JOINT_STATES: ('feedforward_node', 'joint_controller_node'),
-        contract.FRAME_JOINT_STATES: ('viz_node', 'feature_node', 'adaptive_feedback_node'),
+        contract.FRAME_JOINT_STATES: ('viz_node', 'robot_state_node', 'feature_node',
+                                      'adaptive_feedback_node'),
         contract.LEFT_INFO: ('viz_node', 'feature_node', 'adaptive_feedback_node'),
         contract.RIGHT_INFO: ('viz_node', 'feature_node', 'adaptive_feedback_node'),
         contract.TOOL_PATH: (),
@@ -79,8 +82,9 @@ def test_adding_a_node_is_one_entry_of_the_description():
     at = [n.name for n in GRAPH.nodes].index('adaptive_feedback_node') + 1
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (dummy,) + GRAPH.nodes[at:])
     plan = graph.process_plan({}, bigger)
-    assert [spec.name for spec, _ in plan] == ['viz_node', 'dummy_node', 'lockstep']
-    assert plan[1] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
+    assert [spec.name for spec, _ in plan] == ['viz_node', 'robot_state_node', 'dummy_node',
+                                               'lockstep']
+    assert plan[2] == (ProcessSpec('ibvs_dummy', 'dummy_node'),
                        ('-r', f'{contract.LEFT_INFO}:=/elsewhere/camera_info'))
     assert bigger.step0_readers()[contract.JOINT_STATES] == \
         ('dummy_node', 'feedforward_node', 'joint_controller_node')
@@ -94,6 +98,15 @@ def test_adding_a_node_is_one_entry_of_the_description():
     assert spec.nodes == LOCKSTEP[:2] + ('dummy_node',) + LOCKSTEP[2:]
     assert _remaps(f'{contract.LEFT_INFO}:=/elsewhere/camera_info', node='dummy_node') \
         == remaps[-2:]
+
+
+def test_the_simulators_nodes_do_not_run_beside_a_cell():
+    # On a cell the driver's robot_state_publisher publishes the description and the links.
+    assert GRAPH.sim_side() == ('robot_state_node', 'sim_node')
+    assert GRAPH.simulator in GRAPH.sim_side()
+    assert [n.name for n in GRAPH.cell_nodes()] == [
+        'viz_node', 'feature_node', 'adaptive_feedback_node', 'feedforward_node',
+        'joint_controller_node']
 
 
 def test_the_simulator_starts_last():
@@ -123,7 +136,7 @@ def test_the_simulator_waits_for_each_reader_of_step0_and_the_runners_own():
                       contract.CLOCK)
     counts = supervision.expected_readers([recorder, _Local(contract.TOOL_PATH)],
                                           GRAPH.step0_readers(), graph.ZED_TOPICS)
-    assert counts == {contract.JOINT_STATES: 2, contract.FRAME_JOINT_STATES: 3,
+    assert counts == {contract.JOINT_STATES: 2, contract.FRAME_JOINT_STATES: 4,
                       contract.LEFT_INFO: 4, contract.RIGHT_INFO: 3,
                       contract.TOOL_PATH: 2, contract.JOINT_PATH: 1}
     bare = supervision.expected_readers([], {contract.TOOL_PATH: ()})

@@ -1,6 +1,11 @@
 """
 URDF of the IRB 4600-60/2.05 whose joint frames are the paper's DH frames (Table 1, eq. 4-7).
 
+This is the simulator's internal model (PyBullet's bodies, dynamics and images): its link
+frames never leave it. What the cell and its viewers know the arm by is ABB's URDF, whose
+frames :mod:`ibvs_model.abb_urdf` gives (``tool0`` is the same {E} at the same q; each link
+differs by a constant, :func:`ibvs_model.abb_urdf.dh_link_offsets`).
+
 Pure Python (no ROS, no PyBullet): the simulator loads the text with PyBullet, a controller
 may load it into any dynamics library, and ``robot_urdf(params.scaled(l2, l4))`` builds the
 robot of the model-uncertainty study (paper Figure 13) with the same code.

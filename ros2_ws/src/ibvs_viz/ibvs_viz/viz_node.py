@@ -1,33 +1,35 @@
 """
-viz_node: /robot_description, /tf, /tf_static and /ibvs/markers for RViz and Foxglove.
+viz_node: what a viewer (RViz, Foxglove) needs that a cell does not publish.
 
-What ``robot_state_publisher`` and a marker publisher would give a viewer, from our own
-kinematics (:mod:`ibvs_viz.scene`; robot_state_publisher and tf2_ros are not on PyPI):
+The arm is not its business: on a cell abb_ros2's robot_state_publisher publishes
+/robot_description and the link frames from ABB's URDF, in simulation ibvs_sim's
+robot_state_node does the same (ABB's frames, :mod:`ibvs_model.abb_urdf`); this node
+publishes neither, so that a viewer and the controller manager get one value for each.
+It publishes:
 
-- /robot_description (std_msgs/String, transient local): :func:`scene.cell_urdf`, the arm,
-  tool, markers and the ZED 2 with primitive shapes, once the camera is known (both
-  CameraInfo and /stereo/pose);
 - /tf_static (tf2_msgs/TFMessage, transient local, one message as tf2_ros's static
-  broadcaster sends): the fixed joints of that URDF (tool0, screwdriver, markers, the
-  camera's optical frames; the camera where /stereo/pose, or the ``camera_pose``
-  parameter, puts it, as the controllers take it) and the target flange pose
-  ``ibvs_target``; and, where a lens's CameraInfo names another frame than ours (the ZED
-  wrapper's ``zed_left_camera_frame_optical``: zed-ros2-wrapper master 33dfefa,
+  broadcaster sends, again whole when the camera is known or changes): the tool fixed to
+  ABB's ``tool0`` (the paper's flange {E}; ``screwdriver``, ``marker_1`` at P1,
+  ``marker_2`` at P2: :func:`scene.tool_transforms`; ``tool_frames_tf``: off where the
+  cell's URDF has the tool), the target flange pose ``ibvs_target``, and once the camera is
+  known (both CameraInfo and /stereo/pose, or the hand-eye ``camera_pose`` parameter, as
+  the controllers take it) the camera's frames (:func:`scene.camera_transforms`); and,
+  where a lens's CameraInfo names another frame than ours (the ZED wrapper's
+  ``zed_left_camera_frame_optical``: zed-ros2-wrapper master 33dfefa,
   ``zed_components/src/zed_camera/src/zed_camera_component_main.cpp`` L2251, camera name
-  ``zed`` by default), that frame at our lens's optical frame, so
-  that a viewer places the images (RViz's Camera display) and the hand-eye ``camera_pose``
-  is a transform to the images' frames (``image_frames_tf``: off where the camera driver
-  publishes those frames itself, as zed-ros2-wrapper does with its URDF);
-- /tf: the six links at each joint state, stamped with its stamp. The angles drawn are
-  the true ones the simulator renders, encoder + ``disturbance_deg`` (d_q, eq. 30; 0 on a
-  real cell), of the simulated robot (``l2_scale``, ``l4_scale``), so that tool0 is the
-  pose the camera sees; with d_q = 0 it is exactly what robot_state_publisher gives;
+  ``zed`` by default), that frame at our lens's optical frame, so that a viewer places the
+  images (RViz's Camera display) and the hand-eye ``camera_pose`` is a transform to the
+  images' frames (``image_frames_tf``: off where the camera driver publishes those frames
+  itself, as zed-ros2-wrapper does with its URDF);
 - /ibvs/markers (visualization_msgs/MarkerArray), at most ``marker_rate_hz`` in sim time:
-  each lens's field of view to ``frustum_depth_m``, the target pose (an arrow along the
-  tool axis and the two markers where they must end), the tool's path so far, the two
-  markers estimated by the nominal model at the encoder angles (F of eq. 30, what the
-  feature node falls back to) and, when the feature node measured them, triangulated from
-  /ibvs/features (eq. 19-22 inverted).
+  the shapes no URDF of the cell has (the screwdriver and the two fiducial spheres in their
+  frames, the ZED 2's body on ``stereo_center_optical_frame``), each lens's field of view
+  to ``frustum_depth_m``, the target pose (an arrow along the tool axis and the two markers
+  where they must end), the tool's path so far (the true angles the simulator renders,
+  encoder + ``disturbance_deg``: d_q, eq. 30, 0 on a real cell; of the simulated robot,
+  ``l2_scale``, ``l4_scale``), the two markers estimated by the nominal model at the
+  encoder angles (F of eq. 30, what the feature node falls back to) and, when the feature
+  node measured them, triangulated from /ibvs/features (eq. 19-22 inverted).
 
 It reads /joint_states; ``ibvs run`` remaps that to /stereo/joint_states (one per camera
 frame), so the node does not slow the 1 kHz lockstep. Bad inputs are rejected with a logged
@@ -59,14 +61,16 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
-from ibvs_model import IRB4600
-from ibvs_model.robot import fiducial_points
+from ibvs_model import abb_urdf, IRB4600
+from ibvs_model.abb_urdf import rpy_matrix
+from ibvs_model.robot import fiducial_points, forward_kinematics
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.time import Time
 from sensor_msgs.msg import CameraInfo, JointState
-from std_msgs.msg import ColorRGBA, String
+from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -90,12 +94,16 @@ PARAMS = (
           'names, where it is not ours, at our optical frame of that lens (false where the '
           'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)',
           '-'),
+    Param('tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, "
+          "marker_2) on /tf_static fixed to tool0 (false where the cell's URDF has the tool)",
+          '-'),
     Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
           'oldest go first)', '-', low=2, high=1_000_000),
 )
 #: Marker namespaces, one per thing drawn.
 NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'
 NS_MEASURED, NS_ESTIMATED = 'markers_measured', 'markers_estimated'
+NS_TOOL, NS_CAMERA = 'tool', 'camera_body'
 #: Feature frames kept while their /ibvs/feature_status is awaited.
 _PENDING_FEATURES = 8
 
@@ -129,7 +137,7 @@ def _points(array):
 
 
 class VizNode(Node):
-    """Publish what a 3D viewer needs to show the cell (module docstring)."""
+    """Publish what a viewer needs that a cell does not publish (module docstring)."""
 
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the publishers and subscriptions."""
@@ -142,6 +150,7 @@ class VizNode(Node):
         self._frustum_depth = p['frustum_depth_m']
         self._path_points = p['tool_path_points']
         self._image_frames_tf = p['image_frames_tf']
+        self._tool_frames_tf = p['tool_frames_tf']
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         self._infos = {}
         self._pose_msg = None
@@ -157,17 +166,14 @@ class VizNode(Node):
         self.measured = None
         self._estimated = None
 
-        self._diag = Diagnostics(self, 'robot description, tf and markers')
-        self._diag.update(waiting_for='camera_info, /stereo/pose', tf_published=0,
+        self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
+        self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)
-        self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (
-            f"/tf of {self._diag.values['tf_published']} joint states (last at "
-            f'{self._last_joint_ns * 1e-9:.3f} s), '
-            f"{self._diag.values['markers_published']} /ibvs/markers"))
-        self._description_pub = self.create_publisher(String, contract.ROBOT_DESCRIPTION,
-                                                      contract.LATCHED)
+        self._diag.log_progress(lambda: None if not self._diag.values['joint_states_taken']
+                                else (f"{self._diag.values['joint_states_taken']} joint states "
+                                      f'(last at {self._last_joint_ns * 1e-9:.3f} s), '
+                                      f"{self._diag.values['markers_published']} /ibvs/markers"))
         self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
-        self._tf_pub = self.create_publisher(TFMessage, contract.TF, 100)
         self._markers_pub = self.create_publisher(MarkerArray, contract.MARKERS, 10)
         # The resolved names (the ZED wrapper's under a remap): rejections and waits name them.
         self._info_topics = {}
@@ -188,6 +194,7 @@ class VizNode(Node):
         self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
                                  contract.RELIABLE)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._publish_static()
         self._waiting_timer = self.create_timer(1.0, self._say_waiting, clock=self._steady)
 
     # --- camera and static frames ----------------------------------------------------------
@@ -232,22 +239,29 @@ class VizNode(Node):
             self._diag.reject(source, getattr(exc, 'reason', 'bad camera'), str(exc))
             return
         self._camera = camera
-        baseline = camera.intrinsics.baseline
-        self._description_pub.publish(String(data=scene.cell_urdf(self._params,
-                                                                  camera.pose_C_O, baseline)))
-        static = (scene.robot_fixed_transforms(self._params)
-                  + scene.camera_transforms(camera.pose_C_O, baseline)
-                  + [(contract.BASE_FRAME, scene.TARGET_FRAME, self._target)])
-        if self._image_frames_tf:
-            static += self._image_frames(static)
-        self._static_pub.publish(transforms_msg(static, self._pose_msg.header.stamp))
+        self._publish_static()
         self._diag.update(waiting_for='')
-        self.get_logger().info('camera known: /robot_description and /tf_static published')
+        self.get_logger().info('camera known: its frames published on /tf_static')
+
+    def _publish_static(self):
+        """Publish every fixed frame of this node in one /tf_static message (module doc)."""
+        static = [(contract.BASE_FRAME, scene.TARGET_FRAME, self._target)]
+        if self._tool_frames_tf:
+            static += scene.tool_transforms(self._params)
+        stamp = Time().to_msg()
+        if self._camera is not None:
+            static += scene.camera_transforms(self._camera.pose_C_O,
+                                              self._camera.intrinsics.baseline)
+            if self._image_frames_tf:
+                static += self._image_frames(static)
+            stamp = self._pose_msg.header.stamp
+        self._static_pub.publish(transforms_msg(static, stamp))
 
     def _image_frames(self, static):
         """Return (our lens frame, the image's frame, identity) where the images name others."""
         ours = {frame for parent, child, _ in static for frame in (parent, child)}
-        ours.update(child for _, child, _ in scene.joint_transforms(np.zeros(6), self._params))
+        ours.update(abb_urdf.link_poses(np.zeros(6)))  # the arm's, a cell's URDF's
+        ours.update(scene.TOOL_FRAMES)
         out = []
         for side, lens in zip(('left', 'right'), scene.LENS_FRAMES):
             frame = self._infos[side].header.frame_id
@@ -323,11 +337,9 @@ class VizNode(Node):
             return
         self._order.take(topic, t_ns)
         self._last_joint_ns = t_ns
-        q_true = q + self._d_q
-        joints = scene.joint_transforms(q_true, self._params)
-        self._tf_pub.publish(transforms_msg(joints, msg.header.stamp))
-        self._diag.values['tf_published'] += 1
-        tool = scene.link_poses(q_true, self._params)[scene.TOOL_FRAME]
+        self._diag.values['joint_states_taken'] += 1
+        # ABB's tool0 is the flange {E} of eq. (7): the true arm's, where the camera sees it.
+        tool = forward_kinematics(q + self._d_q, self._params)
         self._path = (self._path + [tool[:3, 3]])[-self._path_points:]
         self._estimated = fiducial_points(q, IRB4600)
         if self._camera is not None and (self._last_markers_ns is None or
@@ -349,6 +361,22 @@ class VizNode(Node):
     def markers(self, stamp):
         """Return the MarkerArray of the current state (module docstring lists it)."""
         out = MarkerArray()
+        kinds = {'cylinder': Marker.CYLINDER, 'sphere': Marker.SPHERE}
+        for i, (frame, solid) in enumerate(scene.tool_solids(self._params)):
+            m = self._marker(NS_TOOL, i, kinds[solid.kind], stamp, frame)
+            m.pose = matrix_poses([scene.translation(solid.xyz) @ rpy_matrix(solid.rpy)])[0]
+            if solid.kind == 'cylinder':
+                m.scale.x = m.scale.y = 2.0 * solid.size[0]
+                m.scale.z = solid.size[1]
+                m.color = _rgba((0.35, 0.35, 0.35))
+            else:
+                m.scale.x = m.scale.y = m.scale.z = 2.0 * solid.size[0]
+                m.color = MARKER_COLOURS[int(frame[-1]) - 1]
+            out.markers.append(m)
+        body = self._marker(NS_CAMERA, 0, Marker.CUBE, stamp, contract.CAMERA_FRAME)
+        body.scale.x, body.scale.y, body.scale.z = scene.ZED2_BODY_SIZE_M
+        body.color = _rgba((0.1, 0.1, 0.1))
+        out.markers.append(body)
         lines = scene.frustum_lines(self._camera.intrinsics, self._frustum_depth)
         for i, frame in enumerate(scene.LENS_FRAMES):
             m = self._marker(NS_FRUSTUM, i, Marker.LINE_LIST, stamp, frame)

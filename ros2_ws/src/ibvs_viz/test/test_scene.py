@@ -1,12 +1,11 @@
-"""The viewer's frame tree and URDF give ibvs_model's kinematics (eq. 4-10) and camera."""
+"""The frames the viewers' node adds (tool, camera) give ibvs_model's eq. (8-10) and camera."""
 
-import io
 import json
 from pathlib import Path
 import re
 
 from ibvs_common import contract
-from ibvs_model import default_camera, forward_kinematics, IRB4600
+from ibvs_model import abb_urdf, default_camera, forward_kinematics, IRB4600
 from ibvs_model.robot import fiducial_points
 from ibvs_viz import scene
 import numpy as np
@@ -21,12 +20,23 @@ PARAMS = (IRB4600, IRB4600.scaled(0.8, 1.15))
 
 
 @pytest.mark.parametrize('params', PARAMS)
-def test_frame_tree_gives_the_flange_and_the_markers(params):
+def test_the_tool_on_abbs_tool0_gives_the_markers(params):
     for q in ANGLES:
-        poses = scene.link_poses(q, params)
-        np.testing.assert_allclose(poses['tool0'], forward_kinematics(q, params), atol=1e-12)
+        tool0 = abb_urdf.tool0_pose(q, params)
+        poses = {child: tool0 @ tf for parent, child, tf in scene.tool_transforms(params)
+                 if parent == 'tool0'}
+        assert set(poses) == set(scene.TOOL_FRAMES)
+        np.testing.assert_allclose(poses['screwdriver'], forward_kinematics(q, params),
+                                   atol=1e-12)
         markers = np.array([poses['marker_1'][:3, 3], poses['marker_2'][:3, 3]])
         np.testing.assert_allclose(markers, fiducial_points(q, params), atol=1e-12)
+
+
+def test_the_tool_solids_sit_in_the_tool_frames():
+    solids = scene.tool_solids()
+    assert {frame for frame, _ in solids} == set(scene.TOOL_FRAMES)
+    shaft = [s for frame, s in solids if frame == 'screwdriver'][0]
+    assert shaft.kind == 'cylinder' and shaft.size[1] == IRB4600.L_tool
 
 
 def test_lens_frames_are_where_the_projection_puts_the_lenses():
@@ -54,26 +64,6 @@ def test_frustum_reaches_the_image_corners():
     v = k.fv * far[:, 1] / far[:, 2] + k.cv
     np.testing.assert_allclose(sorted(set(np.round(u, 9))), [-0.5, k.width - 0.5])
     np.testing.assert_allclose(sorted(set(np.round(v, 9))), [-0.5, k.height - 0.5])
-
-
-@pytest.mark.parametrize('params', PARAMS)
-def test_urdf_parses_and_its_kinematics_is_ibvs_models(params):
-    yourdfpy = pytest.importorskip('yourdfpy')
-    camera = default_camera('HD720')
-    text = scene.cell_urdf(params, camera.pose_C_O, camera.intrinsics.baseline)
-    assert 'filename' not in text  # nothing a viewer would have to find beside it
-    urdf = yourdfpy.URDF.load(io.StringIO(text), build_scene_graph=True,
-                              load_meshes=False)
-    assert list(urdf.actuated_joint_names) == list(contract.JOINT_NAMES)
-    for q in ANGLES:
-        urdf.update_cfg(q)
-        np.testing.assert_allclose(urdf.get_transform('tool0', 'base_link'),
-                                   forward_kinematics(q, params), atol=1e-6)
-        for k, point in enumerate(fiducial_points(q, params), start=1):
-            np.testing.assert_allclose(urdf.get_transform(f'marker_{k}', 'base_link')[:3, 3],
-                                       point, atol=1e-6)
-    np.testing.assert_allclose(urdf.get_transform(contract.CAMERA_FRAME, 'base_link'),
-                               camera.pose_C_O, atol=1e-9)
 
 
 def test_foxglove_layout_shows_the_graphs_topics():

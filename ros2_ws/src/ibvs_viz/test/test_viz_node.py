@@ -2,7 +2,9 @@
 viz_node in an rclpy executor: what a viewer gets from camera, joint states and features.
 
 A driver node publishes the simulator's and the feature node's topics; the viz node's
-/robot_description, /tf_static, /tf and /ibvs/markers are checked against ibvs_model.
+/tf_static and /ibvs/markers are checked against ibvs_model, with ABB's tool0 (where the
+cell's robot_state_publisher, or ibvs_sim's robot_state_node, puts it). It publishes neither
+/robot_description nor /tf.
 """
 
 
@@ -13,11 +15,13 @@ from ibvs_common.contract import MARKERS, ROBOT_DESCRIPTION, TF, TF_STATIC
 from ibvs_common.conversions import (camera_infos, feature_status_msg, features_msg,
                                      FeatureStatus, joint_state, pose_matrix, pose_stamped)
 from ibvs_common.params import ParameterError
-from ibvs_model import CameraRobotModel, default_camera, forward_kinematics, IRB4600, paper
+from ibvs_model import (abb_urdf, CameraRobotModel, default_camera, forward_kinematics,
+                        IRB4600, paper)
 from ibvs_model.robot import fiducial_points
 from ibvs_testing.fixtures import spin_until
 from ibvs_viz import scene
-from ibvs_viz.viz_node import NS_ESTIMATED, NS_MEASURED, NS_PATH, VizNode
+from ibvs_viz.viz_node import (NS_CAMERA, NS_ESTIMATED, NS_MEASURED, NS_PATH, NS_TOOL,
+                               VizNode)
 import numpy as np
 import pytest
 from rclpy.node import Node
@@ -84,14 +88,26 @@ def rig(context, executor_of):
     return executor, driver, node
 
 
-def chain(tf_messages):
-    """Compose the transforms of several TFMessages from base_link, as a tf listener does."""
+def has_camera(driver):
+    """Whether the newest /tf_static has the camera's frames."""
+    return bool(driver.got[TF_STATIC]) and contract.CAMERA_FRAME in {
+        t.child_frame_id for t in driver.got[TF_STATIC][-1].transforms}
+
+
+def chain(tf_messages, known=None):
+    """
+    Compose the transforms of TFMessages from base_link, as a tf listener does.
+
+    ``known``: {frame: T_frame^base_link} of frames another node publishes (the arm's).
+    """
     local = {t.child_frame_id: (t.header.frame_id, t.transform)
              for msg in tf_messages for t in msg.transforms}
+    known = {contract.BASE_FRAME: np.eye(4), **(known or {})}
 
     def pose(frame):
-        if frame == contract.BASE_FRAME:
-            return np.eye(4)
+        if frame in known:
+            assert frame not in local, f'{frame} published by the viz node too'
+            return known[frame]
         parent, tf = local[frame]
         m = pose_matrix(type('Pose', (), {'position': tf.translation,
                                           'orientation': tf.rotation}))
@@ -99,26 +115,44 @@ def chain(tf_messages):
     return pose
 
 
-def test_description_static_frames_and_links_match_the_model(rig):
+def test_static_frames_match_the_model_and_nothing_of_the_arm_is_published(rig):
     executor, driver, node = rig
+    # Before the camera is known: the tool on tool0 and the target.
+    spin_until(executor, lambda: driver.got[TF_STATIC], what='the first /tf_static')
+    true_q = Q + np.radians(D_Q_DEG)
+    arm = abb_urdf.link_poses(true_q)  # what robot_state_publisher gives a listener
+    first = chain([driver.got[TF_STATIC][-1]], arm)
+    assert {t.child_frame_id for t in driver.got[TF_STATIC][-1].transforms} == {
+        'screwdriver', 'marker_1', 'marker_2', scene.TARGET_FRAME}
+    np.testing.assert_allclose(first('screwdriver'), forward_kinematics(true_q), atol=1e-12)
+    markers = np.array([first('marker_1')[:3, 3], first('marker_2')[:3, 3]])
+    np.testing.assert_allclose(markers, fiducial_points(true_q), atol=1e-12)
     camera = default_camera('VGA')
     driver.camera(camera)
-    spin_until(executor, lambda: driver.got[TF_STATIC] and driver.got[ROBOT_DESCRIPTION],
-               what='/tf_static and /robot_description')
-    urdf = driver.got[ROBOT_DESCRIPTION][-1].data
-    assert '<robot name=' in urdf and contract.LEFT_CAMERA_FRAME in urdf
+    spin_until(executor, lambda: has_camera(driver), what='/tf_static with the camera')
     driver.pub['joints'].publish(joint_state(34_000_000, Q))
-    spin_until(executor, lambda: driver.got[TF] and driver.got[MARKERS], what='/tf, markers')
-    tf = driver.got[TF][-1]
-    assert tf.transforms[0].header.stamp.nanosec == 34_000_000
-    assert [t.child_frame_id for t in tf.transforms] == [f'link_{i}' for i in range(1, 7)]
-    pose = chain([driver.got[TF_STATIC][-1], tf])
-    # The true arm the camera sees: encoder angles plus d_q.
-    np.testing.assert_allclose(pose('tool0'), forward_kinematics(Q + np.radians(D_Q_DEG)),
-                               atol=1e-9)
+    spin_until(executor, lambda: driver.got[MARKERS], what='markers')
+    assert not driver.got[ROBOT_DESCRIPTION] and not driver.got[TF]
+    pose = chain([driver.got[TF_STATIC][-1]], arm)
+    np.testing.assert_allclose(pose('marker_2')[:3, 3], fiducial_points(true_q)[1],
+                               atol=1e-12)
     np.testing.assert_allclose(pose(contract.CAMERA_FRAME), camera.pose_C_O, atol=1e-9)
     target = paper.target_pose(paper.TARGET_POSITION, np.ravel(paper.TARGET_ROTATION))
     np.testing.assert_allclose(pose(scene.TARGET_FRAME), target, atol=1e-9)
+    # The shapes no URDF of the cell has, drawn in their frames.
+    drawn = {(m.ns, m.header.frame_id) for m in driver.got[MARKERS][-1].markers}
+    assert {(NS_TOOL, f) for f in scene.TOOL_FRAMES} | {(NS_CAMERA, contract.CAMERA_FRAME)} \
+        <= drawn
+
+
+def test_tool_frames_stay_off_where_the_cells_urdf_has_them(context, executor_of):
+    node = VizNode(context=context,
+                   parameter_overrides=[Parameter('tool_frames_tf', value=False)])
+    driver = Driver(context)
+    executor = executor_of(node, driver)
+    spin_until(executor, lambda: driver.got[TF_STATIC], what='/tf_static')
+    assert [t.child_frame_id for t in driver.got[TF_STATIC][-1].transforms] == [
+        scene.TARGET_FRAME]
 
 
 def test_the_frames_the_images_name_are_placed_at_the_lenses(rig):
@@ -130,10 +164,8 @@ def test_the_frames_the_images_name_are_placed_at_the_lenses(rig):
     for side, info in zip(('left_info', 'right_info'), infos):
         driver.pub[side].publish(info)
     driver.pub['pose'].publish(pose_stamped(camera.pose_C_O, 0))
-    spin_until(executor, lambda: driver.got[TF_STATIC], what='/tf_static')
-    driver.pub['joints'].publish(joint_state(0, Q))
-    spin_until(executor, lambda: driver.got[TF], what='/tf')
-    pose = chain([driver.got[TF_STATIC][-1], driver.got[TF][-1]])
+    spin_until(executor, lambda: has_camera(driver), what='/tf_static with the camera')
+    pose = chain([driver.got[TF_STATIC][-1]])
     for ours, theirs in zip(scene.LENS_FRAMES,
                             (contract.ZED_LEFT_FRAME, contract.ZED_RIGHT_FRAME)):
         np.testing.assert_array_equal(pose(theirs), pose(ours))
@@ -182,7 +214,7 @@ def test_bad_joint_state_is_rejected_and_counted(rig):
     spin_until(executor, lambda: any(
         d.get('rejected[/joint_states: non-finite position]') == '1'
         for d in driver.got['diag']), what='the rejection on /diagnostics')
-    assert not driver.got[TF]
+    assert node._diag.values['joint_states_taken'] == 0
 
 
 def test_bad_parameter_is_refused_with_its_range(context):
@@ -190,3 +222,5 @@ def test_bad_parameter_is_refused_with_its_range(context):
         VizNode(context=context, parameter_overrides=[Parameter('marker_rate_hz', value=0.0)])
     with pytest.raises(ParameterError, match='image_frames_tf'):
         VizNode(context=context, parameter_overrides=[Parameter('image_frames_tf', value=2)])
+    with pytest.raises(ParameterError, match='tool_frames_tf'):
+        VizNode(context=context, parameter_overrides=[Parameter('tool_frames_tf', value=1)])
