@@ -13,7 +13,8 @@ A target is kept when (each a margin below, :class:`Margins`):
 - both markers are in view of both lenses: each marker's disc (radius
   :data:`.scene.MARKER_RADIUS_M` at its depth) ``image_margin_px`` inside both images, at
   least ``min_depth_m`` deep, and the two discs apart by their radii and
-  ``marker_gap_px`` (:func:`.scene.discs_apart`);
+  ``marker_gap_px`` (:func:`.scene.discs_apart`), and neither lens sees P1 from within
+  ``wrist_clear_deg`` of straight behind the wrist (:func:`.scene.wrist_clear`);
 - the flange and both markers are ``pedestal_clearance_m`` clear of the pedestal (the
   robot's base: a vertical cylinder of radius ``pedestal_radius_m`` about the z axis of {O}
   from the floor to the shoulder), ``floor_clearance_m`` above the floor (``z =
@@ -44,7 +45,7 @@ from .camera import look_at, StereoCamera, StereoIntrinsics
 from .combined import CameraRobotModel
 from .errors import ModelError
 from .robot import fiducial_points, forward_kinematics, ik_position_axis, IRB4600
-from .scene import discs_apart, MARKER_RADIUS_M
+from .scene import discs_apart, MARKER_RADIUS_M, wrist_clear, WRIST_CLEAR_DEG
 
 #: The version of the task set: a task set is (VERSION, n, seed). Change it with anything
 #: that changes which tasks a seed draws (the bounds, margins, camera or the draw order).
@@ -59,6 +60,7 @@ class Margins:
     image_margin_px: float = 10.0
     min_depth_m: float = 1.0
     marker_gap_px: float = 1.0
+    wrist_clear_deg: float = WRIST_CLEAR_DEG
     pedestal_radius_m: float = 0.45
     pedestal_top_m: float = 0.6
     pedestal_clearance_m: float = 0.2
@@ -158,6 +160,8 @@ def target_check(model: CameraRobotModel, q: ArrayLike, margins: Margins = Margi
         return 'a marker out of view (with the margin)'
     if not discs_apart(model.camera, points, margins.marker_gap_px):
         return 'the markers overlap in an image'
+    if not wrist_clear(model.camera, points, margins.wrist_clear_deg):
+        return 'a lens looks at P1 from behind the wrist'
     return None
 
 
