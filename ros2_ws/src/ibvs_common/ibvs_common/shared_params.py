@@ -171,6 +171,6 @@ def start_joints(values: Any) -> NDArray[np.float64] | None:
         return None
     if len(values) != 6:
         raise ParameterError(f"parameter 'start_joints' = {list(values)!r} is invalid: has "
-                             f'{len(values)} values; allowed: empty (the scenario\'s start) '
+                             f"{len(values)} values; allowed: empty (the scenario's start) "
                              'or 6 joint angles (rad)', START_JOINTS.name)
     return np.asarray(values, dtype=float)

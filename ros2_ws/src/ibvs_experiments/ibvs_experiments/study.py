@@ -367,7 +367,7 @@ def check_spec(spec: study_spec.Spec) -> None:
             if not named:
                 raise
             raise scenario.ScenarioError(
-                f'{exc} (from the spec\'s {spec.origin(named[0])})') from None
+                f"{exc} (from the spec's {spec.origin(named[0])})") from None
 
 
 @dataclass(frozen=True)

@@ -249,8 +249,8 @@ def _args(args, kind, meaning, ok, where):
         if not args[0] or len(args[0]) != len(args[1]):
             raise StudyError(f'{where}: a vector draw needs two non-empty lists of the same '
                              f'length, got {args!r}')
-        pairs = [(_number(x, f'{where}[0][{i}]', integer), _number(y, f'{where}[1][{i}]',
-                                                                     integer))
+        pairs = [(_number(x, f'{where}[0][{i}]', integer),
+                  _number(y, f'{where}[1][{i}]', integer))
                  for i, (x, y) in enumerate(zip(*args))]
         for i, (a, b) in enumerate(pairs):
             if not ok(a, b):

@@ -263,4 +263,3 @@ def describe(margins: Margins = Margins()) -> dict[str, Any]:
     """Return the task set's definition (version, box, margins) for a task file's header."""
     return {'version': VERSION, 'target_box_m': [list(b) for b in TARGET_BOX_M],
             'margins': asdict(margins)}
-

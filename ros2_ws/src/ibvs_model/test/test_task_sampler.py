@@ -73,8 +73,8 @@ def test_tasks_are_deterministic_by_seed_and_a_prefix_of_a_longer_set(tasks):
     assert task_sampler.tasks(5, 11) == tasks[:5]
     other = task_sampler.tasks(5, 12)
     assert [t['target_position'] for t in other] != [t['target_position'] for t in tasks[:5]]
-    assert [t['id'] for t in tasks[:2]] == [f'{task_sampler.VERSION}/11/0',
-                                           f'{task_sampler.VERSION}/11/1']
+    assert [t['id'] for t in tasks[:2]] == [
+        f'{task_sampler.VERSION}/11/0', f'{task_sampler.VERSION}/11/1']
     # The targets spread over the workspace: not one corner of the box.
     xyz = np.array([t['target_position'] for t in tasks])
     assert np.ptp(xyz[:, 0]) > 1.0 and np.ptp(xyz[:, 2]) > 0.3
