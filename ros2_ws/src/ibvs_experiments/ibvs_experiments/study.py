@@ -62,7 +62,10 @@ PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_contro
 #: that a change to the study or report layer keeps the runs cached.
 NOT_IN_A_RUN = ('ibvs_experiments/study.py', 'ibvs_experiments/study_spec.py',
                 'ibvs_experiments/report.py', 'ibvs_experiments/laws_report.py',
-                'ibvs_experiments/bench.py')
+                'ibvs_experiments/bench.py', 'ibvs_experiments/tasks.py',
+                # Draws tasks before the runs; a run gets the task's values as overrides,
+                # which its key holds.
+                'ibvs_model/task_sampler.py')
 #: Metrics in the study table, in this order: both deciding errors (1 mm, 0.5 deg), then
 #: what the loop ran on: the feedback's time on model estimates, the joints' peak speed
 #: against the IRB 4600's (docs/results.md, glossary).
