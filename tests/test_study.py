@@ -161,3 +161,42 @@ def test_ctrl_c_stops_every_run_leaves_nothing_and_keeps_finished_runs(
     records, todo = study.plan([study_spec.load(spec_path)], out)
     assert {r['key'] for r in records['two'] if r.get('cached')} == {r['key'] for r in done}
     assert len(todo) == 3 - len(done)
+
+
+@pytest.mark.slow
+def test_a_study_of_drawn_tasks_runs_each_task_with_its_values_as_drawn(
+        installed_workspace, tmp_path):
+    # Two runs, each its own draw (per_run): a workspace task, an integer seed and a vector
+    # of tiny floats (1e-05 is a string to YAML 1.1 unless written as a float).
+    path = tmp_path / 'tasks.yaml'
+    path.write_text(yaml.safe_dump({
+        'name': 'tasks', 'scenario': 'scenario1', 'duration_s': 0.3,
+        'parameters': CHEAP_FRAMES,
+        'draws': {'n': 2, 'seed': 4, 'mode': 'per_run', 'task': {'seed': 3},
+                  'parameters': {
+                      'camera_seed': {'integers': [0, 1000]},
+                      'camera_pose_error_xyz_m': {'uniform': [[-2e-05] * 3, [-1e-05] * 3]}}}},
+        sort_keys=False))
+    spec = study_spec.load(path)
+    out = tmp_path / 'studies'
+    records = study.run_studies([spec], out, parallel=2, domains=DOMAINS)['tasks']
+    assert [r['status'] for r in records] == ['ok', 'ok'], [r.get('reason') for r in records]
+    for record, run in zip(records, spec.runs()):
+        assert record['niceness'] == study.WORKER_NICENESS
+        given = yaml.safe_load((Path(record['run_dir']) / 'params.yaml').read_text())
+        given = given['/**']['ros__parameters']
+        for name in ('start_joints', 'target_position', 'target_rotation', 'camera_seed',
+                     'camera_pose_error_xyz_m'):
+            assert given[name] == run.overrides[name], name
+        assert all(isinstance(v, float) for v in given['camera_pose_error_xyz_m'])
+        assert isinstance(given['camera_seed'], int)
+        # The run started at the task's start: its initial error is the task's.
+        start_error = record['metrics']['initial_position_error_m']
+        assert start_error > 0.02
+    with open(out / 'tasks' / 'table.csv') as f:
+        rows = list(csv.DictReader(f))
+    assert [row['task'] for row in rows] == [r['swept']['task'] for r in records]
+    assert all(float(row['task_observability']) > 0 for row in rows)
+    assert all(row['miss_reason'] in ('', 'timed out') for row in rows)  # 0.3 s: no success
+    assert not (out / 'tasks' / 'error_vs_camera_seed.png').exists()
+    assert (out / 'tasks' / 'error_vs_task_observability.png').stat().st_size > 0

@@ -17,6 +17,9 @@ from .params import Param, ParameterError
 
 SCENARIO = Param('scenario', 1, 'paper scenario (section 5.1) giving the start pose', '-',
                  low=1, high=3)
+START_JOINTS = Param(
+    'start_joints', [], 'start joint angles (true angles, 6 values) of a task; empty: the '
+    "scenario's start pose", 'rad', low=-7.0, high=7.0)
 DISTURBANCE_DEG = Param(
     'disturbance_deg', [0.0] * 6,
     'joint disturbance d_q: true angle = encoder angle + d_q (paper: scenarios 1 and 3)',
@@ -154,3 +157,20 @@ def camera_pose_from(values: Mapping[str, Any]) -> NDArray[np.float64] | None:
     tf[:3, :3] = Rotation.from_quat(pose[3:]).as_matrix()
     tf[:3, 3] = pose[:3]
     return tf
+
+
+def start_joints(values: Any) -> NDArray[np.float64] | None:
+    """
+    Return ``start_joints`` as 6 angles (rad), or None when empty (the scenario's start).
+
+    Raises :class:`ParameterError` naming it unless it is empty or has 6 values. The
+    simulator and the model-only loop start from it alike (issue 38: tasks as data).
+    """
+    values = START_JOINTS.check(list(values))
+    if not values:
+        return None
+    if len(values) != 6:
+        raise ParameterError(f"parameter 'start_joints' = {list(values)!r} is invalid: has "
+                             f"{len(values)} values; allowed: empty (the scenario's start) "
+                             'or 6 joint angles (rad)', START_JOINTS.name)
+    return np.asarray(values, dtype=float)

@@ -51,6 +51,7 @@ class LoopConfig(ParamConfig):
     """
 
     scenario: int = param_field(shared_params.SCENARIO)
+    start_joints: tuple[float, ...] = param_field(shared_params.START_JOINTS)
     physics_rate_hz: float = param_field(shared_params.PHYSICS_RATE_HZ)
     camera_rate_hz: float = param_field(shared_params.CAMERA_RATE_HZ)
     feedback_latency_s: float = param_field(shared_params.FEEDBACK_LATENCY_S)
@@ -204,7 +205,9 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     semi_implicit = integration == 'semi-implicit'
     dt = dt_ns * 1e-9
 
-    q_true0 = inverse_kinematics(paper.scenario_start_pose(config.scenario), plant.params)
+    q_true0 = shared_params.start_joints(config.start_joints)
+    if q_true0 is None:
+        q_true0 = inverse_kinematics(paper.scenario_start_pose(config.scenario), plant.params)
     q = q_true0 - d_q
     qd = np.zeros(6)
     joint = JointLoop(config.tau_in, dt, config.actuators, plant.params.qd_max,

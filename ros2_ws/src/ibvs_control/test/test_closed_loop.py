@@ -136,3 +136,24 @@ def test_semi_implicit_plant_as_pybullet_steps_it_also_converges():
     assert r.final_image_error() < 0.01
     with pytest.raises(ValueError, match='integration'):
         simulate(duration_s=0.01, integration='rk4')
+
+
+def test_start_joints_replace_the_scenario_start_and_a_task_is_reached():
+    # The scenario's own start given as joints is the same run, sample for sample.
+    from ibvs_model import inverse_kinematics, task_sampler
+    q1 = inverse_kinematics(paper.scenario_start_pose(1), IRB4600)
+    same = simulate(LoopConfig(scenario=1, start_joints=tuple(q1)), duration_s=0.2)
+    ref = simulate(LoopConfig(scenario=1), duration_s=0.2)
+    assert np.array_equal(same.q_true, ref.q_true)
+    # A drawn task: the loop starts at its joints and heads for its target.
+    task = task_sampler.tasks(1, 3)[0]
+    target = np.eye(4)
+    target[:3, :3] = np.reshape(task['target_rotation'], (3, 3))
+    target[:3, 3] = task['target_position']
+    r = simulate(LoopConfig(scenario=1, start_joints=tuple(task['start_joints'])),
+                 duration_s=0.5, target=target)
+    assert np.allclose(r.q_true[0], task['start_joints'])
+    error = [np.linalg.norm(forward_kinematics(q)[:3, 3] - target[:3, 3]) for q in r.q_true]
+    assert error[-1] < 0.5 * error[0]
+    with pytest.raises(ParameterError, match='start_joints'):
+        simulate(LoopConfig(start_joints=(0.0, 0.1)), duration_s=0.1)

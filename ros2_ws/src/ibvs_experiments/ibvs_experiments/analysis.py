@@ -110,6 +110,10 @@ class RunData:
     #: the metrics and ``joints.png`` both use.
     joints: tuple | None = None
     joint_limits: tuple | None = None
+    #: The taught target features p_bar (px, 6) the feature node measured on the teach pair
+    #: and the controller servoed to (``target_features_source: taught``), from its
+    #: ``taught_target_px`` on /diagnostics; None when not taught (or an older bag).
+    taught_target: np.ndarray | None = None
 
 
 def _settle_time(t, inside):
@@ -279,7 +283,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     run_info = yaml.safe_load(custom.get(RUN_KEY, '{}')) or {}
     t, poses, ft, feats, mt, modes = [], [], [], [], [], []
     infos, cam_pose = {}, None
-    latency, rtf_held, render = [], [], {}
+    latency, rtf_held, render, taught = [], [], {}, []
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
         wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
@@ -310,6 +314,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
                                 for kv in status.values if kv.key == 'real_time_factor_held')
                 render.update((kv.key, kv.value) for status in msg.status
                               for kv in status.values if kv.key in RENDER_KEYS)
+                taught = [kv.value for status in msg.status for kv in status.values
+                          if kv.key == TAUGHT_KEY] or taught
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -337,7 +343,23 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    feature_t=np.asarray(ft), features=feats, mode_t=np.asarray(mt),
                    modes=modes, camera=camera,
                    latency=np.array(latency, dtype=np.int64).reshape(-1, 2),
-                   rtf_held=np.array(rtf_held), render=render_metrics(render))
+                   rtf_held=np.array(rtf_held), render=render_metrics(render),
+                   taught_target=_taught(taught))
+
+
+#: The feature node's /diagnostics key of the taught target features (feature_node.py).
+TAUGHT_KEY = 'taught_target_px'
+
+
+def _taught(values):
+    """Return the last ``taught_target_px`` value ('[u, ...]', 6 numbers) as an array."""
+    if not values:
+        return None
+    try:
+        numbers = [float(x) for x in values[-1].strip('[]').split(',')]
+    except ValueError:
+        return None
+    return np.array(numbers) if len(numbers) == 6 else None
 
 
 def load_joints(bag_path: str | Path, end_s: float | None = None

@@ -13,7 +13,9 @@ Figures of one run, in the style of the paper's Figures 10-12, and more.
   run (the sub-millimetre end), each with a linear inset from the time it first came within
   5 % of its start value (the overshoot);
 - ``feature_error.png``: each marker's image error |p_I - p_bar| (px) against time, log
-  axis, coloured by the frame's mode;
+  axis, coloured by the frame's mode; p_bar is the target the controller used: the taught
+  features in a taught run (``target_features_source: taught``), else F(q_target)
+  (:func:`ibvs_experiments.runner.target_features`);
 - ``joints.png`` (with :func:`joints`): joint angles, speeds and torques against their
   limits.
 """

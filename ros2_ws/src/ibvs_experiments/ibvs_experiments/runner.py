@@ -700,7 +700,18 @@ def clean_shm(progress: Callable[[str], None], whose: str,
 
 
 def target_features(run: analysis.RunData) -> NDArray[np.float64] | None:
-    """Return F(q_target) with the recorded camera and the nominal robot (None w/o camera)."""
+    """
+    Return the target features the controller servoed to, for the feature figures.
+
+    A taught run (``target_features_source: taught``): the features the feature node
+    measured on the teach pair (:attr:`.analysis.RunData.taught_target`), which the
+    controller used; F(q_target) would differ from them by the camera model's errors (a
+    constant error in ``feature_error.png`` the controller never saw). Otherwise F(q_target)
+    with the recorded camera and the nominal robot (None without a camera).
+    """
+    if run.params.get('target_features_source') == 'taught' and \
+            run.taught_target is not None:
+        return run.taught_target
     if run.camera is None:
         return None
     q = inverse_kinematics(run.target)

@@ -62,10 +62,27 @@ PACKAGES = ('ibvs_common', 'ibvs_model', 'ibvs_sim', 'ibvs_vision', 'ibvs_contro
 #: that a change to the study or report layer keeps the runs cached.
 NOT_IN_A_RUN = ('ibvs_experiments/study.py', 'ibvs_experiments/study_spec.py',
                 'ibvs_experiments/report.py', 'ibvs_experiments/laws_report.py',
-                'ibvs_experiments/bench.py')
-#: Metrics in the study table, in this order.
+                'ibvs_experiments/bench.py', 'ibvs_experiments/tasks.py',
+                # Draws tasks before the runs; a run gets the task's values as overrides,
+                # which its key holds.
+                'ibvs_model/task_sampler.py')
+#: Metrics in the study table, in this order: both deciding errors (1 mm, 0.5 deg), then
+#: what the loop ran on: the feedback's time on model estimates, the joints' peak speed
+#: against the IRB 4600's (docs/results.md, glossary).
 TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
-                 'max_overshoot_m')
+                 'max_overshoot_m', 'time_estimated_s', 'peak_joint_speed_ratio')
+#: Metrics of free-running runs only (analysis.free_running_metrics), in the table when a
+#: run of the study has them: the camera-to-command latency, the real-time factor the
+#: simulator held, the frames the controller used; and stale holds and interventions,
+#: should the metrics carry them (none does at issue 38).
+OPTIONAL_METRICS = ('frame_latency_mean_s', 'frame_latency_max_s', 'real_time_factor_held_min',
+                    'real_time_factor_held_mean', 'frames_used', 'stale_holds',
+                    'interventions')
+#: The niceness of Ray's workers, the runs': that of an ``ibvs run`` from a shell (0), not
+#: Ray's default 15 (:class:`_Ray`). Ray's variable (ray/_private/ray_constants.py:
+#: ``RAY_WORKER_NICENESS = "RAY_worker_niceness"``, Ray 2.60.0).
+WORKER_NICENESS_ENV = 'RAY_worker_niceness'
+WORKER_NICENESS = 0
 #: Seconds a cancelled run gets to stop its nodes before Ray is shut down.
 CANCEL_GRACE_S = 30.0
 
@@ -120,12 +137,7 @@ def execute_run(domains: tuple[int, int], run_dir: str | Path, scenario_name: st
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / 'metrics.json').unlink(missing_ok=True)  # from an earlier, failed attempt
     domain, lock = lock_domain(*domains)
-    cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'run', scenario_name, '-o', str(run_dir),
-           '--stall-s', repr(float(stall_s))] + ([] if figures else ['--no-figures'])
-    if duration_s is not None:
-        cmd += ['--duration', repr(float(duration_s))]
-    for name, value in overrides.items():
-        cmd += ['-p', f'{name}:={json.dumps(value)}']
+    cmd = run_command(run_dir, scenario_name, overrides, duration_s, stall_s, figures)
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED='1',
                **{HELD_ENV: str(domain)},
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
@@ -134,9 +146,28 @@ def execute_run(domains: tuple[int, int], run_dir: str | Path, scenario_name: st
     finally:
         lock.close()
     record.update(domain_id=domain, host=os.uname().nodename,
+                  niceness=os.getpriority(os.PRIO_PROCESS, 0),
                   ray_node=ray.get_runtime_context().get_node_id()
                   if ray.is_initialized() else None)
     return record
+
+
+def run_command(run_dir: str | Path, scenario_name: str, overrides: Mapping[str, Any],
+                duration_s: float | None, stall_s: float, figures: bool = False) -> list[str]:
+    """
+    Return the ``ibvs run`` command line of a study run (:func:`execute_run`).
+
+    Each override is written as YAML 1.1 text (:func:`.study_spec.yaml_value`), which the
+    run's ``-p`` reads back (:func:`ibvs_bringup.scenario.parse_override`) as the value
+    drawn: ``json.dumps(-1e-05)`` would reach the run as the string '-1e-05'.
+    """
+    cmd = [sys.executable, '-m', 'ibvs_experiments.cli', 'run', scenario_name, '-o', str(run_dir),
+           '--stall-s', repr(float(stall_s))] + ([] if figures else ['--no-figures'])
+    if duration_s is not None:
+        cmd += ['--duration', repr(float(duration_s))]
+    for name, value in overrides.items():
+        cmd += ['-p', f'{name}:={study_spec.yaml_value(value)}']
+    return cmd
 
 
 #: Attempts of a run whose node process died. A run is deterministic, so a death of ours (an
@@ -287,6 +318,14 @@ class _Ray:
     def __enter__(self):
         import ray
         os.environ.setdefault('RAY_USAGE_STATS_ENABLED', '0')
+        # Ray starts its workers at nice 15 (RAY_CONFIG(int, worker_niceness, 15),
+        # src/ray/common/ray_config_def.h), read from RAY_worker_niceness when the raylet
+        # starts: a study's runs then yield the CPU to everything else and a free-running
+        # run (which keeps wall time) starves. A worker cannot lower its own niceness
+        # (setpriority needs CAP_SYS_NICE to go below the current value), so it is set here,
+        # for the local Ray this process starts; a cluster's `ray start` needs it in its
+        # environment (docs/studies.md).
+        os.environ.setdefault(WORKER_NICENESS_ENV, str(WORKER_NICENESS))
         quiet = {'include_dashboard': False, 'log_to_driver': False,
                  'logging_level': logging.ERROR, 'configure_logging': True}
         if self.address:
@@ -322,8 +361,16 @@ def check_spec(spec: study_spec.Spec) -> None:
     base = scenario.load_parameters(spec.scenario)
     for run in spec.runs():
         where = f'study {spec.name}, run {run.index}'
-        graph_params.check({**base, **run.overrides}, where)
-        graph_params.check_rules({**base, **run.overrides}, where)
+        try:
+            graph_params.check({**base, **run.overrides}, where)
+            graph_params.check_rules({**base, **run.overrides}, where)
+        except scenario.ScenarioError as exc:
+            # Name where in the spec the refused value comes from (a grid, a draw, a task).
+            named = [name for name in run.overrides if f"'{name}'" in str(exc)]
+            if not named:
+                raise
+            raise scenario.ScenarioError(
+                f"{exc} (from the spec's {spec.origin(named[0])})") from None
 
 
 @dataclass(frozen=True)
@@ -498,6 +545,42 @@ def why_missed(record: Mapping[str, Any]) -> str:
     return miss_reason(record.get('metrics') or {}) or ''
 
 
+#: ``miss_reason`` of a run, the first that applies (:func:`miss_category`); the words of
+#: :func:`.convergence.miss_reason` and the runner's failures, shortened to one category.
+MISS_CATEGORIES = (
+    # (category, applies to a failed run's reason, to a finished run's reason)
+    ('refused', ('exited with code 2', 'is invalid', 'refused'), ()),
+    ('node died', ('node died', 'died'), ()),
+    ('teach failed', ('teach',), ()),
+    ('graph stalled', ('run stalled',), ()),
+    ('no final pose', (), ('no final pose',)),
+    ('lost features', (), ('features lost',)),
+    ('stalled', (), ('stalled',)),
+    ('timed out', (), ('timed out',)),
+)
+
+
+def miss_category(record: Mapping[str, Any]) -> str:
+    """
+    Return why a run is not a success in one or two words ('' for a success).
+
+    From :func:`why_missed`: a failed run's runner words ('refused': a parameter or a rule
+    refused at start; 'node died'; 'teach failed': the taught target could not be
+    measured; 'graph stalled': no progress for ``--stall-s``; else 'failed'), a finished
+    run's :func:`.convergence.miss_reason` ('no final pose', 'lost features', 'stalled',
+    'timed out'). Joint limits, singularities and collisions are not told apart: no metric
+    records them (a run that stops at one reads 'stalled').
+    """
+    reason = why_missed(record)
+    if not reason:
+        return ''
+    failed = record.get('status') != 'ok'
+    for category, if_failed, if_finished in MISS_CATEGORIES:
+        if any(word in reason for word in (if_failed if failed else if_finished)):
+            return category
+    return 'failed' if failed else 'missed'
+
+
 #: Record fields that are timings of the machine, not results of the run: in the study's
 #: table.csv, and in table.md under a heading of their own.
 TIMING_COLUMNS = ('wall_s', 'cpu_s')
@@ -510,13 +593,16 @@ def table_rows(spec: study_spec.Spec, records: Sequence[Mapping[str, Any]]
 
     ``success``: :func:`succeeded`; ``reason``: :func:`why_missed`.
     """
+    optional = [k for k in OPTIONAL_METRICS
+                if any(k in (r.get('metrics') or {}) for r in records)]
     rows = []
     for record in records:
         metrics = record.get('metrics') or {}
         row = {'run': record['index']}
         row.update({name: record['swept'].get(name, '') for name in spec.swept_names()})
-        row.update({k: metrics.get(k) for k in TABLE_METRICS})
+        row.update({k: metrics.get(k) for k in TABLE_METRICS + tuple(optional)})
         row.update(status=record['status'], success=succeeded(record),
+                   miss_reason=miss_category(record),
                    attempts=record.get('attempts', 1),
                    wall_s=record.get('wall_s'), cpu_s=record.get('cpu_s'),
                    reason=why_missed(record),

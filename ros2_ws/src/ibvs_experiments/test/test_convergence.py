@@ -89,3 +89,37 @@ def test_a_study_row_records_why_a_run_missed():
     assert rows[0]['reason'].startswith('stalled at 2 s: final 5 mm')
     assert rows[1]['reason'] == 'run failed: run stalled: no sim-time progress for 60 s of ' \
         'wall time'
+    assert [r['miss_reason'] for r in rows] == ['stalled', 'graph stalled']
+
+
+def test_miss_reason_sorts_each_kind_of_miss_into_its_category():
+    def finished(**kw):
+        return {'status': 'ok', 'metrics': run_metrics(**kw)}
+
+    def failed(reason):
+        return {'status': 'failed', 'metrics': None, 'reason': reason}
+
+    assert study.miss_category(finished(end_error_m=0.0)) == ''
+    assert study.miss_category(finished(end_error_m=0.005)) == 'stalled'
+    assert study.miss_category(finished(approach_s=4.0)) == 'timed out'
+    assert study.miss_category(finished(
+        end_error_m=0.01, modes=lambda x: 'measured' if x < 1.0 else 'estimated')) == \
+        'lost features'
+    assert study.miss_category(failed("error: parameter 'omega_n' = 30.0 is invalid: ...; "
+                                      'exited with code 2')) == 'refused'
+    assert study.miss_category(failed('run failed: node sim_node died (exit -11)')) == \
+        'node died'
+    assert study.miss_category(failed('run stalled: no sim-time progress')) == \
+        'graph stalled'
+    assert study.miss_category(failed('something else')) == 'failed'
+    # The table shows the free-running columns only where a run has them.
+    spec = study.study_spec.Spec(name='s', scenario='scenario1')
+    free = {'index': 0, 'swept': {}, 'status': 'ok', 'run_dir': 'a',
+            'metrics': {**run_metrics(end_error_m=0.0), 'frame_latency_mean_s': 0.05,
+                        'real_time_factor_held_min': 0.9, 'frames_used': 12}}
+    lockstep = {'index': 1, 'swept': {}, 'status': 'ok', 'run_dir': 'b',
+                'metrics': run_metrics(end_error_m=0.0)}
+    rows = study.table_rows(spec, [free, lockstep])
+    assert rows[0]['frame_latency_mean_s'] == 0.05 and rows[1]['frames_used'] is None
+    assert 'stale_holds' not in rows[0]
+    assert 'frame_latency_mean_s' not in study.table_rows(spec, [lockstep])[0]

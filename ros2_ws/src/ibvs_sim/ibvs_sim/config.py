@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from ibvs_common.params import Param, param_field, ParamConfig
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
-                                       PHYSICS_RATE_HZ, SCENARIO)
+                                       PHYSICS_RATE_HZ, SCENARIO, START_JOINTS)
 from ibvs_model import paper
 
 from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
@@ -89,6 +89,7 @@ class SimConfig(ParamConfig):
     """
 
     scenario: int = param_field(SCENARIO)
+    start_joints: tuple[float, ...] = param_field(START_JOINTS)
     disturbance_deg: tuple[float, ...] = param_field(DISTURBANCE_DEG)
     physics_rate_hz: float = param_field(PHYSICS_RATE_HZ)
     camera_rate_hz: float = param_field(CAMERA_RATE_HZ)

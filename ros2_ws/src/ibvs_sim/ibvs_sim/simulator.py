@@ -25,6 +25,7 @@ camera and noise before the run, as a user teaches a target on the real cell.
 from fractions import Fraction
 
 from ibvs_common.params import ParameterError
+from ibvs_common.shared_params import start_joints
 from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
                         IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
@@ -79,7 +80,14 @@ class Simulator:
             raise ConfigError('l2_scale', str(exc)) from None
         target = paper.scenario_start_pose(config.scenario)
         try:
-            self.q_start = inverse_kinematics(target, self.params)
+            given = start_joints(config.start_joints)
+        except ParameterError as exc:
+            raise ConfigError('start_joints', str(exc)) from None
+        if given is not None:  # a task's start (issue 38): the true angles as given
+            target = forward_kinematics(given, self.params)
+        try:
+            self.q_start = inverse_kinematics(target, self.params) if given is None \
+                else given
         except ModelError as exc:
             raise ConfigError('scenario', f'start pose of scenario {config.scenario} is '
                               f'unreachable by the simulated robot (l2_scale = '

@@ -1,0 +1,265 @@
+"""
+Seeded tasks across the workspace: a start and a target the camera sees, as data.
+
+A *task* is a start (``start_joints``, true joint angles, rad) and a target (the flange
+pose: ``target_position`` in {O}, m, and ``target_rotation``, row-major 3x3), the three
+node parameters of those names. :func:`tasks` draws them (pure numpy, seeded): task k of
+``tasks(n, seed)`` is the same for every n > k (rejection sampling in one stream).
+
+A target is kept when (each a margin below, :class:`Margins`):
+
+- the inverse kinematics reaches it with every joint ``joint_margin_rad`` inside its limits
+  (:attr:`ibvs_model.robot.RobotParams.q_min`, ``q_max``);
+- both markers are in view of both lenses: each marker's disc (radius
+  :data:`.scene.MARKER_RADIUS_M` at its depth) ``image_margin_px`` inside both images, at
+  least ``min_depth_m`` deep, and the two discs apart by their radii and
+  ``marker_gap_px`` (:func:`.scene.discs_apart`), and neither lens sees P1 from within
+  ``wrist_clear_deg`` of straight behind the wrist (:func:`.scene.wrist_clear`);
+- the flange and both markers are ``pedestal_clearance_m`` clear of the pedestal (the
+  robot's base: a vertical cylinder of radius ``pedestal_radius_m`` about the z axis of {O}
+  from the floor to the shoulder), ``floor_clearance_m`` above the floor (``z =
+  -mount_height_m``: the simulator's riser, 0.5 m by default; the simulated cell has no
+  table, so the floor is the surface under the tool) and ``camera_clearance_m`` from the
+  camera's optical centre.
+
+A start is the target's joint angles plus a uniform offset of up to ``start_offset_rad``
+per joint (joint 6 too: its roll is unobservable and the loop never corrects it), kept when
+within the limits by the same margin and clear of the pedestal and the floor; it need not
+be in view (the feature node's estimates carry the loop until the markers are seen).
+
+Each task carries its tool-axis observability (:func:`axis_observability`), so that a
+weakly observable target is known before it is run.
+
+``python -m ibvs_experiments.tasks`` writes a task set to JSON or CSV.
+"""
+
+from dataclasses import asdict, dataclass
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from . import paper
+from .camera import look_at, StereoCamera, StereoIntrinsics
+from .combined import CameraRobotModel
+from .errors import ModelError
+from .robot import fiducial_points, forward_kinematics, ik_position_axis, IRB4600
+from .scene import discs_apart, MARKER_RADIUS_M, wrist_clear, WRIST_CLEAR_DEG
+
+#: The version of the task set: a task set is (VERSION, n, seed). Change it with anything
+#: that changes which tasks a seed draws (the bounds, margins, camera or the draw order).
+VERSION = 'workspace-1'
+
+
+@dataclass(frozen=True)
+class Margins:
+    """The margins a task keeps (module docstring); the defaults are those of VERSION."""
+
+    joint_margin_rad: float = math.radians(5.0)
+    image_margin_px: float = 10.0
+    min_depth_m: float = 1.0
+    marker_gap_px: float = 1.0
+    wrist_clear_deg: float = WRIST_CLEAR_DEG
+    pedestal_radius_m: float = 0.45
+    pedestal_top_m: float = 0.6
+    pedestal_clearance_m: float = 0.2
+    mount_height_m: float = 0.5
+    floor_clearance_m: float = 0.15
+    camera_clearance_m: float = 0.5
+    max_tilt_deg: float = 35.0
+    start_offset_rad: float = math.radians(20.0)
+
+
+#: Where targets are drawn: the flange in this box of {O} (m), in front of the camera.
+TARGET_BOX_M = ((-1.4, -0.4, 0.0), (1.4, 0.5, 1.2))
+
+
+def default_model(resolution: str = 'HD720') -> CameraRobotModel:
+    """Return the paper's robot and the ZED 2 at the paper's pose (paper.CAMERA_EYE)."""
+    camera = StereoCamera(StereoIntrinsics.zed2(resolution),
+                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
+    return CameraRobotModel(camera, IRB4600)
+
+
+def axis_observability(model: CameraRobotModel, q: ArrayLike) -> float:
+    """
+    Return the tool-axis observability at ``q``: px of feature motion per rad of tilt, worst.
+
+    The six features depend on the two markers only: p = (pi(P1), pi(P2)). Tilting the tool
+    axis about P1 by a small angle theta about a unit w perpendicular to the axis moves P2
+    by theta w x (P2 - P1) and P1 not at all: two columns d p / d theta (px/rad). A tilt that
+    a flange translation would mimic is not seen as a tilt, so each column is projected on
+    the orthogonal complement of the three columns d p / d P1 (px/m; a translation of the
+    whole tool). The smallest singular value of the two projected columns is the result:
+    the feature motion of the worst tilt that no translation explains. This is the chain
+    rule of :meth:`.combined.CameraRobotModel.jacobian` (C1 = dp/dP dP/dq) taken with P
+    (the flange position and the tool axis) instead of q as the variables, so the arm's own
+    singularities do not enter; those the joint margins and the IK keep away from.
+
+    Parameters
+    ----------
+    model : CameraRobotModel
+        The robot and the camera.
+    q : array_like, shape (6,)
+        Joint angles (rad).
+
+    Returns
+    -------
+    float
+        px / rad.
+
+    """
+    p1, p2 = fiducial_points(q, model.params)
+    j1 = model.camera.projection_jacobian(p1)
+    j2 = model.camera.projection_jacobian(p2)
+    translation = np.vstack([j1, j2])  # (6, 3): the whole tool moved by dP1
+    axis = (p2 - p1) / np.linalg.norm(p2 - p1)
+    w1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    w1 /= np.linalg.norm(w1)
+    w2 = np.cross(axis, w1)
+    tilt = np.column_stack([np.concatenate([np.zeros(3), j2 @ np.cross(w, p2 - p1)])
+                            for w in (w1, w2)])
+    basis, _ = np.linalg.qr(translation)
+    tilt -= basis @ (basis.T @ tilt)
+    return float(np.linalg.svd(tilt, compute_uv=False).min())
+
+
+def _limits(params, margin):
+    return np.asarray(params.q_min) + margin, np.asarray(params.q_max) - margin
+
+
+def _clear_of_cell(points, margins):
+    """Return whether ``points`` (N, 3) in {O} are clear of the pedestal and the floor."""
+    radial = np.hypot(points[:, 0], points[:, 1])
+    near_pedestal = (radial < margins.pedestal_radius_m + margins.pedestal_clearance_m) & \
+        (points[:, 2] < margins.pedestal_top_m + margins.pedestal_clearance_m)
+    above_floor = points[:, 2] > -margins.mount_height_m + margins.floor_clearance_m
+    return bool(not near_pedestal.any() and above_floor.all())
+
+
+def target_check(model: CameraRobotModel, q: ArrayLike, margins: Margins = Margins()
+                 ) -> str | None:
+    """Return why ``q`` is no target under ``margins`` (module docstring), or None."""
+    q = np.asarray(q, dtype=float)
+    lo, hi = _limits(model.params, margins.joint_margin_rad)
+    if np.any(q < lo) or np.any(q > hi):
+        return 'a joint within the margin of its limit'
+    points = fiducial_points(q, model.params)
+    flange = forward_kinematics(q, model.params)[:3, 3]
+    if not _clear_of_cell(np.vstack([points, flange]), margins):
+        return 'too close to the pedestal or the floor'
+    centre = model.camera.to_base(np.zeros((1, 3)))[0]
+    if np.linalg.norm(points - centre, axis=1).min() < margins.camera_clearance_m:
+        return 'too close to the camera'
+    depth = model.camera.to_camera(points)[:, 2]
+    if depth.min() < margins.min_depth_m:
+        return 'a marker nearer than min_depth_m'
+    radius_px = model.camera.intrinsics.fu * MARKER_RADIUS_M / depth.min()
+    if not np.all(model.camera.in_view(points, margin_px=radius_px + margins.image_margin_px)):
+        return 'a marker out of view (with the margin)'
+    if not discs_apart(model.camera, points, margins.marker_gap_px):
+        return 'the markers overlap in an image'
+    if not wrist_clear(model.camera, points, margins.wrist_clear_deg):
+        return 'a lens looks at P1 from behind the wrist'
+    return None
+
+
+def start_check(model: CameraRobotModel, q: ArrayLike, margins: Margins = Margins()
+                ) -> str | None:
+    """Return why ``q`` is no start (limits, pedestal, floor; view not needed), or None."""
+    q = np.asarray(q, dtype=float)
+    lo, hi = _limits(model.params, margins.joint_margin_rad)
+    if np.any(q < lo) or np.any(q > hi):
+        return 'a joint within the margin of its limit'
+    points = np.vstack([fiducial_points(q, model.params),
+                        forward_kinematics(q, model.params)[:3, 3]])
+    if not _clear_of_cell(points, margins):
+        return 'too close to the pedestal or the floor'
+    return None
+
+
+def _task_dict(model, index, seed, q_start, q_target):
+    pose = forward_kinematics(q_target, model.params)
+    return {
+        'id': f'{VERSION}/{seed}/{index}',
+        'version': VERSION,
+        'seed': int(seed),
+        'index': int(index),
+        'start_joints': [float(v) for v in q_start],
+        'target_position': [float(v) for v in pose[:3, 3]],
+        'target_rotation': [float(v) for v in pose[:3, :3].reshape(9)],
+        'target_joints': [float(v) for v in q_target],
+        'observability': axis_observability(model, q_target),
+        # For comparison: the joint-space measure, the 5th singular value of C1 (its 6th is
+        # 0: joint 6 moves no feature); it mixes the tilt with the arm's joint scaling.
+        'jacobian_sigma5': float(np.linalg.svd(model.jacobian(q_target),
+                                               compute_uv=False)[4]),
+    }
+
+
+def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
+          margins: Margins = Margins(), max_tries: int = 200000) -> list[dict[str, Any]]:
+    """
+    Return ``n`` tasks drawn with ``numpy.random.default_rng(seed)`` (module docstring).
+
+    Parameters
+    ----------
+    n : int
+        How many tasks (>= 0).
+    seed : int
+        The seed (>= 0).
+    model : CameraRobotModel, optional
+        The robot and camera; default :func:`default_model` (the paper's cell at HD720).
+    margins : Margins
+        The margins kept.
+    max_tries : int
+        Draws before giving up (a RuntimeError: the margins leave no room).
+
+    Returns
+    -------
+    list of dict
+        Per task: ``id`` ('<VERSION>/<seed>/<k>'), ``version``, ``seed``, ``index``, the
+        node parameters ``start_joints`` (6, rad), ``target_position`` (3, m),
+        ``target_rotation`` (9, row-major), and ``target_joints`` (6, rad: the IK branch
+        found), ``observability`` (px/rad, :func:`axis_observability`) and
+        ``jacobian_sigma5`` (px/rad, the 5th singular value of C1 at the target).
+
+    """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f'n: expected an integer >= 0, got {n!r}')
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f'seed: expected an integer >= 0, got {seed!r}')
+    model = default_model() if model is None else model
+    rng = np.random.default_rng(seed)
+    out = []
+    tries = 0
+    while len(out) < n:
+        tries += 1
+        if tries > max_tries:
+            raise RuntimeError(f'{len(out)} of {n} tasks after {max_tries} draws: the '
+                               'margins leave (almost) no room')
+        position = rng.uniform(*TARGET_BOX_M)
+        tilt = math.radians(rng.uniform(0.0, margins.max_tilt_deg))
+        azimuth = rng.uniform(0.0, 2.0 * math.pi)
+        q6 = rng.uniform(-math.pi, math.pi)
+        offset = rng.uniform(-margins.start_offset_rad, margins.start_offset_rad, 6)
+        axis = [math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth),
+                -math.cos(tilt)]
+        try:
+            q = ik_position_axis(position, axis, q6, model.params)
+        except ModelError:
+            continue
+        if target_check(model, q, margins) is not None:
+            continue
+        q_start = q + offset
+        if start_check(model, q_start, margins) is not None:
+            continue
+        out.append(_task_dict(model, len(out), seed, q_start, q))
+    return out
+
+
+def describe(margins: Margins = Margins()) -> dict[str, Any]:
+    """Return the task set's definition (version, box, margins) for a task file's header."""
+    return {'version': VERSION, 'target_box_m': [list(b) for b in TARGET_BOX_M],
+            'margins': asdict(margins)}
