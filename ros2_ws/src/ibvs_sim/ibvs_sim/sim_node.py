@@ -210,19 +210,19 @@ ABB_UPDATE_RATE_HZ = 250.0
 JOINT_STATE_RATE_HZ = Param(
     'joint_state_rate_hz', ABB_UPDATE_RATE_HZ, 'free-running: rate of /joint_states, as '
     "ros2_controllers' joint_state_broadcaster publishes them at the controller manager's "
-    'update rate (abb_ros2: 250 Hz), each stamped with its update\'s time: published at the '
+    "update rate (abb_ros2: 250 Hz), each stamped with its update's time: published at the "
     'first physics step at or after each joint_state_phase_s + m / rate, at most once a '
     'step; lockstep publishes every physics step (this is then ignored, with a warning when '
     'set)', 'Hz', low=0.0, high=10000.0, low_open=True)
 JOINT_STATE_PHASE_S = Param(
     'joint_state_phase_s', 0.001, "free-running: sim time of the controller manager's first "
-    'update (its cycle runs on its own, not aligned with the camera\'s frames, which start '
+    "update (its cycle runs on its own, not aligned with the camera's frames, which start "
     'at 0): with 250 Hz, 30 Hz frames and 1 kHz physics, frame stamps fall 0, 2 or 3 ms past '
     'a multiple of 4 ms and the joint states 1 ms past, so every frame is paired by '
     'interpolation between two of them', 's', low=0.0, high=1.0)
 EXTRA_JOINTS = NameList(
-    'extra_joints', [], 'names of joints that are not the arm\'s (a track, a positioner) '
-    'added to every /joint_states with position 0 (velocity and effort 0 where the arm\'s '
+    'extra_joints', [], "names of joints that are not the arm's (a track, a positioner) "
+    "added to every /joint_states with position 0 (velocity and effort 0 where the arm's "
     'are given), as a joint_state_broadcaster publishes every joint of the controller '
     "manager: every node must take the arm's six by name and ignore them; none of "
     'joint_1 ... joint_6, each once', '-')
