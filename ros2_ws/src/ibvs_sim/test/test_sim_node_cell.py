@@ -144,3 +144,18 @@ def test_what_a_mode_cannot_do_is_refused_naming_the_parameter(context, params, 
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):
         SimNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in values.items()])
+
+
+def test_lockstep_warns_about_what_only_free_running_uses(context, capfd):
+    """Lockstep publishes /joint_states every step: a set joint_state_rate_hz is ignored."""
+    sim = SimNode(context=context, parameter_overrides=[
+        Parameter('publish_images', value=False), Parameter('resolution', value='VGA'),
+        Parameter('joint_state_rate_hz', value=100.0),
+        Parameter('camera_outage_s', value=[1.0, 0.0])])  # duration 0: no outage, accepted
+    try:
+        err = capfd.readouterr().err
+        assert "parameter 'joint_state_rate_hz' = 100.0 is ignored in lockstep" in err
+        assert 'real_time_factor' not in err  # at its default: nothing to say
+        assert sim._outage is None
+    finally:
+        sim.destroy_node()
