@@ -11,7 +11,7 @@ is one :class:`Node` entry here plus its module (and its executable in its packa
 """
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ibvs_common import contract
@@ -107,6 +107,17 @@ class Graph:
         if self.simulator not in out[-1].nodes:
             raise ValueError(f'the simulator {self.simulator} must start last')
         return tuple(out)
+
+    def separate(self) -> 'Graph':
+        """
+        Return this graph with every node in a process of its own, as ``ros2 run`` starts them.
+
+        The same nodes, remappings and start order; only the sharing of processes goes (and
+        with it the direct delivery of messages between the nodes of one process,
+        :mod:`ibvs_common.intra_process`): every message crosses DDS. A run of each must give
+        the same streams (tests/test_composed_equivalence.py).
+        """
+        return replace(self, nodes=tuple(replace(n, process='') for n in self.nodes))
 
     def shared(self, process: str) -> tuple[str, ...]:
         """Return the names of the nodes of the shared process ``process``, in order."""

@@ -115,7 +115,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ImportError as exc:
             print(f'  {module}: not available ({exc})')
             continue
-        bench.run(table.report)
+        if module == 'ibvs_vision.bench':
+            # the detector on the simulator's images too (ibvs_vision does not import it)
+            sim = importlib.import_module('ibvs_sim.bench')
+            bench.run(table.report, render=sim.stereo_frames)
+        else:
+            bench.run(table.report)
     os.sched_setaffinity(0, cores)
     graph = {}
     if args.graph_duration > 0:

@@ -10,16 +10,22 @@ Commands:
   ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
   (:func:`ibvs_control.servo_laws.feedforward_overrides`);
-  ``--overlays`` also records the feature node's overlay images, ``--video`` records the
-  camera images and writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`);
+  ``--images`` records the camera images, ``--overlays`` the feature node's overlay images,
+  ``--video`` writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`: its
+  camera images rendered again from the recorded joint states unless recorded);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
-- ``video <run dir> [-o FILE] [--time-map 0.25@1,1]``: the film (H.264 MP4) of a run
-  recorded with ``--images`` (or ``--overlays``);
+- ``video <run dir> [-o FILE] [--time-map 0.25@1,1]``: the film (H.264 MP4) of a run;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, with
-  its camera images in the bag and its film ``results/scenario1/video.mp4``;
+  its film ``results/scenario1/video.mp4``;
 - ``study <spec> [-o DIR] [--address ADDR] [--parallel N] [--domains LOW-HIGH]
   [--stall-s S] [--retry-failed]``: every run of a study spec (a grid and/or seeded draws
   over parameters) as Ray tasks, cached;
+- ``cell [--controller forward_command|joint_trajectory] [--camera-name zed]
+  [--controller-name NAME] [--params-file FILE] [-p name:=value ...] [-o DIR]
+  [--check-timeout S]``: the controller side of a real cell (docs/real_cell.md): checks
+  that the camera's and the arm's topics are there, starts the feature, feedback,
+  feedforward and joint controller nodes with ``config/cell.yaml`` (no simulator), prints
+  their status once a second; Ctrl-C stops them all (:mod:`ibvs_experiments.cell`);
 - ``report [--quick] [--no-laws] [--retry-failed]``: scenarios 1-3, the L2/L4 robustness
   sweep and each servo law on scenarios 1-3 with ideal and with limited actuators
   (:mod:`ibvs_experiments.laws_report`), as studies on Ray, into ``results/report.md``;
@@ -30,7 +36,6 @@ Commands:
 import argparse
 from collections.abc import Sequence
 import hashlib
-import json
 import math
 from pathlib import Path
 import re
@@ -42,7 +47,7 @@ from typing import Any
 from ibvs_bringup import domains, graph_params, scenario
 from ibvs_bringup.recorder import recover
 
-from . import runner, study_spec
+from . import cell, runner, study_spec
 
 #: Where ``ibvs run`` writes without ``-o``: a folder per command line (:func:`run_folder`),
 #: apart from ``make demo``'s ``results/scenario1`` and the studies' ``results/studies``.
@@ -137,6 +142,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Run one scenario and print its metrics."""
     domains.domain_id()  # a ROS_DOMAIN_ID ROS must not use stops the run before anything
     domains.pool()
+    if str(args.scenario) == Path(cell.CELL_CONFIG).stem:
+        raise scenario.ScenarioError(
+            f'{args.scenario} is the controller side of a real cell, no scenario: it starts no '
+            'simulator (ibvs cell starts it against the real arm and camera)')
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
     overrides = with_servo_law(overrides)
@@ -159,7 +168,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     try:
         result = runner.run_scenario(args.scenario, out, overrides, args.duration,
-                                     record_images=args.images or args.video,
+                                     record_images=args.images,
                                      stall_s=args.stall_s, record_overlays=args.overlays,
                                      figures=args.figures, on_metrics=metrics_ready)
     except domains.DomainBusy as exc:
@@ -180,8 +189,29 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_cell(args: argparse.Namespace) -> int:
+    """Start the controller side of a real cell (no simulator); Ctrl-C stops it."""
+    domains.domain_id()
+    overrides = dict(scenario.parse_override(p) for p in args.param)
+    try:
+        params = cell.cell_parameters(args.params_file, overrides, args.controller)
+        # The names first: a bad camera or controller name is refused before anything.
+        cell.remaps(args.controller, args.camera_name, args.controller_name)
+    except cell.CellError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else cell.session_dir()
+    try:
+        return cell.run_cell(params, out, args.controller, args.camera_name,
+                             args.controller_name, args.check_timeout,
+                             live=sys.stdout.isatty())
+    except domains.DomainBusy as exc:
+        print(f'cell not started: {exc}', file=sys.stderr)
+        return 2
+
+
 def cmd_video(args: argparse.Namespace) -> int:
-    """Write the film of a run recorded with --images: both cameras beside a 3D view."""
+    """Write the film of a run: both cameras (recorded or rendered again) beside a 3D view."""
     from . import video
     try:
         time_map = video.TimeMap.parse(args.time_map) if args.time_map else \
@@ -216,7 +246,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     args.scenario = 'scenario1'
     args.out = args.out or 'results/scenario1'
     args.param = ['actuators:=ideal'] + list(args.param)
-    # The film of this run, from its own bag (its camera images recorded).
+    # The film of this run, from its own bag (its camera images rendered again from its
+    # joint states after the run: recording them would slow the run, issue 35).
     args.video = args.video or not args.no_video
     return cmd_run(args)
 
@@ -303,15 +334,34 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument('--overlays', action='store_true',
                        help='also record the overlay images /ibvs/debug/{left,right}/image')
         p.add_argument('--video', action='store_true',
-                       help='record the camera images and write the film video.mp4 (ibvs '
-                       'video)')
+                       help='write the film video.mp4 (ibvs video; the camera images '
+                       "rendered again from the run's joint states unless --images)")
         if name == 'demo':
             p.add_argument('--no-video', action='store_true',
-                           help='no film (the demo records its camera images and writes '
-                           '<out>/video.mp4 by default)')
+                           help='no film (the demo writes <out>/video.mp4 by default)')
         p.set_defaults(func=func)
+    p = sub.add_parser('cell', help=cmd_cell.__doc__)
+    p.add_argument('--controller', choices=tuple(cell.CONTROLLERS), default='forward_command',
+                   help="the arm's position controller: forward_command (abb_ros2's "
+                   'forward_command_controller_position, std_msgs/Float64MultiArray) or '
+                   'joint_trajectory (its joint_trajectory_controller); default %(default)s')
+    p.add_argument('--controller-name', help="the controller's name if not abb_ros2's "
+                   '(forward_command_controller_position, joint_trajectory_controller)')
+    p.add_argument('--camera-name', default=cell.DEFAULT_CAMERA,
+                   help="the ZED wrapper's camera_name (its topics /<name>/zed_node/...; "
+                   'default %(default)s)')
+    p.add_argument('--params-file', help="the nodes' parameters (default: the installed "
+                   'config/cell.yaml; a copy with camera_pose calibrated, for instance)')
+    p.add_argument('-p', '--param', action='append', default=[],
+                   help='override a parameter: name:=value (repeatable)')
+    p.add_argument('-o', '--out', help="folder for params.yaml and the nodes' logs "
+                   '(default results/cell/<date-time>)')
+    p.add_argument('--check-timeout', type=cell.check_seconds, default=cell.CHECK_TIMEOUT_S,
+                   help="wall seconds the cell's topics have to appear before the nodes "
+                   'start (default %(default)s; exit code 5 if they do not)')
+    p.set_defaults(func=cmd_cell)
     p = sub.add_parser('video', help=cmd_video.__doc__)
-    p.add_argument('run_dir', help='a run directory (with bag/) recorded with --images')
+    p.add_argument('run_dir', help='a run directory (with bag/)')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
     p.add_argument('--time-map', help='film speed over sim time, SPEED@UNTIL_S,...,SPEED '
                    '(default 0.25@1,1: a quarter of real time for the first second, then '
@@ -361,11 +411,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
-
-
-def metrics_json(path: str | Path) -> Any:
-    """Return the metrics dict stored at ``path``."""
-    return json.loads(Path(path).read_text())
 
 
 if __name__ == '__main__':

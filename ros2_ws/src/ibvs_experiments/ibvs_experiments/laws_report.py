@@ -17,7 +17,7 @@ one success criterion, :data:`.convergence.SUCCESS` (1 mm and 0.5 deg at the end
 ``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and per law one figure
 of the tool's paths in 3-D and one of the features' paths in the images from the run folders
 under ``DIR``; ``ibvs report --laws`` runs them. The figures of the model-only calibration and
-noise sweeps (:mod:`ibvs_control.calibration_sweep`) are here too
+noise sweeps (:mod:`ibvs_experiments.calibration_sweep`) are here too
 (:func:`model_only_section`): ``ibvs_control`` draws nothing.
 """
 
@@ -43,7 +43,7 @@ from . import analysis  # noqa: E402
 from .convergence import miss_reason, SUCCESS  # noqa: E402
 
 if TYPE_CHECKING:
-    from ibvs_control.calibration_sweep import SweepRun
+    from ibvs_experiments.calibration_sweep import SweepRun
     from matplotlib.figure import Figure
 
     from .study_spec import Spec
@@ -332,7 +332,7 @@ def _one_error_at_a_time(runs):
 
 def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure':
     """
-    Plot the calibration sweep (:func:`ibvs_control.calibration_sweep.sweep`) to ``path``.
+    Plot the calibration sweep (:func:`ibvs_experiments.calibration_sweep.sweep`) to ``path``.
 
     Columns: against the camera position error (mm, no focal error) and against the focal
     length error (%, no position error); rows: the true flange's final position error
@@ -391,7 +391,7 @@ def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure'
 def noise_figure(results: Mapping[tuple[str, float], tuple[float, float]],
                  path: str | Path) -> 'Figure':
     """
-    Plot the noise sweep (:func:`ibvs_control.calibration_sweep.noise_sweep`) to ``path``.
+    Plot the noise sweep (:func:`ibvs_experiments.calibration_sweep.noise_sweep`) to ``path``.
 
     RMS position error (mm) and RMS tool-axis error (deg) of the true flange over the
     sweep's last ``TAIL_S`` against the features' noise (px), one line per law.
@@ -412,7 +412,7 @@ def noise_figure(results: Mapping[tuple[str, float], tuple[float, float]],
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend()
-    from ibvs_control.calibration_sweep import TAIL_S
+    from ibvs_experiments.calibration_sweep import TAIL_S
     fig.suptitle('feature noise, model-only loop from scenario 1 (RMS over the last '
                  f'{TAIL_S:g} s)')
     fig.tight_layout()
@@ -464,12 +464,12 @@ def model_only_section(calibration: 'Sequence[SweepRun]',
     """
     Return the report's lines of the model-only sweeps; write their figures into ``out_dir``.
 
-    ``calibration``: :func:`ibvs_control.calibration_sweep.sweep`'s runs; ``noise``:
-    :func:`~ibvs_control.calibration_sweep.noise_sweep`'s results. Each is computed once
+    ``calibration``: :func:`ibvs_experiments.calibration_sweep.sweep`'s runs; ``noise``:
+    :func:`~ibvs_experiments.calibration_sweep.noise_sweep`'s results. Each is computed once
     by the caller and gives both its table and its figure (``calibration.png``,
     ``noise.png``); ``figure_prefix`` as for :func:`section`.
     """
-    from ibvs_control import calibration_sweep
+    from ibvs_experiments import calibration_sweep
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     calibration_figure(calibration, out_dir / 'calibration.png')

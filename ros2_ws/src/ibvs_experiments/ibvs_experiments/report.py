@@ -332,7 +332,7 @@ class ModelOnlySweeps:
     """
     The law study's work beside its graph runs, on their Ray session (:class:`.study.Job`).
 
-    The model-only calibration and noise sweeps (:mod:`ibvs_control.calibration_sweep`)
+    The model-only calibration and noise sweeps (:mod:`ibvs_experiments.calibration_sweep`)
     as one job per law and target source (1-2 s each), and each law run read back
     (:func:`.laws_report.read_run`, about 0.3 s) as it finishes: before, both came after
     the last run, on one core (issue 22: from the last run to report.md 26 s, now 7 s).
@@ -340,7 +340,7 @@ class ModelOnlySweeps:
 
     def __init__(self) -> None:
         """Start empty: :meth:`jobs` fills it."""
-        from ibvs_control import calibration_sweep
+        from ibvs_experiments import calibration_sweep
         self._sweep = calibration_sweep
         self._calibration: dict[tuple[str, str], list] = {}
         self._noise: dict[str, dict] = {}
@@ -444,7 +444,7 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
         'ROS 2 graph (simulator, renderer, detector, controllers) and measured from each '
         "run's rosbag2 recording (`ros2 run ibvs_experiments ibvs analyse <bag>` reproduces "
         'every number of a graph run); the calibration and noise sweeps at the end come from '
-        'the model-only loop (`ibvs_control.calibration_sweep`: no graph, no images). Each '
+        'the model-only loop (`ibvs_experiments.calibration_sweep`: no graph, no images). Each '
         'table names its source; every metric is defined in the glossary of docs/results.md. '
         "The paper's scenarios and sweep run with ideal actuators, the paper's "
         'tau_in = 0.01 s, omega_n = 10 rad/s, zeta = 1/sqrt(2); the claims table also gives '

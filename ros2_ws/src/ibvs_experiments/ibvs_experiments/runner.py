@@ -324,7 +324,8 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
                  progress: Callable[[str], None] = print, stall_s: float = STALL_S,
                  start_timeout_s: float = START_TIMEOUT_S, record_overlays: bool = False,
                  figures: bool = True,
-                 on_metrics: Callable[[dict[str, Any]], None] | None = None) -> RunResult:
+                 on_metrics: Callable[[dict[str, Any]], None] | None = None,
+                 graph: Graph = GRAPH) -> RunResult:
     """
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
 
@@ -352,6 +353,10 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     the run as its end does, and the metrics of what was recorded are written
     (``RunResult.interrupted``); before the first step it raises KeyboardInterrupt.
 
+    ``graph``: the graph's description (default :data:`~ibvs_bringup.graph.GRAPH`;
+    ``GRAPH.separate()`` runs every node in a process of its own, as ``ros2 run`` by hand
+    does: the equivalence test compares the two).
+
     The parts, in order: :func:`prepare`, :func:`start`, :func:`watch`, :func:`stop`,
     :func:`write_results`.
     """
@@ -360,7 +365,8 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     run = prepare(name, out_dir, overrides, duration_s)
     with interruptible():
         return _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
-                             stall_s, start_timeout_s, record_overlays, figures, on_metrics)
+                             stall_s, start_timeout_s, record_overlays, figures, on_metrics,
+                             graph)
 
 
 @contextmanager
@@ -389,7 +395,7 @@ def interruptible() -> Iterator[None]:
 
 
 def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress, stall_s,
-                  start_timeout_s, record_overlays, figures, on_metrics):
+                  start_timeout_s, record_overlays, figures, on_metrics, graph=GRAPH):
     """Run the :class:`Prepared` ``run`` (:func:`run_scenario` after :func:`prepare`)."""
     clean_shm(progress, 'earlier processes (e.g. a runner killed with SIGKILL)')
     shm_before = shm.names()
@@ -420,7 +426,7 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
         outcome = Outcome()
         wall_start = time.monotonic()
         try:
-            start(run, executor, procs)
+            start(run, executor, procs, graph)
             outcome = watch(run, executor, monitor, procs, wall_start, progress,
                             converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
                             stall_s=stall_s, start_timeout_s=start_timeout_s)
@@ -431,7 +437,7 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
             outcome.interrupted = True
             outcome.wall_duration_s = time.monotonic() - (monitor.started_wall or wall_start)
         finally:
-            codes = stop(procs, executor=executor)
+            codes = stop(procs, graph, executor=executor)
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
                 'exit_codes': codes, 'commands': {p.name: p.command for p in procs},

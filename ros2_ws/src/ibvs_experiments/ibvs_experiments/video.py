@@ -15,9 +15,14 @@ Each film frame shows, above a status band:
 - the status band: sim time, the film's speed, the position and tool-axis errors against the
   success criterion (:data:`.convergence.SUCCESS`), the feature mode, and a legend.
 
-The images are the camera's own (/stereo/*/image_raw or the ZED topics: ``ibvs run
---images``; ``make demo`` records them). A run recorded with ``--overlays`` only has the
-feature node's overlay images: the film then shows those (their drawing included, in the
+The images are the camera's own: recorded (/stereo/*/image_raw or the ZED topics: ``ibvs run
+--images``), else rendered again from the run's joint states (``/ibvs/joint_path``) by the
+run's own simulator (:func:`ibvs_sim.replay.replayed_frames`: the same renderer, camera
+effects and random draws; the same images to the bit, which tests/test_video.py checks
+against recorded ones), so that a run that makes its film (``make demo``, ``ibvs run
+--video``) need not carry 160 MB of images a simulated second through DDS into its bag
+while it runs. A run recorded with ``--overlays`` and no camera images has the feature
+node's overlay images: the film then shows those (their drawing included, in the
 magnifier too).
 
 Time: the film shows the whole run, sim time mapped to film time by a :class:`TimeMap`
@@ -205,7 +210,9 @@ def image_topics(bag_path: str | Path) -> tuple[dict[str, int], bool]:
     Return ({image topic: side}, raw) of the images a film of the bag shows.
 
     The camera's own images where the bag has both sides (``raw`` True), else the feature
-    node's overlays; raises :class:`NoImages` when it has neither.
+    node's overlays, else ({}, True): the camera's images rendered again from the run's
+    joint states (:func:`replayed_images`). Raises :class:`NoImages` when the bag has
+    none of these.
     """
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
@@ -215,9 +222,39 @@ def image_topics(bag_path: str | Path) -> tuple[dict[str, int], bool]:
             return topics, True
     if set(OVERLAY_TOPICS) <= have:
         return OVERLAY_TOPICS, False
-    raise NoImages(f'{bag_path}: no camera images ({contract.LEFT_IMAGE}) and no overlays '
-                   f'({contract.DEBUG_LEFT_IMAGE}); record the run with `ibvs run --images` '
-                   '(or --video)')
+    if contract.JOINT_PATH in have:
+        return {}, True
+    raise NoImages(f'{bag_path}: no camera images ({contract.LEFT_IMAGE}), no overlays '
+                   f'({contract.DEBUG_LEFT_IMAGE}) and no joint states to render them from '
+                   f'({contract.JOINT_PATH}); record the run with `ibvs run --images`')
+
+
+def replayed_images(bag_path: str | Path) -> Iterator[tuple[int, NDArray[np.uint8],
+                                                            NDArray[np.uint8]]]:
+    """
+    Yield (stamp ns, left RGB, right RGB) of each frame of the run, rendered again.
+
+    From the run's parameters and its joint states on ``/ibvs/joint_path``
+    (:func:`ibvs_sim.replay.replayed_frames`); frames the camera lost are left out, as
+    the run published none.
+    """
+    from ibvs_common.conversions import read_joint_path
+    from ibvs_sim.replay import replayed_frames
+    from .analysis import load_run
+    params = load_run(Path(bag_path)).params
+    stamps, encoders = [], []
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
+        conns = [c for c in reader.connections if c.topic == contract.JOINT_PATH]
+        for conn, _, raw_msg in reader.messages(connections=conns):
+            t, q, _, _ = read_joint_path(reader.deserialize(raw_msg, conn.msgtype))
+            stamps.append(t)
+            encoders.append(q)
+    stamps, encoders = np.concatenate(stamps), np.concatenate(encoders)
+    order = np.argsort(stamps, kind='stable')
+    for t_ns, images, lost in replayed_frames(params, stamps[order], encoders[order]):
+        if not lost:
+            yield t_ns, images[0], images[1]
 
 
 def read_frames(bag_path: str | Path) -> Iterator[Frame]:
@@ -250,6 +287,20 @@ def read_frames(bag_path: str | Path) -> Iterator[Frame]:
                     static.update(local)
                 elif msg.transforms:
                     dynamic[stamp_ns(msg.transforms[0].header.stamp)] = local
+    pairs = _recorded_pairs(bag_path, sides) if sides else replayed_images(bag_path)
+    for t_ns, left, right in pairs:
+        if t_ns not in dynamic:
+            continue
+        found = features.get(t_ns)
+        yield Frame(t_ns, left, right, frame_poses({**static, **dynamic[t_ns]}),
+                    found if found is not None and found.size == 6 else None,
+                    modes.get(t_ns, 'unknown'), raw)
+
+
+def _recorded_pairs(bag_path, sides):
+    """Yield (stamp ns, left, right) of the bag's image pairs on ``sides``' topics."""
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
         conns = [c for c in reader.connections if c.topic in sides]
         pending = {}
         for conn, _, raw_msg in reader.messages(connections=conns):
@@ -257,21 +308,15 @@ def read_frames(bag_path: str | Path) -> Iterator[Frame]:
             t_ns = stamp_ns(msg.header.stamp)
             pair = pending.setdefault(t_ns, [None, None])
             pair[sides[conn.topic]] = image_rgb(msg)
-            if pair[0] is None or pair[1] is None:
-                continue
-            del pending[t_ns]
-            if t_ns not in dynamic:
-                continue
-            found = features.get(t_ns)
-            yield Frame(t_ns, pair[0], pair[1], frame_poses({**static, **dynamic[t_ns]}),
-                        found if found is not None and found.size == 6 else None,
-                        modes.get(t_ns, 'unknown'), raw)
+            if pair[0] is not None and pair[1] is not None:
+                del pending[t_ns]
+                yield t_ns, pair[0], pair[1]
 
 
 def count_frames(bag_path: str | Path) -> int:
-    """Return how many left images the film of the bag can show (at most its frames)."""
+    """Return how many frames the film of the bag can show (at most: for its progress)."""
     sides, _ = image_topics(bag_path)
-    left = next(topic for topic, side in sides.items() if side == 0)
+    left = next((topic for topic, side in sides.items() if side == 0), contract.TF)
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([Path(bag_path)], default_typestore=typestore) as reader:
         return sum(c.msgcount for c in reader.connections if c.topic == left)

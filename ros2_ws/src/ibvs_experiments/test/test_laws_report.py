@@ -102,12 +102,12 @@ def test_image_figure_has_a_row_per_scenario_and_a_line_per_marker_and_case(tmp_
 
 
 def sweep_run(law, target, d, f, error_m, t_1mm):
-    from ibvs_control.calibration_sweep import SweepRun
+    from ibvs_experiments.calibration_sweep import SweepRun
     return SweepRun(law, target, d, f, error_m, 100 * f, t_1mm)
 
 
 def test_calibration_figure_plots_each_law_and_target_against_each_error(tmp_path):
-    from ibvs_control.calibration_sweep import settings
+    from ibvs_experiments.calibration_sweep import settings
     runs = [sweep_run(law, target, d, f,
                       0.0 if target == 'taught' else d + 20 * f, 0.4 + i / 10
                       if target == 'taught' or d + 20 * f < 1e-3 else float('nan'))
@@ -149,7 +149,7 @@ def test_noise_figure_has_a_line_per_law_in_each_panel(tmp_path):
 
 
 def test_model_only_section_shows_each_sweep_as_table_and_figure(tmp_path):
-    from ibvs_control.calibration_sweep import settings
+    from ibvs_experiments.calibration_sweep import settings
     runs = [sweep_run('ibvs', target, d, f, d, 0.5) for target in ('model', 'taught')
             for d, f in settings()]
     noise = {('ibvs', 0.0): (0.0, 0.0), ('ibvs', 0.1): (0.002, 0.4)}

@@ -138,7 +138,7 @@ def test_build_report_runs_a_shared_run_once_and_shows_it_in_every_study(tmp_pat
 
 
 class _FakeSweeps:
-    """What ModelOnlySweeps uses of ibvs_control.calibration_sweep, with tagged answers."""
+    """What ModelOnlySweeps uses of ibvs_experiments.calibration_sweep, with tagged answers."""
 
     TARGET_SOURCES = ('model', 'taught')
 

@@ -10,12 +10,13 @@ windows around the markers). No ROS involved.
 ``python -m ibvs_sim.bench`` prints median and p95 of each.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 import time
 
 from ibvs_common.bench import print_timing
 from ibvs_model import inverse_kinematics, look_at, paper, StereoCamera, StereoIntrinsics
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .world import DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING, RendererError, World
 
@@ -24,6 +25,27 @@ RENDERS = {'HD720': 20, 'VGA': 40}
 #: The renderer's name in the timings' labels (ibvs_experiments.bench reads them).
 RENDERER = 'opengl'
 SUPERSAMPLING = sorted({1, 2, DEFAULT_SUPERSAMPLING})
+
+
+def stereo_frames(camera: StereoCamera, poses: Sequence[ArrayLike], empty_q: ArrayLike
+                  ) -> tuple[list[tuple[NDArray[np.uint8], NDArray[np.uint8]]],
+                             tuple[NDArray[np.uint8], NDArray[np.uint8]], str]:
+    """
+    Return (a stereo pair at each joint vector of ``poses``, the pair at ``empty_q``, RENDERER).
+
+    As the simulator renders them by default (:meth:`.world.World.render_stereo`), through
+    ``camera``; for the detector's timings (``ibvs_vision.bench.run``'s ``render``).
+    """
+    world = World()
+    try:
+        frames = []
+        for q in poses:
+            world.reset(q)
+            frames.append(world.render_stereo(camera))
+        world.reset(empty_q)
+        return frames, world.render_stereo(camera), RENDERER
+    finally:
+        world.close()
 
 
 def _time(func, count):

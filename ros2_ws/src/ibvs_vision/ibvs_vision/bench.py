@@ -6,7 +6,8 @@ Cost of the detector per stereo pair, for ``make bench`` (``ibvs_experiments.ben
 
 - full search (no prior: Hough over every part of the image where a marker colour shows)
   and tracking (prior = the last measurement: windows around it first), on frames rendered
-  by the simulator's PyBullet world (ibvs_sim, when it imports) at random in-view poses;
+  by the simulator's renderer at random in-view poses (``make bench`` passes it in:
+  :func:`ibvs_sim.bench.stereo_frames`; ``python -m ibvs_vision.bench`` alone has none);
 - the same on synthetic frames (ibvs_vision.synthetic: shaded spheres on a cluttered,
   noisy background, a harder scene than the simulator's);
 - a frame without markers (scenario 2/3 start), searched in full every frame.
@@ -56,26 +57,15 @@ def _time_detection(detector, frames, tracking):
     return out
 
 
-def _rendered(model, poses):
-    try:
-        from ibvs_sim.world import World
-    except ImportError:
-        return None, None
-    world = World()
-    try:
-        frames = []
-        for q in poses:
-            world.reset(q)
-            frames.append(world.render_stereo(model.camera))
-        world.reset(inverse_kinematics(paper.scenario_start_pose(2)))
-        empty = world.render_stereo(model.camera)
-        return frames, (empty, world.renderer)
-    finally:
-        world.close()
+def run(report, render=None):
+    """
+    Time the detection of one stereo pair; see the module docstring.
 
-
-def run(report):
-    """Time the detection of one stereo pair; see the module docstring."""
+    ``render(camera, poses, empty_q)``: ``(frames, empty frame, renderer name)``, the stereo
+    pairs of a renderer at each joint vector of ``poses`` and at ``empty_q`` (no marker in
+    view), or None to time synthetic frames only. ibvs_vision does not import the simulator
+    (docs/design.md §2): ``make bench`` passes :func:`ibvs_sim.bench.stereo_frames`.
+    """
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
@@ -84,14 +74,14 @@ def run(report):
             detector = StereoDetector(model.camera.intrinsics)
             rng = np.random.default_rng(1)
             poses = scene.in_view_poses(model, count, rng)
-            frames, empty = _rendered(model, poses)
-            if frames is not None:
-                renderer = empty[1]
+            if render is not None:
+                frames, empty, renderer = render(
+                    model.camera, poses, inverse_kinematics(paper.scenario_start_pose(2)))
                 for tracking, how in ((False, 'full search'), (True, 'tracking')):
                     report(f'vision: detect pair {resolution} ({how}, {renderer})',
                            _time_detection(detector, frames, tracking))
                 report(f'vision: no marker {resolution} (full search, {renderer})',
-                       _time_detection(detector, [empty[0]] * count, False))
+                       _time_detection(detector, [empty] * count, False))
             synth = [synthetic.render_stereo(model.camera, fiducial_points(q), rng)
                      for q in poses]
             for tracking, how in ((False, 'full search'), (True, 'tracking')):

@@ -12,7 +12,7 @@ run: the true flange's final position error and tool-axis error, and the time af
 it stays within 1 mm.
 
 The noise sweep (:func:`noise_sweep`): Gaussian noise on the measured features, the RMS
-error over the last second. ``python -m ibvs_control.calibration_sweep`` prints both
+error over the last second. ``python -m ibvs_experiments.calibration_sweep`` prints both
 markdown tables.
 """
 
@@ -21,12 +21,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ibvs_control.closed_loop import LoopConfig, simulate
+from ibvs_control.servo_laws import SERVO_LAWS
 from ibvs_model import (CameraRobotModel, default_model, forward_kinematics, paper,
                         StereoCamera, StereoIntrinsics)
 import numpy as np
-
-from .closed_loop import LoopConfig, simulate
-from .servo_laws import SERVO_LAWS
 
 #: Camera position errors (m) and focal length errors (fraction) of the sweep.
 POSITION_ERRORS_M = (0.0, 0.0025, 0.005, 0.01)

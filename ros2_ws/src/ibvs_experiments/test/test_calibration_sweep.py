@@ -1,7 +1,7 @@
 """The calibration sweep's camera and its textbook result: a taught target cancels the error."""
 
-from ibvs_control.calibration_sweep import (calibrated_camera, noise_sweep, noise_table,
-                                            POSITION_ERROR_DIRECTION, run_one, table)
+from ibvs_experiments.calibration_sweep import (calibrated_camera, noise_sweep, noise_table,
+                                                POSITION_ERROR_DIRECTION, run_one, table)
 from ibvs_model import default_model
 import numpy as np
 import pytest

@@ -1,0 +1,597 @@
+"""
+``ibvs cell``: the controller side of a real cell, without the simulator.
+
+On a cell the arm is abb_ros2's ros2_control driver (EGM) and the camera is Stereolabs'
+zed-ros2-wrapper; this command starts the four nodes that turn the camera's frames into
+joint references (feature, adaptive feedback, feedforward and joint controller), each in a
+process of its own as ``ros2 run`` starts it (:class:`ibvs_bringup.supervision.NodeProcess`),
+with ``config/cell.yaml`` (real_cell.yaml less the simulator's keys, on the wall clock) and
+the remappings to the driver's and the wrapper's names (:func:`remaps`: no code change in a
+node). docs/real_cell.md is the manual; this module docstring is the contract.
+
+1. **Parameters** (:func:`cell_parameters`): the file, the ``-p`` overrides, then the
+   controller's ``position_command_type``; every name must be declared by one of the four
+   nodes (a simulator's key would be ignored by all of them: refused, named) and in range.
+2. **The cell's topics** (:func:`expectations`, :func:`problems`), before any node starts:
+   each topic the nodes read has a publisher of the right type whose QoS our subscription
+   matches (the rectified images and their camera_info, /joint_states; /stereo/pose while
+   ``camera_pose`` is zeros; the taught pair while ``target_features_source`` is
+   ``taught``), and the command topic has a subscriber (the position controller), within
+   ``check_timeout_s`` (10 s; discovery takes a second or two). What is missing is named
+   with what to look at, e.g. zed-ros2-wrapper's ``video.publish_left_right``, false by
+   default (master 33dfefa ``zed_wrapper/config/common_stereo.yaml`` L54; the wrapper
+   reads it at ``zed_components/src/zed_camera/src/zed_camera_component_main.cpp`` L904 and
+   creates the left and right publishers only when it is true,
+   ``zed_camera_component_video_depth.cpp`` L258-261 and L391-395); then the command exits
+   with :data:`EXIT_CHECK_FAILED` and nothing has started.
+3. **Run**: the four processes start; a status line once a second (:class:`StatusBoard`):
+   the joint controller's ``/ibvs/servo_status`` code and name
+   (:class:`ibvs_control.servo_status.ServoStatus`), the frames used (its
+   ``/ibvs/frame_latency``, one per frame a command used) and the last error any node
+   reported on /diagnostics (a WARN or ERROR status, or a rejected input). A node that
+   exits ends the session (:data:`runner.EXIT_NODE_DIED`), the others stopped.
+4. **Stop**: one SIGINT (Ctrl-C) stops every process together
+   (:func:`ibvs_bringup.supervision.stop_all`: SIGINT, then SIGTERM, then SIGKILL of each
+   process group; each also dies with this process, PR_SET_PDEATHSIG), exit code 0.
+
+The ROS domain is the cell's: ``ROS_DOMAIN_ID``, else ROS's default 0 (never a free one of
+the pool: the driver and the camera are on the cell's), and this process holds that
+domain's lock (:mod:`ibvs_bringup.domains`) so that no ``ibvs run`` on this machine starts
+a simulator there.
+"""
+
+import argparse
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+import importlib
+import math
+import os
+from pathlib import Path
+import re
+import sys
+import time
+from typing import Any
+
+from ibvs_bringup import domains, graph_params, scenario
+from ibvs_bringup.graph import GRAPH
+from ibvs_common import contract
+
+#: The nodes of a cell, in start order (docs/real_cell.md "By hand"): no simulator.
+CELL_NODES = ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
+              'joint_controller_node')
+#: The parameter file of a cell, in ibvs_bringup's config (installed with the scenarios).
+CELL_CONFIG = 'cell.yaml'
+#: zed-ros2-wrapper's launch defaults (master 33dfefa zed_wrapper/launch/zed_camera.launch.py
+#: L498-500 camera_name 'zed', used as the namespace, L514-516 node_name 'zed_node'): the
+#: topics are /<camera_name>/<node_name>/...
+DEFAULT_CAMERA = 'zed'
+ZED_NODE = 'zed_node'
+#: The default wall time (s) the cell's topics have to appear in the graph.
+CHECK_TIMEOUT_S = 10.0
+#: Wall time (s) between two status lines.
+STATUS_PERIOD_S = 1.0
+#: ``ibvs cell``'s exit code when a topic of the cell is missing or does not match.
+EXIT_CHECK_FAILED = 5
+#: Where ``ibvs cell`` writes its parameters and the nodes' logs without ``-o``.
+CELL_DIR = Path('results') / 'cell'
+
+#: Where the hints of :func:`expectations` send the reader (upstream, file and line).
+ZED_LEFT_RIGHT = ('is video.publish_left_right true? (zed-ros2-wrapper common_stereo.yaml L54 '
+                  'defaults it to false: master 33dfefa zed_wrapper/config/common_stereo.yaml; '
+                  'launch with param_overrides:="video.publish_left_right:=true")')
+
+
+@dataclass(frozen=True)
+class Controller:
+    """A position controller of ros2_control the joint controller can command."""
+
+    #: The joint controller's ``position_command_type``.
+    command_type: str
+    #: The joint controller's topic (the contract's name).
+    contract_topic: str
+    #: abb_ros2's name of the controller (abb_bringup/config/abb_controllers.yaml).
+    default_name: str
+    #: The controller's topic under its name (``/<name>/<suffix>``).
+    suffix: str
+    #: The topic's type, as the graph names it.
+    msg_type: str
+
+
+#: ``--controller``: abb_ros2 (rolling 0705714) abb_bringup/config/abb_controllers.yaml
+#: L11-12 and L36-45 (forward_command_controller/ForwardCommandController
+#: ``forward_command_controller_position``, joints joint_1..6, interface position; its topic
+#: ``~/commands``) and L8-9, L14-34 (``joint_trajectory_controller``, its topic
+#: ``~/joint_trajectory``).
+CONTROLLERS = {
+    'forward_command': Controller('forward_command', contract.POSITION_COMMANDS,
+                                  'forward_command_controller_position', 'commands',
+                                  'std_msgs/msg/Float64MultiArray'),
+    'joint_trajectory': Controller('joint_trajectory', contract.TRAJECTORY_COMMANDS,
+                                   'joint_trajectory_controller', 'joint_trajectory',
+                                   'trajectory_msgs/msg/JointTrajectory'),
+}
+
+#: A ROS name token (camera and controller names): letters, digits, underscores.
+_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+
+
+class CellError(ValueError):
+    """A cell's configuration that cannot be started (named, with the reason)."""
+
+
+def camera_topics(camera_name: str = DEFAULT_CAMERA,
+                  node_name: str = ZED_NODE) -> dict[str, str]:
+    """
+    Return {the contract's camera topic: the ZED wrapper's topic} for a camera so named.
+
+    The wrapper's names are the contract's ``ZED_*`` (those of camera ``zed``, node
+    ``zed_node``) under ``/<camera_name>/<node_name>/``.
+    """
+    for what, name in (('camera name', camera_name), ('node name', node_name)):
+        if not _TOKEN.fullmatch(name):
+            raise CellError(f'{what} {name!r}: expected a ROS name (letters, digits, _)')
+    root = f'/{DEFAULT_CAMERA}/{ZED_NODE}/'
+    graph = {contract.LEFT_IMAGE: contract.ZED_LEFT_IMAGE,
+             contract.RIGHT_IMAGE: contract.ZED_RIGHT_IMAGE,
+             contract.LEFT_INFO: contract.ZED_LEFT_INFO,
+             contract.RIGHT_INFO: contract.ZED_RIGHT_INFO}
+    return {ours: f'/{camera_name}/{node_name}/' + theirs[len(root):]
+            for ours, theirs in graph.items()}
+
+
+def command_topic(controller: str, controller_name: str | None = None) -> str:
+    """Return the topic of ``controller`` (a key of :data:`CONTROLLERS`) named so."""
+    spec = _controller(controller)
+    name = controller_name or spec.default_name
+    if not _TOKEN.fullmatch(name):
+        raise CellError(f'controller name {name!r}: expected a ROS name (letters, digits, _)')
+    return f'/{name}/{spec.suffix}'
+
+
+def _controller(controller):
+    try:
+        return CONTROLLERS[controller]
+    except KeyError:
+        raise CellError(f'controller {controller!r}: expected one of '
+                        f'{", ".join(CONTROLLERS)}') from None
+
+
+def remaps(controller: str = 'forward_command', camera_name: str = DEFAULT_CAMERA,
+           controller_name: str | None = None) -> dict[str, dict[str, str]]:
+    """
+    Return {node: {topic: remapped}} of the cell's nodes.
+
+    The camera's readers take the wrapper's names as the graph gives them in its
+    ``camera_topics: zed_wrapper`` mode (:attr:`ibvs_bringup.graph.Node.zed_remaps`: images
+    and camera_info for the feature node, camera_info for the feedback node and the joint
+    controller), for the camera ``camera_name``; the joint controller's command topic goes
+    to the controller's. /joint_states stays: the driver's joint_state_broadcaster
+    publishes it (without the simulator's /stereo/joint_states the feature and feedback
+    nodes interpolate it at each frame's stamp).
+    """
+    zed = camera_topics(camera_name)
+    out = {}
+    for name in CELL_NODES:
+        node = {topic: zed[topic] for topic in GRAPH.node(name).zed_remaps}
+        if node:
+            out[name] = node
+    spec = _controller(controller)
+    topic = command_topic(controller, controller_name)
+    if topic != spec.contract_topic:
+        out.setdefault('joint_controller_node', {})[spec.contract_topic] = topic
+    return out
+
+
+def remap_args(node_remaps: Mapping[str, str]) -> tuple[str, ...]:
+    """Return ``('-r', 'topic:=remapped', ...)`` for one node's process (``--ros-args``)."""
+    return tuple(arg for topic, remapped in node_remaps.items()
+                 for arg in ('-r', f'{topic}:={remapped}'))
+
+
+def declared_by(nodes: Iterable[str]) -> dict[str, set[str]]:
+    """Return {parameter: the nodes of ``nodes`` that declare it} (each module's PARAMS)."""
+    out = {}
+    for name in nodes:
+        for spec in importlib.import_module(GRAPH.node(name).module).PARAMS:
+            out.setdefault(spec.name, set()).add(name)
+    return out
+
+
+def simulator_only(names: Iterable[str]) -> list[str]:
+    """Return those of ``names`` that no node of a cell declares (the simulator's only)."""
+    cell = declared_by(CELL_NODES)
+    return [n for n in names if n not in cell and n not in graph_params.NOT_NODES]
+
+
+def config_path() -> Path:
+    """Return the installed ``config/cell.yaml`` (the source tree's if not built)."""
+    return scenario.share_directory() / 'config' / CELL_CONFIG
+
+
+def cell_parameters(params_file: str | Path | None = None,
+                    overrides: Mapping[str, Any] | None = None,
+                    controller: str = 'forward_command') -> dict[str, Any]:
+    """
+    Return the checked parameters of a cell: the file's, the overrides, the controller's.
+
+    The controller sets ``position_command_type`` (the file's is replaced). Raises
+    :class:`CellError` for a name the cell's nodes do not declare (a simulator's: none of
+    them would read it), a ``-p position_command_type`` other than the controller's,
+    a value out of its range or a rule between parameters broken
+    (:func:`graph_params.check`, :func:`graph_params.check_rules`: position interface,
+    free-running).
+    """
+    path = Path(params_file) if params_file else config_path()
+    try:
+        params = scenario.load_parameters(path)
+    except scenario.ScenarioError as exc:
+        raise CellError(str(exc)) from None
+    overrides = dict(overrides or {})
+    params.update(overrides)
+    spec = _controller(controller)
+    given = overrides.get('position_command_type', spec.command_type)
+    if given != spec.command_type:  # the file's is the default controller's: replaced
+        raise CellError(f'position_command_type {given!r} with --controller {controller}: '
+                        f'the controller takes {spec.command_type!r} (leave it out, '
+                        '--controller sets it)')
+    params['position_command_type'] = spec.command_type
+    foreign = simulator_only(params)
+    if foreign:
+        raise CellError(f'{", ".join(foreign)}: not read by any node of a cell (feature, '
+                        "feedback, feedforward, joint controller); the simulator's only "
+                        'or unknown: leave it out')
+    try:
+        graph_params.check(params, str(path))
+        graph_params.check_rules(params, str(path))
+    except scenario.ScenarioError as exc:
+        raise CellError(str(exc)) from None
+    return params
+
+
+@dataclass(frozen=True)
+class Expectation:
+    """
+    One topic of the cell and what must be on it.
+
+    ``role``: 'publisher' (the cell publishes it, our nodes read it) or 'subscriber' (our
+    joint controller publishes it, the cell's controller reads it). ``reliability`` and
+    ``durability``: those of our side (its subscription, or its publisher), which the
+    cell's endpoints must match. ``hint``: what to look at when nobody is there.
+    """
+
+    topic: str
+    msg_type: str
+    role: str
+    hint: str
+    reliability: str = 'reliable'
+    durability: str = 'volatile'
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A publisher or subscription seen in the graph (rclpy's TopicEndpointInfo, plain)."""
+
+    node: str
+    msg_type: str
+    reliability: str
+    durability: str
+
+
+def expectations(params: Mapping[str, Any], controller: str = 'forward_command',
+                 camera_name: str = DEFAULT_CAMERA,
+                 controller_name: str | None = None) -> list[Expectation]:
+    """
+    Return what the cell must offer before the nodes start (module docstring, step 2).
+
+    The QoS of our side is the contract's: images reliable (``contract.IMAGES``),
+    camera_info and /joint_states reliable, /stereo/pose and the teach pair transient
+    local (``contract.LATCHED``), the command reliable and volatile (``contract.RELIABLE``).
+    """
+    zed = camera_topics(camera_name)
+    wrapper = (f'{ZED_LEFT_RIGHT}; is the wrapper running, with camera_name:={camera_name}?')
+    out = [Expectation(zed[contract.LEFT_IMAGE], 'sensor_msgs/msg/Image', 'publisher', wrapper),
+           Expectation(zed[contract.RIGHT_IMAGE], 'sensor_msgs/msg/Image', 'publisher',
+                       wrapper),
+           Expectation(zed[contract.LEFT_INFO], 'sensor_msgs/msg/CameraInfo', 'publisher',
+                       wrapper),
+           Expectation(zed[contract.RIGHT_INFO], 'sensor_msgs/msg/CameraInfo', 'publisher',
+                       wrapper),
+           Expectation(contract.JOINT_STATES, 'sensor_msgs/msg/JointState', 'publisher',
+                       'is the driver running and joint_state_broadcaster spawned? (abb_ros2 '
+                       'abb_bringup/launch/abb_control.launch.py spawns it)')]
+    spec = _controller(controller)
+    name = controller_name or spec.default_name
+    other = ('joint_trajectory' if controller == 'forward_command' else 'forward_command')
+    out.append(Expectation(
+        command_topic(controller, controller_name), spec.msg_type, 'subscriber',
+        f'is the controller spawned? abb_ros2 starts joint_trajectory_controller unless '
+        f'launched with initial_joint_controller:={name} (abb_control.launch.py '
+        f'initial_joint_controller); or ibvs cell --controller {other}'))
+    if all(float(v) == 0.0 for v in params.get('camera_pose', [0.0] * 7)):
+        out.append(Expectation(
+            contract.STEREO_POSE, 'geometry_msgs/msg/PoseStamped', 'publisher',
+            'camera_pose is all zeros, so the feature and feedback nodes wait for the '
+            'camera pose here, latched (transient local): set camera_pose to the hand-eye '
+            'calibration (docs/real_cell.md step 4)', durability='transient_local'))
+    if params.get('target_features_source') == 'taught':
+        for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
+            out.append(Expectation(
+                topic, 'sensor_msgs/msg/Image', 'publisher',
+                'target_features_source is taught: publish the stereo pair of the tool at '
+                'the target, latched (transient local; docs/real_cell.md step 4), or set '
+                'target_features_source:=model', durability='transient_local'))
+    return out
+
+
+def mismatch(expect: Expectation, endpoint: Endpoint) -> str:
+    """
+    Return why ``endpoint`` cannot serve ``expect`` ('' if it can): its type, or its QoS.
+
+    DDS's request-offered rule: a reliable subscription matches only a reliable
+    publisher, a transient-local subscription only a transient-local publisher.
+    """
+    if endpoint.msg_type != expect.msg_type:
+        return f'type {endpoint.msg_type}, expected {expect.msg_type}'
+    pub, sub = ((endpoint, expect) if expect.role == 'publisher' else (expect, endpoint))
+    if sub.reliability == 'reliable' and pub.reliability != 'reliable':
+        return (f'QoS reliability: the publisher is {pub.reliability}, the subscription '
+                f'{sub.reliability}: they do not match')
+    if sub.durability == 'transient_local' and pub.durability != 'transient_local':
+        return (f'QoS durability: the publisher is {pub.durability}, the subscription '
+                f'{sub.durability}: they do not match')
+    return ''
+
+
+def problems(expected: Sequence[Expectation],
+             found: Mapping[str, Sequence[Endpoint]]) -> list[str]:
+    """
+    Return what is wrong with the cell's topics, one sentence each ([] when all is there).
+
+    ``found``: {topic: the endpoints of the expectation's role on it}. A topic is served
+    when at least one endpoint matches (:func:`mismatch`); otherwise it is missing, or each
+    endpoint is named with why it does not match.
+    """
+    out = []
+    for expect in expected:
+        endpoints = found.get(expect.topic, ())
+        if not endpoints:
+            out.append(f'no {expect.topic}: {expect.hint}' if expect.role == 'publisher'
+                       else f'no subscriber on {expect.topic}: {expect.hint}')
+            continue
+        why = [(e, mismatch(expect, e)) for e in endpoints]
+        if all(reason for _, reason in why):
+            out.append(f'{expect.topic}: ' + '; '.join(
+                f'{expect.role} {e.node or "?"}: {reason}' for e, reason in why))
+    return out
+
+
+def endpoints_of(node: Any, expected: Sequence[Expectation]) -> dict[str, list[Endpoint]]:
+    """Return {topic: [Endpoint]} of each expectation's role, from ``node``'s graph view."""
+    out = {}
+    for expect in expected:
+        query = (node.get_publishers_info_by_topic if expect.role == 'publisher'
+                 else node.get_subscriptions_info_by_topic)
+        out[expect.topic] = [
+            Endpoint(f'{info.node_namespace.rstrip("/")}/{info.node_name}', info.topic_type,
+                     info.qos_profile.reliability.name.lower(),
+                     info.qos_profile.durability.name.lower())
+            for info in query(expect.topic)]
+    return out
+
+
+def wait_for_topics(node: Any, expected: Sequence[Expectation],
+                    timeout_s: float = CHECK_TIMEOUT_S, poll_s: float = 0.2,
+                    clock: Callable[[], float] = time.monotonic) -> list[str]:
+    """Look at the graph until every expectation is met or ``timeout_s``; return problems."""
+    deadline = clock() + timeout_s
+    while True:
+        found = problems(expected, endpoints_of(node, expected))
+        if not found or clock() >= deadline:
+            return found
+        time.sleep(poll_s)
+
+
+@dataclass
+class StatusBoard:
+    """
+    What the status line says (module docstring, step 3), from the messages as they come.
+
+    Fed with plain values (:meth:`servo`, :meth:`frame_used`, :meth:`diagnostics`), so
+    that it needs no ROS; ``clock`` is the wall clock of ages.
+    """
+
+    clock: Callable[[], float] = time.monotonic
+    code: int | None = None
+    frames: set = field(default_factory=set)
+    last_error: str = ''
+    last_error_at: float | None = None
+    #: The joint controller's /diagnostics message (why it waits or holds).
+    detail: str = ''
+    _rejected: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        """Start the session's clock."""
+        self.started = self.clock()
+
+    def servo(self, code: int) -> None:
+        """Take a /ibvs/servo_status code."""
+        self.code = int(code)
+
+    def frame_used(self, frame_stamp_ns: int) -> None:
+        """Take a /ibvs/frame_latency: the frame of that stamp was used by a command."""
+        self.frames.add(int(frame_stamp_ns))
+
+    def diagnostics(self, name: str, level: int, message: str,
+                    values: Mapping[str, str]) -> None:
+        """
+        Take one DiagnosticStatus (``name`` '<node>: <what>', level 0 OK, 1 WARN, 2 ERROR).
+
+        A WARN or ERROR is the last error; so is a rejected input (a ``rejected[...]``
+        count that grew, ibvs_common.diagnostics).
+        """
+        node = name.partition(': ')[0]
+        if node == 'joint_controller_node' and 'servo_status' in values:
+            self.detail = message
+        for key, count in values.items():
+            if not key.startswith('rejected['):
+                continue
+            try:
+                count = int(count)
+            except ValueError:
+                continue
+            if count > self._rejected.get((node, key), 0):
+                self._error(f'{node} {key[len("rejected["):-1]} ({count} so far)')
+            self._rejected[(node, key)] = count
+        if level >= 1 and message:
+            self._error(f'{node}: {message}')
+
+    def _error(self, text):
+        self.last_error, self.last_error_at = text, self.clock()
+
+    def line(self) -> str:
+        """Return the status line now."""
+        from ibvs_control.servo_status import ServoStatus
+        now = self.clock()
+        if self.code is None:
+            servo = 'servo: no status yet'
+        else:
+            try:
+                servo = f'servo {self.code} {ServoStatus(self.code).name}'
+            except ValueError:
+                servo = f'servo {self.code} (unknown code)'
+            if self.detail and self.detail != 'ok':
+                servo += f' ({self.detail})'
+        error = (f'{self.last_error} ({now - self.last_error_at:.0f} s ago)'
+                 if self.last_error_at is not None else 'none')
+        return (f'[{now - self.started:6.0f} s] {servo} | frames used {len(self.frames)} | '
+                f'last error: {error}')
+
+
+def session_dir(root: Path = CELL_DIR) -> Path:
+    """Return a new folder for a session's parameters and logs: ``root/<date-time>``."""
+    return root / time.strftime('%Y%m%d-%H%M%S')
+
+
+def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = 'forward_command',
+             camera_name: str = DEFAULT_CAMERA, controller_name: str | None = None,
+             check_timeout_s: float = CHECK_TIMEOUT_S,
+             print_line: Callable[[str], None] = print, live: bool = False) -> int:
+    """
+    Check the cell's topics, start the four nodes, show their status until SIGINT; stop.
+
+    ``params``: :func:`cell_parameters`'s. Returns the exit code: 0 after SIGINT with
+    every process stopped, :data:`EXIT_CHECK_FAILED` when the check fails (nothing
+    started), :data:`runner.EXIT_NODE_DIED` when a node exits, 130 after a SIGINT during
+    the check (nothing started). ``live``: rewrite one status
+    line in place (a terminal) instead of a line each second. Raises
+    :class:`domains.DomainBusy` when another run holds the cell's domain.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from ibvs_bringup.supervision import NodeDied, NodeProcess, stop_all
+    from ibvs_common import dds
+    from ibvs_common.conversions import stamp_ns
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from sensor_msgs.msg import TimeReference
+    from std_msgs.msg import Int8
+
+    from . import runner
+
+    out_dir = Path(out_dir)
+    log_dir = out_dir / 'logs'
+    log_dir.mkdir(parents=True, exist_ok=True)
+    params_file = scenario.write_parameters(dict(params), out_dir / 'params.yaml')
+    node_remaps = remaps(controller, camera_name, controller_name)
+    expected = expectations(params, controller, camera_name, controller_name)
+    if domains.domain_id() is None:
+        os.environ[domains.DOMAIN_ENV] = '0'  # ROS's default: the cell's, not a free one
+    procs = []
+    with runner.interruptible(), domains.held() as (domain, _):
+        dds.configure()
+        context = rclpy.context.Context()
+        rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node('ibvs_cell', context=context, parameter_overrides=[])
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        try:
+            print_line(f"ibvs cell: ROS_DOMAIN_ID {domain}; checking the cell's topics (up to "
+                       f'{check_timeout_s:g} s): ' + ', '.join(e.topic for e in expected))
+            found = wait_for_topics(node, expected, check_timeout_s)
+            if found:
+                for text in found:
+                    print(f'error: {text}', file=sys.stderr)
+                print(f'error: the cell is not ready ({len(found)} problem(s)); no node '
+                      'started', file=sys.stderr)
+                return EXIT_CHECK_FAILED
+            command = command_topic(controller, controller_name)
+            others = node.get_publishers_info_by_topic(command)
+            if others:
+                print_line(f'warning: {command} already has publisher(s) '
+                           f'{", ".join(i.node_name for i in others)}: they command the '
+                           'same controller')
+            board = StatusBoard()
+            node.create_subscription(Int8, contract.SERVO_STATUS,
+                                     lambda m: board.servo(m.data), contract.LATCHED)
+            node.create_subscription(TimeReference, contract.FRAME_LATENCY,
+                                     lambda m: board.frame_used(stamp_ns(m.time_ref)),
+                                     contract.RELIABLE)
+
+            def on_diagnostics(msg):
+                for s in msg.status:
+                    level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+                    board.diagnostics(s.name, level, s.message,
+                                      {kv.key: kv.value for kv in s.values})
+
+            node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, on_diagnostics, 10)
+            for name in CELL_NODES:
+                spec = GRAPH.node(name)
+                procs.append(NodeProcess(spec.package, name, params_file, log_dir,
+                                         remap_args(node_remaps.get(name, {}))))
+            print_line(f'started {", ".join(f"{p.name} (pid {p.proc.pid})" for p in procs)}; '
+                       f'commands on {command}; logs in {log_dir}; Ctrl-C stops them all')
+            next_line = time.monotonic()
+            while True:
+                executor.spin_once(timeout_sec=0.05)
+                dead = next((p for p in procs if p.poll() is not None), None)
+                if dead is not None:
+                    if live:
+                        print_line('')
+                    print(f'error: {NodeDied(dead.name, dead.poll(), dead.log_path)}; '
+                          'stopping the others', file=sys.stderr)
+                    return runner.EXIT_NODE_DIED
+                if time.monotonic() >= next_line:
+                    next_line += STATUS_PERIOD_S
+                    if live:
+                        sys.stdout.write('\r\033[K' + board.line())
+                        sys.stdout.flush()
+                    else:
+                        print_line(board.line())
+        except KeyboardInterrupt:
+            if live:
+                print_line('')
+            if not procs:  # during the check: nothing to stop, and the session never ran
+                print_line('SIGINT during the check: no node started')
+                return 130
+            print_line(f'SIGINT: stopping {", ".join(p.name for p in procs)}')
+            codes = stop_all(procs)
+            procs = []
+            print_line('stopped: ' + ', '.join(f'{n} exit {c}' for n, c in codes.items()))
+            return 0
+        finally:
+            if procs:
+                stop_all(procs)
+            executor.shutdown()
+            node.destroy_node()
+            context.try_shutdown()
+
+
+def check_seconds(text: str) -> float:
+    """Return ``text`` as seconds >= 0 (argparse type of ``--check-timeout``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number of seconds') from None
+    if not (value >= 0.0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f'{text}: expected a finite number of seconds >= 0')
+    return value

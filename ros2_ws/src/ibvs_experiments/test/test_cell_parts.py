@@ -1,0 +1,202 @@
+"""``ibvs cell``'s parts without a graph: its parameters, remaps, topic check and status line."""
+
+from pathlib import Path
+
+from ibvs_bringup import scenario
+from ibvs_common import contract
+from ibvs_experiments import cell, cli
+import pytest
+import yaml
+
+CONFIG = Path(__file__).resolve().parents[2] / 'ibvs_bringup' / 'config'
+LEFT = '/zed/zed_node/left/color/rect/image'
+
+
+def load(name):
+    return yaml.safe_load((CONFIG / name).read_text())['/**']['ros__parameters']
+
+
+def test_cell_yaml_is_real_cell_less_the_simulators_keys_on_the_wall_clock():
+    params, real = load('cell.yaml'), load('real_cell.yaml')
+    declared = cell.declared_by(cell.CELL_NODES)
+    # Every key is read by one of the four nodes (use_sim_time: by every ROS node).
+    assert [k for k in params if k not in declared] == ['use_sim_time']
+    assert cell.simulator_only(params) == []
+    assert params['use_sim_time'] is False
+    # Nothing of real_cell.yaml that a cell's node reads is left out, and no value differs.
+    kept = {k: v for k, v in real.items() if k in declared}
+    assert {k: v for k, v in params.items() if k != 'use_sim_time'} == kept
+    # What was left out is the simulator's or the runner's (real_cell.yaml has several).
+    dropped = set(real) - set(params)
+    assert dropped == set(cell.simulator_only(real)) | {'run_duration_s'}
+    assert {'real_time_factor', 'camera_topics', 'command_timeout_s',
+            'image_noise_stddev'} <= dropped
+
+
+def test_cell_yaml_is_installed_with_the_scenarios():
+    setup = (CONFIG.parent / 'setup.py').read_text()
+    assert "glob('config/*.yaml')" in setup
+    assert cell.config_path().name == 'cell.yaml'
+    assert cell.config_path().is_file()
+
+
+def test_default_remaps_take_abb_ros2s_controller_and_the_wrappers_topics():
+    remaps = cell.remaps()
+    assert remaps['feature_node'] == {
+        contract.LEFT_IMAGE: LEFT,
+        contract.RIGHT_IMAGE: '/zed/zed_node/right/color/rect/image',
+        contract.LEFT_INFO: '/zed/zed_node/left/color/rect/camera_info',
+        contract.RIGHT_INFO: '/zed/zed_node/right/color/rect/camera_info'}
+    assert remaps['adaptive_feedback_node'] == {
+        contract.LEFT_INFO: '/zed/zed_node/left/color/rect/camera_info',
+        contract.RIGHT_INFO: '/zed/zed_node/right/color/rect/camera_info'}
+    assert remaps['joint_controller_node'] == {
+        contract.LEFT_INFO: '/zed/zed_node/left/color/rect/camera_info',
+        contract.RIGHT_INFO: '/zed/zed_node/right/color/rect/camera_info',
+        contract.POSITION_COMMANDS: '/forward_command_controller_position/commands'}
+    assert 'feedforward_node' not in remaps  # it reads /joint_states only
+    # /joint_states is the driver's: nobody's is remapped (no simulator's /stereo/...).
+    assert all(contract.JOINT_STATES not in m for m in remaps.values())
+    assert cell.remap_args(remaps['joint_controller_node'])[-2:] == (
+        '-r', f'{contract.POSITION_COMMANDS}:=/forward_command_controller_position/commands')
+
+
+def test_options_map_to_remaps():
+    remaps = cell.remaps('joint_trajectory', camera_name='cam_a')
+    assert remaps['feature_node'][contract.LEFT_IMAGE] == '/cam_a/zed_node/left/color/rect/image'
+    # abb_ros2's joint_trajectory_controller has the contract's name: no remap of it.
+    assert contract.TRAJECTORY_COMMANDS not in remaps['joint_controller_node']
+    assert cell.command_topic('joint_trajectory') == contract.TRAJECTORY_COMMANDS
+    renamed = cell.remaps('forward_command', controller_name='my_position')
+    assert renamed['joint_controller_node'][contract.POSITION_COMMANDS] == \
+        '/my_position/commands'
+    for bad in ({'camera_name': 'zed/x'}, {'controller_name': '1x'}):
+        with pytest.raises(cell.CellError):
+            cell.remaps(**bad)
+    with pytest.raises(cell.CellError, match='forward_command, joint_trajectory'):
+        cell.remaps('velocity')
+
+
+def test_parameters_refuse_the_simulators_keys_and_a_conflicting_command_type():
+    params = cell.cell_parameters()
+    assert params['position_command_type'] == 'forward_command'
+    assert params['use_sim_time'] is False
+    assert cell.cell_parameters(controller='joint_trajectory')['position_command_type'] == \
+        'joint_trajectory'
+    with pytest.raises(cell.CellError, match='real_time_factor'):
+        cell.cell_parameters(overrides={'real_time_factor': 0.1})
+    with pytest.raises(cell.CellError, match="'joint_trajectory' with --controller"):
+        cell.cell_parameters(overrides={'position_command_type': 'joint_trajectory'})
+    with pytest.raises(cell.CellError, match='lockstep'):
+        cell.cell_parameters(overrides={'lockstep': True})
+    with pytest.raises(cell.CellError, match='command_rate_hz'):
+        cell.cell_parameters(overrides={'command_rate_hz': -1.0})
+    with pytest.raises(cell.CellError, match='does not exist'):
+        cell.cell_parameters('/nonexistent/cell.yaml')
+
+
+def endpoint(msg_type, reliability='reliable', durability='volatile'):
+    return cell.Endpoint('/zed/zed_node', msg_type, reliability, durability)
+
+
+def everything(expected):
+    """Return the endpoints of a cell where everything is there, as our side asks."""
+    return {e.topic: [endpoint(e.msg_type, e.reliability, e.durability)] for e in expected}
+
+
+def test_nothing_there_names_each_topic_and_what_to_look_at():
+    expected = cell.expectations(cell.cell_parameters())
+    found = cell.problems(expected, {})
+    assert found[0].startswith(f'no {LEFT}: is video.publish_left_right true? '
+                               '(zed-ros2-wrapper common_stereo.yaml L54 defaults it to false')
+    assert any(p.startswith('no /joint_states: ') for p in found)
+    assert ('no subscriber on /forward_command_controller_position/commands: is the '
+            'controller spawned?') in '\n'.join(found)
+    # cell.yaml: camera_pose zeros and a taught target, so those must be there too.
+    assert any(p.startswith(f'no {contract.STEREO_POSE}: ') for p in found)
+    assert any(p.startswith(f'no {contract.TEACH_LEFT_IMAGE}: ') for p in found)
+    assert len(found) == len(expected) == 9
+    assert cell.problems(expected, everything(expected)) == []
+
+
+def test_a_calibrated_camera_and_a_model_target_need_neither_pose_nor_teach_pair():
+    params = cell.cell_parameters(overrides={
+        'camera_pose': [1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], 'target_features_source': 'model'})
+    topics = [e.topic for e in cell.expectations(params, camera_name='cam')]
+    assert contract.STEREO_POSE not in topics
+    assert contract.TEACH_LEFT_IMAGE not in topics
+    assert '/cam/zed_node/left/color/rect/image' in topics
+
+
+def test_type_and_qos_mismatches_are_named():
+    expected = cell.expectations(cell.cell_parameters())
+    found = everything(expected)
+    found[LEFT] = [endpoint('sensor_msgs/msg/Image', reliability='best_effort')]
+    found[contract.JOINT_STATES] = [endpoint('sensor_msgs/msg/Imu')]
+    found[contract.STEREO_POSE] = [endpoint('geometry_msgs/msg/PoseStamped')]  # volatile
+    command = '/forward_command_controller_position/commands'
+    # A subscription that asks for transient local gets nothing from our volatile publisher.
+    found[command] = [endpoint('std_msgs/msg/Float64MultiArray', durability='transient_local')]
+    result = cell.problems(expected, found)
+    assert len(result) == 4
+    assert f'{LEFT}: publisher /zed/zed_node: QoS reliability: the publisher is best_effort' \
+        in result[0]
+    assert 'type sensor_msgs/msg/Imu, expected sensor_msgs/msg/JointState' in result[1]
+    assert 'QoS durability' in result[2] and command in result[2]
+    assert contract.STEREO_POSE in result[3] and 'QoS durability' in result[3]
+    # One matching endpoint among others is enough.
+    found[LEFT].append(endpoint('sensor_msgs/msg/Image'))
+    assert len(cell.problems(expected, found)) == 3
+
+
+def test_status_board_says_the_servo_status_frames_and_last_error():
+    now = [100.0]
+    board = cell.StatusBoard(clock=lambda: now[0])
+    assert board.line() == ('[     0 s] servo: no status yet | frames used 0 | '
+                            'last error: none')
+    board.servo(10)
+    board.diagnostics('joint_controller_node: joint loop', 0, 'waiting for feedback',
+                      {'servo_status': 'WAITING', 'rejected_total': '0'})
+    assert 'servo 10 WAITING (waiting for feedback)' in board.line()
+    board.servo(0)
+    board.diagnostics('joint_controller_node: joint loop', 0, 'ok',
+                      {'servo_status': 'NO_WARNING'})
+    for stamp in (1, 2, 2, 3):  # a frame counts once, whatever its commands
+        board.frame_used(stamp)
+    now[0] = 105.0
+    board.diagnostics('feature_node: features', 0, 'ok',
+                      {'rejected[/stereo/left/image_raw: encoding]': '2'})
+    now[0] = 107.0
+    assert board.line() == ('[     7 s] servo 0 NO_WARNING | frames used 3 | last error: '
+                            'feature_node /stereo/left/image_raw: encoding (2 so far) (2 s ago)')
+    # The same count again is no new error; a WARN status is.
+    board.diagnostics('feature_node: features', 0, 'ok',
+                      {'rejected[/stereo/left/image_raw: encoding]': '2'})
+    assert board.last_error_at == 105.0
+    board.diagnostics('joint_controller_node: joint loop', 1, 'camera stale: holding',
+                      {'servo_status': 'HOLD_STALE_CAMERA'})
+    board.servo(12)
+    assert 'servo 12 HOLD_STALE_CAMERA (camera stale: holding)' in board.line()
+    assert 'last error: joint_controller_node: camera stale: holding (0 s ago)' in board.line()
+    board.servo(99)
+    assert 'servo 99 (unknown code)' in board.line()
+
+
+def test_ibvs_run_refuses_the_cells_file(capsys):
+    assert cli.main(['run', 'cell']) == 2
+    assert 'ibvs cell' in capsys.readouterr().err
+
+
+def test_ibvs_cell_refuses_before_anything_starts(capsys, tmp_path):
+    assert cli.main(['cell', '-o', str(tmp_path / 'x'), '-p', 'image_noise_stddev:=0.1']) == 2
+    assert 'image_noise_stddev' in capsys.readouterr().err
+    assert cli.main(['cell', '-o', str(tmp_path / 'x'), '--camera-name', 'a/b']) == 2
+    assert 'camera name' in capsys.readouterr().err
+    assert not (tmp_path / 'x').exists()
+    with pytest.raises(SystemExit):
+        cli.main(['cell', '--check-timeout', '-1'])
+
+
+def test_scenario_listing_still_loads_cell_yaml():
+    # cell.yaml is a valid parameters file (ibvs cell --params-file takes copies of it).
+    assert scenario.load_parameters(cell.config_path())['lockstep'] is False

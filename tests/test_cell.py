@@ -1,0 +1,137 @@
+"""
+``ibvs cell`` as a user starts it, on an empty domain and against the simulator.
+
+On an empty domain it names what is missing; against the simulator standing in for the arm
+and the ZED wrapper it starts, reports, and stops on one SIGINT leaving no process behind.
+
+The simulator stands in as docs/real_cell.md "By hand" says: ``sim_node`` alone, free-running
+with real_cell.yaml's keys (``camera_topics: zed_wrapper``: the wrapper's topic names), its
+command topic remapped to abb_ros2's ``forward_command_controller_position``. The nodes run
+on sim time here (``-p use_sim_time:=true``): the simulator's stamps are sim time.
+"""
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from ibvs_common.process import supervised_child
+from ibvs_testing.proc_tools import ProcTools
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL_CELL = ROOT / 'ros2_ws' / 'src' / 'ibvs_bringup' / 'config' / 'real_cell.yaml'
+CELL_NODES = ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
+              'joint_controller_node')
+
+
+def ibvs_cell(tmp_path, *args, stdout=subprocess.PIPE):
+    return subprocess.Popen([sys.executable, '-m', 'ibvs_experiments.cli', 'cell', '-o',
+                             str(tmp_path / 'cell'), *args], stdout=stdout,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def test_nothing_on_the_domain_exits_naming_the_image_topic(installed_workspace, tmp_path):
+    start = time.monotonic()
+    proc = ibvs_cell(tmp_path)
+    try:
+        out, err = proc.communicate(timeout=20.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert time.monotonic() - start < 20.0
+    assert proc.returncode == 5, (out, err)
+    assert 'no /zed/zed_node/left/color/rect/image: is video.publish_left_right true?' in err
+    assert 'no subscriber on /forward_command_controller_position/commands' in err
+    assert 'no node started' in err
+    assert not list((tmp_path / 'cell' / 'logs').glob('*.log'))  # nothing was started
+
+
+@pytest.fixture
+def cell_under_way(installed_workspace, tmp_path):
+    """
+    Start sim_node as the cell, then ``ibvs cell`` on it; yield once it reports.
+
+    Yields ``(cell, out_path, seen)``: the ``ibvs cell`` process, its stdout's file (a status
+    line already in it) and the pids seen below it. Teardown kills whatever is left.
+    """
+    sim_log = open(tmp_path / 'sim.log', 'w')
+    sim = subprocess.Popen(
+        [str(Path(installed_workspace) / 'lib' / 'ibvs_sim' / 'sim_node'), '--ros-args',
+         '--params-file', str(REAL_CELL), '-p', 'resolution:=VGA',
+         '-r', '/forward_position_controller/commands:='
+         '/forward_command_controller_position/commands'],
+        stdout=sim_log, stderr=subprocess.STDOUT, preexec_fn=supervised_child)
+    out_path = tmp_path / 'cell.out'
+    seen = set()
+    cell = None
+    try:
+        with open(out_path, 'w') as out:
+            # The simulator's start (PyBullet, the taught pair) takes seconds on a loaded
+            # machine: the check waits for its topics that long.
+            cell = ibvs_cell(tmp_path, '-p', 'use_sim_time:=true', '--check-timeout', '180',
+                             stdout=out)
+        deadline = time.monotonic() + 300.0
+        while time.monotonic() < deadline:
+            assert cell.poll() is None, (out_path.read_text(), cell.stderr.read())
+            seen.update(ProcTools.descendants(cell.pid))
+            text = out_path.read_text()
+            if 'frames used' in text and 'servo 0 NO_WARNING' in text:
+                break
+            time.sleep(0.5)
+        seen.update(ProcTools.descendants(cell.pid))
+        yield cell, out_path, seen
+        assert sim.poll() is None  # the stand-in for the cell is not ibvs cell's to stop
+    finally:
+        if cell is not None and cell.poll() is None:
+            cell.kill()
+            cell.wait()
+        if sim.poll() is None:
+            os.killpg(sim.pid, signal.SIGKILL)
+            sim.wait()
+        for pid in seen:
+            if ProcTools.alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        sim_log.close()
+
+
+def node_pids(seen):
+    """Return {node: pids whose command line names it} of the cell's nodes."""
+    return {name: [p for p in seen if name in ProcTools.cmdline(p)] for name in CELL_NODES}
+
+
+@pytest.mark.slow
+def test_against_the_simulator_it_reports_and_one_sigint_stops_all(cell_under_way):
+    cell, out_path, seen = cell_under_way
+    text = out_path.read_text()
+    assert 'started feature_node' in text, text
+    assert '] servo' in text and 'frames used' in text, text
+    nodes = node_pids(seen)
+    assert all(nodes.values()), nodes
+    assert not any('sim_node' in ProcTools.cmdline(p) for p in seen)
+    # The joint controller commands abb_ros2's controller by remapping alone.
+    assert any('/forward_position_controller/commands:='
+               '/forward_command_controller_position/commands' in ProcTools.cmdline(p)
+               for p in nodes['joint_controller_node'])
+    os.kill(cell.pid, signal.SIGINT)
+    assert cell.wait(60.0) == 0, (out_path.read_text(), cell.stderr.read())
+    text = out_path.read_text()
+    assert 'stopped: feature_node exit 0' in text, text
+    leftovers = [p for p in seen if ProcTools.alive(p)]
+    assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]
+
+
+@pytest.mark.slow
+def test_a_node_that_dies_ends_the_session_and_the_others_stop(cell_under_way):
+    cell, out_path, seen = cell_under_way
+    victim = node_pids(seen)['feature_node']
+    assert victim, out_path.read_text()
+    os.kill(victim[0], signal.SIGKILL)
+    assert cell.wait(60.0) == 3, out_path.read_text()
+    err = cell.stderr.read()
+    assert 'node feature_node exited with code -9' in err, err
+    leftovers = [p for p in seen if ProcTools.alive(p)]
+    assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]
