@@ -135,15 +135,35 @@ class Graph:
         """Return the names of the nodes of the shared process ``process``, in order."""
         return tuple(n.name for n in self.nodes if n.process == process)
 
-    def remaps(self, zed: bool = False) -> dict[str, dict[str, str]]:
-        """Return {node: {topic: remapped}}, with the ZED wrapper's names if ``zed``."""
-        out = {n.name: {**n.remaps, **(n.zed_remaps if zed else {})} for n in self.nodes}
+    def remaps(self, zed: bool = False, frame_states: bool = True
+               ) -> dict[str, dict[str, str]]:
+        """
+        Return {node: {topic: remapped}}, with the ZED wrapper's names if ``zed``.
+
+        ``frame_states`` False (free-running: the simulator publishes no
+        /stereo/joint_states, as a real cell has none) leaves out :data:`FRAME_STATES`:
+        those nodes read /joint_states and pair each frame by interpolation.
+        """
+        out = {n.name: {t: r for t, r in {**n.remaps, **(n.zed_remaps if zed else {})}.items()
+                        if frame_states or FRAME_STATES.get(t) != r}
+               for n in self.nodes}
         return {name: m for name, m in out.items() if m}
 
-    def step0_readers(self) -> dict[str, tuple[str, ...]]:
-        """Return {topic: nodes that must read it} for each topic of step 0."""
-        return {t: tuple(n.name for n in self.nodes if t in n.step0_reads)
-                for t in self.step0_topics}
+    def step0_readers(self, frame_states: bool = True) -> dict[str, tuple[str, ...]]:
+        """
+        Return {topic: nodes that must read it} for each topic of step 0.
+
+        ``frame_states`` False: the readers of /stereo/joint_states read /joint_states
+        (:meth:`remaps`) and /stereo/joint_states has none.
+        """
+        def reads(n, t):
+            if frame_states:
+                return t in n.step0_reads
+            if t == contract.FRAME_JOINT_STATES:
+                return False
+            return t in n.step0_reads or (t == contract.JOINT_STATES
+                                          and contract.FRAME_JOINT_STATES in n.step0_reads)
+        return {t: tuple(n.name for n in self.nodes if reads(n, t)) for t in self.step0_topics}
 
     def compose_table(self) -> dict[str, tuple[str, str]]:
         """Return {node: (module, class)}: the nodes ``compose`` can hold."""
@@ -154,7 +174,9 @@ class Graph:
         rows = ['| node | package, module | process | reads | writes | rate |',
                 '|---|---|---|---|---|---|']
         for n in self.nodes:
-            remapped = ''.join(f'; {t} read as {r} (`ibvs run`)' for t, r in n.remaps.items())
+            remapped = ''.join(f'; {t} read as {r} (`ibvs run`'
+                               f'{", lockstep" if FRAME_STATES.get(t) == r else ""})'
+                               for t, r in n.remaps.items())
             where = (f'`{n.process}` ({", ".join(self.shared(n.process))})' if n.process
                      else 'its own')
             rows.append(f'| `{n.name}` | `{n.module}`'
@@ -236,10 +258,11 @@ GRAPH = Graph(
              sim_side=True,
              doc_module='core: `ibvs_sim.simulator.Simulator`, `ibvs_sim.world.World`',
              doc_reads='/joint_effort_commands',
-             doc_writes='/joint_states: every physics step (`physics_rate_hz`, 1 kHz); '
+             doc_writes='/joint_states: every physics step (`physics_rate_hz`, 1 kHz; '
+                        'free-running `joint_state_rate_hz`, 250 Hz, §4.1); '
                         '/ibvs/tool_path (the poses of every step), /ibvs/joint_path (the '
                         '/joint_states of every step) and /clock: `clock_rate_hz` (10 Hz); '
-                        '/stereo/joint_states: every camera frame; '
+                        '/stereo/joint_states: every camera frame (lockstep only); '
                         'images and camera_info: every camera frame (`camera_rate_hz`, '
                         '30 Hz); /stereo/pose: once',
              doc_rate='one step per effort command (lockstep, §4)'),
@@ -263,7 +286,7 @@ def process_plan(params: Mapping[str, Any], graph: Graph = GRAPH
     process of several nodes a remapping names its node (``-r node:topic:=remapped``, the
     ROS 2 syntax of a node-specific rule), so that it leaves the others' topics alone.
     """
-    run_remaps = graph.remaps(zed=uses_zed_names(params))
+    run_remaps = graph.remaps(zed=uses_zed_names(params), frame_states=uses_frame_states(params))
     plan = []
     for spec in graph.processes():
         scope = len(spec.nodes) > 1
@@ -271,6 +294,16 @@ def process_plan(params: Mapping[str, Any], graph: Graph = GRAPH
                                  for topic, remapped in run_remaps.get(node, {}).items()
                                  for arg in ('-r', f'{node}:' * scope + f'{topic}:={remapped}'))))
     return plan
+
+
+def uses_frame_states(params: Mapping[str, Any]) -> bool:
+    """
+    Whether the simulator of a run with ``params`` publishes /stereo/joint_states.
+
+    In lockstep only: free-running (``lockstep: false``, a real cell's timing) it publishes
+    none, as a real cell has none (docs/real_cell.md step 3).
+    """
+    return bool(params.get('lockstep', True))
 
 
 def uses_zed_names(params: Mapping[str, Any]) -> bool:

@@ -44,6 +44,31 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
         + _remaps(*info, node='joint_controller_node'))
 
 
+def test_free_running_reads_joint_states_as_a_real_cell_does():
+    """Issue 34: no /stereo/joint_states free-running: no remapping, /joint_states' readers."""
+    info = (f'{contract.LEFT_INFO}:={contract.ZED_LEFT_INFO}',
+            f'{contract.RIGHT_INFO}:={contract.ZED_RIGHT_INFO}')
+    images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
+              f'{contract.RIGHT_IMAGE}:={contract.ZED_RIGHT_IMAGE}')
+    plan = dict(graph.process_plan({'camera_topics': 'zed_wrapper', 'lockstep': False}))
+    assert plan[ProcessSpec('ibvs_viz', 'viz_node')] == _remaps(*info)
+    assert plan[ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep')] == (
+        _remaps(images[0], images[1], *info, node='feature_node')
+        + _remaps(*info, node='adaptive_feedback_node')
+        + _remaps(*info, node='joint_controller_node'))
+    readers = GRAPH.step0_readers(frame_states=False)
+    assert readers[contract.JOINT_STATES] == (
+        'viz_node', 'robot_state_node', 'feature_node', 'adaptive_feedback_node',
+        'feedforward_node', 'joint_controller_node')
+    assert plan[ProcessSpec('ibvs_sim', 'robot_state_node')] == ()
+    assert readers[contract.FRAME_JOINT_STATES] == ()
+    assert {k: v for k, v in readers.items() if k not in (
+        contract.JOINT_STATES, contract.FRAME_JOINT_STATES)} == {
+        k: v for k, v in GRAPH.step0_readers().items() if k not in (
+            contract.JOINT_STATES, contract.FRAME_JOINT_STATES)}
+    assert graph.uses_frame_states({}) and not graph.uses_frame_states({'lockstep': False})
+
+
 def test_the_step0_readers_are_the_runners_of_before():
     assert GRAPH.step0_readers() == {
         contract.JOINT_STATES: ('feedforward_node', 'joint_controller_node'),

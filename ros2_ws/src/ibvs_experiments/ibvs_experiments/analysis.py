@@ -45,10 +45,23 @@ metrics stay as they were):
   controller's /ibvs/frame_latency (sensor_msgs/TimeReference: header.stamp = command,
   time_ref = frame): camera-to-command latency as the loop saw it, in the time the
   controller runs on;
+- ``frames_published``: the stereo frames the simulator published, counted as the left
+  camera_info messages in the bag stamped before the run's end (a frame is one image and
+  one camera_info per lens; a lost frame or one in a camera outage has none), beside
+  ``frames_used``, the frames whose q_feedback a command used;
 - ``real_time_factor_held_{mean,min}``: the simulator's own measurement, every 2 s of wall
   time, of the sim seconds it advanced per wall second (``real_time_factor_held`` on
   /diagnostics), against ``real_time_factor`` (the overall sim/wall ratio of the run,
-  start-up excluded).
+  start-up excluded);
+- ``real_time_factor_servo_{mean,min_1s}``: the factor held while servoing, from the
+  simulator's first position reference on (start-up, the renderer's first frames and the
+  wait for the first command left out): it cuts that span into consecutive windows of 1 s
+  of wall time and reports the minimum of their factors (sim s advanced / wall s) and the
+  mean (sim time over wall time of all the complete windows); their last values on
+  /diagnostics. Wall-time windows because the factor is a rate of the wall clock and the
+  stepping is paced by it: a stall of the machine is a wall-time event, which a window of
+  1 s of sim time (20 s of wall time at 0.05) would average away. None when the run had
+  no complete window.
 
 What drew the images (runs that rendered them; the simulator's /diagnostics):
 ``render_device``, the OpenGL GL_RENDERER string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)'),
@@ -80,6 +93,8 @@ PARAMS_KEY = 'ibvs.parameters'
 RUN_KEY = 'ibvs.run'
 #: The simulator's /diagnostics values that say what drew the images (module docstring).
 RENDER_KEYS = ('render_device', 'render_hardware')
+#: The simulator's /diagnostics values of the factor held while servoing (module docstring).
+SERVO_RTF_KEYS = ('real_time_factor_servo_mean', 'real_time_factor_servo_min_1s')
 #: The closing window of the run over which the error's mean and maximum are reported, s.
 LAST_WINDOW_S = 0.5
 
@@ -102,6 +117,10 @@ class RunData:
     #: real_time_factor_held reports.
     latency: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     rtf_held: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: Free-running: the stamps (ns) of the left camera_info messages (frames published),
+    #: and the simulator's last real_time_factor_servo_* values (/diagnostics).
+    frame_stamps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    servo_rtf: dict = field(default_factory=dict)
     camera: object = None
     #: The simulator's render_device and render_hardware (/diagnostics), where it said them.
     render: dict = field(default_factory=dict)
@@ -220,12 +239,16 @@ def joint_metrics(series: Sequence[ArrayLike], qd_max: ArrayLike, tau_max: Array
             'peak_joint_torque_ratio': peak(tau, tau_max)}
 
 
-def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike) -> dict[str, Any]:
+def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike,
+                         frames_published: int | None = None,
+                         servo_rtf: dict | None = None) -> dict[str, Any]:
     """
     Return the free-running metrics (module docstring); {} without latency records.
 
     ``latency``: (command ns, frame ns) pairs; ``rtf_held``: the simulator's
-    real_time_factor_held reports.
+    real_time_factor_held reports; ``frames_published``: the frames in the bag (None:
+    not known); ``servo_rtf``: the simulator's last ``real_time_factor_servo_mean`` and
+    ``real_time_factor_servo_min_1s`` (absent: None).
     """
     latency = np.asarray(latency, dtype=np.int64).reshape(-1, 2)
     if latency.size == 0:
@@ -239,6 +262,9 @@ def free_running_metrics(latency: ArrayLike, rtf_held: ArrayLike) -> dict[str, A
         'frame_latency_max_s': float(delay.max()),
         'real_time_factor_held_mean': float(held.mean()) if held.size else None,
         'real_time_factor_held_min': float(held.min()) if held.size else None,
+        'frames_published': frames_published,
+        **{key: (float(servo_rtf[key]) if key in (servo_rtf or {}) else None)
+           for key in SERVO_RTF_KEYS},
     }
 
 
@@ -284,6 +310,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     t, poses, ft, feats, mt, modes = [], [], [], [], [], []
     infos, cam_pose = {}, None
     latency, rtf_held, render, taught = [], [], {}, []
+    frame_stamps, servo_rtf = [], {}
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
         wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
@@ -306,6 +333,9 @@ def load_run(bag_path: str | Path) -> 'RunData':
                 modes.append(values.get('mode', 'unknown'))
             elif conn.topic in INFO_SIDES:
                 infos.setdefault(INFO_SIDES[conn.topic], msg)
+                if INFO_SIDES[conn.topic] == 'left':
+                    frame_stamps.append(msg.header.stamp.sec * 10 ** 9
+                                        + msg.header.stamp.nanosec)
             elif conn.topic == contract.FRAME_LATENCY:
                 latency.append((msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec,
                                 msg.time_ref.sec * 10 ** 9 + msg.time_ref.nanosec))
@@ -316,6 +346,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
                               for kv in status.values if kv.key in RENDER_KEYS)
                 taught = [kv.value for status in msg.status for kv in status.values
                           if kv.key == TAUGHT_KEY] or taught
+                servo_rtf.update((kv.key, kv.value) for status in msg.status
+                                 for kv in status.values if kv.key in SERVO_RTF_KEYS)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -328,6 +360,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
         ft, feats = _before(end_ns, ft, feats)
         mt, modes = _before(end_ns, mt, modes)
         latency = [pair for pair in latency if pair[0] < end_ns]
+        frame_stamps = [stamp for stamp in frame_stamps if stamp < end_ns]
     if len(t) < 2:
         raise ValueError(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH}')
     order = np.argsort(t, kind='stable')
@@ -344,7 +377,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    modes=modes, camera=camera,
                    latency=np.array(latency, dtype=np.int64).reshape(-1, 2),
                    rtf_held=np.array(rtf_held), render=render_metrics(render),
-                   taught_target=_taught(taught))
+                   taught_target=_taught(taught),
+                   frame_stamps=np.array(frame_stamps, dtype=np.int64), servo_rtf=servo_rtf)
 
 
 #: The feature node's /diagnostics key of the taught target features (feature_node.py).
@@ -494,6 +528,7 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
     run.joints = load_joints(bag_path, run.run_info.get('duration_s'))
     run.joint_limits = (robot.q_min, robot.q_max, robot.qd_max, joint_efforts(robot))
     metrics.update(joint_metrics(run.joints, robot.qd_max, run.joint_limits[3]))
-    metrics.update(free_running_metrics(run.latency, run.rtf_held))
+    metrics.update(free_running_metrics(run.latency, run.rtf_held, int(run.frame_stamps.size),
+                                        run.servo_rtf))
     metrics.update(run.render)
     return run, metrics

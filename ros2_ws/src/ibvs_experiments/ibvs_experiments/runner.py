@@ -36,7 +36,8 @@ from typing import Any, TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_bringup import domains, graph_params, scenario, shm
-from ibvs_bringup.graph import GRAPH, Graph, process_plan, uses_zed_names, ZED_TOPICS
+from ibvs_bringup.graph import (GRAPH, Graph, process_plan, uses_frame_states, uses_zed_names,
+                                ZED_TOPICS)
 from ibvs_bringup.recorder import Recorder, recover
 from ibvs_bringup.supervision import expected_readers, NodeDied, NodeProcess, stop_all
 from ibvs_common import contract, dds
@@ -529,7 +530,11 @@ def start(run: Prepared, executor: 'Executor', procs: list[NodeProcess],
     topic_of = ZED_TOPICS if uses_zed_names(run.params) else {}
     for spec, extra in process_plan(run.params, graph):
         if graph.simulator in spec.nodes:
-            counts = expected_readers(executor.get_nodes(), graph.step0_readers(), topic_of)
+            frame_states = uses_frame_states(run.params)
+            counts = expected_readers(executor.get_nodes(), graph.step0_readers(frame_states),
+                                      topic_of)
+            if not frame_states:  # free-running: no /stereo/joint_states to wait for
+                counts[contract.FRAME_JOINT_STATES] = 0
             extra += ('-p', 'min_joint_state_subscribers:='
                       f'{counts[contract.JOINT_STATES]}',
                       '-p', 'min_frame_joint_state_subscribers:='

@@ -20,6 +20,22 @@ def test_latency_from_exposure_to_first_command_and_rtf_held():
     assert m['real_time_factor_held_mean'] == pytest.approx(0.045)
 
 
+def test_frames_published_and_the_factor_held_while_servoing():
+    """Issue 34: frames_published beside frames_used; the servoing's factor held."""
+    pairs = np.column_stack([np.arange(1, 4) * 40 * MS, np.arange(3) * 33 * MS])
+    m = free_running_metrics(pairs, [0.01, 0.05], frames_published=5,
+                             servo_rtf={'real_time_factor_servo_mean': '0.049',
+                                        'real_time_factor_servo_min_1s': '0.047'})
+    assert (m['frames_used'], m['frames_published']) == (3, 5)
+    assert m['real_time_factor_servo_mean'] == pytest.approx(0.049)
+    assert m['real_time_factor_servo_min_1s'] == pytest.approx(0.047)
+    assert m['real_time_factor_held_min'] == pytest.approx(0.01)  # start-up's, kept
+    unknown = free_running_metrics(pairs, [])
+    assert unknown['frames_published'] is None
+    assert unknown['real_time_factor_servo_mean'] is None
+    assert unknown['real_time_factor_servo_min_1s'] is None
+
+
 def test_a_lockstep_run_gains_no_keys():
     assert free_running_metrics(np.zeros((0, 2)), []) == {}
     assert free_running_metrics([], [0.1]) == {}

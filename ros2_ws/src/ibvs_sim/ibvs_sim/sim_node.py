@@ -48,13 +48,23 @@ the target pose and a stereo pair rendered (true camera, noise added); it is pub
 latched on /stereo/teach/{left,right}/image_raw for the feature node to measure p_bar.
 
 Free-running (``lockstep: false``, with ``command_interface: position``: a real cell's
-timing, docs/design.md §4). After the same start, a steady-clock timer advances the
+timing, docs/design.md §4.1). After the same start, a steady-clock timer advances the
 physics on its own, ``real_time_factor`` sim seconds per wall second (Gazebo's setting),
-publishing each step's outputs as above, frames included: each frame is rendered when it is
-due and published whether or not anybody is ready, stamped with its exposure time (the
-step it shows). /clock goes out at least at ``command_rate_hz`` (so that the joint
-controller's sim-time command timer fires at its rate). The arm is a position-controlled
-IRB 4600: joint references on /forward_position_controller/commands
+publishing each step's outputs as above, as the real components do (issue 34):
+/joint_states as joint_state_broadcaster publishes them, at ``joint_state_rate_hz`` (the
+controller manager's rate, 250 Hz on abb_ros2) on its own cycle from
+``joint_state_phase_s`` (the first step at or after each update time, stamped with it),
+the arm's six joints and ``extra_joints`` at 0; no /stereo/joint_states (a real cell has
+none: the frame's readers interpolate /joint_states, and ``min_frame_joint_state_
+subscribers`` is ignored with a warning); each frame rendered when it is due, stamped with
+its exposure time (the step it shows) and delivered ``feedback_latency_s`` of sim time
+later, whether or not anybody is ready (the camera's latency; in lockstep the joint
+controller applies that parameter instead); none exposed within ``camera_outage_s``
+([start, duration], a test hook refused in lockstep: no images, no CameraInfo, no
+/stereo/frame_lost). The parameters only free-running uses are ignored in lockstep with a
+warning when set off their defaults. /clock goes out at least at ``command_rate_hz`` (so
+that the joint controller's sim-time command timer fires at its rate). The arm is a
+position-controlled IRB 4600: joint references on /forward_position_controller/commands
 (std_msgs/Float64MultiArray, values in the order of the ``joints`` parameter, as
 ros2_controllers' forward_command_controller takes them) or, with ``position_command_type:
 joint_trajectory``, on /joint_trajectory_controller/joint_trajectory (trajectory_msgs/
@@ -74,6 +84,9 @@ joint_trajectory_controller refuses, its source cited by
 cannot keep ``real_time_factor`` (a step's work, rendering above all, takes longer than its
 share of wall time) the node says so once a second (WARN log and /diagnostics
 ``real_time_factor_held``) and goes on at the pace it can hold: sim time is never skipped.
+From the first position reference on (the servoing) it measures the factor over windows of
+``SERVO_RTF_WINDOW_S`` (1 s) of wall time: /diagnostics ``real_time_factor_servo_min_1s``
+(the smallest window's) and ``real_time_factor_servo_mean`` (over all complete windows).
 
 By hand. Every few seconds of wall time the node logs its progress (sim time, the real-time
 factor since the last line, frames); with ``duration_s`` it stops stepping once sim time
@@ -89,6 +102,7 @@ only break the physics) is rejected too; the step then happens with the holding 
 goes on and the arm holds its position. Each rejection is logged and counted on /diagnostics.
 """
 
+from dataclasses import dataclass
 import time
 from typing import Any
 
@@ -103,10 +117,11 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (check_command_interface, COMMAND_INTERFACE,
-                                       COMMAND_RATE_HZ, JOINTS, LOCKSTEP, POSITION_COMMAND_TYPE,
-                                       TARGET_FEATURES_SOURCE, target_from_parameters,
-                                       TARGET_POSITION, TARGET_ROTATION)
-from ibvs_common.timing import period_ns
+                                       COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
+                                       POSITION_COMMAND_TYPE, TARGET_FEATURES_SOURCE,
+                                       target_from_parameters, TARGET_POSITION,
+                                       TARGET_ROTATION)
+from ibvs_common.timing import period_ns, seconds_to_ns
 from ibvs_model import IRB4600
 from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
 from ibvs_model.mass_model import joint_efforts
@@ -175,6 +190,49 @@ DURATION_S = Param(
     'by hand (0: never): it publishes the last batches and /clock, logs that it stopped and '
     'goes on spinning until stopped; ibvs run stops the graph itself (--duration) and does '
     'not pass it', 's', low=0.0, high=1e6)
+
+
+@dataclass(frozen=True)
+class NameList(Param):
+    """A Param whose value is a list of strings, empty by default (YAML's [] reads as None)."""
+
+    def _strings(self):
+        return True
+
+    def check(self, value: Any) -> Any:
+        """Return ``value`` as a list of strings, else raise ParameterError naming it."""
+        return super().check([] if value is None else value)
+
+
+#: abb_ros2's controller manager: ``update_rate: 250`` (PickNikRobotics/abb_ros2, main,
+#: abb_bringup/config/abb_controllers.yaml L3), at which joint_state_broadcaster publishes.
+ABB_UPDATE_RATE_HZ = 250.0
+JOINT_STATE_RATE_HZ = Param(
+    'joint_state_rate_hz', ABB_UPDATE_RATE_HZ, 'free-running: rate of /joint_states, as '
+    "ros2_controllers' joint_state_broadcaster publishes them at the controller manager's "
+    "update rate (abb_ros2: 250 Hz), each stamped with its update's time: published at the "
+    'first physics step at or after each joint_state_phase_s + m / rate, at most once a '
+    'step; lockstep publishes every physics step (this is then ignored, with a warning when '
+    'set)', 'Hz', low=0.0, high=10000.0, low_open=True)
+JOINT_STATE_PHASE_S = Param(
+    'joint_state_phase_s', 0.001, "free-running: sim time of the controller manager's first "
+    "update (its cycle runs on its own, not aligned with the camera's frames, which start "
+    'at 0): with 250 Hz, 30 Hz frames and 1 kHz physics, frame stamps fall 0, 2 or 3 ms past '
+    'a multiple of 4 ms and the joint states 1 ms past, so every frame is paired by '
+    'interpolation between two of them', 's', low=0.0, high=1.0)
+EXTRA_JOINTS = NameList(
+    'extra_joints', [], "names of joints that are not the arm's (a track, a positioner) "
+    "added to every /joint_states with position 0 (velocity and effort 0 where the arm's "
+    'are given), as a joint_state_broadcaster publishes every joint of the controller '
+    "manager: every node must take the arm's six by name and ignore them; none of "
+    'joint_1 ... joint_6, each once', '-')
+CAMERA_OUTAGE_S = Param(
+    'camera_outage_s', [0.0, 0.0], 'free-running test hook: [start, duration] in sim time '
+    'of a span in which the camera publishes nothing (no images, no camera_info, no '
+    '/stereo/frame_lost): the frames exposed in [start, start + duration) are not taken; '
+    'duration 0: none (refused in lockstep, where the graph would wait for ever)', 's',
+    low=0.0, high=1e6, length=2)
+
 CAMERA_TOPICS = Param(
     'camera_topics', 'ibvs', "names and format of the stereo pair: 'ibvs' (/stereo/*/image_raw "
     "in rgb8, this project's contract) or 'zed_wrapper' (what zed-ros2-wrapper 5.4 publishes "
@@ -189,7 +247,11 @@ PARAMS = SimConfig.params() + (
     TARGET_FEATURES_SOURCE, TARGET_POSITION, TARGET_ROTATION,
     LOCKSTEP, COMMAND_INTERFACE, POSITION_COMMAND_TYPE, COMMAND_RATE_HZ, JOINTS,
     REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS,
-    DURATION_S)
+    DURATION_S, FEEDBACK_LATENCY_S, JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S, EXTRA_JOINTS,
+    CAMERA_OUTAGE_S)
+#: The parameters that only free-running uses: lockstep warns when one is not its default.
+FREE_RUNNING_ONLY = (REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S,
+                     JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S)
 
 #: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
 CAMERA_OUTPUTS = {
@@ -210,6 +272,9 @@ MAX_STEPS_PER_TICK = 20
 #: and the share of the set factor below which the node reports that it falls behind.
 RTF_WINDOW_S = 2.0
 RTF_TOLERANCE = 0.9
+#: Free-running: the wall-clock window of the factor held while servoing (from the first
+#: position reference): its minimum over these windows and its mean over all of them.
+SERVO_RTF_WINDOW_S = 1.0
 
 #: Largest |effort| of a command, in multiples of its joint's rated torque
 #: (ibvs_model.mass_model.joint_efforts). Not the rating itself: the paper's ideal actuators
@@ -252,6 +317,19 @@ class SimNode(Node):
         self._min_info_subscribers = values['min_camera_info_subscribers']
         self._duration_ns = int(round(values['duration_s'] * 1e9))
         self.finished = False
+        self._check_mode(values)
+        self._feedback_latency_ns = seconds_to_ns(values['feedback_latency_s'])
+        self._joint_state_period_ns = period_ns(values['joint_state_rate_hz'])
+        self._next_joint_state_ns = seconds_to_ns(values['joint_state_phase_s'])
+        self._extra_joints = list(values['extra_joints'])
+        start_s, span_s = values['camera_outage_s']
+        self._outage = (seconds_to_ns(start_s), seconds_to_ns(start_s + span_s)) \
+            if span_s > 0.0 else None
+        #: Free-running: the frames rendered and not yet delivered, (due ns, stamp ns,
+        #: images or None when lost), in order (feedback_latency_s after their exposure).
+        self._deliveries = []
+        self.frames_published = 0
+        self.frames_outage = 0
         clock_rate_hz = values['clock_rate_hz']
         if not self._lockstep and clock_rate_hz < values['command_rate_hz']:
             # A sim-time timer fires only when /clock moves: the command timer needs it.
@@ -337,6 +415,29 @@ class SimNode(Node):
         self._progress_mark = None
         self.diagnostics.log_progress(self._progress)
 
+    def _check_mode(self, values):
+        """Refuse what the time mode cannot do, warn about what it ignores (module docs)."""
+        extra = values['extra_joints']
+        bad = [n for n in extra if not n or n in contract.JOINT_NAMES]
+        if bad or len(set(extra)) != len(extra):
+            raise ParameterError(f"parameter 'extra_joints' = {extra!r} is invalid: each name "
+                                 f'once, not empty and none of {list(contract.JOINT_NAMES)}')
+        log = self.get_logger()
+        if self._lockstep:
+            if values['camera_outage_s'][1] > 0.0:
+                raise ParameterError(
+                    f"parameter 'camera_outage_s' = {values['camera_outage_s']!r} is invalid "
+                    'in lockstep: the joint controller waits for every frame, so the run '
+                    'would stop; allowed: a duration of 0 (or lockstep false)')
+            for spec in FREE_RUNNING_ONLY:
+                if values[spec.name] != spec.default:
+                    log.warn(f"parameter '{spec.name}' = {values[spec.name]!r} is ignored in "
+                             'lockstep (it applies to free-running, lockstep false)')
+        elif values['min_frame_joint_state_subscribers'] > 0:
+            log.warn("parameter 'min_frame_joint_state_subscribers' = "
+                     f"{values['min_frame_joint_state_subscribers']} is ignored free-running: "
+                     f'no {contract.FRAME_JOINT_STATES} (a real cell has none)')
+
     def _setup_position(self, values):
         """Create the position drive and its command subscription (module docstring)."""
         self._joints = list(values['joints'])
@@ -357,6 +458,8 @@ class SimNode(Node):
         self._rtf = values['real_time_factor']
         self._command_ns = None
         self._stale = False
+        self._servo_start = self._servo_window = self._servo_min = None
+        self._servo_windows = 0
         self.commands = 0
         if values['position_command_type'] == 'forward_command':
             self._sub = self.create_subscription(Float64MultiArray, contract.POSITION_COMMANDS,
@@ -382,8 +485,9 @@ class SimNode(Node):
         missing = []
         if self._sub.get_publisher_count() < 1:
             missing.append(f'a publisher on {self._sub.topic_name}')
+        frame_joints = self._min_frame_joint_subscribers if self._lockstep else 0
         for pub, wanted in ((self._pub_joints, self._min_joint_subscribers),
-                            (self._pub_frame_joints, self._min_frame_joint_subscribers),
+                            (self._pub_frame_joints, frame_joints),
                             (self._pub_tool, self._min_tool_subscribers),
                             (self._pub_joint_path, self._min_joint_path_subscribers)):
             have = pub.get_subscription_count()
@@ -408,10 +512,14 @@ class SimNode(Node):
         self._progress_mark = (time.monotonic(), self.sim.t_ns)
         self._publish_step()
         if not self._lockstep:
+            outage = '' if self._outage is None else (
+                f', camera out over [{self._outage[0]}, {self._outage[1]}) ns')
             self.get_logger().info(
                 f'free-running at real_time_factor {self._rtf:g}, /clock every '
                 f'{self._clock_period_ns} ns, commands stale after '
-                f'{self._command_timeout_ns} ns')
+                f'{self._command_timeout_ns} ns, /joint_states every '
+                f'{self._joint_state_period_ns} ns from {self._next_joint_state_ns} ns, frames '
+                f'delivered {self._feedback_latency_ns} ns after exposure{outage}')
             self._anchor = (time.monotonic(), self.sim.t_ns)
             self._window = (time.monotonic(), self.sim.t_ns)
             self._run_timer = self.create_timer(
@@ -487,30 +595,62 @@ class SimNode(Node):
                 self._next_clock_ns = (t_ns // self._clock_period_ns + 1) * self._clock_period_ns
             q, qd = sim.encoders(state)
             joints = joint_state(t_ns, q, qd, sim.last_torque)
-            self._pub_joints.publish(joints)
-            self._published_at = time.perf_counter()
+            if self._lockstep:
+                self._pub_joints.publish(self._with_extra_joints(joints))
+                self._published_at = time.perf_counter()
+            elif t_ns >= self._next_joint_state_ns:
+                # joint_state_broadcaster's cycle: joint_state_rate_hz from its own phase.
+                self._pub_joints.publish(self._with_extra_joints(joints))
+                self._next_joint_state_ns += self._joint_state_period_ns * (
+                    (t_ns - self._next_joint_state_ns) // self._joint_state_period_ns + 1)
             self._joint_states.append(joints)
-            if self._frame_step:
+            if self._frame_step and self._lockstep:
                 self._pub_frame_joints.publish(joints)
         if self._frame_step:
-            with timing.section('render'):
-                stamp, images, lost = sim.take_frame(render=self._publish_images)
-            self.frames += 1
-            if lost:
-                self._pub_lost.publish(Header(stamp=ns_stamp(stamp),
-                                              frame_id=contract.CAMERA_FRAME))
-            elif images is not None:
-                with timing.section('image_messages'):
-                    frames = self._camera_frames
-                    infos = camera_infos(sim.calibrated_camera.intrinsics, stamp, frames)
-                    for pub, info_pub, image, info, frame in zip(
-                            self._pub_images, self._pub_infos, images, infos, frames):
-                        pub.publish(image_msg(image, stamp, self._encoding, frame))
-                        info_pub.publish(info)
+            if self._outage is not None and self._outage[0] <= t_ns < self._outage[1]:
+                sim.skip_frame()  # camera_outage_s: the camera is gone, it says nothing
+                self.frames_outage += 1
+            else:
+                with timing.section('render'):
+                    stamp, images, lost = sim.take_frame(render=self._publish_images)
+                self.frames += 1
+                self._deliveries.append((stamp + (0 if self._lockstep
+                                                  else self._feedback_latency_ns),
+                                         stamp, None if lost else images, lost))
+        while self._deliveries and self._deliveries[0][0] <= t_ns:
+            self._deliver(*self._deliveries.pop(0)[1:])
         timing.reached(t_ns)
         self.diagnostics.update(step=sim.k, sim_time_s=t_ns * 1e-9, waiting_for_ns=t_ns,
                                 frames=self.frames, frames_lost=sim.frames_lost,
                                 held_steps=self.held_steps)
+
+    def _with_extra_joints(self, joints):
+        """Return ``joints`` with the extra_joints at 0 (a new message), or itself."""
+        if not self._extra_joints:
+            return joints
+        msg = JointState(header=joints.header, name=list(joints.name) + self._extra_joints)
+        zeros = [0.0] * len(self._extra_joints)
+        msg.position = list(joints.position) + zeros
+        msg.velocity = list(joints.velocity) + zeros if len(joints.velocity) else []
+        msg.effort = list(joints.effort) + zeros if len(joints.effort) else []
+        return msg
+
+    def _deliver(self, stamp, images, lost):
+        """Publish a frame stamped with its exposure: its images and CameraInfo, or lost."""
+        if lost:
+            self._pub_lost.publish(Header(stamp=ns_stamp(stamp),
+                                          frame_id=contract.CAMERA_FRAME))
+        elif images is not None:
+            with self.diagnostics.timing.section('image_messages'):
+                frames = self._camera_frames
+                infos = camera_infos(self.sim.calibrated_camera.intrinsics, stamp, frames)
+                for pub, info_pub, image, info, frame in zip(
+                        self._pub_images, self._pub_infos, images, infos, frames):
+                    pub.publish(image_msg(image, stamp, self._encoding, frame))
+                    info_pub.publish(info)
+            self.frames_published += 1
+            self.diagnostics.update(frames_published=self.frames_published,
+                                    frames_outage=self.frames_outage)
 
     def _publish_tool_path(self):
         """Publish the true tool poses of the steps since the last batch, if any."""
@@ -579,6 +719,8 @@ class SimNode(Node):
             # Behind by more than ten ticks' worth: go on from here at the set pace rather
             # than rush (sim time is never skipped, only the lost wall time is not made up).
             self._anchor = (now, self.sim.t_ns)
+        if self._servo_window is not None and now - self._servo_window[0] >= SERVO_RTF_WINDOW_S:
+            self._close_servo_window(now)
         start, sim_start = self._window
         if now - start >= RTF_WINDOW_S:
             held = (self.sim.t_ns - sim_start) * 1e-9 / (now - start)
@@ -591,6 +733,19 @@ class SimNode(Node):
                 self.diagnostics.set_level(DiagnosticStatus.WARN, message)
             elif not self._stale:
                 self.diagnostics.set_level(DiagnosticStatus.OK, 'ok')
+
+    def _close_servo_window(self, now):
+        """End a 1 s wall window of the servoing: its factor, the minimum and the mean."""
+        wall0, sim0 = self._servo_window
+        held = (self.sim.t_ns - sim0) * 1e-9 / (now - wall0)
+        self._servo_window = (now, self.sim.t_ns)
+        self._servo_min = held if self._servo_min is None else min(self._servo_min, held)
+        wall_start, sim_start = self._servo_start
+        self.diagnostics.update(
+            real_time_factor_servo_min_1s=self._servo_min,
+            real_time_factor_servo_mean=(self.sim.t_ns - sim_start) * 1e-9 / (now - wall_start),
+            servo_windows=self._servo_windows + 1)
+        self._servo_windows += 1
 
     def _free_step(self):
         """One physics step of the position drive, then the next step's outputs."""
@@ -626,6 +781,8 @@ class SimNode(Node):
                                     'beyond a joint range')
             return
         self.servo.command(q_encoder + self.sim.d_q)
+        if self._command_ns is None:  # the servoing starts: its factor held from here
+            self._servo_start = self._servo_window = (time.monotonic(), self.sim.t_ns)
         self._command_ns = self.sim.t_ns
         self.commands += 1
         if self._stale:

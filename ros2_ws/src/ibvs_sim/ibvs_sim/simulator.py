@@ -185,6 +185,19 @@ class Simulator:
             return stamp, None, True
         return stamp, (self._render() if render else None), False
 
+    def skip_frame(self) -> int:
+        """
+        Return when the frame due now was due (ns) and advance n, taking no frame.
+
+        A camera that is not there (sim_node's ``camera_outage_s``): nothing is rendered,
+        no loss drawn, nothing counted as lost.
+        """
+        stamp = self.frame_due()
+        if stamp is None:
+            raise RuntimeError(f'no frame due at t = {self.t_ns} ns')
+        self.next_frame += 1
+        return stamp
+
     def _render(self):
         """Return the stereo pair of the current state: true camera, image noise added."""
         images = self.world.render_stereo(self.camera, self.render_supersampling,
