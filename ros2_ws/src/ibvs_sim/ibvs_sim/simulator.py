@@ -26,6 +26,7 @@ from fractions import Fraction
 
 from ibvs_common.params import ParameterError
 from ibvs_common.timing import check_camera_rate, period_ns
+from ibvs_model.ik_branch import nearest_branch_ik
 from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
                         IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
                         StereoIntrinsics)
@@ -79,7 +80,8 @@ class Simulator:
             raise ConfigError('l2_scale', str(exc)) from None
         target = paper.scenario_start_pose(config.scenario)
         try:
-            self.q_start = inverse_kinematics(target, self.params)
+            # The branch nearest q = 0 inside the reach cone (no over-the-head arm).
+            self.q_start = nearest_branch_ik(target, np.zeros(6), self.params)
         except ModelError as exc:
             raise ConfigError('scenario', f'start pose of scenario {config.scenario} is '
                               f'unreachable by the simulated robot (l2_scale = '

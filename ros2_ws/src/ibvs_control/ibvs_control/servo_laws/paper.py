@@ -25,7 +25,7 @@ class Paper(AdaptiveFeedback, ServoLaw):
     holding = 'holding (arm slewing)'
 
     @classmethod
-    def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+    def build(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
                **settings: Any) -> 'Paper':
         """Return the feedback with the Youla design's ``tau_in``, ``omega_n``, ``zeta``."""
         return cls(model, pose, settings['tau_in'], settings['omega_n'], settings['zeta'], dt,
