@@ -6,16 +6,18 @@ frame, shapes the step it makes (delta = the law's q_feedback less the one last 
 
 1. Joint-limit avoidance, the classic laws (``ibvs``, ``pbvs``): the secondary task of
    Marey & Chaumette (IROS 2010) as ViSP computes it,
-   ``vpServo::secondaryTaskJointLimitAvoidance`` (lagadic/visp 025247a,
-   ``modules/vs/src/vpServo.cpp``; defaults rho = 0.1, rho1 = 0.3, lambda_tune = 0.7 in
-   ``modules/vs/include/visp3/vs/vpServo.h``), projected by ViSP's large projection
-   operator (``vpServo::computeProjectionOperators``: P = sig(|e|) P_|e| + (1 - sig)
-   (I - W^+ W), Marey & Chaumette 2010 eq. 24) built from the law's Jacobian C1 and error.
-   ViSP activates the task for joint i only when b = |qdot1_i| / |(P g_i)_i| < 1, so a
-   joint driven hard towards its limit switches its own avoidance off (lagadic/visp issue
-   #1946, fixed by PR #1945); here b is never compared with 1: once a joint is past
-   q_l0 the task acts, with |qdot2_i| = (1 + lambda_tune) |qdot1_i| >= |qdot1_i| in the
-   critical zone (the paper's Section III-B.3 guarantee).
+   ``vpServo::secondaryTaskJointLimitAvoidance`` (lagadic/visp efb30f0,
+   ``modules/vs/src/vpServo.cpp`` L1149-1232; defaults rho = 0.1, rho1 = 0.3,
+   lambda_tune = 0.7 in ``modules/vs/include/visp3/vs/vpServo.h`` L988-989), projected by
+   ViSP's large projection operator (``vpServo::computeProjectionOperators``, L1048-1079:
+   P = sig(|e|) P_|e| + (1 - sig) (I - W^+ W), Marey & Chaumette 2010 eq. 24) built from
+   the law's Jacobian C1 and error. Before lagadic/visp issue #1946 (fixed by 8cb03e3 and
+   ad2ff38; the former code, e.g. 025247a, tested ``if (b < 1.)``) the task for joint i
+   acted only when b = |qdot1_i| / |(P g_i)_i| < 1, so a joint driven hard towards its
+   limit switched its own avoidance off. Here, as ViSP after the fix: past q_l1 (zone C1)
+   b is not bounded, |qdot2_i| = (1 + lambda_tune) |qdot1_i| >= |qdot1_i| (the paper's
+   Section III-B.3 guarantee); between q_l0 and q_l1 (zone C2) b is clamped to 1; a
+   vanishing (P g_i)_i gives b = 1.
    The paper's law: its feedforward's joint-space path is a straight line from q(0) to
    q_target (eq. 43-45), inside the box of the joint limits when both ends are (the box
    is convex); the envelope keeps q(0) + q_feedback and q_target + q_feedback inside the
@@ -50,14 +52,13 @@ from enum import IntEnum
 import math
 from typing import Any
 
-from ibvs_model import geometric_jacobian, ModelError
+from ibvs_model import geometric_jacobian, inverse_kinematics, ModelError
 from ibvs_model.capsules import Cell, clearances
 from ibvs_model.ik_branch import nearest_branch_ik
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .controllers import feature_error, FeedbackUpdate
-from .decoupling import decouple
 from .servo_status import ServoStatus
 
 #: ViSP's defaults (vpServo.h): activation at rho of the range from a limit, the critical
@@ -215,12 +216,11 @@ def joint_limit_avoidance(q: ArrayLike, qdot1: ArrayLike, projector: ArrayLike,
     """
     Return the joint-limit avoidance velocity qdot2 of Marey & Chaumette 2010 (ViSP's).
 
-    As ``vpServo::secondaryTaskJointLimitAvoidance`` (module docstring) with one change,
-    issue #1946's: no ``b < 1`` test, the task cannot switch itself off. Per joint i past
-    q_l0 (rho of the range inside a limit): g_i = +-e_i, b = |qdot1_i| / |(P g_i)_i|,
-    qdot2 += -w (1 + lambda_tune) b P g_i with w = 1 past q_l1 (rho * rho1 of the range
-    further) and ViSP's sigmoid between. A joint whose (P g_i)_i is 0 (P leaves it no
-    freedom) gets nothing: the final clamp is its guarantee.
+    As ``vpServo::secondaryTaskJointLimitAvoidance`` after issue #1946's fix (module
+    docstring): per joint i past q_l0 (rho of the range inside a limit), g_i = +-e_i,
+    b = |qdot1_i| / |(P g_i)_i| (1 where that vanishes), qdot2 += -w (1 + lambda_tune) b
+    P g_i with w = 1 and b unbounded past q_l1 (rho * rho1 of the range further), ViSP's
+    sigmoid w and b clamped to 1 between: the task never switches itself off.
 
     Parameters
     ----------
@@ -254,17 +254,17 @@ def joint_limit_avoidance(q: ArrayLike, qdot1: ArrayLike, projector: ArrayLike,
         g = np.zeros_like(q)
         g[i] = -1.0 if q[i] <= l0_min[i] else 1.0
         pg = projector @ g
-        if abs(pg[i]) < 1e-12:
-            continue
-        b = abs(qdot1[i]) / abs(pg[i])
+        b = abs(qdot1[i]) / abs(pg[i]) if abs(pg[i]) >= 10.0 * np.finfo(float).eps else 1.0
         if q[i] < l1_min[i] or q[i] > l1_max[i]:
             weight = 1.0
-        elif q[i] >= l0_max[i]:
-            weight = 1.0 / (1.0 + math.exp(-12.0 * (q[i] - l0_max[i])
-                                           / (l1_max[i] - l0_max[i]) + 6.0))
         else:
-            weight = 1.0 / (1.0 + math.exp(-12.0 * (q[i] - l0_min[i])
-                                           / (l1_min[i] - l0_min[i]) + 6.0))
+            b = min(b, 1.0)
+            if q[i] >= l0_max[i]:
+                weight = 1.0 / (1.0 + math.exp(-12.0 * (q[i] - l0_max[i])
+                                               / (l1_max[i] - l0_max[i]) + 6.0))
+            else:
+                weight = 1.0 / (1.0 + math.exp(-12.0 * (q[i] - l0_min[i])
+                                               / (l1_min[i] - l0_min[i]) + 6.0))
         out -= weight * (1.0 + lambda_tune) * b * pg
     return out
 
@@ -317,6 +317,8 @@ class EnvelopedLaw:
     def __init__(self, law: Any, config: EnvelopeConfig = EnvelopeConfig()) -> None:
         """Wrap ``law``; nothing sent yet."""
         self.law = law
+        # the law that holds the model and the target ('switching' wraps the paper's)
+        self.core = law if hasattr(law, 'model') else law.feedback
         self.config = config
         self.counts = Counter()
         self.codes = ()
@@ -325,6 +327,8 @@ class EnvelopedLaw:
 
     def __getattr__(self, name: str) -> Any:
         """Read anything else from the law."""
+        if name == 'law':  # not set yet (copy, unpickling): no recursion
+            raise AttributeError(name)
         return getattr(self.law, name)
 
     @property
@@ -341,16 +345,15 @@ class EnvelopedLaw:
     def _path_ends(self, q_encoder):
         """Return the joint-space ends the feedforward goes between (q(0), its target)."""
         if self._ends is None:
-            params = self.law.model.params
+            params = self.core.model.params
             if getattr(self.law, 'without_feedforward', False):
                 self._ends = np.asarray(q_encoder, dtype=float).copy()[None]
             else:
                 q0 = np.asarray(q_encoder, dtype=float).copy()
                 try:
-                    q_target = nearest_branch_ik(self.law.pose, q0, params, same_arm_as=q0)
+                    q_target = nearest_branch_ik(self.core.pose, q0, params, same_arm_as=q0)
                 except ModelError:
-                    from ibvs_model import inverse_kinematics
-                    q_target = inverse_kinematics(self.law.pose, params, seed=q0)
+                    q_target = inverse_kinematics(self.core.pose, params, seed=q0)
                 self._ends = np.stack([q0, q_target])
         return self._ends
 
@@ -371,7 +374,7 @@ class EnvelopedLaw:
         wanted = np.asarray(update.q_feedback, dtype=float)
         delta = wanted - prev
         q = np.asarray(q_encoder, dtype=float)
-        params = law.model.params
+        params = self.core.model.params
         q_min, q_max = np.asarray(params.q_min), np.asarray(params.q_max)
         codes = []
         changed = False

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from .robot import IRB4600, joint_frames, RobotParams
 
@@ -158,7 +158,7 @@ class Cell:
                         CAMERA_RADIUS_M)]
 
     def planes(self) -> list[tuple[str, float]]:
-        """Return the horizontal planes (name, height in {O})."""
+        """Return the horizontal planes: (name, height in {O}) pairs."""
         planes = [('floor', -self.mount_height_m)]
         if self.table_height_m is not None:
             planes.append(('table', float(self.table_height_m)))

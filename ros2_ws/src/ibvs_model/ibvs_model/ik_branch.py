@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array
 from .errors import UnreachablePoseError
-from .robot import IRB4600, ik_solutions, joint_frames, RobotParams
+from .robot import ik_solutions, IRB4600, joint_frames, RobotParams
 
 
 @dataclass(frozen=True)

@@ -2,9 +2,9 @@
 
 import math
 
+from ibvs_model import inverse_kinematics, paper
 from ibvs_model.capsules import (arm_capsules, Capsule, capsule_distance, Cell, clearances,
                                  plane_distance, segment_distance)
-from ibvs_model import inverse_kinematics, paper
 import numpy as np
 import pytest
 

@@ -26,10 +26,10 @@ from fractions import Fraction
 
 from ibvs_common.params import ParameterError
 from ibvs_common.timing import check_camera_rate, period_ns
-from ibvs_model.ik_branch import nearest_branch_ik
 from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
                         IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
                         StereoIntrinsics)
+from ibvs_model.ik_branch import nearest_branch_ik
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 

@@ -59,7 +59,7 @@ class Switching(ServoLaw):
 
     @classmethod
     def build(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
-               **settings: Any) -> 'Switching':
+              **settings: Any) -> 'Switching':
         """Wrap the paper's feedback made from the same ``settings``."""
         own = {k: settings[k] for k in cls.options if k in settings}
         return cls(Paper.build(model, pose, dt, **settings), **own)
