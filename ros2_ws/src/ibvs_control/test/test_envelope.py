@@ -14,10 +14,12 @@ import math
 from ibvs_control.controllers import FeedbackUpdate
 from ibvs_control.envelope import (collision_scale, EnvelopeConfig, EnvelopedLaw,
                                    Intervention, joint_limit_avoidance,
-                                   large_projection_operator, singularity_scale)
+                                   large_projection_operator,
+                                   SCENE_COLLISION_PROXIMITY_THRESHOLD, singularity_scale)
 from ibvs_control.servo_laws import make_law, SERVO_LAWS
 from ibvs_control.servo_status import ServoStatus
 from ibvs_model import default_model, forward_kinematics, inverse_kinematics, IRB4600, paper
+from ibvs_model.capsules import Cell
 import numpy as np
 import pytest
 
@@ -27,9 +29,10 @@ Q_MIN, Q_MAX = np.asarray(IRB4600.q_min), np.asarray(IRB4600.q_max)
 class RandomLaw:
     """A law whose q_feedback jumps anywhere (up to 4 rad a frame): the worst case."""
 
-    def __init__(self, rng, without_feedforward, model):
+    def __init__(self, rng, without_feedforward, model, amplitude=4.0):
         """Keep the random source; the target is the paper's."""
         self.rng = rng
+        self.amplitude = amplitude
         self.without_feedforward = without_feedforward
         self.model = model
         self.pose = paper.target_pose()
@@ -48,7 +51,7 @@ class RandomLaw:
         """Jump anywhere."""
         if self.q_start is None:
             self.q_start = np.asarray(q_encoder, dtype=float).copy()
-        self._q_feedback = self._q_feedback + self.rng.uniform(-4.0, 4.0, 6)
+        self._q_feedback = self._q_feedback + self.rng.uniform(-self.amplitude, self.amplitude, 6)
         self.last = FeedbackUpdate(self.q_feedback, q_encoder, np.ones(6), 6, 1.0, 1.0,
                                    np.zeros(6), False, False)
         return self.last
@@ -187,3 +190,24 @@ def test_avoidance_stays_in_the_null_space_near_the_goal():
     assert Intervention.JOINT_LIMIT_AVOIDANCE in law.codes
     seen = model.jacobian(q) @ (b.q_feedback - a.q_feedback)
     assert np.max(np.abs(seen)) < 1e-9
+
+
+@pytest.mark.parametrize('gap, expected', [
+    (-0.001, Intervention.HALT_FOR_COLLISION),
+    (0.005, Intervention.DECELERATE_FOR_COLLISION),
+])
+def test_a_table_under_the_tool_slows_or_halts(gap, expected):
+    """A table ``gap`` below the tool's capsule: MoveIt's scale on the step, 0 in contact."""
+    model = default_model()
+    q = inverse_kinematics(paper.target_pose())
+    tip_z = paper.TARGET_POSITION[2] - IRB4600.L_tool
+    cell = Cell(table_height_m=tip_z - 0.025 - gap)
+    law = EnvelopedLaw(RandomLaw(np.random.default_rng(1), True, model, amplitude=0.01),
+                       EnvelopeConfig(cell=cell, joint_limit_avoidance=False,
+                                      singularity_scaling=False))
+    wanted = np.random.default_rng(1).uniform(-0.01, 0.01, 6)
+    update = law.update(law.p_target, q)
+    assert law.codes == (expected,)
+    scale = collision_scale(gap, SCENE_COLLISION_PROXIMITY_THRESHOLD)
+    assert np.allclose(update.q_feedback, scale * wanted, rtol=1e-12, atol=0.0)
+    assert (scale == 0.0) == (expected == Intervention.HALT_FOR_COLLISION)
