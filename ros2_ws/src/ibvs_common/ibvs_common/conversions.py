@@ -175,30 +175,77 @@ def joint_state(stamp: int | Time, position: ArrayLike | None = None,
     return msg
 
 
+#: Most distinct (JointState.name, names) pairs whose mapping :func:`joint_order` keeps: a
+#: cell publishes one or two name lists; a publisher of ever new names (a fuzzer) does not
+#: grow the cache beyond this.
+JOINT_ORDER_CACHE = 64
+_JOINT_ORDERS: dict = {}
+
+
+def joint_order(given: Sequence[str], names: Sequence[str] = contract.JOINT_NAMES
+                ) -> tuple[NDArray[np.int_] | None, tuple[str, ...]]:
+    """
+    Return (where each of ``names`` is in ``given``, the names of ``given`` that are ignored).
+
+    joint_state_broadcaster publishes every joint of every hardware of the
+    controller_manager (an arm's track, a gripper), in its own order. The arm's joints
+    ``names`` are taken by name, in any order; the others are ignored and returned (in the
+    order given) so that a node can say once which it ignores. The index array is None
+    when ``given`` is ``names`` as it is (no reordering needed). Raises
+    :class:`InputError`: 'no joint names' (``given`` empty: values are mapped by name),
+    'wrong joint names' (a name given twice) or 'missing joints' (one of ``names`` not
+    given).
+    """
+    key = (tuple(given), tuple(names))
+    found = _JOINT_ORDERS.get(key)
+    if found is not None:
+        return found
+    given, names = key
+    if not given:
+        raise InputError('no joint names', 'JointState.name is empty; values are mapped by name')
+    if len(set(given)) != len(given):
+        raise InputError('wrong joint names', f'{list(given)}: a name given twice')
+    missing = [n for n in names if n not in given]
+    if missing:
+        raise InputError('missing joints', f'{missing} not in {list(given)}')
+    order = None if given == names else np.array([given.index(n) for n in names])
+    found = (order, tuple(n for n in given if n not in names))
+    if len(_JOINT_ORDERS) >= JOINT_ORDER_CACHE:
+        _JOINT_ORDERS.clear()
+    _JOINT_ORDERS[key] = found
+    return found
+
+
+def ignored_joints(msg: JointState, names: Sequence[str] = contract.JOINT_NAMES
+                   ) -> tuple[str, ...]:
+    """Return the joints of ``msg`` that are not ``names`` (ignored); () if it cannot be read."""
+    try:
+        return joint_order(msg.name, names)[1]
+    except InputError:
+        return ()
+
+
 def read_joints(msg: JointState, field: str = 'position',
                 names: Sequence[str] = contract.JOINT_NAMES,
                 bound: tuple[ArrayLike, ArrayLike] | None = None) -> NDArray[np.float64]:
     """
-    Return ``msg.<field>`` as a (6,) array in the order of ``names``.
+    Return ``msg.<field>`` of the joints ``names``, a (6,) array in their order.
 
-    Values are mapped by joint name: the message must name the six joints, in any order.
-    Raises :class:`InputError` for a wrong length, missing, unknown or repeated names, a
-    non-finite value or, with ``bound`` = (low, high) (arrays in the order of ``names``), a
-    value outside [low, high] ('out of range': :func:`position_bounds`,
-    :func:`velocity_bounds`).
+    Values are mapped by joint name (:func:`joint_order`): the message must name each of
+    ``names`` once, in any order, and may name other joints too (a track, a gripper: what
+    joint_state_broadcaster publishes), whose values are ignored, not checked. Raises
+    :class:`InputError` for the names :func:`joint_order` refuses, a field whose length is
+    not the number of names given, a non-finite value of one of ``names`` or, with
+    ``bound`` = (low, high) (arrays in the order of ``names``), a value outside [low, high]
+    ('out of range': :func:`position_bounds`, :func:`velocity_bounds`).
     """
+    order, _ = joint_order(msg.name, names)
     values = np.asarray(getattr(msg, field), dtype=float)
-    if values.shape != (len(names),):
+    if values.shape != (len(msg.name),):
         raise InputError(f'wrong {field} length',
-                         f'{values.size} values, expected {len(names)}')
-    given = list(msg.name)
-    if given != list(names):  # the contract's order (every message of the graph) as it is
-        if not given:
-            raise InputError('no joint names',
-                             'JointState.name is empty; values are mapped by name')
-        if len(given) != len(names) or set(given) != set(names):
-            raise InputError('wrong joint names', f'{given}')
-        values = values[[given.index(n) for n in names]]
+                         f'{values.size} values for {len(msg.name)} joint names')
+    if order is not None:
+        values = values[order]
     if not np.isfinite(values).all():
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
     if bound is not None and not ((values >= bound[0]) & (values <= bound[1])).all():

@@ -83,8 +83,8 @@ from typing import Any
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract, intra_process
-from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
-                                     position_bounds, read_joints, read_stamp,
+from ibvs_common.conversions import (check_finite, ignored_joints, InputError, joint_state,
+                                     ns_stamp, position_bounds, read_joints, read_stamp,
                                      read_trajectory, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
@@ -263,6 +263,7 @@ class JointControllerNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
+        self.diagnostics.note_ignored(source, ignored_joints(msg))
         if self._measured is not None and t_ns <= self._measured[0]:
             self.diagnostics.reject(source, 'out of order',
                                     f'{t_ns} ns, not newer than {self._measured[0]} ns')
@@ -363,6 +364,7 @@ class JointControllerNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
+        self.diagnostics.note_ignored(source, ignored_joints(msg))
         rejection = self._lockstep.offer_state(t_ns, (q, qd))
         if rejection is not None:
             self.diagnostics.reject(source, *rejection)
