@@ -109,14 +109,14 @@ from .controllers import JointLoop
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
 from .node_params import (ACCELERATION_MARGIN, FRAME_TIMEOUT_S, JOINT_STATE_TIMEOUT_S,
-                          SPEED_MARGIN, TORQUE_LIMITS)
+                          MAX_JOINT_SPEED_DEG_S, SPEED_MARGIN, TORQUE_LIMITS)
 from .position_interface import FeedbackHold, joint_permutation, PositionShaper
 from .servo_status import InputWatch, ServoStatus
 
 PARAMS = (TAU_IN, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS,
           TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN, STALE_TIMEOUT_S,
           COMMAND_INTERFACE, COMMAND_RATE_HZ, POSITION_COMMAND_TYPE, JOINTS, LOCKSTEP,
-          JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S)
+          JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S, MAX_JOINT_SPEED_DEG_S)
 
 #: Steady-clock period of the 'waiting for' log.
 WAIT_LOG_S = 1.0
@@ -206,7 +206,8 @@ class JointControllerNode(Node):
         # simulator's physics steps (the lockstep's rule, ibvs_common.timing.is_frame_stamp).
         self._frames = None
         self.shaper = PositionShaper(values['command_rate_hz'],
-                                     speed_margin=values['speed_margin'])
+                                     speed_margin=values['speed_margin'],
+                                     max_speed=np.radians(values['max_joint_speed_deg_s']))
         self._hold = FeedbackHold(np.zeros(6))
         self._trajectory = None
         self._measured = None
