@@ -606,22 +606,24 @@ def camera_infos(intrinsics: StereoIntrinsics, stamp: int | Time,
     """
     Return (left, right) CameraInfo of a rectified stereo pair (ROS conventions).
 
-    Both have K = [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]], no distortion, and
-    P = [K | t] with t = 0 on the left and t = (-f_u b, 0, 0) on the right (as
+    Each has K = [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] of its lens (the right's f_u',
+    c_u' where they differ: :class:`ibvs_model.StereoIntrinsics`), no distortion, and
+    P = [K | t] with t = 0 on the left and t = (-f_u' b, 0, 0) on the right (as
     zed-ros2-wrapper fills it); ``frames`` are their frame ids.
     """
     k = intrinsics
     infos = []
-    for frame, tx in zip(frames, (0.0, -k.fu * k.baseline)):
+    for frame, tx, fu, cu in zip(frames, (0.0, -k.fu_r * k.baseline), (k.fu, k.fu_r),
+                                 (k.cu, k.cu_r)):
         info = CameraInfo()
         info.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
         info.header.frame_id = frame
         info.width, info.height = int(k.width), int(k.height)
         info.distortion_model = 'plumb_bob'
         info.d = [0.0] * 5
-        info.k = [k.fu, 0.0, k.cu, 0.0, k.fv, k.cv, 0.0, 0.0, 1.0]
+        info.k = [fu, 0.0, cu, 0.0, k.fv, k.cv, 0.0, 0.0, 1.0]
         info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-        info.p = [k.fu, 0.0, k.cu, tx, 0.0, k.fv, k.cv, 0.0, 0.0, 0.0, 1.0, 0.0]
+        info.p = [fu, 0.0, cu, tx, 0.0, k.fv, k.cv, 0.0, 0.0, 0.0, 1.0, 0.0]
         infos.append(info)
     return tuple(infos)
 
@@ -640,6 +642,14 @@ FOV_RANGE_DEG = (1.0, 170.0)
 #: lens: a ZED 2 has 0.12 m, a ZED Mini 0.063, the smallest stereo modules about 0.02 and
 #: wide rigs a metre or two; 5 mm to 5 m holds all of them with margin.
 BASELINE_RANGE_M = (0.005, 5.0)
+#: Largest difference (px) between the rows of the left and right lens of a pair that is
+#: read as rectified, over the whole image: |c_v - c_v'| + |f_v - f_v'| / f_v * height / 2
+#: (a row offset plus a vertical scale, at the image's top or bottom edge). The model has
+#: one v per marker for both images (eq. 22) and the detector pairs markers within
+#: ``epipolar_tolerance_px`` = 1.5 px of each other's row (ibvs_vision.detector.config) and
+#: takes their mean: half a pixel uses a third of that tolerance and biases v by at most
+#: 0.25 px against either image. A pair beyond it is not rectified: refused.
+ROW_TOLERANCE_PX = 0.5
 
 
 def focal_range_px(side_px: int) -> tuple[float, float]:
@@ -697,10 +707,14 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
     Return :class:`StereoIntrinsics` from the left and right CameraInfo.
 
     Each is checked by :func:`check_camera_info`. The baseline comes from the right
-    projection matrix, b = -P[3] / f_u, and must lie within :data:`BASELINE_RANGE_M`
-    ('baseline out of range'; a right P[3] >= 0 is no right lens); the left lens is the
-    reference, its P[3] = 0 ('left lens with a baseline': e.g. a right CameraInfo on the left
-    topic). Raises :class:`InputError` too when the two disagree on size or intrinsics.
+    projection matrix, b = -P[3] / f_u' (its own f_u': the ROS convention, T_x = -f_x' B),
+    and must lie within :data:`BASELINE_RANGE_M` ('baseline out of range'; a right
+    P[3] >= 0 is no right lens); the left lens is the reference, its P[3] = 0 ('left lens
+    with a baseline': e.g. a right CameraInfo on the left topic). Each lens keeps its own
+    f_u and c_u (older ZED SDKs: 701.40 and 696.83 px); raises :class:`InputError` when the
+    two disagree on size ('camera_info size mismatch') or their rows are not those of a
+    rectified pair, f_v and c_v beyond :data:`ROW_TOLERANCE_PX` ('camera_info not
+    rectified').
     """
     check_camera_info(left)
     check_camera_info(right)
@@ -709,8 +723,12 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
     if (left.width, left.height) != (right.width, right.height):
         raise InputError('camera_info size mismatch',
                          f'{left.width}x{left.height} vs {right.width}x{right.height}')
-    if not np.allclose(pl[[0, 2, 5, 6]], pr[[0, 2, 5, 6]], rtol=1e-9, atol=1e-9):
-        raise InputError('camera_info intrinsics mismatch', 'left and right P differ')
+    rows = abs(pl[6] - pr[6]) + abs(pl[5] - pr[5]) / pl[5] * left.height / 2.0
+    if not rows <= ROW_TOLERANCE_PX:
+        raise InputError('camera_info not rectified',
+                         f'rows differ by up to {rows:.3g} px (f_v {pl[5]:.6g} and '
+                         f'{pr[5]:.6g}, c_v {pl[6]:.6g} and {pr[6]:.6g} px), at most '
+                         f'{ROW_TOLERANCE_PX:g}')
     if pl[3] != 0.0:
         raise InputError('left lens with a baseline', f'left P[3] = {pl[3]:.6g}, must be 0')
     baseline = float(-pr[3] / pr[0])
@@ -719,8 +737,11 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
                          f'right P[3] = {pr[3]:.6g} gives b = {baseline:.6g} m, '
                          f'{BASELINE_RANGE_M[0]:g} to {BASELINE_RANGE_M[1]:g} m')
     try:
+        same = pl[0] == pr[0] and pl[2] == pr[2]
         return StereoIntrinsics(int(left.width), int(left.height), float(pl[0]), float(pl[5]),
-                                float(pl[2]), float(pl[6]), baseline)
+                                float(pl[2]), float(pl[6]), baseline,
+                                right_fu=None if same else float(pr[0]),
+                                right_cu=None if same else float(pr[2]))
     except ValueError as exc:
         raise InputError('bad camera_info', str(exc)) from None
 
