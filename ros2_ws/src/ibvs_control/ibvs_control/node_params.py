@@ -119,6 +119,13 @@ MAX_JOINT_SPEED_DEG_S = Param(
     "4600's per joint). 20: abb_ros2's example RAPID caps EGM's speed at "
     "\\MaxSpeedDeviation:=20 deg/s (docs/real_cell.md); raise it with the RAPID's",
     'deg/s', low=0.0, high=1000.0, low_open=True)
+TRAJECTORY_WINDOW_POINTS = Param(
+    'trajectory_window_points', 26,
+    "position_command_type 'joint_trajectory': points in each JointTrajectory, one every "
+    'command period from now (stamped now): the reference now and its shaped course ahead, '
+    'so that a controller updating at another rate interpolates instead of holding or '
+    "skipping. 26 at 250 Hz: 0.1 s ahead, MoveIt Servo's max_expected_latency; 1: one "
+    'point, now', '-', low=1, high=1000)
 
 #: The parameters that go to the servo law's :meth:`.servo_laws.ServoLaw.create` under their
 #: names (each law takes those it declares), besides its gain (:func:`check_servo_law`).

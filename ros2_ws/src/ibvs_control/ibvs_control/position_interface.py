@@ -100,6 +100,27 @@ class PositionShaper:
         self.governor.dt = dt
         return self.governor.step(np.clip(q_ref, self.low, self.high))
 
+    def preview(self, targets: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return the references of the next len(``targets``) nominal periods, state untouched.
+
+        Row k is where the reference will be k + 1 periods after the last :meth:`step`,
+        heading for ``targets[k]`` (the target of that time: the feedforward moves on): the
+        future points of a trajectory window (``trajectory_window_points``,
+        :mod:`ibvs_control.joint_controller_node`). The shaper itself does not advance.
+        """
+        if not self.started:
+            raise RuntimeError('start() the shaper from the measured joints first')
+        governor = self.governor
+        saved = governor.r, governor.rd, governor.dt
+        governor.dt = self.period
+        try:
+            return np.array([governor.step(np.clip(t, self.low, self.high))
+                             for t in np.asarray(targets, dtype=float).reshape(-1, 6)]
+                            ).reshape(-1, 6)
+        finally:
+            governor.r, governor.rd, governor.dt = saved
+
     def stopping_point(self) -> NDArray[np.float64]:
         """
         Return where the reference comes to rest if braked now at the acceleration limits.
