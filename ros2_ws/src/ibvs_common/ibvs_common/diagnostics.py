@@ -120,7 +120,7 @@ class Diagnostics:
         if new:
             ignored.extend(new)
             self.values[key] = ', '.join(ignored)
-            self._node.get_logger().info(f'{source}: ignoring joints {new} (not the arm\'s)')
+            self._node.get_logger().info(f"{source}: ignoring joints {new} (not the arm's)")
 
     def log_progress(self, describe: Callable[[], str | None],
                      period_s: float = PROGRESS_S) -> None:

@@ -43,7 +43,7 @@ class PositionShaper:
     The 'limited' actuators' reference governor (:class:`.governor.ReferenceGovernor`, a
     bang-bang law on the braking curve) at the command period, with the IRB 4600's speed
     limits times ``speed_margin``, each at most ``max_speed`` (rad/s: a first run's cap,
-    e.g. the EGM session's ``\MaxSpeedDeviation``), and the acceleration limits of
+    e.g. the EGM session's MaxSpeedDeviation), and the acceleration limits of
     :mod:`ibvs_model.drive`:
     a reference the drive can follow without saturating, so that its own loop stays
     linear. A small correction (the feedback's) passes almost unchanged. The target is

@@ -51,8 +51,10 @@ def test_no_joint_reference_moves_faster_than_the_cap(cap_deg_s):
     q = rng.uniform(-0.5, 0.5, 6)
     shaper.start(q)
     path, times, t = [q], [0.0], 0.0
+    target = q
     for k in range(3000):  # targets that jump far and back; ticks that come late or early
-        target = rng.uniform(-2.0, 2.0, 6) if k % 200 == 0 else target
+        if k % 200 == 0:
+            target = rng.uniform(-2.0, 2.0, 6)
         dt = float(rng.choice([0.004, 0.004, 0.002, 0.008, 0.02]))
         path.append(shaper.step(target, dt))
         t += dt

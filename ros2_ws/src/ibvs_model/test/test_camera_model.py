@@ -199,7 +199,7 @@ def test_merge_windows_merges_overlaps_until_none_are_left():
 
 
 def per_lens_camera(right_fu=696.83, right_cu=652.1):
-    """A ZED 2 at HD720 whose lenses differ as older SDKs publish them (701.40, 696.83 px)."""
+    """Return a ZED 2 at HD720 whose lenses differ as older SDKs give them (701.40, 696.83)."""
     k = StereoIntrinsics(1280, 720, 701.40, 701.40, 639.5, 359.5, 0.12,
                          right_fu=right_fu, right_cu=right_cu)
     return StereoCamera(k, look_at([2.0, -1.5, 1.2], [0.8, 0.1, 0.6]))

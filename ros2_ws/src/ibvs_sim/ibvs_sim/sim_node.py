@@ -60,8 +60,9 @@ ros2_controllers' forward_command_controller takes them) or, with ``position_com
 joint_trajectory``, on /joint_trajectory_controller/joint_trajectory (trajectory_msgs/
 JointTrajectory, mapped by joint name; a window of stamped points sampled as
 joint_trajectory_controller samples it, at ``command_rate_hz``:
-:class:`.position_servo.TrajectoryFollower`), tracked by the drive model :class:`.position_servo.PositionServo` (dead time, bandwidth,
-speed and acceleration limits), the last reference held (zero-order hold). A reference
+:class:`.position_servo.TrajectoryFollower`), tracked by the drive model
+:class:`.position_servo.PositionServo` (dead time, bandwidth, speed and acceleration
+limits), the last reference held (zero-order hold). A reference
 older than ``command_timeout_s`` (sim time) is stale: the drive stops the arm and holds it,
 logs it and says so on /diagnostics (``command: stale``) until a new one comes. A command
 with the wrong number of values, unknown, missing or repeated joint names, a non-finite

@@ -86,9 +86,10 @@ CAP = math.radians(20.0)  # max_joint_speed_deg_s
 
 def run_cell(update_rate_hz, window_points, old_single_point=False, duration_ns=800_000_000):
     """
-    The joint controller's 250 Hz command stream through a trajectory controller updating at
-    ``update_rate_hz`` into the drive. Returns (update times ns, the references the
-    controller wrote, the shaper's own path (command times ns, positions), drive speeds).
+    Run the 250 Hz command stream through a trajectory controller into the drive.
+
+    The controller updates at ``update_rate_hz``. Returns (update times ns, the references
+    it wrote, the shaper's own path (command times ns, positions), the drive's speeds).
 
     Each command is the window the node publishes (stamp = its time, point k at k command
     periods: the reference now and its shaped course ahead) or, ``old_single_point``, the
