@@ -175,30 +175,77 @@ def joint_state(stamp: int | Time, position: ArrayLike | None = None,
     return msg
 
 
+#: Most distinct (JointState.name, names) pairs whose mapping :func:`joint_order` keeps: a
+#: cell publishes one or two name lists; a publisher of ever new names (a fuzzer) does not
+#: grow the cache beyond this.
+JOINT_ORDER_CACHE = 64
+_JOINT_ORDERS: dict = {}
+
+
+def joint_order(given: Sequence[str], names: Sequence[str] = contract.JOINT_NAMES
+                ) -> tuple[NDArray[np.int_] | None, tuple[str, ...]]:
+    """
+    Return (where each of ``names`` is in ``given``, the names of ``given`` that are ignored).
+
+    joint_state_broadcaster publishes every joint of every hardware of the
+    controller_manager (an arm's track, a gripper), in its own order. The arm's joints
+    ``names`` are taken by name, in any order; the others are ignored and returned (in the
+    order given) so that a node can say once which it ignores. The index array is None
+    when ``given`` is ``names`` as it is (no reordering needed). Raises
+    :class:`InputError`: 'no joint names' (``given`` empty: values are mapped by name),
+    'wrong joint names' (a name given twice) or 'missing joints' (one of ``names`` not
+    given).
+    """
+    key = (tuple(given), tuple(names))
+    found = _JOINT_ORDERS.get(key)
+    if found is not None:
+        return found
+    given, names = key
+    if not given:
+        raise InputError('no joint names', 'JointState.name is empty; values are mapped by name')
+    if len(set(given)) != len(given):
+        raise InputError('wrong joint names', f'{list(given)}: a name given twice')
+    missing = [n for n in names if n not in given]
+    if missing:
+        raise InputError('missing joints', f'{missing} not in {list(given)}')
+    order = None if given == names else np.array([given.index(n) for n in names])
+    found = (order, tuple(n for n in given if n not in names))
+    if len(_JOINT_ORDERS) >= JOINT_ORDER_CACHE:
+        _JOINT_ORDERS.clear()
+    _JOINT_ORDERS[key] = found
+    return found
+
+
+def ignored_joints(msg: JointState, names: Sequence[str] = contract.JOINT_NAMES
+                   ) -> tuple[str, ...]:
+    """Return the joints of ``msg`` that are not ``names`` (ignored); () if it cannot be read."""
+    try:
+        return joint_order(msg.name, names)[1]
+    except InputError:
+        return ()
+
+
 def read_joints(msg: JointState, field: str = 'position',
                 names: Sequence[str] = contract.JOINT_NAMES,
                 bound: tuple[ArrayLike, ArrayLike] | None = None) -> NDArray[np.float64]:
     """
-    Return ``msg.<field>`` as a (6,) array in the order of ``names``.
+    Return ``msg.<field>`` of the joints ``names``, a (6,) array in their order.
 
-    Values are mapped by joint name: the message must name the six joints, in any order.
-    Raises :class:`InputError` for a wrong length, missing, unknown or repeated names, a
-    non-finite value or, with ``bound`` = (low, high) (arrays in the order of ``names``), a
-    value outside [low, high] ('out of range': :func:`position_bounds`,
-    :func:`velocity_bounds`).
+    Values are mapped by joint name (:func:`joint_order`): the message must name each of
+    ``names`` once, in any order, and may name other joints too (a track, a gripper: what
+    joint_state_broadcaster publishes), whose values are ignored, not checked. Raises
+    :class:`InputError` for the names :func:`joint_order` refuses, a field whose length is
+    not the number of names given, a non-finite value of one of ``names`` or, with
+    ``bound`` = (low, high) (arrays in the order of ``names``), a value outside [low, high]
+    ('out of range': :func:`position_bounds`, :func:`velocity_bounds`).
     """
+    order, _ = joint_order(msg.name, names)
     values = np.asarray(getattr(msg, field), dtype=float)
-    if values.shape != (len(names),):
+    if values.shape != (len(msg.name),):
         raise InputError(f'wrong {field} length',
-                         f'{values.size} values, expected {len(names)}')
-    given = list(msg.name)
-    if given != list(names):  # the contract's order (every message of the graph) as it is
-        if not given:
-            raise InputError('no joint names',
-                             'JointState.name is empty; values are mapped by name')
-        if len(given) != len(names) or set(given) != set(names):
-            raise InputError('wrong joint names', f'{given}')
-        values = values[[given.index(n) for n in names]]
+                         f'{values.size} values for {len(msg.name)} joint names')
+    if order is not None:
+        values = values[order]
     if not np.isfinite(values).all():
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
     if bound is not None and not ((values >= bound[0]) & (values <= bound[1])).all():
@@ -559,22 +606,24 @@ def camera_infos(intrinsics: StereoIntrinsics, stamp: int | Time,
     """
     Return (left, right) CameraInfo of a rectified stereo pair (ROS conventions).
 
-    Both have K = [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]], no distortion, and
-    P = [K | t] with t = 0 on the left and t = (-f_u b, 0, 0) on the right (as
+    Each has K = [[f_u, 0, c_u], [0, f_v, c_v], [0, 0, 1]] of its lens (the right's f_u',
+    c_u' where they differ: :class:`ibvs_model.StereoIntrinsics`), no distortion, and
+    P = [K | t] with t = 0 on the left and t = (-f_u' b, 0, 0) on the right (as
     zed-ros2-wrapper fills it); ``frames`` are their frame ids.
     """
     k = intrinsics
     infos = []
-    for frame, tx in zip(frames, (0.0, -k.fu * k.baseline)):
+    for frame, tx, fu, cu in zip(frames, (0.0, -k.fu_r * k.baseline), (k.fu, k.fu_r),
+                                 (k.cu, k.cu_r)):
         info = CameraInfo()
         info.header.stamp = stamp if isinstance(stamp, Time) else ns_stamp(stamp)
         info.header.frame_id = frame
         info.width, info.height = int(k.width), int(k.height)
         info.distortion_model = 'plumb_bob'
         info.d = [0.0] * 5
-        info.k = [k.fu, 0.0, k.cu, 0.0, k.fv, k.cv, 0.0, 0.0, 1.0]
+        info.k = [fu, 0.0, cu, 0.0, k.fv, k.cv, 0.0, 0.0, 1.0]
         info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-        info.p = [k.fu, 0.0, k.cu, tx, 0.0, k.fv, k.cv, 0.0, 0.0, 0.0, 1.0, 0.0]
+        info.p = [fu, 0.0, cu, tx, 0.0, k.fv, k.cv, 0.0, 0.0, 0.0, 1.0, 0.0]
         infos.append(info)
     return tuple(infos)
 
@@ -593,6 +642,14 @@ FOV_RANGE_DEG = (1.0, 170.0)
 #: lens: a ZED 2 has 0.12 m, a ZED Mini 0.063, the smallest stereo modules about 0.02 and
 #: wide rigs a metre or two; 5 mm to 5 m holds all of them with margin.
 BASELINE_RANGE_M = (0.005, 5.0)
+#: Largest difference (px) between the rows of the left and right lens of a pair that is
+#: read as rectified, over the whole image: |c_v - c_v'| + |f_v - f_v'| / f_v * height / 2
+#: (a row offset plus a vertical scale, at the image's top or bottom edge). The model has
+#: one v per marker for both images (eq. 22) and the detector pairs markers within
+#: ``epipolar_tolerance_px`` = 1.5 px of each other's row (ibvs_vision.detector.config) and
+#: takes their mean: half a pixel uses a third of that tolerance and biases v by at most
+#: 0.25 px against either image. A pair beyond it is not rectified: refused.
+ROW_TOLERANCE_PX = 0.5
 
 
 def focal_range_px(side_px: int) -> tuple[float, float]:
@@ -650,10 +707,14 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
     Return :class:`StereoIntrinsics` from the left and right CameraInfo.
 
     Each is checked by :func:`check_camera_info`. The baseline comes from the right
-    projection matrix, b = -P[3] / f_u, and must lie within :data:`BASELINE_RANGE_M`
-    ('baseline out of range'; a right P[3] >= 0 is no right lens); the left lens is the
-    reference, its P[3] = 0 ('left lens with a baseline': e.g. a right CameraInfo on the left
-    topic). Raises :class:`InputError` too when the two disagree on size or intrinsics.
+    projection matrix, b = -P[3] / f_u' (its own f_u': the ROS convention, T_x = -f_x' B),
+    and must lie within :data:`BASELINE_RANGE_M` ('baseline out of range'; a right
+    P[3] >= 0 is no right lens); the left lens is the reference, its P[3] = 0 ('left lens
+    with a baseline': e.g. a right CameraInfo on the left topic). Each lens keeps its own
+    f_u and c_u (older ZED SDKs: 701.40 and 696.83 px); raises :class:`InputError` when the
+    two disagree on size ('camera_info size mismatch') or their rows are not those of a
+    rectified pair, f_v and c_v beyond :data:`ROW_TOLERANCE_PX` ('camera_info not
+    rectified').
     """
     check_camera_info(left)
     check_camera_info(right)
@@ -662,8 +723,12 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
     if (left.width, left.height) != (right.width, right.height):
         raise InputError('camera_info size mismatch',
                          f'{left.width}x{left.height} vs {right.width}x{right.height}')
-    if not np.allclose(pl[[0, 2, 5, 6]], pr[[0, 2, 5, 6]], rtol=1e-9, atol=1e-9):
-        raise InputError('camera_info intrinsics mismatch', 'left and right P differ')
+    rows = abs(pl[6] - pr[6]) + abs(pl[5] - pr[5]) / pl[5] * left.height / 2.0
+    if not rows <= ROW_TOLERANCE_PX:
+        raise InputError('camera_info not rectified',
+                         f'rows differ by up to {rows:.3g} px (f_v {pl[5]:.6g} and '
+                         f'{pr[5]:.6g}, c_v {pl[6]:.6g} and {pr[6]:.6g} px), at most '
+                         f'{ROW_TOLERANCE_PX:g}')
     if pl[3] != 0.0:
         raise InputError('left lens with a baseline', f'left P[3] = {pl[3]:.6g}, must be 0')
     baseline = float(-pr[3] / pr[0])
@@ -672,8 +737,11 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
                          f'right P[3] = {pr[3]:.6g} gives b = {baseline:.6g} m, '
                          f'{BASELINE_RANGE_M[0]:g} to {BASELINE_RANGE_M[1]:g} m')
     try:
+        same = pl[0] == pr[0] and pl[2] == pr[2]
         return StereoIntrinsics(int(left.width), int(left.height), float(pl[0]), float(pl[5]),
-                                float(pl[2]), float(pl[6]), baseline)
+                                float(pl[2]), float(pl[6]), baseline,
+                                right_fu=None if same else float(pr[0]),
+                                right_cu=None if same else float(pr[2]))
     except ValueError as exc:
         raise InputError('bad camera_info', str(exc)) from None
 

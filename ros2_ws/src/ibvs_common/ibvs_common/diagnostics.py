@@ -10,7 +10,7 @@ instead of ending the process.
 """
 
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, TYPE_CHECKING
 import weakref
 
@@ -87,6 +87,7 @@ class Diagnostics:
         self.message = 'ok'
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_log = {}
+        self._ignored = {}
         self._timer = node.create_timer(period_s, self.publish, clock=self._steady)
         guard_clock(node, self.reject)
         _OF_NODE.setdefault(node, []).append(self)
@@ -103,6 +104,23 @@ class Diagnostics:
             self._node.get_logger().warn(
                 f'rejected {source} ({reason}){": " + detail if detail else ""}'
                 f' [{count} so far]')
+
+    def note_ignored(self, source: str, names: Iterable[str], key: str = 'ignored_joints'
+                     ) -> None:
+        """
+        Show ``names`` that ``source`` carries and the node ignores, each once, and log it.
+
+        For the joints of /joint_states that are not the arm's (a track, a gripper:
+        :func:`ibvs_common.conversions.ignored_joints`): not rejections, the message is
+        used. ``key`` (e.g. ``ignored_joints: track_1, gripper``) lists every name ignored so far;
+        a name is logged (INFO) the first time only.
+        """
+        ignored = self._ignored.setdefault(key, [])
+        new = [n for n in names if n not in ignored]
+        if new:
+            ignored.extend(new)
+            self.values[key] = ', '.join(ignored)
+            self._node.get_logger().info(f"{source}: ignoring joints {new} (not the arm's)")
 
     def log_progress(self, describe: Callable[[], str | None],
                      period_s: float = PROGRESS_S) -> None:

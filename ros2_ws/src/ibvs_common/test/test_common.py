@@ -123,12 +123,43 @@ def test_joint_state_round_trip_and_reordering():
     np.testing.assert_array_equal(conversions.read_joints(msg), q)
 
 
+def test_read_joints_ignores_other_joints_in_any_order():
+    # joint_state_broadcaster: every joint of every hardware (a track, a gripper), its order
+    q = np.arange(6) * 0.1 + 1.0
+    names = ['gripper', 'joint_4', 'joint_2', 'track_1', 'joint_6', 'joint_1', 'joint_5',
+             'joint_3']
+    by_name = dict(zip(contract.JOINT_NAMES, q))
+    position = [by_name.get(n, 7.5) for n in names]
+    velocity = [float('nan') if n in ('gripper', 'track_1') else 0.0 for n in names]
+    msg = conversions.joint_state(5, position=position, velocity=velocity, names=names)
+    np.testing.assert_array_equal(conversions.read_joints(msg), q)
+    np.testing.assert_array_equal(conversions.read_joints(msg, 'velocity'), np.zeros(6))
+    assert conversions.ignored_joints(msg) == ('gripper', 'track_1')
+    assert conversions.ignored_joints(conversions.joint_state(5, q)) == ()
+    # the values of the other joints are not bounded: only the arm's are
+    bound = (np.full(6, -2.0), np.full(6, 2.0))
+    np.testing.assert_array_equal(conversions.read_joints(msg, bound=bound), q)
+    # a controller's own joint order (``joints``) is read as well
+    order = ['joint_6', 'joint_5', 'joint_4', 'joint_3', 'joint_2', 'joint_1']
+    np.testing.assert_array_equal(conversions.read_joints(msg, names=order), q[::-1])
+
+
+def test_joint_order_cache_stays_bounded():
+    for k in range(3 * conversions.JOINT_ORDER_CACHE):
+        names = list(contract.JOINT_NAMES) + [f'extra_{k}']
+        assert conversions.joint_order(names)[1] == (f'extra_{k}',)
+    assert len(conversions._JOINT_ORDERS) <= conversions.JOINT_ORDER_CACHE
+
+
 @pytest.mark.parametrize('position,names,reason', [
     ([0.0] * 5, contract.JOINT_NAMES, 'wrong position length'),
     ([0.0] * 5 + [float('nan')], contract.JOINT_NAMES, 'non-finite position'),
     ([0.0] * 5 + [float('inf')], contract.JOINT_NAMES, 'non-finite position'),
-    ([0.0] * 6, ['a', 'b', 'c', 'd', 'e', 'f'], 'wrong joint names'),
+    ([0.0] * 6, ['a', 'b', 'c', 'd', 'e', 'f'], 'missing joints'),
+    ([0.0] * 5, contract.JOINT_NAMES[:5], 'missing joints'),
     ([0.0] * 6, contract.JOINT_NAMES[:5] + ('joint_1',), 'wrong joint names'),
+    ([0.0] * 7, contract.JOINT_NAMES + ('joint_1',), 'wrong joint names'),
+    ([0.0] * 6, contract.JOINT_NAMES + ('track_1',), 'wrong position length'),
     # values are mapped by name: a message that names no joint cannot be mapped
     ([0.0] * 6, [], 'no joint names'),
 ])

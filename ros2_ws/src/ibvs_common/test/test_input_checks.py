@@ -180,3 +180,43 @@ def test_a_trajectory_command_joint_trajectory_controller_refuses(change, reason
     msg = change(_command(np.zeros((3, 6))))
     # now 1 s, command timeout 100 ms: stamp 10 ms + 2 ms is 888 ms too old
     assert _reason(conversions.read_command_trajectory, msg, 10 ** 9, 100 * MS) == reason
+
+
+def _set(info, index, value):
+    p = list(info.p)
+    p[index] = value
+    info.p = p
+
+
+def test_lenses_with_their_own_f_u_and_c_u_are_read_each_from_its_p():
+    # older ZED SDKs: left f_x 701.40, right 696.83 (issue 34 item 5b); T_x = -f_x' b
+    left, right = _infos()
+    _set(left, 0, 701.40)
+    _set(right, 0, 696.83)
+    _set(right, 2, 641.25)
+    _set(right, 3, -696.83 * 0.12)
+    k = conversions.intrinsics_from_infos(left, right)
+    assert (k.fu, k.fu_r, k.cu, k.cu_r) == (701.40, 696.83, left.p[2], 641.25)
+    assert k.baseline == pytest.approx(0.12, rel=1e-15)
+    # and written back as they came
+    left2, right2 = conversions.camera_infos(k, 0)
+    np.testing.assert_allclose(right2.p, right.p, rtol=1e-15)
+    np.testing.assert_allclose(left2.p, left.p, rtol=1e-15)
+    # identical lenses stay one: the paper's camera, bit for bit
+    assert conversions.intrinsics_from_infos(*_infos()).same_lenses
+
+
+@pytest.mark.parametrize('index, delta, ok', [
+    (6, 0.4, True),      # c_v: rows 0.4 px apart
+    (6, 0.6, False),     # beyond ROW_TOLERANCE_PX
+    (5, 0.9, True),      # f_v: 0.9 / 686 * 360 = 0.47 px at the top and bottom rows
+    (5, 1.2, False),     # 0.63 px
+])
+def test_a_pair_whose_rows_differ_is_refused_as_not_rectified(index, delta, ok):
+    left, right = _infos()
+    _set(right, index, right.p[index] + delta)
+    if ok:
+        conversions.intrinsics_from_infos(left, right)
+    else:
+        assert _reason(conversions.intrinsics_from_infos, left, right) == \
+            'camera_info not rectified'

@@ -61,7 +61,8 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, intra_process
-from ibvs_common.conversions import (camera_from_msgs, check_camera_info, InputError,
+from ibvs_common.conversions import (camera_from_msgs, check_camera_info, ignored_joints,
+                                     InputError,
                                      joint_state, pose_stamped, position_bounds,
                                      read_camera_pose, read_feature_status, read_features,
                                      read_joints, read_stamp, stamp_lead_ns, velocity_bounds)
@@ -275,6 +276,7 @@ class AdaptiveFeedbackNode(Node):
         except InputError as exc:
             self.diagnostics.reject(self._joints_topic, exc.reason, exc.detail)
             return
+        self.diagnostics.note_ignored(self._joints_topic, ignored_joints(msg))
         rejection = self._lockstep.offer_joints(t_ns, (q, qd))
         if rejection is not None:
             self.diagnostics.reject(self._joints_topic, *rejection)

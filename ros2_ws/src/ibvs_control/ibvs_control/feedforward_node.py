@@ -29,8 +29,8 @@ publisher would hold the arm at its start until then.
 from typing import Any
 
 from ibvs_common import contract, intra_process
-from ibvs_common.conversions import (InputError, joint_trajectory, read_joints, read_stamp,
-                                     stamp_lead_ns, travel_bounds)
+from ibvs_common.conversions import (ignored_joints, InputError, joint_trajectory, read_joints,
+                                     read_stamp, stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
@@ -95,6 +95,7 @@ class FeedforwardNode(Node):
         except InputError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
             return
+        self.diagnostics.note_ignored(contract.JOINT_STATES, ignored_joints(msg))
         try:
             q_target = self.ff.start(q)
             positions = self.ff.trajectory()

@@ -47,9 +47,15 @@ sends q_ref = q_feedforward(t) + q_feedback, shaped to the arm's speed and accel
 limits (:class:`.position_interface.PositionShaper`, started from the measured joints), as
 std_msgs/Float64MultiArray on /forward_position_controller/commands in the order of the
 ``joints`` parameter (ros2_controllers' forward_command_controller), or with
-``position_command_type: joint_trajectory`` as one trajectory_msgs/JointTrajectory point
-on /joint_trajectory_controller/joint_trajectory (joint_names = ``joints``, header stamp 0:
-"start now", time_from_start one command period). Nobody waits: a command uses the newest
+``position_command_type: joint_trajectory`` as a trajectory_msgs/JointTrajectory window on
+/joint_trajectory_controller/joint_trajectory, as MoveIt Servo sends one (joint_names =
+``joints``; header stamp = now, the command's time, not 0; ``trajectory_window_points``
+points, point k at time_from_start k command periods: the reference now, then its course
+ahead as the shaper will take it toward q_feedforward(t + k T) + the q_feedback held:
+:meth:`.position_interface.PositionShaper.preview`). joint_trajectory_controller samples
+the window at its own update times and interpolates between points, so that at a rate
+other than ``command_rate_hz``, or with a command late, it neither holds a point nor skips
+one; each new window replaces the last. Nobody waits: a command uses the newest
 q_feedback that has arrived (:class:`.position_interface.FeedbackHold`), and the first
 command that uses a frame's q_feedback is reported on /ibvs/frame_latency
 (sensor_msgs/TimeReference: header.stamp = the command's time, time_ref = the frame's
@@ -80,11 +86,11 @@ and the loop goes on as if the bad one had never come.
 
 from typing import Any
 
-from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract, intra_process
-from ibvs_common.conversions import (check_finite, InputError, joint_state, ns_stamp,
-                                     position_bounds, read_joints, read_stamp,
+from ibvs_common.conversions import (check_finite, ignored_joints, InputError, joint_state,
+                                     joint_trajectory, ns_stamp, position_bounds, read_joints,
+                                     read_stamp,
                                      read_trajectory, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
@@ -103,20 +109,22 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState, TimeReference
 from std_msgs.msg import Float64MultiArray, Header, Int8
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import JointLoop
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
 from .node_params import (ACCELERATION_MARGIN, FRAME_TIMEOUT_S, JOINT_STATE_TIMEOUT_S,
-                          SPEED_MARGIN, TORQUE_LIMITS)
+                          MAX_JOINT_SPEED_DEG_S, SPEED_MARGIN, TORQUE_LIMITS,
+                          TRAJECTORY_WINDOW_POINTS)
 from .position_interface import FeedbackHold, joint_permutation, PositionShaper
 from .servo_status import InputWatch, ServoStatus
 
 PARAMS = (TAU_IN, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS,
           TORQUE_LIMITS, SPEED_MARGIN, ACCELERATION_MARGIN, STALE_TIMEOUT_S,
           COMMAND_INTERFACE, COMMAND_RATE_HZ, POSITION_COMMAND_TYPE, JOINTS, LOCKSTEP,
-          JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S)
+          JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S, MAX_JOINT_SPEED_DEG_S,
+          TRAJECTORY_WINDOW_POINTS)
 
 #: Steady-clock period of the 'waiting for' log.
 WAIT_LOG_S = 1.0
@@ -206,8 +214,10 @@ class JointControllerNode(Node):
         # simulator's physics steps (the lockstep's rule, ibvs_common.timing.is_frame_stamp).
         self._frames = None
         self.shaper = PositionShaper(values['command_rate_hz'],
-                                     speed_margin=values['speed_margin'])
+                                     speed_margin=values['speed_margin'],
+                                     max_speed=np.radians(values['max_joint_speed_deg_s']))
         self._hold = FeedbackHold(np.zeros(6))
+        self.window_points = values['trajectory_window_points']
         self._trajectory = None
         self._measured = None
         frame_timeout_ns = seconds_to_ns(values['frame_timeout_s'])
@@ -263,6 +273,7 @@ class JointControllerNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
+        self.diagnostics.note_ignored(source, ignored_joints(msg))
         if self._measured is not None and t_ns <= self._measured[0]:
             self.diagnostics.reject(source, 'out of order',
                                     f'{t_ns} ns, not newer than {self._measured[0]} ns')
@@ -319,24 +330,25 @@ class JointControllerNode(Node):
         if not self.shaper.started:
             self.shaper.start(self._measured[1])
             self._last_command_ns = now_ns - self.command_period_ns
+        ahead = np.arange(1, self.window_points) * self.command_period_ns
         if verdict.holding:
             if self._hold_target is None:  # a controlled stop
                 self._hold_target = self.shaper.stopping_point()
             target, first_frame_ns = self._hold_target, None
+            targets = np.tile(target, (len(ahead), 1))
         else:
             self._hold_target = None
             q_feedback, first_frame_ns = self._hold.use()
             target = self.q_feedforward(now_ns) + q_feedback
+            targets = [self.q_feedforward(now_ns + t) + q_feedback for t in ahead]
         q_command = self.shaper.step(target, ns_to_seconds(now_ns - self._last_command_ns))
         self._last_command_ns = now_ns
-        values = [float(v) for v in q_command[self._order]]
         if self._pub.msg_type is Float64MultiArray:
-            self._pub.publish(Float64MultiArray(data=values))
-        else:
-            self._pub.publish(JointTrajectory(joint_names=self.joints, points=[
-                JointTrajectoryPoint(positions=values, time_from_start=Duration(
-                    sec=self.command_period_ns // 10 ** 9,
-                    nanosec=self.command_period_ns % 10 ** 9))]))
+            self._pub.publish(Float64MultiArray(data=[float(v) for v in q_command[self._order]]))
+        else:  # the window: now and its course ahead (module docstring)
+            window = np.vstack([q_command, self.shaper.preview(targets)])
+            self._pub.publish(joint_trajectory(now_ns, self.command_period_ns,
+                                               window[:, self._order], self.joints))
         if first_frame_ns is not None:
             self._pub_latency.publish(TimeReference(
                 header=Header(stamp=ns_stamp(now_ns)), time_ref=ns_stamp(first_frame_ns),
@@ -363,6 +375,7 @@ class JointControllerNode(Node):
         except InputError as exc:
             self.diagnostics.reject(source, exc.reason, exc.detail)
             return
+        self.diagnostics.note_ignored(source, ignored_joints(msg))
         rejection = self._lockstep.offer_state(t_ns, (q, qd))
         if rejection is not None:
             self.diagnostics.reject(source, *rejection)

@@ -11,6 +11,7 @@ which command is the first to use a frame (the latency measurement), is
 """
 
 from collections.abc import Iterable
+import math
 
 from ibvs_model import IRB4600
 from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, SPEED_LIMITS
@@ -41,7 +42,9 @@ class PositionShaper:
 
     The 'limited' actuators' reference governor (:class:`.governor.ReferenceGovernor`, a
     bang-bang law on the braking curve) at the command period, with the IRB 4600's speed
-    limits times ``speed_margin`` and the acceleration limits of :mod:`ibvs_model.drive`:
+    limits times ``speed_margin``, each at most ``max_speed`` (rad/s: a first run's cap,
+    e.g. the EGM session's MaxSpeedDeviation), and the acceleration limits of
+    :mod:`ibvs_model.drive`:
     a reference the drive can follow without saturating, so that its own loop stays
     linear. A small correction (the feedback's) passes almost unchanged. The target is
     first clipped to the joint ranges less ``range_margin`` (the drive refuses a reference
@@ -56,15 +59,20 @@ class PositionShaper:
                  acceleration_limits: ArrayLike = ACCELERATION_LIMITS,
                  speed_margin: float = 1.0,
                  position_limits: tuple[ArrayLike, ArrayLike] = (IRB4600.q_min, IRB4600.q_max),
-                 range_margin: float = 0.02) -> None:
-        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2 and rad."""
+                 range_margin: float = 0.02, max_speed: float = math.inf) -> None:
+        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2 and rad; cap rad/s."""
         if not (np.isfinite(command_rate_hz) and command_rate_hz > 0.0):
             raise ValueError(f'command_rate_hz must be > 0, got {command_rate_hz}')
         if not (0.0 < speed_margin <= 1.0):
             raise ValueError(f'speed_margin must be in (0, 1], got {speed_margin}')
+        if not max_speed > 0.0:
+            raise ValueError(f'max_speed must be > 0, got {max_speed}')
         v_max, a_max = check_limits(speed_limits, acceleration_limits)
         self.period = 1.0 / command_rate_hz
-        self.governor = ReferenceGovernor(self.period, speed_margin * v_max, a_max)
+        #: The speed limit of each joint's reference (rad/s): per joint the smaller of the
+        #: arm's (times ``speed_margin``) and the cap ``max_speed``.
+        self.speed_limits = np.minimum(speed_margin * v_max, float(max_speed))
+        self.governor = ReferenceGovernor(self.period, self.speed_limits, a_max)
         self.low = np.asarray(position_limits[0], dtype=float) + range_margin
         self.high = np.asarray(position_limits[1], dtype=float) - range_margin
 
@@ -91,6 +99,27 @@ class PositionShaper:
             return self.governor.r.copy()
         self.governor.dt = dt
         return self.governor.step(np.clip(q_ref, self.low, self.high))
+
+    def preview(self, targets: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return the references of the next len(``targets``) nominal periods, state untouched.
+
+        Row k is where the reference will be k + 1 periods after the last :meth:`step`,
+        heading for ``targets[k]`` (the target of that time: the feedforward moves on): the
+        future points of a trajectory window (``trajectory_window_points``,
+        :mod:`ibvs_control.joint_controller_node`). The shaper itself does not advance.
+        """
+        if not self.started:
+            raise RuntimeError('start() the shaper from the measured joints first')
+        governor = self.governor
+        saved = governor.r, governor.rd, governor.dt
+        governor.dt = self.period
+        try:
+            return np.array([governor.step(np.clip(t, self.low, self.high))
+                             for t in np.asarray(targets, dtype=float).reshape(-1, 6)]
+                            ).reshape(-1, 6)
+        finally:
+            governor.r, governor.rd, governor.dt = saved
 
     def stopping_point(self) -> NDArray[np.float64]:
         """

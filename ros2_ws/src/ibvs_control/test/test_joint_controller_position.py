@@ -128,11 +128,17 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
         test.destroy_node()
 
 
-def test_joint_trajectory_controller_gets_one_point_by_joint_name(context):
+def test_joint_trajectory_controller_gets_a_stamped_window_by_joint_name(context):
     node, test, executor, pubs, rec = build(context, position_command_type='joint_trajectory')
     try:
-        pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, [Q0]))
-        pubs[contract.JOINT_STATES].publish(joint_state(0, Q0, np.zeros(6)))
+        target = Q0.copy()
+        target[0] += 1.0  # the feedforward moves joint_1 at t = 8 ms: the window sees it come
+        pubs[contract.FEEDFORWARD_TRAJECTORY].publish(
+            joint_trajectory(0, MS, [Q0] * 8 + [target]))
+        # joint_state_broadcaster's: a track too, the arm's joints in its own order
+        state = joint_state(0, np.r_[Q0[::-1], 0.5], np.zeros(7), names=[
+            f'joint_{i}' for i in range(6, 0, -1)] + ['track_1'])
+        pubs[contract.JOINT_STATES].publish(state)
         frame(pubs, 0)
         spin_until(executor, lambda: node._trajectory is not None and
                    node._measured is not None and node._hold.stamp_ns == 0,
@@ -140,10 +146,19 @@ def test_joint_trajectory_controller_gets_one_point_by_joint_name(context):
         clock_to(executor, pubs, 4 * MS)
         spin_until(executor, lambda: rec['trajectories'], what='a trajectory command')
         msg = rec['trajectories'][0]
-        assert list(msg.joint_names) == ORDER and stamp_ns(msg.header.stamp) == 0
-        assert len(msg.points) == 1
-        assert stamp_ns(msg.points[0].time_from_start) == 4 * MS  # one command period
-        np.testing.assert_allclose(msg.points[0].positions, Q0[PERMUTATION], atol=1e-12)
+        # the controller's joints only, stamped now (MoveIt Servo's window), not 0
+        assert list(msg.joint_names) == ORDER and stamp_ns(msg.header.stamp) == 4 * MS
+        assert len(msg.points) == 26  # trajectory_window_points
+        assert [stamp_ns(p.time_from_start) for p in msg.points] == \
+            [k * 4 * MS for k in range(26)]
+        window = np.array([p.positions for p in msg.points])[:, np.argsort(PERMUTATION)]
+        np.testing.assert_allclose(window[0], Q0, atol=1e-12)  # the reference now
+        # ahead: joint_1 on its way to the feedforward's new point, at most 20 deg/s
+        step = np.diff(window[:, 0])
+        assert np.all(step >= 0.0) and window[-1, 0] > Q0[0] + 1e-3
+        assert np.all(step <= np.radians(20.0) * 0.004 * (1 + 1e-9))
+        np.testing.assert_allclose(window[:, 1:], np.tile(Q0[1:], (26, 1)), atol=1e-12)
+        assert node.diagnostics.values['ignored_joints'] == 'track_1'
     finally:
         executor.shutdown()
         node.destroy_node()
@@ -152,7 +167,9 @@ def test_joint_trajectory_controller_gets_one_point_by_joint_name(context):
 
 def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(context):
     """Acceptance (issue 34): hold within the timeout, the status names the input, resume."""
-    node, test, executor, pubs, rec = build(context, frame_timeout_s=0.3)
+    # the arm's own speed limits, not a first run's cap (max_joint_speed_deg_s)
+    node, test, executor, pubs, rec = build(context, frame_timeout_s=0.3,
+                                            max_joint_speed_deg_s=1000.0)
     try:
         target = Q0.copy()
         target[0] += 2.0  # the feedforward asks joint_1 to move 2 rad at once

@@ -41,6 +41,36 @@ def test_shaper_respects_speed_and_acceleration_limits_and_arrives():
     assert np.abs(path[int(0.65 * 250)] - target)[0] > 1e-3
 
 
+@pytest.mark.parametrize('cap_deg_s', [20.0, 5.0, 200.0])
+def test_no_joint_reference_moves_faster_than_the_cap(cap_deg_s):
+    # max_joint_speed_deg_s: per joint the smaller of the cap and the arm's own limit
+    cap = np.radians(cap_deg_s)
+    shaper = PositionShaper(250.0, max_speed=cap)
+    np.testing.assert_allclose(shaper.speed_limits, np.minimum(SPEED_LIMITS, cap))
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-0.5, 0.5, 6)
+    shaper.start(q)
+    path, times, t = [q], [0.0], 0.0
+    target = q
+    for k in range(3000):  # targets that jump far and back; ticks that come late or early
+        if k % 200 == 0:
+            target = rng.uniform(-2.0, 2.0, 6)
+        dt = float(rng.choice([0.004, 0.004, 0.002, 0.008, 0.02]))
+        path.append(shaper.step(target, dt))
+        t += dt
+        times.append(t)
+    speed = np.abs(np.diff(path, axis=0)) / np.diff(times)[:, None]
+    assert np.all(speed <= shaper.speed_limits * (1 + 1e-12))
+    # and the cap is reached: it limits, not something else
+    assert np.all(speed.max(axis=0) >= 0.99 * shaper.speed_limits)
+
+
+@pytest.mark.parametrize('cap', [0.0, -1.0, float('nan')])
+def test_shaper_refuses_a_cap_that_is_no_speed(cap):
+    with pytest.raises(ValueError, match='max_speed'):
+        PositionShaper(250.0, max_speed=cap)
+
+
 def test_shaper_keeps_pace_with_time_not_with_ticks():
     every_tick, skipping = PositionShaper(250.0), PositionShaper(250.0)
     for s in (every_tick, skipping):

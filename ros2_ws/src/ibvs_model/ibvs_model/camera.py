@@ -2,7 +2,10 @@
 ZED 2 stereo camera model: pose (eq. 12-15), projection (eq. 16-22), triangulation.
 
 Frame {C} is the paper's: midway between the two lenses, x right, y down, z along the
-parallel optical axes. Both images share the intrinsics (f_u, f_v, c_u, c_v), no skew.
+parallel optical axes. The paper's lenses share the intrinsics (f_u, f_v, c_u, c_v), no
+skew. A rectified pair may instead give each lens its own horizontal focal length and
+principal point (f_u, c_u on the left, f_u' and c_u' on the right: older ZED SDKs publish
+701.40 and 696.83 px); rows stay common (f_v, c_v), which is what rectified means.
 
 Sign convention (docs/design.md §5). The paper's eq. (19)-(20) put the left lens at
 X = +b/2, so that u_r > u_l. ROS puts the left lens at x = -b/2 (x to the right), and the
@@ -11,7 +14,10 @@ right camera's CameraInfo has P[3] = -f_u * b. This module follows ROS:
     u_l = f_u (X + b/2) / Z + c_u,   u_r = f_u (X - b/2) / Z + c_u,   v = f_v Y / Z + c_v
 
 so the disparity u_l - u_r = f_u b / Z is positive. With c_u = c_v = 0 and b -> -b these
-are exactly eq. (18)-(20).
+are exactly eq. (18)-(20). With lenses of their own, u_r = f_u' (X - b/2) / Z + c_u' (the
+right CameraInfo's P = [f_u' 0 c_u' -f_u' b; 0 f_v c_v 0; 0 0 1 0] applied to a point of
+the left lens's frame, x_left = X + b/2), and depth comes from the normalised disparity:
+(u_l - c_u) / f_u - (u_r - c_u') / f_u' = b / Z.
 
 Pixel coordinates follow OpenCV: the centre of pixel (i, j) is at u = i, v = j, so an
 image W pixels wide spans u in [-0.5, W - 0.5] and its centre is c_u = (W - 1) / 2.
@@ -36,7 +42,13 @@ ZED2_RESOLUTIONS = {'HD720': (1280, 720), 'VGA': (672, 376), 'HD1080': (1920, 10
 
 @dataclass(frozen=True)
 class StereoIntrinsics:
-    """Intrinsics shared by both images, and the baseline b (m) between the lenses."""
+    """
+    Intrinsics of both images, and the baseline b (m) between the lenses.
+
+    ``fu``, ``cu`` are the left lens's; ``right_fu``, ``right_cu`` the right lens's where
+    they differ (None: the left's, the paper's camera). ``fv``, ``cv`` are both lenses'
+    (a rectified pair shares its rows).
+    """
 
     width: int
     height: int
@@ -45,6 +57,8 @@ class StereoIntrinsics:
     cu: float
     cv: float
     baseline: float
+    right_fu: float | None = None
+    right_cu: float | None = None
 
     def __post_init__(self):
         """Reject sizes, focal lengths and baselines that make the model meaningless."""
@@ -59,6 +73,26 @@ class StereoIntrinsics:
         for name in ('cu', 'cv'):
             if not math.isfinite(getattr(self, name)):
                 raise InvalidInputError(f'{name} must be finite')
+        if self.right_fu is not None and not (math.isfinite(self.right_fu)
+                                              and self.right_fu > 0.0):
+            raise InvalidInputError(f'right_fu must be finite and > 0, got {self.right_fu}')
+        if self.right_cu is not None and not math.isfinite(self.right_cu):
+            raise InvalidInputError('right_cu must be finite')
+
+    @property
+    def fu_r(self) -> float:
+        """Return the right lens's horizontal focal length f_u' (px)."""
+        return self.fu if self.right_fu is None else self.right_fu
+
+    @property
+    def cu_r(self) -> float:
+        """Return the right lens's principal point c_u' (px)."""
+        return self.cu if self.right_cu is None else self.right_cu
+
+    @property
+    def same_lenses(self) -> bool:
+        """Return whether both lenses have the same f_u and c_u (the paper's camera)."""
+        return self.fu_r == self.fu and self.cu_r == self.cu
 
     @classmethod
     def from_fov(cls, width: int, height: int, hfov_deg: float = ZED2_HFOV_DEG,
@@ -117,8 +151,14 @@ class StereoIntrinsics:
 
     @property
     def K(self) -> NDArray[np.float64]:  # noqa: N802 (the usual name of the camera matrix)
-        """Return the 3x3 camera matrix of either image (eq. 16 with s_c = 0)."""
+        """Return the 3x3 camera matrix of the left image (eq. 16 with s_c = 0)."""
         return np.array([[self.fu, 0.0, self.cu], [0.0, self.fv, self.cv], [0.0, 0.0, 1.0]])
+
+    @property
+    def K_right(self) -> NDArray[np.float64]:  # noqa: N802 (as K)
+        """Return the 3x3 camera matrix of the right image."""
+        return np.array([[self.fu_r, 0.0, self.cu_r], [0.0, self.fv, self.cv],
+                         [0.0, 0.0, 1.0]])
 
 
 def merge_windows(windows: Iterable[Sequence[int]]) -> list[tuple[int, int, int, int]]:
@@ -283,7 +323,7 @@ class StereoCamera:
         half_b = k.baseline / 2.0
         out = np.empty_like(points_C)
         out[:, 0] = k.fu * (points_C[:, 0] + half_b) / z + k.cu
-        out[:, 1] = k.fu * (points_C[:, 0] - half_b) / z + k.cu
+        out[:, 1] = k.fu_r * (points_C[:, 0] - half_b) / z + k.cu_r
         out[:, 2] = k.fv * points_C[:, 1] / z + k.cv
         return out
 
@@ -327,7 +367,7 @@ class StereoCamera:
         half_b = k.baseline / 2.0
         d_dc = np.array([
             [k.fu / z, 0.0, -k.fu * (x + half_b) / z ** 2],
-            [k.fu / z, 0.0, -k.fu * (x - half_b) / z ** 2],
+            [k.fu_r / z, 0.0, -k.fu_r * (x - half_b) / z ** 2],
             [0.0, k.fv / z, -k.fv * y / z ** 2],
         ])
         return d_dc @ self._rot_O_C
@@ -336,7 +376,10 @@ class StereoCamera:
         """
         Return points in {C} from (u_l, u_r, v) rows: the inverse of eq. (19)-(22).
 
-        Z = f_u b / (u_l - u_r), X = (u_l - c_u) Z / f_u - b / 2, Y = (v - c_v) Z / f_v.
+        Z = f_u b / (u_l - u_r), X = (u_l - c_u) Z / f_u - b / 2, Y = (v - c_v) Z / f_v;
+        with lenses of their own (:class:`StereoIntrinsics` ``right_fu``, ``right_cu``),
+        Z = b / d with the normalised disparity d = (u_l - c_u) / f_u - (u_r - c_u') / f_u'
+        (the module docstring), which must then be positive.
 
         Parameters
         ----------
@@ -356,11 +399,16 @@ class StereoCamera:
         """
         coords = as_array(coords, (None, 3), 'coords')
         k = self.intrinsics
-        disparity = coords[:, 0] - coords[:, 1]
+        if k.same_lenses:
+            disparity = coords[:, 0] - coords[:, 1]
+            what = 'u_l - u_r'
+        else:  # in pixels of the left lens, so that the threshold below means the same
+            disparity = k.fu * ((coords[:, 0] - k.cu) / k.fu - (coords[:, 1] - k.cu_r) / k.fu_r)
+            what = "f_u ((u_l - c_u) / f_u - (u_r - c_u') / f_u')"
         if np.any(disparity <= 1e-12):
             idx = int(np.argmin(disparity))
             raise TriangulationError(
-                f'row {idx}: disparity u_l - u_r = {disparity[idx]:.4g} px must be > 0')
+                f'row {idx}: disparity {what} = {disparity[idx]:.4g} px must be > 0')
         z = k.fu * k.baseline / disparity
         out = np.empty_like(coords)
         out[:, 0] = (coords[:, 0] - k.cu) * z / k.fu - k.baseline / 2.0

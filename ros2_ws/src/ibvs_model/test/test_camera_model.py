@@ -196,3 +196,72 @@ def test_merge_windows_merges_overlaps_until_none_are_left():
     assert merge_windows([a, b, c, d, e]) == [(0, 0, 30, 12), (0, 50, 3, 60), (30, 0, 40, 4)]
     assert merge_windows([]) == []
     assert merge_windows([e]) == [e]
+
+
+def per_lens_camera(right_fu=696.83, right_cu=652.1):
+    """Return a ZED 2 at HD720 whose lenses differ as older SDKs give them (701.40, 696.83)."""
+    k = StereoIntrinsics(1280, 720, 701.40, 701.40, 639.5, 359.5, 0.12,
+                         right_fu=right_fu, right_cu=right_cu)
+    return StereoCamera(k, look_at([2.0, -1.5, 1.2], [0.8, 0.1, 0.6]))
+
+
+def test_per_lens_projection_round_trip_and_each_lens_its_own_pinhole():
+    camera = per_lens_camera()
+    k = camera.intrinsics
+    assert not k.same_lenses and (k.fu_r, k.cu_r) == (696.83, 652.1)
+    rng = np.random.default_rng(3)
+    points_C = np.c_[rng.uniform(-0.8, 0.8, (N_RANDOM, 2)), rng.uniform(0.5, 6.0, N_RANDOM)]
+    uv = camera.project_camera(points_C)
+    # each image is the pinhole of its own lens: the left at x = -b/2, the right at +b/2
+    np.testing.assert_allclose(uv[:, 0], 701.40 * (points_C[:, 0] + 0.06) / points_C[:, 2]
+                               + 639.5, rtol=1e-13)
+    np.testing.assert_allclose(uv[:, 1], 696.83 * (points_C[:, 0] - 0.06) / points_C[:, 2]
+                               + 652.1, rtol=1e-13)
+    np.testing.assert_allclose(camera.triangulate_camera(uv), points_C, rtol=1e-10,
+                               atol=1e-12)
+    points_O = camera.to_base(points_C)
+    np.testing.assert_allclose(camera.triangulate(camera.project(points_O)), points_O,
+                               atol=1e-9)
+    # taking one f_u for both (the old model) would misplace the points by centimetres
+    same = StereoCamera(StereoIntrinsics(1280, 720, 701.40, 701.40, 639.5, 359.5, 0.12),
+                        camera.pose_C_O)
+    assert np.abs(same.triangulate_camera(uv) - points_C).max() > 0.01
+
+
+def test_per_lens_jacobian_is_the_derivative_of_the_projection():
+    camera = per_lens_camera()
+    point = camera.to_base(np.array([[0.2, -0.1, 2.5]]))[0]
+    jac = camera.projection_jacobian(point)
+    h = 1e-6
+    numeric = np.array([(camera.project((point + h * e)[None])[0]
+                         - camera.project((point - h * e)[None])[0]) / (2 * h)
+                        for e in np.eye(3)]).T
+    np.testing.assert_allclose(jac, numeric, rtol=1e-6, atol=1e-6)
+
+
+def test_per_lens_triangulation_refuses_a_point_behind_by_normalised_disparity():
+    camera = per_lens_camera(right_cu=630.0)
+    # u_l > u_r in pixels, yet behind the camera once each lens's own centre is taken
+    with pytest.raises(TriangulationError, match='disparity'):
+        camera.triangulate_camera([[640.0, 639.0, 360.0]])
+    camera.triangulate_camera([[640.0, 620.0, 360.0]])  # in front: read
+
+
+def test_identical_lenses_given_either_way_are_the_same_camera():
+    one = StereoIntrinsics.zed2('HD720')
+    both = StereoIntrinsics(one.width, one.height, one.fu, one.fv, one.cu, one.cv,
+                            one.baseline, right_fu=one.fu, right_cu=one.cu)
+    assert one.same_lenses and both.same_lenses
+    pose = look_at([2.0, -1.5, 1.2], [0.8, 0.1, 0.6])
+    points = np.array([[0.7, 0.2, 0.5], [1.0, -0.1, 0.9]])
+    a, b = StereoCamera(one, pose), StereoCamera(both, pose)
+    assert np.array_equal(a.project(points), b.project(points))
+    assert np.array_equal(a.triangulate(a.project(points)), b.triangulate(b.project(points)))
+
+
+@pytest.mark.parametrize('right_fu, right_cu', [(0.0, None), (float('nan'), None),
+                                                (None, float('inf'))])
+def test_a_right_lens_that_is_no_lens_is_refused(right_fu, right_cu):
+    with pytest.raises(InvalidInputError, match='right_'):
+        StereoIntrinsics(1280, 720, 700.0, 700.0, 639.5, 359.5, 0.12, right_fu=right_fu,
+                         right_cu=right_cu)

@@ -100,3 +100,96 @@ class PositionServo:
         self.qd = self.qd + np.clip(v_des - self.qd, -change, change)
         self.q = self.q + self.qd * self.dt
         return self.q.copy(), self.qd.copy()
+
+
+class TrajectoryFollower:
+    """
+    joint_trajectory_controller as it feeds a position interface: the drive's reference.
+
+    The controller manager updates the controller every 1 / ``update_rate_hz``; at each
+    update the controller samples its trajectory at the update's time and writes the
+    position to the hardware, which holds it until the next update. What is modelled is
+    ros2_controllers' jazzy branch (commit ed360c9, ``joint_trajectory_controller/src/``):
+
+    - a new trajectory replaces the current one at the next update
+      (``joint_trajectory_controller.cpp`` ``update``, lines 276-283: the realtime buffer's
+      newest message, ``current_trajectory_->update``);
+    - the first time a trajectory is sampled, a header stamp of 0 becomes the time of that
+      update (``trajectory.cpp`` ``sample``, lines 125-134), and the state before it is the
+      measured one at that time (``joint_trajectory_controller.cpp`` lines 300-313,
+      ``interpolate_from_desired_state`` false by default);
+    - before its first point the sample is interpolated from that state to the first point
+      (``trajectory.cpp`` lines 147-168), between points from the point at or before the
+      time to the next (lines 175-195), and after the last point it is the last point
+      (lines 208-240);
+    - positions only (no velocities): the interpolation is linear
+      (``interpolate_between_points``, lines 315-333).
+
+    Times are integer nanoseconds of the simulator's clock.
+    """
+
+    def __init__(self, update_rate_hz: float) -> None:
+        """Update every 1 / ``update_rate_hz`` s; no trajectory yet."""
+        if not (math.isfinite(update_rate_hz) and update_rate_hz > 0.0):
+            raise ValueError(f'update_rate_hz must be > 0, got {update_rate_hz}')
+        self.period_ns = int(round(1e9 / update_rate_hz))
+        self._pending = None
+        self._current = None
+        self._next_update_ns = None
+        #: Updates that found no trajectory to sample (before the first one comes).
+        self.idle_updates = 0
+
+    @property
+    def active(self) -> bool:
+        """Return whether a trajectory has been received."""
+        return self._current is not None or self._pending is not None
+
+    def receive(self, stamp_ns: int, times_ns: ArrayLike, positions: ArrayLike) -> None:
+        """
+        Take a trajectory; it replaces the current one at the next update.
+
+        ``stamp_ns``: its header stamp (0: it starts at its first sampling);
+        ``times_ns``: the points' time_from_start (N,), increasing; ``positions``: (N, 6).
+        Checked by the caller (:func:`ibvs_common.conversions.read_command_trajectory`).
+        """
+        times = np.asarray(times_ns, dtype=np.int64)
+        positions = np.asarray(positions, dtype=float)
+        if positions.ndim != 2 or positions.shape != (len(times), 6) or not len(times):
+            raise ValueError('a trajectory must be N >= 1 points of 6 positions')
+        self._pending = (int(stamp_ns), times, positions.copy())
+
+    def due(self, t_ns: int) -> bool:
+        """Return whether the controller updates at ``t_ns`` (its first update: the first call)."""
+        if self._next_update_ns is None:
+            self._next_update_ns = int(t_ns)
+        return t_ns >= self._next_update_ns
+
+    def update(self, t_ns: int, q_measured: ArrayLike) -> NDArray[np.float64] | None:
+        """
+        One controller update at ``t_ns``: return the position it writes (6,), or None.
+
+        None: no trajectory yet (the hardware keeps what it has). ``q_measured`` (6,) is
+        the joint state at ``t_ns``, the start of a trajectory's interpolation.
+        """
+        t_ns = int(t_ns)
+        self._next_update_ns = t_ns + self.period_ns
+        if self._pending is not None:
+            stamp_ns, times, positions = self._pending
+            self._pending = None
+            start_ns = stamp_ns if stamp_ns != 0 else t_ns
+            self._current = (start_ns + times, positions, t_ns,
+                             np.asarray(q_measured, dtype=float).copy())
+        if self._current is None:
+            self.idle_updates += 1
+            return None
+        point_ns, positions, before_ns, before = self._current
+        if t_ns < point_ns[0]:
+            if point_ns[0] == before_ns:
+                return positions[0].copy()
+            s = (t_ns - before_ns) / (point_ns[0] - before_ns)
+            return before + max(s, 0.0) * (positions[0] - before)
+        k = int(np.searchsorted(point_ns, t_ns, side='right')) - 1
+        if k >= len(point_ns) - 1:
+            return positions[-1].copy()
+        s = (t_ns - point_ns[k]) / (point_ns[k + 1] - point_ns[k])
+        return positions[k] + s * (positions[k + 1] - positions[k])

@@ -68,9 +68,11 @@ position-controlled IRB 4600: joint references on /forward_position_controller/c
 (std_msgs/Float64MultiArray, values in the order of the ``joints`` parameter, as
 ros2_controllers' forward_command_controller takes them) or, with ``position_command_type:
 joint_trajectory``, on /joint_trajectory_controller/joint_trajectory (trajectory_msgs/
-JointTrajectory, mapped by joint name; the last point's positions are the reference),
-tracked by the drive model :class:`.position_servo.PositionServo` (dead time, bandwidth,
-speed and acceleration limits), the last reference held (zero-order hold). A reference
+JointTrajectory, mapped by joint name; a window of stamped points sampled as
+joint_trajectory_controller samples it, at ``command_rate_hz``:
+:class:`.position_servo.TrajectoryFollower`), tracked by the drive model
+:class:`.position_servo.PositionServo` (dead time, bandwidth, speed and acceleration
+limits), the last reference held (zero-order hold). A reference
 older than ``command_timeout_s`` (sim time) is stale: the drive stops the arm and holds it,
 logs it and says so on /diagnostics (``command: stale``) until a new one comes. A command
 with the wrong number of values, unknown, missing or repeated joint names, a non-finite
@@ -109,10 +111,10 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, intra_process
-from ibvs_common.conversions import (camera_infos, image_msg, InputError, joint_path,
-                                     joint_state, ns_stamp, path_msg, pose_stamped,
-                                     read_command_trajectory, read_joints, read_stamp,
-                                     stamp_ns)
+from ibvs_common.conversions import (camera_infos, duration_ns, image_msg, InputError,
+                                     joint_path, joint_state, ns_stamp, path_msg,
+                                     pose_stamped, read_command_trajectory, read_joints,
+                                     read_stamp, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
@@ -135,7 +137,7 @@ from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory
 
 from .config import SimConfig
-from .position_servo import PositionServo
+from .position_servo import PositionServo, TrajectoryFollower
 from .simulator import Simulator
 
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
@@ -461,6 +463,11 @@ class SimNode(Node):
         self._servo_start = self._servo_window = self._servo_min = None
         self._servo_windows = 0
         self.commands = 0
+        # joint_trajectory: the trajectory controller, updated at command_rate_hz (abb_ros2's
+        # controller manager: 250 Hz), samples each trajectory window for the drive.
+        self._follower = None
+        if values['position_command_type'] == 'joint_trajectory':
+            self._follower = TrajectoryFollower(values['command_rate_hz'])
         if values['position_command_type'] == 'forward_command':
             self._sub = self.create_subscription(Float64MultiArray, contract.POSITION_COMMANDS,
                                                  self._on_position_command, contract.RELIABLE)
@@ -760,6 +767,10 @@ class SimNode(Node):
             self.get_logger().warn(message)
             self.diagnostics.set_level(DiagnosticStatus.WARN, message)
             self.diagnostics.update(command='stale')
+        if self._follower is not None and not self._stale and self._follower.due(sim.t_ns):
+            reference = self._follower.update(sim.t_ns, self.servo.q - sim.d_q)
+            if reference is not None:
+                self.servo.command(reference + sim.d_q)
         with self.diagnostics.timing.section('physics'):
             q, qd = self.servo.step()
             sim.move_to(q, qd)
@@ -774,13 +785,21 @@ class SimNode(Node):
         return np.any((q_true < np.asarray(IRB4600.q_min))
                       | (q_true > np.asarray(IRB4600.q_max)), axis=1)
 
-    def _take_reference(self, q_encoder, source, checked=False):
-        """Take a reference in encoder angles (contract order): range check, then the drive."""
+    def _take_reference(self, q_encoder, source, checked=False, trajectory=None):
+        """
+        Take a reference in encoder angles (contract order): range check, then the drive.
+
+        ``trajectory`` (stamp ns, times ns, positions): a checked joint_trajectory command,
+        for the trajectory controller (:class:`.position_servo.TrajectoryFollower`).
+        """
         if not checked and self._beyond_range(q_encoder)[0]:
             self.diagnostics.reject(source, 'out of range', f'{q_encoder.tolist()} rad: '
                                     'beyond a joint range')
             return
-        self.servo.command(q_encoder + self.sim.d_q)
+        if trajectory is None:
+            self.servo.command(q_encoder + self.sim.d_q)
+        else:
+            self._follower.receive(*trajectory)
         if self._command_ns is None:  # the servoing starts: its factor held from here
             self._servo_start = self._servo_window = (time.monotonic(), self.sim.t_ns)
         self._command_ns = self.sim.t_ns
@@ -827,7 +846,9 @@ class SimNode(Node):
                                     f'{positions[outside[0]].tolist()} rad: beyond a joint '
                                     'range')
             return
-        self._take_reference(positions[-1], source, checked=True)
+        self._take_reference(positions[-1], source, checked=True, trajectory=(
+            stamp_ns(msg.header.stamp), [duration_ns(p.time_from_start) for p in msg.points],
+            positions))
 
 
 def main(args: list[str] | None = None) -> None:

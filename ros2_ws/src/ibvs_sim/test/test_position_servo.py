@@ -75,3 +75,103 @@ def test_a_bad_reference_is_refused_and_the_old_one_kept():
             servo.command(bad)
     assert np.all(servo.reference == 1.0)
     assert EGM_BANDWIDTH_HZ == 20.0
+
+
+# -- the trajectory controller (TrajectoryFollower) fed at 250 Hz, updating at another rate --
+
+COMMAND_NS = 4_000_000  # the joint controller's 250 Hz
+GRID_NS = 100_000  # the time grid of the loop below: 0.1 ms
+CAP = math.radians(20.0)  # max_joint_speed_deg_s
+
+
+def run_cell(update_rate_hz, window_points, old_single_point=False, duration_ns=800_000_000):
+    """
+    Run the 250 Hz command stream through a trajectory controller into the drive.
+
+    The controller updates at ``update_rate_hz``. Returns (update times ns, the references
+    it wrote, the shaper's own path (command times ns, positions), the drive's speeds).
+
+    Each command is the window the node publishes (stamp = its time, point k at k command
+    periods: the reference now and its shaped course ahead) or, ``old_single_point``, the
+    former message (stamp 0, one point one command period ahead). It arrives 1.3 ms after
+    its time, every other one 0.7 ms later still (DDS and the executor's jitter).
+    """
+    from ibvs_control.position_interface import PositionShaper
+    from ibvs_sim.position_servo import TrajectoryFollower
+    q0 = np.zeros(6)
+    target = np.r_[1.0, np.zeros(5)]  # joint_1 far away: it cruises at the cap
+    shaper = PositionShaper(250.0, max_speed=CAP)
+    shaper.start(q0)
+    servo = PositionServo(GRID_NS * 1e-9, q0)
+    follower = TrajectoryFollower(update_rate_hz)
+    inbox, updates, written, path, speeds = [], [], [], [], []
+    for t in range(0, duration_ns, GRID_NS):
+        if t % COMMAND_NS == 0 and t:
+            q = shaper.step(target)
+            path.append((t, q[0]))
+            if old_single_point:
+                message = (0, [COMMAND_NS], q[None])
+            else:
+                ahead = shaper.preview(np.tile(target, (window_points - 1, 1)))
+                message = (t, np.arange(window_points) * COMMAND_NS, np.vstack([q, ahead]))
+            late = 1_300_000 + (700_000 if (t // COMMAND_NS) % 2 else 0)
+            inbox.append((t + late, message))
+        while inbox and inbox[0][0] <= t:
+            follower.receive(*inbox.pop(0)[1])
+        if follower.due(t):
+            reference = follower.update(t, servo.q)
+            if reference is not None:
+                servo.command(reference)
+                updates.append(t)
+                written.append(reference[0])
+        speeds.append(servo.step()[1][0])
+    return np.array(updates), np.array(written), np.array(path), np.array(speeds)
+
+
+@pytest.mark.parametrize('update_rate_hz', [200.0, 300.0, 250.0])
+def test_a_trajectory_controller_off_250_hz_neither_holds_nor_skips(update_rate_hz):
+    updates, written, path, speeds = run_cell(update_rate_hz, window_points=26)
+    # every update writes the shaper's reference of its own time: the window's line
+    expected = np.interp(updates, path[:, 0], path[:, 1])
+    # from the first window's arrival to the last command (the shaper's path ends there)
+    inside = (updates >= path[1, 0] + 2_000_000) & (updates <= path[-1, 0])
+    np.testing.assert_allclose(written[inside], expected[inside], atol=1e-12)
+    # cruising at the cap, each update moves the reference by the cap times its period:
+    # none holds (no move), none skips (a double move)
+    cruise = (updates > 0.2e9) & (updates < 0.7e9)
+    step = np.diff(written[cruise]) / (np.diff(updates[cruise]) * 1e-9)
+    np.testing.assert_allclose(step, CAP, rtol=0.04)  # the update times on the 0.1 ms grid
+    # and so the drive turns smoothly at the cap
+    drive = speeds[int(0.3e9 // GRID_NS):int(0.7e9 // GRID_NS)]
+    np.testing.assert_allclose(drive, CAP, rtol=0.05)
+
+
+@pytest.mark.parametrize('update_rate_hz', [200.0, 300.0])
+def test_the_former_single_point_command_holds_or_skips_off_250_hz(update_rate_hz):
+    """The same check on the former message shows the failure the window removes."""
+    updates, written, _, speeds = run_cell(update_rate_hz, 1, old_single_point=True)
+    cruise = (updates > 0.2e9) & (updates < 0.7e9)
+    step = np.diff(written[cruise]) / (np.diff(updates[cruise]) * 1e-9)
+    held = np.mean(np.abs(step) < 0.5 * CAP)
+    assert held > 0.2 or np.abs(step).max() > 1.5 * CAP
+
+
+def test_the_trajectory_follower_samples_as_joint_trajectory_controller():
+    from ibvs_sim.position_servo import TrajectoryFollower
+    follower = TrajectoryFollower(100.0)  # updates every 10 ms
+    q = np.zeros(6)
+    assert follower.due(0) and follower.update(0, q) is None  # nothing received yet
+    points = np.outer([1.0, 2.0, 4.0], np.ones(6))
+    follower.receive(0, [20_000_000, 30_000_000, 50_000_000], points)  # stamp 0: now
+    assert not follower.due(5_000_000) and follower.due(10_000_000)
+    # first sampling at 10 ms: starts now, from the measured state, toward the first point
+    np.testing.assert_allclose(follower.update(10_000_000, q), 0.0)
+    np.testing.assert_allclose(follower.update(20_000_000, q), 0.5)  # halfway to 1 at 30 ms
+    np.testing.assert_allclose(follower.update(35_000_000, q), 1.5)  # between points 0, 1
+    np.testing.assert_allclose(follower.update(50_000_000, q), 3.0)
+    np.testing.assert_allclose(follower.update(90_000_000, q), 4.0)  # played out: the last
+    # a stamped trajectory is placed at its stamp, and replaces the current one
+    follower.receive(100_000_000, [0, 10_000_000], np.outer([5.0, 6.0], np.ones(6)))
+    np.testing.assert_allclose(follower.update(105_000_000, q), 5.5)
+    with pytest.raises(ValueError):
+        TrajectoryFollower(0.0)

@@ -292,7 +292,7 @@ def test_bad_commands_are_rejected_counted_and_the_arm_holds(graph):
     assert moving > 1e-3
     kinds = ('nan', 'inf', 'length', 'names')
     reasons = ('non-finite effort', 'non-finite effort', 'wrong effort length',
-               'wrong joint names')
+               'missing joints')
     for kind in kinds:
         before = stand_in.rec['joints'][-1]
         stand_in.pub.publish(_bad(before, kind))

@@ -86,7 +86,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from ibvs_common import contract, intra_process, shared_params
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info, feature_status_msg,
-                                     features_msg, FeatureStatus, image_msg, InputError,
+                                     features_msg, FeatureStatus, ignored_joints, image_msg,
+                                     InputError,
                                      ns_stamp, pose_stamped, position_bounds,
                                      read_camera_pose, read_joints, read_stamp, stamp_lead_ns,
                                      StampOrder)
@@ -323,6 +324,7 @@ class FeatureNode(Node):
             self._diag.reject(topic, exc.reason, exc.detail)
             self._stereo.offer_bad_joints(t_ns, exc.reason)
         else:
+            self._diag.note_ignored(topic, ignored_joints(msg))
             self._order.take(topic, t_ns)
             self._stereo.offer_joints(t_ns, q)
         self._try_frames()

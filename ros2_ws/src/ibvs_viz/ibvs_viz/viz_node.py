@@ -52,7 +52,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (camera_from_msgs, check_camera_info,
-                                     check_features_in_image, InputError, matrix_poses,
+                                     check_features_in_image, ignored_joints, InputError,
+                                     matrix_poses,
                                      pose_stamped, position_bounds, read_camera_pose,
                                      read_feature_status, read_features, read_joints,
                                      read_stamp, stamp_lead_ns, StampOrder)
@@ -335,6 +336,7 @@ class VizNode(Node):
         except InputError as exc:
             self._diag.reject(topic, exc.reason, exc.detail)
             return
+        self._diag.note_ignored(topic, ignored_joints(msg))
         self._order.take(topic, t_ns)
         self._last_joint_ns = t_ns
         self._diag.values['joint_states_taken'] += 1
