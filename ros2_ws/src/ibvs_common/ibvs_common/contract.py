@@ -129,6 +129,9 @@ IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5,
 ZED_IMAGES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
+#: CameraInfo, read by every node that builds the camera (:class:`.kit.StereoCameraInput`):
+#: one profile for the topic, the images' (it goes with them, one per frame).
+CAMERA_INFO = IMAGES
 #: Facts that do not change (camera pose): the last value reaches late joiners.
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                      reliability=ReliabilityPolicy.RELIABLE,

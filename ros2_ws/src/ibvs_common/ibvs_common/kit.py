@@ -1,0 +1,258 @@
+"""
+The node kit: what every node of the graph opens, waits for and assembles, written once.
+
+- :func:`publisher` and :func:`subscription`: the one way a node opens a topic. The QoS
+  picks the transport by rclcpp's rule (:func:`direct`): a volatile, keep-last topic is
+  handed to this process's readers as an object (:mod:`.intra_process`) and goes through
+  DDS as well when another process reads it; a transient-local one goes through DDS only.
+  Each topic opened is recorded (:class:`Endpoint`, :func:`opened`), so that what a graph
+  reads and writes can be read from the nodes themselves.
+- :class:`WaitReporter`: the "waiting for" log, once a second while the node made no
+  progress, naming what is missing.
+- :class:`StereoCameraInput`: both CameraInfo and the camera pose (the ``camera_pose``
+  parameter or /stereo/pose), checked, rejected with a reason counted on /diagnostics, and
+  a :class:`ibvs_model.StereoCamera` once they describe one.
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any, Mapping, TYPE_CHECKING
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.clock import Clock, ClockType
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
+from sensor_msgs.msg import CameraInfo
+
+from . import contract, intra_process
+from .conversions import (camera_from_msgs, check_camera_info, InputError, pose_stamped,
+                          read_camera_pose)
+from .shared_params import camera_pose_from
+
+if TYPE_CHECKING:
+    from ibvs_model import StereoCamera
+    from rclpy.node import Node
+
+    from .diagnostics import Diagnostics
+
+#: Steady-clock period of the "waiting for" log (s).
+WAIT_LOG_S = 1.0
+PUBLISHES, SUBSCRIBES = 'publishes', 'subscribes'
+
+
+def qos_profile(qos: QoSProfile | int) -> QoSProfile:
+    """Return ``qos`` as a profile (an int is a keep-last depth, as rclpy takes it)."""
+    return qos if isinstance(qos, QoSProfile) else QoSProfile(depth=qos)
+
+
+def direct(qos: QoSProfile | int) -> bool:
+    """
+    Return whether a topic of ``qos`` is delivered directly within a process.
+
+    rclcpp's rule (rclcpp jazzy 985e320, ``rclcpp/include/rclcpp/publisher.hpp``
+    L173-191, ``subscription.hpp`` L157-168): intra-process delivery needs keep-last
+    history and a depth above 0. rclcpp (Jazzy) keeps a buffer for transient-local
+    publishers to serve late joiners from; :mod:`.intra_process` has none, so a
+    transient-local topic goes through DDS only, as before Jazzy, when rclcpp refused it.
+    """
+    p = qos_profile(qos)
+    return (p.history == HistoryPolicy.KEEP_LAST and p.depth > 0
+            and p.durability == DurabilityPolicy.VOLATILE)
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """One topic a node opened: the node, the resolved topic, its type, direction and QoS."""
+
+    node: str
+    topic: str
+    msg_type: str
+    direction: str
+    qos: QoSProfile = field(compare=False)  # unhashable; ``direct`` says what it decides
+    direct: bool = False
+
+
+#: Per node (fully qualified name), the topics it opened, by (topic, direction).
+_REGISTRY: dict[str, dict[tuple[str, str], Endpoint]] = {}
+
+
+def _record(node: 'Node', topic: str, msg_type: type, direction: str,
+            qos: QoSProfile | int) -> None:
+    package = msg_type.__module__.split('.')[0]
+    profile = qos_profile(qos)
+    _REGISTRY.setdefault(node.get_fully_qualified_name(), {})[(topic, direction)] = Endpoint(
+        node.get_fully_qualified_name(), topic, f'{package}/msg/{msg_type.__name__}',
+        direction, profile, direct(profile))
+
+
+def opened(node_name: str | None = None) -> list[Endpoint]:
+    """Return the topics opened in this process (by ``node_name``, fully qualified, only)."""
+    nodes = [node_name] if node_name is not None else sorted(_REGISTRY)
+    return [e for name in nodes for e in _REGISTRY.get(name, {}).values()]
+
+
+def publisher(node: 'Node', msg_type: type, topic: str, qos: QoSProfile | int) -> Any:
+    """
+    Return a publisher of ``topic`` on ``node``, direct where :func:`direct` allows.
+
+    Either an :class:`.intra_process.Publisher` or an rclpy publisher: both have
+    ``publish``, ``topic_name`` and ``get_subscription_count``.
+    """
+    if direct(qos):
+        pub = intra_process.publisher(node, msg_type, topic, qos)
+    else:
+        pub = node.create_publisher(msg_type, topic, qos)
+    _record(node, pub.topic_name, msg_type, PUBLISHES, qos)
+    return pub
+
+
+def subscription(node: 'Node', msg_type: type, topic: str, callback: Callable[[Any], None],
+                 qos: QoSProfile | int) -> Any:
+    """Return an rclpy subscription of ``topic`` on ``node``, direct where allowed."""
+    if direct(qos):
+        sub = intra_process.subscription(node, msg_type, topic, callback, qos)
+    else:
+        sub = node.create_subscription(msg_type, topic, callback, qos)
+    _record(node, sub.topic_name, msg_type, SUBSCRIBES, qos)
+    return sub
+
+
+class WaitReporter:
+    """
+    Log what the node waits for, once every ``period_s`` (steady clock) without progress.
+
+    ``describe()`` returns the line to log, or None (or '') when nothing is missing; the
+    node calls :meth:`progress` whenever it moved on (a frame answered, a step taken). The
+    first look comes after a full period of silence, as the node has just started.
+    """
+
+    def __init__(self, node: 'Node', describe: Callable[[], str | None],
+                 period_s: float = WAIT_LOG_S) -> None:
+        """Look every ``period_s`` on the steady clock (sim time may stand still)."""
+        self._node = node
+        self._describe = describe
+        self._progress = True
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.timer = node.create_timer(period_s, self.tick, clock=self._steady)
+
+    def progress(self) -> None:
+        """Note that the node moved on: the next look says nothing."""
+        self._progress = True
+
+    def tick(self) -> None:
+        """Look once: log the line when there is one and no progress since the last look."""
+        line = self._describe()
+        if line and not self._progress:
+            self._node.get_logger().info(line)
+        self._progress = False
+
+
+class StereoCameraInput:
+    """
+    Both CameraInfo and the camera pose, assembled into a StereoCamera.
+
+    Subscribes to /stereo/{left,right}/camera_info (:data:`.contract.CAMERA_INFO`) and,
+    unless the ``camera_pose`` parameter gives the hand-eye result, to /stereo/pose
+    (latched). A CameraInfo that cannot be a lens (:func:`.conversions.check_camera_info`)
+    and a pose looking away from the robot (:func:`.conversions.read_camera_pose`) are
+    rejected, counted under the topic's resolved name. Once all three are there, and each
+    time one changes, the camera is built (:func:`.conversions.camera_from_msgs`): lenses
+    that disagree are rejected under the input that completed the set and the camera is
+    not built until they change. ``on_camera(camera, source)`` is called with each camera
+    built (None when the build failed, :attr:`error` says why), ``on_input(source)`` after
+    each accepted message. After :meth:`hold` (a model built once, for good), a CameraInfo
+    that differs from the one it was built from is rejected ('camera_info changed') and
+    later poses are ignored.
+    """
+
+    SIDES = ('left', 'right')
+
+    def __init__(self, node: 'Node', diagnostics: 'Diagnostics', values: Mapping[str, Any],
+                 on_camera: Callable[['StereoCamera | None', str], None],
+                 on_input: Callable[[str], None] | None = None) -> None:
+        """Open the inputs on ``node``; ``values`` holds the ``camera_pose`` parameter."""
+        self._diag = diagnostics
+        self._on_camera = on_camera
+        self._on_input = on_input
+        self.infos: dict[str, CameraInfo] = {}
+        self.pose: PoseStamped | None = None
+        self.camera: 'StereoCamera | None' = None
+        self.error: InputError | ValueError | None = None
+        self.held = False
+        self._key = None
+        #: The resolved topic of each input (the ZED wrapper's under a remap).
+        self.topics = {side: subscription(node, CameraInfo, topic, partial(self.on_info, side),
+                                          contract.CAMERA_INFO).topic_name
+                       for side, topic in zip(self.SIDES, (contract.LEFT_INFO,
+                                                           contract.RIGHT_INFO))}
+        self.topics['pose'] = contract.STEREO_POSE
+        calibrated = camera_pose_from(values)
+        if calibrated is None:
+            subscription(node, PoseStamped, contract.STEREO_POSE, self.on_pose,
+                         contract.LATCHED)
+        else:  # a hand-eye calibration's result, as a parameter
+            self.pose = pose_stamped(calibrated, 0)
+
+    def missing(self) -> list[str]:
+        """Return the topics of the inputs not here yet, left, right, pose."""
+        return [self.topics[side] for side in self.SIDES if side not in self.infos] \
+            + ([contract.STEREO_POSE] if self.pose is None else [])
+
+    def hold(self) -> None:
+        """Keep the inputs as they are: differing CameraInfo is refused from now on."""
+        self.held = True
+
+    def forget_infos(self) -> None:
+        """Drop both CameraInfo (a model built from them failed): await a new pair."""
+        self.infos.clear()
+        self._key = None
+
+    def on_info(self, side: str, msg: CameraInfo) -> None:
+        """Take one lens's CameraInfo (``side``: 'left' or 'right')."""
+        topic = self.topics[side]
+        try:
+            check_camera_info(msg)
+        except InputError as exc:
+            self._diag.reject(topic, exc.reason, exc.detail)
+            return
+        if self.held:
+            built = self.infos[side]
+            if (msg.width, msg.height, tuple(msg.p)) != (built.width, built.height,
+                                                         tuple(built.p)):
+                self._diag.reject(topic, 'camera_info changed',
+                                  'the camera model is built once, from the first usable '
+                                  'pair; this one differs from it')
+            return
+        self.infos[side] = msg
+        self._update(topic)
+
+    def on_pose(self, msg: PoseStamped) -> None:
+        """Take the camera pose from /stereo/pose."""
+        try:
+            read_camera_pose(msg)
+        except InputError as exc:
+            self._diag.reject(contract.STEREO_POSE, exc.reason, exc.detail)
+            return
+        if self.held:
+            return
+        self.pose = msg
+        self._update(contract.STEREO_POSE)
+
+    def _update(self, source: str) -> None:
+        """Build the camera if the inputs are complete and changed; ``source`` came last."""
+        if len(self.infos) == 2 and self.pose is not None:
+            left, right = self.infos['left'], self.infos['right']
+            pos, rot = self.pose.pose.position, self.pose.pose.orientation
+            key = (tuple(left.p), tuple(right.p), left.header.frame_id,
+                   right.header.frame_id, left.width, left.height, right.width,
+                   right.height, pos.x, pos.y, pos.z, rot.x, rot.y, rot.z, rot.w)
+            if key != self._key:
+                self._key = key
+                try:
+                    self.camera, self.error = camera_from_msgs(left, right, self.pose), None
+                except ValueError as exc:  # the lenses disagree
+                    self.camera, self.error = None, exc
+                    self._diag.reject(source, getattr(exc, 'reason', 'bad camera'), str(exc))
+                self._on_camera(self.camera, source)
+        if self._on_input is not None:
+            self._on_input(source)
