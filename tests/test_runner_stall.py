@@ -63,16 +63,16 @@ class _Hook(importlib.abc.MetaPathFinder):
 
         def exec_module(module):
             execute(module)
-            original, calls = module.FeatureNode._on_info, []
+            original, calls = module.FeatureNode._on_image, []
 
-            def _on_info(self, *args):
+            def _on_image(self, *args):
                 calls.append(1)
                 if len(calls) == 4:
                     end = time.monotonic() + 8.0
                     while time.monotonic() < end:
                         sum(range(1000))
                 return original(self, *args)
-            module.FeatureNode._on_info = _on_info
+            module.FeatureNode._on_image = _on_image
         spec.loader.exec_module = exec_module
         return spec
 
@@ -100,7 +100,7 @@ def test_runner_names_the_busy_node_not_those_behind_it(installed_workspace, tmp
         capture_output=True, text=True, timeout=300, env=env)
     assert proc.returncode == 4, (proc.stdout, proc.stderr)
     head = next(line for line in proc.stderr.splitlines() if line.startswith('run stalled'))
-    assert 'cause: busy in feature_node FeatureNode._on_info for ' in head, proc.stderr
+    assert 'cause: busy in feature_node FeatureNode._on_image for ' in head, proc.stderr
     assert 'heartbeat stopped' not in head, proc.stderr
     waits = dict(line.strip().split(': ', 1) for line in proc.stderr.splitlines()
                  if line.startswith('  ') and ': ' in line)

@@ -59,17 +59,16 @@ markers in both images, blended or not). The others do not subscribe to it.
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PolygonStamped, PoseStamped
-from ibvs_common import contract, intra_process
-from ibvs_common.conversions import (camera_from_msgs, check_camera_info, ignored_joints,
-                                     InputError,
-                                     joint_state, pose_stamped, position_bounds,
-                                     read_camera_pose, read_feature_status, read_features,
-                                     read_joints, read_stamp, stamp_lead_ns, velocity_bounds)
+from geometry_msgs.msg import PolygonStamped
+from ibvs_common import contract
+from ibvs_common.conversions import (ignored_joints, InputError, joint_state, position_bounds,
+                                     read_feature_status, read_features, read_joints,
+                                     read_stamp, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
+from ibvs_common.shared_params import (CAMERA_POSE, CAMERA_RATE_HZ,
                                        STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
@@ -77,9 +76,8 @@ from ibvs_common.sync import Rejection
 from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sensor_msgs.msg import CameraInfo, JointState
+from sensor_msgs.msg import JointState
 
 from .frame_lockstep import FrameLockstep
 from .node_params import (check_gains, check_servo_law, FEEDFORWARD_METHOD, LAMBDA_0,
@@ -91,8 +89,6 @@ PARAMS = (CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION, STALE_TIMEOUT_S,
           TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0, LAMBDA_INF,
           LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
 
-#: Steady-clock period of the 'waiting' log.
-WAIT_LOG_S = 1.0
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
 
@@ -113,8 +109,7 @@ class AdaptiveFeedbackNode(Node):
         self.stale_timeout_ns = seconds_to_ns(values['stale_timeout_s'])
         self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
         self.feedback = None
-        self._infos = [None, None]
-        self._camera_pose = None
+        self._camera = None
         self._taught = values['target_features_source'] == 'taught'
         self._p_target = None
         self.last_fresh_ns = None
@@ -125,41 +120,25 @@ class AdaptiveFeedbackNode(Node):
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
         self.diagnostics.update(state='waiting for camera', frames=0)
         self.diagnostics.log_progress(self._progress)
-        # The frames' messages between nodes of one process pass as objects, and through
-        # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
-        self._pub = intra_process.publisher(self, JointState, contract.Q_FEEDBACK,
-                                            contract.RELIABLE)
-        # The resolved names (the ZED wrapper's under a remap): rejections are counted there.
-        self._info_topics = [
-            intra_process.subscription(self, CameraInfo, topic,
-                                       lambda m, i=i: self._on_info(i, m),
-                                       contract.IMAGES).topic_name
-            for i, topic in enumerate((contract.LEFT_INFO, contract.RIGHT_INFO))]
-        calibrated = camera_pose_from(values)
-        if calibrated is None:
-            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                     contract.LATCHED)
-        else:  # a hand-eye calibration's result, as a parameter
-            self._camera_pose = pose_stamped(calibrated, 0)
+        self._pub = publisher(self, JointState, contract.Q_FEEDBACK, contract.RELIABLE)
+        self.camera_input = StereoCameraInput(self, self.diagnostics, values, self._on_camera)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
-        joints = intra_process.subscription(self, JointState, contract.JOINT_STATES,
-                                            self._on_joint_state, contract.RELIABLE)
+        joints = subscription(self, JointState, contract.JOINT_STATES, self._on_joint_state,
+                              contract.RELIABLE)
         self._joints_topic = joints.topic_name
         self._lockstep = FrameLockstep(HISTORY, self.needs_status,
                                        joints_name=joints.topic_name,
                                        status_name=contract.FEATURE_STATUS,
                                        full_note='waiting for the camera model')
-        intra_process.subscription(self, PolygonStamped, contract.FEATURES,
-                                   self._on_features, contract.RELIABLE)
+        subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
+                     contract.RELIABLE)
         if self._taught:
-            self.create_subscription(PolygonStamped, contract.TARGET_FEATURES,
-                                     self._on_target, contract.LATCHED)
+            subscription(self, PolygonStamped, contract.TARGET_FEATURES, self._on_target,
+                         contract.LATCHED)
         if self.needs_status:
-            intra_process.subscription(self, DiagnosticArray, contract.FEATURE_STATUS,
-                                       self._on_status, contract.RELIABLE)
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._answered_since_log = True
-        self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+            subscription(self, DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
+                         contract.RELIABLE)
+        self.waiting = WaitReporter(self, self._waiting)
         self.get_logger().info(f"servo law '{self.law.name}'")
 
     def _missing(self):
@@ -169,10 +148,7 @@ class AdaptiveFeedbackNode(Node):
             return []
         missing = []
         if self.feedback is None:
-            inputs = ((self._info_topics[0], self._infos[0]),
-                      (self._info_topics[1], self._infos[1]),
-                      (contract.STEREO_POSE, self._camera_pose))
-            missing += [topic for topic, msg in inputs if msg is None]
+            missing += self.camera_input.missing()
             if self._taught and self._p_target is None:
                 missing.append(contract.TARGET_FEATURES)
             if not missing:
@@ -189,42 +165,20 @@ class AdaptiveFeedbackNode(Node):
         error = 'no image error yet' if error is None else f'image error norm {error:.3f} px'
         return f"{self.frames} frames answered, {error} ({self.law.name}, {values['state']})"
 
-    def _log_waiting(self):
+    def _waiting(self):
+        """Return the 'waiting' line (the wait reporter's), and say it on /diagnostics."""
         missing = self._missing()
-        if missing and not self._answered_since_log:
-            self.get_logger().info('waiting: ' + '; '.join(missing))
         self.diagnostics.update(waiting_for='; '.join(missing) or 'nothing')
-        self._answered_since_log = False
+        return 'waiting: ' + '; '.join(missing) if missing else None
 
     # -- inputs ----------------------------------------------------------------------------
-    def _on_info(self, index, msg):
-        topic = self._info_topics[index]
-        try:
-            check_camera_info(msg)
-        except InputError as exc:
-            self.diagnostics.reject(topic, exc.reason, exc.detail)
+    def _on_camera(self, camera, source):
+        """Keep a new camera (the camera input's); build the law if the target is here."""
+        self._camera = camera
+        if camera is None:  # counted by the camera input; a new pair is awaited
+            self.camera_input.forget_infos()
             return
-        if self.feedback is not None:  # the camera model is built once: it must not change
-            built = self._infos[index]
-            if (msg.width, msg.height, tuple(msg.p)) != (built.width, built.height,
-                                                         tuple(built.p)):
-                self.diagnostics.reject(topic, 'camera_info changed',
-                                        'the camera model is built once, from the first '
-                                        'usable pair; this one differs from it')
-            return
-        self._infos[index] = msg
-        self._try_camera(topic)
-
-    def _on_pose(self, msg):
-        try:
-            read_camera_pose(msg)
-        except InputError as exc:
-            self.diagnostics.reject(contract.STEREO_POSE, exc.reason, exc.detail)
-            return
-        if self.feedback is not None:
-            return
-        self._camera_pose = msg
-        self._try_camera(contract.STEREO_POSE)
+        self._try_camera(source)
 
     def _on_target(self, msg):
         try:
@@ -238,24 +192,25 @@ class AdaptiveFeedbackNode(Node):
         self._try_camera(contract.TARGET_FEATURES)
 
     def _try_camera(self, source):
-        """Build the servo law once every camera input is here; ``source`` came last."""
-        if self._camera_pose is None or None in self._infos:
+        """Build the servo law once the camera and the target are here; ``source`` came last."""
+        if self._camera is None:
             return
         if self._taught and self._p_target is None:
             self.diagnostics.update(state=f'waiting for the taught {contract.TARGET_FEATURES}')
             return
         try:
-            camera = camera_from_msgs(self._infos[0], self._infos[1], self._camera_pose)
             self.feedback = self.law.create(
-                CameraRobotModel(camera, IRB4600), self.pose, ns_to_seconds(self.camera_ns),
-                gain=self.gain, p_target=self._p_target, **law_settings(self.values))
-        except (InputError, ModelError) as exc:
+                CameraRobotModel(self._camera, IRB4600), self.pose,
+                ns_to_seconds(self.camera_ns), gain=self.gain, p_target=self._p_target,
+                **law_settings(self.values))
+        except ModelError as exc:
             # e.g. the target behind the camera: nothing to servo on; counted under the
             # input that completed the model, and the camera inputs are awaited again.
-            reason = exc.reason if isinstance(exc, InputError) else type(exc).__name__
-            self.diagnostics.reject(source, reason, str(exc))
-            self._infos = [None, None]
+            self.diagnostics.reject(source, type(exc).__name__, str(exc))
+            self._camera = None
+            self.camera_input.forget_infos()
             return
+        self.camera_input.hold()
         self.diagnostics.update(state='running', servo_law=self.law.name,
                                 p_target=self.feedback.p_target)
         self.get_logger().info(
@@ -327,7 +282,7 @@ class AdaptiveFeedbackNode(Node):
             ready = self._lockstep.pop_ready()
             if ready is None:
                 return
-            self._answered_since_log = True
+            self.waiting.progress()
             self._answer(*ready)
 
     def _answer(self, t_ns, features, joints, measured=True):

@@ -28,10 +28,11 @@ publisher would hold the arm at its start until then.
 
 from typing import Any
 
-from ibvs_common import contract, intra_process
+from ibvs_common import contract
 from ibvs_common.conversions import (ignored_joints, InputError, joint_trajectory, read_joints,
                                      read_stamp, stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import publisher, subscription
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.shared_params import (PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
@@ -68,10 +69,10 @@ class FeedforwardNode(Node):
         self.diagnostics = Diagnostics(self, 'feedforward')
         self.diagnostics.update(started=False)
         self.diagnostics.log_progress(self._progress)
-        self._pub = self.create_publisher(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
-                                          contract.LATCHED)
-        self._sub = intra_process.subscription(self, JointState, contract.JOINT_STATES,
-                                               self._on_joint_state, contract.RELIABLE)
+        self._pub = publisher(self, JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
+                              contract.LATCHED)
+        self._sub = subscription(self, JointState, contract.JOINT_STATES, self._on_joint_state,
+                                 contract.RELIABLE)
         self.get_logger().info(
             f'target {np.round(self.pose[:3, 3], 4).tolist()} m; T_forward '
             f"'{values['feedforward_method']}' at {1e9 / self.dt_ns:g} Hz, double pole at "

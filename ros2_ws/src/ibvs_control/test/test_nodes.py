@@ -657,7 +657,7 @@ def test_feedback_says_what_a_pending_frame_waits_for(context):
         for topic in (contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE,
                       contract.JOINT_STATES):
             assert topic in line
-        node._log_waiting()  # the timer's tick: publishes it on /diagnostics too
+        node.waiting.tick()  # the timer's tick: publishes it on /diagnostics too
         assert node.diagnostics.values['waiting_for'] == line
     finally:
         node.destroy_node()

@@ -83,15 +83,14 @@ import time
 
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PolygonStamped, PoseStamped
-from ibvs_common import contract, intra_process, shared_params
-from ibvs_common.conversions import (camera_from_msgs, check_camera_info, feature_status_msg,
-                                     features_msg, FeatureStatus, ignored_joints, image_msg,
-                                     InputError,
-                                     ns_stamp, pose_stamped, position_bounds,
-                                     read_camera_pose, read_joints, read_stamp, stamp_lead_ns,
+from geometry_msgs.msg import PolygonStamped
+from ibvs_common import contract, shared_params
+from ibvs_common.conversions import (feature_status_msg, features_msg, FeatureStatus,
+                                     ignored_joints, image_msg, InputError, ns_stamp,
+                                     position_bounds, read_joints, read_stamp, stamp_lead_ns,
                                      StampOrder)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import publisher, StereoCameraInput, subscription
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
@@ -100,7 +99,7 @@ from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from sensor_msgs.msg import Image, JointState
 
 from . import overlay
 from .blend import BumplessSwitch
@@ -166,10 +165,6 @@ class FeatureNode(Node):
         #: rejections are counted under; filled as the subscriptions are created.
         self._topics = {}
         self._order = StampOrder()
-        self._infos = {}
-        self._info_side = 'left'  # the lens whose CameraInfo came last
-        self._pose = None
-        self._camera_key = None
         self._camera_problem = None
         self._model = None
         self._detector = None
@@ -192,37 +187,27 @@ class FeatureNode(Node):
                           switches=0)
         self._images_in = dict.fromkeys(_SIDES, 0)
         self._diag.log_progress(self._progress)
-        # The frames' messages between nodes of one process pass as objects, and through
-        # DDS to readers elsewhere (ibvs_common.intra_process); latched ones take DDS only.
-        self._pub = intra_process.publisher(self, PolygonStamped, contract.FEATURES,
-                                            contract.RELIABLE)
-        self._target_pub = self.create_publisher(PolygonStamped, contract.TARGET_FEATURES,
-                                                 contract.LATCHED)
-        self._status_pub = intra_process.publisher(self, DiagnosticArray,
-                                                   contract.FEATURE_STATUS, contract.RELIABLE)
-        self._debug_pubs = {side: self.create_publisher(Image, topic, contract.IMAGES)
+        self._pub = publisher(self, PolygonStamped, contract.FEATURES, contract.RELIABLE)
+        self._target_pub = publisher(self, PolygonStamped, contract.TARGET_FEATURES,
+                                     contract.LATCHED)
+        self._status_pub = publisher(self, DiagnosticArray, contract.FEATURE_STATUS,
+                                     contract.RELIABLE)
+        self._debug_pubs = {side: publisher(self, Image, topic, contract.IMAGES)
                             for side, topic in DEBUG_IMAGES.items()}
         # Each of a lens's inputs, left then right, in this order.
-        for msg_type, topics, on_message, qos, kind in (
-                (Image, (contract.LEFT_IMAGE, contract.RIGHT_IMAGE), self._on_image,
+        for topics, on_message, qos, kind in (
+                ((contract.LEFT_IMAGE, contract.RIGHT_IMAGE), self._on_image,
                  contract.IMAGES, ''),
-                (Image, (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE), self._on_teach,
-                 contract.LATCHED, ' teach'),
-                (CameraInfo, (contract.LEFT_INFO, contract.RIGHT_INFO), self._on_info,
-                 contract.RELIABLE, ' info')):
-            subscribe = (self.create_subscription if qos == contract.LATCHED
-                         else partial(intra_process.subscription, self))
-            for side, topic in zip(('left', 'right'), topics):
-                self._topics[side + kind] = subscribe(msg_type, topic, partial(on_message, side),
-                                                      qos).topic_name
-        calibrated = shared_params.camera_pose_from(p)
-        if calibrated is None:
-            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                     contract.LATCHED)
-        else:  # a hand-eye calibration's result, as a parameter
-            self._pose = pose_stamped(calibrated, 0)
-        joints = intra_process.subscription(self, JointState, contract.JOINT_STATES,
-                                            self._on_joints, contract.RELIABLE)
+                ((contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE), self._on_teach,
+                 contract.LATCHED, ' teach')):
+            for side, topic in zip(_SIDES, topics):
+                self._topics[side + kind] = subscription(self, Image, topic,
+                                                         partial(on_message, side),
+                                                         qos).topic_name
+        self.camera_input = StereoCameraInput(self, self._diag, p, self._on_camera,
+                                              lambda source: self._try_frames())
+        joints = subscription(self, JointState, contract.JOINT_STATES, self._on_joints,
+                              contract.RELIABLE)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
         self._topics['joints'] = joints.topic_name
 
@@ -329,48 +314,25 @@ class FeatureNode(Node):
             self._stereo.offer_joints(t_ns, q)
         self._try_frames()
 
-    def _on_info(self, side, msg):
-        try:
-            check_camera_info(msg)
-        except InputError as exc:
-            self._diag.reject(self._topics[f'{side} info'], exc.reason, exc.detail)
-            return
-        self._infos[side] = msg
-        self._info_side = side
-        self._try_frames()
-
-    def _on_pose(self, msg):
-        try:
-            read_camera_pose(msg)
-        except InputError as exc:
-            self._diag.reject(contract.STEREO_POSE, exc.reason, exc.detail)
-            return
-        self._pose = msg
-        self._try_frames()
-
     # --- frames ----------------------------------------------------------------------
 
     def _camera_ready(self):
-        """Build the camera model from CameraInfo and /stereo/pose; return why not, or None."""
-        missing = [f'{s} camera_info' for s in _SIDES if s not in self._infos]
-        if self._pose is None:
+        """Return why the camera model is not there, or None."""
+        cameras = self.camera_input
+        missing = [f'{s} camera_info' for s in _SIDES if s not in cameras.infos]
+        if cameras.pose is None:
             missing.append('/stereo/pose')
         if missing:
             return 'no ' + ', '.join(missing) + ' yet'
-        left, right = self._infos['left'], self._infos['right']
-        pos, rot = self._pose.pose.position, self._pose.pose.orientation
-        key = (tuple(left.p), tuple(right.p), left.width, left.height, right.width,
-               right.height, pos.x, pos.y, pos.z, rot.x, rot.y, rot.z, rot.w)
-        if key == self._camera_key:
-            return self._camera_problem
-        self._camera_key = key
-        try:
-            camera = camera_from_msgs(left, right, self._pose)
-        except InputError as exc:  # the lenses disagree: counted under the one that came last
-            self._diag.reject(self._topics[f'{self._info_side} info'], exc.reason, exc.detail)
+        return self._camera_problem
+
+    def _on_camera(self, camera, source):
+        """Build the camera model, the detector and p_bar (model) from a new camera."""
+        if camera is None:  # the lenses disagree: counted by the camera input
             self._model = self._detector = None
-            self._camera_problem = f'usable camera_info ({exc.reason})'
-            return self._camera_problem
+            reason = getattr(self.camera_input.error, 'reason', 'bad camera')
+            self._camera_problem = f'usable camera_info ({reason})'
+            return
         self._model = CameraRobotModel(camera, IRB4600)
         if not self._taught_source:  # p_bar = F(q_target): the target markers projected
             points = self._target_pose[:3, :3] @ IRB4600.fiducials_E.T \
@@ -382,7 +344,6 @@ class FeatureNode(Node):
         self._detector = StereoDetector(camera.intrinsics, self._config)
         self._model_error = self._last_measured = None
         self._camera_problem = None
-        return None
 
     def _try_frames(self):
         """Publish every frame that is complete; drop those that can never be."""

@@ -155,7 +155,7 @@ def test_taught_feedback_waits_for_its_target(context):
         pubs[contract.STEREO_POSE].publish(pose_stamped(camera_pose, 0))
         pubs[contract.LEFT_INFO].publish(infos[0])
         pubs[contract.RIGHT_INFO].publish(infos[1])
-        spin_until(lambda: node._camera_pose is not None and None not in node._infos)
+        spin_until(lambda: not node.camera_input.missing())
         assert node.feedback is None
         p_bar = np.array([600.0, 560.0, 300.0, 610.0, 570.0, 330.0])
         pubs[contract.TARGET_FEATURES].publish(features_msg(p_bar, 0))

@@ -49,15 +49,14 @@ what it waits for once a second.
 from collections import OrderedDict
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, PolygonStamped, PoseStamped, TransformStamped
+from geometry_msgs.msg import Point, PolygonStamped, TransformStamped
 from ibvs_common import contract, shared_params
-from ibvs_common.conversions import (camera_from_msgs, check_camera_info,
-                                     check_features_in_image, ignored_joints, InputError,
-                                     matrix_poses,
-                                     pose_stamped, position_bounds, read_camera_pose,
-                                     read_feature_status, read_features, read_joints,
-                                     read_stamp, stamp_lead_ns, StampOrder)
+from ibvs_common.conversions import (check_features_in_image, ignored_joints, InputError,
+                                     matrix_poses, position_bounds, read_feature_status,
+                                     read_features, read_joints, read_stamp, stamp_lead_ns,
+                                     StampOrder)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
@@ -67,10 +66,9 @@ from ibvs_model.abb_urdf import rpy_matrix
 from ibvs_model.robot import fiducial_points, forward_kinematics
 from ibvs_model.scene import MARKER_RADIUS_M, MARKER_RGB
 import numpy as np
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.time import Time
-from sensor_msgs.msg import CameraInfo, JointState
+from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
@@ -153,10 +151,7 @@ class VizNode(Node):
         self._image_frames_tf = p['image_frames_tf']
         self._tool_frames_tf = p['tool_frames_tf']
         self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
-        self._infos = {}
-        self._pose_msg = None
         self._camera = None
-        self._camera_key = None
         self._path = []
         self._last_markers_ns = None
         self._last_joint_ns = None
@@ -174,70 +169,23 @@ class VizNode(Node):
                                 else (f"{self._diag.values['joint_states_taken']} joint states "
                                       f'(last at {self._last_joint_ns * 1e-9:.3f} s), '
                                       f"{self._diag.values['markers_published']} /ibvs/markers"))
-        self._static_pub = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
-        self._markers_pub = self.create_publisher(MarkerArray, contract.MARKERS, 10)
-        # The resolved names (the ZED wrapper's under a remap): rejections and waits name them.
-        self._info_topics = {}
-        for side, topic in (('left', contract.LEFT_INFO), ('right', contract.RIGHT_INFO)):
-            self._info_topics[side] = self.create_subscription(
-                CameraInfo, topic, lambda msg, side=side: self._on_info(side, msg),
-                contract.RELIABLE).topic_name
-        calibrated = shared_params.camera_pose_from(p)
-        if calibrated is None:
-            self.create_subscription(PoseStamped, contract.STEREO_POSE, self._on_pose,
-                                     contract.LATCHED)
-        else:  # a hand-eye calibration's result, as the feature and feedback nodes take it
-            self._pose_msg = pose_stamped(calibrated, 0)
-        self._joints_topic = self.create_subscription(
-            JointState, contract.JOINT_STATES, self._on_joints, contract.RELIABLE).topic_name
-        self.create_subscription(PolygonStamped, contract.FEATURES, self._on_features,
-                                 contract.RELIABLE)
-        self.create_subscription(DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
-                                 contract.RELIABLE)
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._static_pub = publisher(self, TFMessage, contract.TF_STATIC, contract.LATCHED)
+        self._markers_pub = publisher(self, MarkerArray, contract.MARKERS, 10)
+        self.camera_input = StereoCameraInput(self, self._diag, p, self._on_camera)
+        self._joints_topic = subscription(self, JointState, contract.JOINT_STATES,
+                                          self._on_joints, contract.RELIABLE).topic_name
+        subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
+                     contract.RELIABLE)
+        subscription(self, DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
+                     contract.RELIABLE)
         self._publish_static()
-        self._waiting_timer = self.create_timer(1.0, self._say_waiting, clock=self._steady)
+        self.waiting = WaitReporter(self, self._waiting)
 
     # --- camera and static frames ----------------------------------------------------------
 
-    def _on_info(self, side, msg):
-        topic = self._info_topics[side]
-        try:
-            check_camera_info(msg)
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return
-        self._infos[side] = msg
-        self._try_camera(topic)
-
-    def _on_pose(self, msg):
-        try:
-            read_camera_pose(msg)
-        except InputError as exc:
-            self._diag.reject(contract.STEREO_POSE, exc.reason, exc.detail)
-            return
-        self._pose_msg = msg
-        self._try_camera(contract.STEREO_POSE)
-
-    def _try_camera(self, source):
-        """Build the camera from both CameraInfo and /stereo/pose; publish what it fixes."""
-        if len(self._infos) < 2 or self._pose_msg is None:
-            return
-        pose = self._pose_msg.pose
-        key = (tuple(self._infos['left'].p), tuple(self._infos['right'].p),
-               self._infos['left'].header.frame_id, self._infos['right'].header.frame_id,
-               (self._infos['left'].width, self._infos['left'].height),
-               (self._infos['right'].width, self._infos['right'].height),
-               (pose.position.x, pose.position.y, pose.position.z, pose.orientation.x,
-                pose.orientation.y, pose.orientation.z, pose.orientation.w))
-        if key == self._camera_key:
-            return
-        self._camera_key = key
-        try:
-            camera = camera_from_msgs(self._infos['left'], self._infos['right'], pose)
-        except ValueError as exc:
-            # e.g. the lenses disagree: counted under the input that came last
-            self._diag.reject(source, getattr(exc, 'reason', 'bad camera'), str(exc))
+    def _on_camera(self, camera, source):
+        """Publish the frames a new camera fixes (a camera that failed: counted already)."""
+        if camera is None:
             return
         self._camera = camera
         self._publish_static()
@@ -255,7 +203,7 @@ class VizNode(Node):
                                               self._camera.intrinsics.baseline)
             if self._image_frames_tf:
                 static += self._image_frames(static)
-            stamp = self._pose_msg.header.stamp
+            stamp = self.camera_input.pose.header.stamp
         self._static_pub.publish(transforms_msg(static, stamp))
 
     def _image_frames(self, static):
@@ -265,24 +213,22 @@ class VizNode(Node):
         ours.update(scene.TOOL_FRAMES)
         out = []
         for side, lens in zip(('left', 'right'), scene.LENS_FRAMES):
-            frame = self._infos[side].header.frame_id
+            frame = self.camera_input.infos[side].header.frame_id
             if not frame or frame == lens:
                 continue
             if frame in ours or frame in (f for _, f, _ in out) or frame.startswith('/'):
-                self._diag.reject(self._info_topics[side], 'frame_id not publishable',
+                self._diag.reject(self.camera_input.topics[side], 'frame_id not publishable',
                                   f"'{frame}' is a frame of the cell's tree, the other "
                                   "lens's, or not a tf2 name: not placed at the lens")
                 continue
             out.append((lens, frame, np.eye(4)))
         return out
 
-    def _say_waiting(self):
+    def _waiting(self):
+        """Return the wait reporter's line while the camera is not known."""
         if self._camera is None:
-            missing = [t for t, ok in ((self._info_topics['left'], 'left' in self._infos),
-                                       (self._info_topics['right'], 'right' in self._infos),
-                                       (contract.STEREO_POSE, self._pose_msg is not None))
-                       if not ok]
-            self.get_logger().info(f'waiting for {", ".join(missing)} to describe the camera')
+            return f'waiting for {", ".join(self.camera_input.missing())} to describe the camera'
+        return None
 
     # --- features ---------------------------------------------------------------------------
 
