@@ -93,6 +93,7 @@ from ibvs_common.conversions import (check_finite, ignored_joints, InputError, j
                                      read_stamp,
                                      read_trajectory, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
 from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_interface,
@@ -105,7 +106,6 @@ from ibvs_common.timing import check_camera_rate, ns_to_seconds, period_ns, seco
 from ibvs_model import IRB4600
 import numpy as np
 from numpy.typing import NDArray
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, JointState, TimeReference
 from std_msgs.msg import Float64MultiArray, Header, Int8
@@ -126,8 +126,6 @@ PARAMS = (TAU_IN, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS
           JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S, MAX_JOINT_SPEED_DEG_S,
           TRAJECTORY_WINDOW_POINTS)
 
-#: Steady-clock period of the 'waiting for' log.
-WAIT_LOG_S = 1.0
 #: Most buffered inputs of each kind (lockstep keeps one or two; this bounds a flood).
 MAX_BUFFER = 1000
 #: Largest |q_feedback| per joint (rad) that is taken as meant: the joint's whole travel.
@@ -188,9 +186,7 @@ class JointControllerNode(Node):
                                    contract.RELIABLE)
         intra_process.subscription(self, Header, contract.FRAME_LOST, self._on_frame_lost,
                                    contract.RELIABLE)
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._progress = True
-        self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self.waiting = WaitReporter(self, self._effort_waiting)
         self.diagnostics.log_progress(self._progress_line)
         self.get_logger().info(
             f"{values['actuators']} actuators, G_c at {1e9 / self.dt_ns:g} Hz, frames every "
@@ -250,9 +246,7 @@ class JointControllerNode(Node):
         self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
                                  contract.RELIABLE)
         self.create_timer(ns_to_seconds(self.command_period_ns), self._command)
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._progress = True
-        self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self.waiting = WaitReporter(self, self._position_waiting)
         self.get_logger().info(
             f"position references at {values['command_rate_hz']:g} Hz on "
             f'{self._pub.topic_name} ({values["position_command_type"]}), joints '
@@ -355,7 +349,7 @@ class JointControllerNode(Node):
                 source=contract.Q_FEEDBACK))
             self.frames_used += 1
         self.commands += 1
-        self._progress = True
+        self.waiting.progress()
         self.diagnostics.update(commands=self.commands, frames_used=self.frames_used,
                                 last_command_ns=now_ns)
 
@@ -477,7 +471,7 @@ class JointControllerNode(Node):
         self.diagnostics.timing.reached(t_ns)
         self._pub.publish(joint_state(t_ns, effort=torque))
         self.commands += 1
-        self._progress = True
+        self.waiting.progress()
         self.diagnostics.update(commands=self.commands, last_answered_ns=t_ns,
                                 saturated_joints=int(np.count_nonzero(self.loop.saturated)))
 
@@ -495,20 +489,19 @@ class JointControllerNode(Node):
                 f"actuators, {values['saturated_joints']} joints at their torque limit, "
                 f'{self.frames_lost} frames lost')
 
-    def _log_waiting(self):
-        if self.command_interface == 'position':
-            missing = self._position_missing()
-            if missing and not self._progress:
-                self.get_logger().info('waiting to send position references for '
-                                       + ', '.join(missing))
-            self._progress = False
-            self._report(self.get_clock().now().nanoseconds)
-            return
+    def _position_waiting(self):
+        """Report the servo status; return the wait reporter's line (position interface)."""
+        missing = self._position_missing()
+        self._report(self.get_clock().now().nanoseconds)
+        return 'waiting to send position references for ' + ', '.join(missing) \
+            if missing else None
+
+    def _effort_waiting(self):
+        """Return the wait reporter's line (effort interface): the oldest unanswered state."""
         t_ns = self._lockstep.states.first_ns
-        if t_ns is not None and not self._progress:
-            self.get_logger().info(f'waiting to answer /joint_states {t_ns} ns for '
-                                   + ', '.join(self._missing(t_ns)))
-        self._progress = False
+        if t_ns is None:
+            return None
+        return f'waiting to answer /joint_states {t_ns} ns for ' + ', '.join(self._missing(t_ns))
 
 
 def main(args: list[str] | None = None) -> None:

@@ -116,6 +116,7 @@ from ibvs_common.conversions import (camera_infos, duration_ns, image_msg, Input
                                      pose_stamped, read_command_trajectory, read_joints,
                                      read_stamp, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (check_command_interface, COMMAND_INTERFACE,
@@ -285,9 +286,8 @@ SERVO_RTF_WINDOW_S = 1.0
 #: in the controller. Beyond this bound a command is absurd and would only break the physics.
 EFFORT_BOUND_FACTOR = 1e6
 
-#: Steady-clock periods: readiness poll before the start, and the waiting log.
+#: Steady-clock period of the readiness poll before the start.
 START_POLL_S = 0.02
-WAIT_LOG_S = 1.0
 
 
 class SimNode(Node):
@@ -410,10 +410,9 @@ class SimNode(Node):
         self.frames = 0
         self.held_steps = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._progress_since_log = True
         self._start_timer = self.create_timer(START_POLL_S, self._try_start,
                                               clock=self._steady)
-        self._wait_timer = self.create_timer(WAIT_LOG_S, self._log_waiting, clock=self._steady)
+        self.waiting = WaitReporter(self, self._waiting)
         self._progress_mark = None
         self.diagnostics.log_progress(self._progress)
 
@@ -563,24 +562,19 @@ class SimNode(Node):
             'no further step; the nodes stay up until stopped (SIGINT: Ctrl-C, or '
             'ibvs_nodes_stop of docs/running.md)')
 
-    def _log_waiting(self):
+    def _waiting(self):
+        """Return the wait reporter's line: the start, a first reference or a stamp."""
         if self.finished:
-            return
-        if not self._lockstep:
-            if not self.started:
-                self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
-            elif self._command_ns is None:
-                self.get_logger().info(f'no position reference yet on {self._sub.topic_name}: '
-                                       f'holding the arm at its start (t = '
-                                       f'{self.sim.t_ns * 1e-9:.3f} s)')
-            return
+            return None
         if not self.started:
-            self.get_logger().info('waiting to start for ' + ', '.join(self._missing()))
-        elif not self._progress_since_log:
-            self.get_logger().info(
-                f'waiting for {contract.EFFORT_COMMANDS} stamped {self.sim.t_ns} ns '
+            return 'waiting to start for ' + ', '.join(self._missing())
+        if not self._lockstep:
+            if self._command_ns is not None:
+                return None
+            return (f'no position reference yet on {self._sub.topic_name}: holding the arm at '
+                    f'its start (t = {self.sim.t_ns * 1e-9:.3f} s)')
+        return (f'waiting for {contract.EFFORT_COMMANDS} stamped {self.sim.t_ns} ns '
                 f'(t = {self.sim.t_ns * 1e-9:.6f} s, step {self.sim.k})')
-        self._progress_since_log = False
 
     def _publish_step(self):
         """Publish the outputs of the current step (module docstring, in this order)."""
@@ -703,7 +697,7 @@ class SimNode(Node):
                                         time.perf_counter() - self._published_at)
         with self.diagnostics.timing.section('physics'):
             self.sim.step(torque)
-        self._progress_since_log = True
+        self.waiting.progress()
         if self._duration_ns and self.sim.t_ns >= self._duration_ns:
             self._finish()
             return

@@ -244,8 +244,8 @@ def test_waiting_for_a_stamp_is_logged(graph, capfd):
     spin_until(executor, lambda: (stand_in.last_stamp() or 0) >= 3_000_000)
     stand_in.stop_and_settle(executor, sim)
     capfd.readouterr()
-    sim._log_waiting()  # the timer's tick: first after progress, then without
-    sim._log_waiting()
+    sim.waiting.tick()  # the timer's tick: first after progress, then without
+    sim.waiting.tick()
     err = capfd.readouterr().err
     assert f'waiting for {contract.EFFORT_COMMANDS} stamped {sim.sim.t_ns} ns' in err
 
@@ -264,7 +264,7 @@ def test_duration_s_stops_the_steps_at_that_sim_time_and_says_so(graph, capfd):
                == 24 * period)
     assert 'stopped at t = 0.025 s (duration_s 0.025)' in capfd.readouterr().err
     assert sim._progress().startswith('t = 0.025 s of 0.025 s (step 25), stopped at duration_s')
-    sim._log_waiting()  # finished: nothing to wait for, nothing said
+    sim.waiting.tick()  # finished: nothing to wait for, nothing said
     assert 'waiting' not in capfd.readouterr().err
 
 
