@@ -157,12 +157,12 @@ class StereoCameraInput:
     and a pose looking away from the robot (:func:`.conversions.read_camera_pose`) are
     rejected, counted under the topic's resolved name. Once all three are there, and each
     time one changes, the camera is built (:func:`.conversions.camera_from_msgs`): lenses
-    that disagree are rejected under the input that completed the set and the camera is
-    not built until they change. ``on_camera(camera, source)`` is called with each camera
-    built (None when the build failed, :attr:`error` says why), ``on_input(source)`` after
-    each accepted message. After :meth:`hold` (a model built once, for good), a CameraInfo
-    that differs from the one it was built from is rejected ('camera_info changed') and
-    later poses are ignored.
+    that disagree are rejected under the CameraInfo that came last (docs/design.md §3)
+    and the camera is not built until they change. ``on_camera(camera, source)`` is
+    called with each camera built (None when the build failed, :attr:`error` says why),
+    ``on_input(source)`` after each accepted message. After :meth:`hold` (a model built
+    once, for good), a CameraInfo that differs from the one it was built from is rejected
+    ('camera_info changed') and later poses are ignored.
     """
 
     SIDES = ('left', 'right')
@@ -179,6 +179,7 @@ class StereoCameraInput:
         self.camera: 'StereoCamera | None' = None
         self.error: InputError | ValueError | None = None
         self.held = False
+        self.last_side = 'left'  # the lens whose CameraInfo came last
         self._key = None
         #: The resolved topic of each input (the ZED wrapper's under a remap).
         self.topics = {side: subscription(node, CameraInfo, topic, partial(self.on_info, side),
@@ -224,6 +225,7 @@ class StereoCameraInput:
                                   'pair; this one differs from it')
             return
         self.infos[side] = msg
+        self.last_side = side
         self._update(topic)
 
     def on_pose(self, msg: PoseStamped) -> None:
@@ -252,7 +254,9 @@ class StereoCameraInput:
                     self.camera, self.error = camera_from_msgs(left, right, self.pose), None
                 except ValueError as exc:  # the lenses disagree
                     self.camera, self.error = None, exc
-                    self._diag.reject(source, getattr(exc, 'reason', 'bad camera'), str(exc))
+                    self._diag.reject(self.topics[self.last_side],
+                                      getattr(exc, 'reason', 'bad camera'),
+                                      getattr(exc, 'detail', str(exc)))
                 self._on_camera(self.camera, source)
         if self._on_input is not None:
             self._on_input(source)

@@ -89,6 +89,13 @@ def test_the_wait_reporter_speaks_only_after_a_second_without_progress():
     assert len(node.logger.lines) == 1
 
 
+def _shift(dz):
+    """Return a translation of ``dz`` along z (4x4)."""
+    tf = np.eye(4)
+    tf[2, 3] = dz
+    return tf
+
+
 class _Camera:
     """A StereoCameraInput on a node, with the cameras it gave."""
 
@@ -125,18 +132,24 @@ def test_the_camera_input_builds_the_camera_once_complete_and_counts_rejections(
         assert probe.inputs == [contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE]
         cam.on_info('right', right)  # the same again: no new camera
         assert len(probe.cameras) == 1
-        # Lenses that disagree: refused under the input that completed the set.
+        # Lenses that disagree: refused under the lens that came last, even when the pose
+        # completes the set.
         other = camera_infos(default_camera('HD720').intrinsics, 0)[1]
         cam.on_info('right', other)
         assert probe.cameras[-1] == (None, contract.RIGHT_INFO)
         assert probe.reasons(contract.RIGHT_INFO) == {'camera_info size mismatch': 1}
+        cam.on_pose(pose_stamped(CAMERA.pose_C_O @ _shift(0.01), 0))
+        assert probe.cameras[-1] == (None, contract.STEREO_POSE)
+        assert probe.reasons(contract.RIGHT_INFO) == {'camera_info size mismatch': 2}
+        assert probe.reasons(contract.STEREO_POSE) == {}
         cam.on_info('right', right)  # back to a pair that agrees: a camera again
         assert probe.cameras[-1][0] is not None
+        n = len(probe.cameras)
         cam.hold()  # built for good: a different lens is refused, a pose ignored
         cam.on_info('right', other)
         assert probe.reasons(contract.RIGHT_INFO)['camera_info changed'] == 1
         cam.on_pose(pose_stamped(CAMERA.pose_C_O, 5))
-        assert cam.pose.header.stamp.sec == 0 and len(probe.cameras) == 3
+        assert cam.pose.header.stamp.sec == 0 and len(probe.cameras) == n
         cam.forget_infos()
         assert cam.missing() == [contract.LEFT_INFO, contract.RIGHT_INFO]
     finally:

@@ -1,59 +1,19 @@
 """
 adaptive_feedback_node: the adaptive Youla feedback of section 4.2, one q_feedback a frame.
 
-Inputs: the camera model from /stereo/{left,right}/camera_info and /stereo/pose
-(ibvs_common.conversions.camera_from_msgs), the encoder joints /joint_states, and the
-features /ibvs/features (stamp t_f = the frame's). Target features p_bar
-(``target_features_source``): 'model', F(q_target), the target markers projected with the
-calibrated camera (eq. 30); or 'taught', the latched /ibvs/target_features that the feature
-node measured on a stereo pair of the tool at the target pose (no frame is answered before
-it has come). Per frame (:class:`.controllers.AdaptiveFeedback`):
-q~ = F^-1(p_hat) (eq. 42) with q6 and the IK branch from the encoder joints, C1 = J (eq.
-31) at the encoder angles (default) or at q~ (``linearise_at``: 'features', the paper's
-choice), SVD decoupling (eq. 34, rank 5), q_feedback = k_d(z) C1^+ (p_bar - p_hat)
-(eq. 38-41), discretised at the camera period.
+Per frame, the law ``servo_law`` picks (:mod:`.servo_laws`; the paper's is
+:class:`.controllers.AdaptiveFeedback`): q~ = F^-1(p_hat), C1 = J, SVD decoupling and
+q_feedback = k_d(z) C1^+ (p_bar - p_hat) (eq. 38-42), with the frame's encoder joints
+(:class:`.frame_lockstep.FrameLockstep`). Every frame is answered, one it cannot use with
+the held q_feedback.
 
-Determinism (docs/design.md §4). The encoder joints of frame t_f are those of the first
-/joint_states stamped at or after t_f (the simulator renders frame n from the first physics
-step at or after n * T_cam and publishes that step's joint state with it), kept in a short
-history by stamp. A frame waits until the camera model and that joint state have arrived;
-frames are processed in stamp order (the rule: :class:`.frame_lockstep.FrameLockstep`, plain
-Python, tested without rclpy).
-
-Every frame is answered by one /ibvs/q_feedback stamped t_f, so that the joint controller,
-which waits for it, never stalls: a frame that cannot be used (NaN or wrong number of
-points, no triangulation or IK: rejected and counted on /diagnostics; older than
-``stale_timeout_s`` of sim time: rejected as stale) is answered with the held q_feedback,
-its integrator frozen. A frame the camera lost (/stereo/frame_lost) brings no features and
-gets no answer: the controller skips that sample and q_feedback holds (the joint controller
-holds it too). Sim time "now" is the newest /joint_states stamp (deterministic in
-lockstep, unlike the arrival of /clock). When no usable frame has come for
-``stale_timeout_s`` of sim time, the feedback is marked frozen (WARN on /diagnostics) and
-logged; it resumes with the next fresh frame. A frame not newer than the last one
-answered is rejected, not answered. Every stamp goes through the one stamp rule
-(:func:`ibvs_common.conversions.read_stamp`): a malformed one, or one more than
-``stale_timeout_s`` and a camera period ahead of the newest time the node knows (its clock,
-its newest joint state; 0 before either) is rejected and never stored, so that it cannot
-make every later input look stale; joint states beyond ``POSITION_BOUND_RAD`` or faster
-than ``SPEED_BOUND_RAD_S`` (:mod:`ibvs_common.conversions`) are rejected too. Each CameraInfo
-is checked on its own (:func:`ibvs_common.conversions.check_camera_info`: size, focal
-length, principal point, baseline), the pair together
-(:func:`ibvs_common.conversions.intrinsics_from_infos`), and one that differs from the pair
-the camera model was built from is refused ('camera_info changed': the model is built
-once); a camera pose looking away from the robot is refused; each is counted under its
-topic's resolved name. /diagnostics: singular
-values of C1, condition number, rank used, image error norm.
-
-Servo law (``servo_law``, :mod:`.servo_laws`): 'paper' (default) is the above. 'ibvs'
-(classic IBVS) and 'pbvs' (position-based) integrate a velocity command per frame and
-carry the whole move (the feedforward node then holds q(0): feedforward_method 'hold',
-checked at start); 'switching' runs the paper's feedback from the first measured frame
-after the feedforward has settled. A law that needs to know whether a frame was measured
-or estimated (eq. 46) (:meth:`.servo_laws.ServoLaw.needs_measured`: 'switching', and
-'ibvs' / 'pbvs' with ``feature_fallback`` 'hold') also waits, per frame, for
-/ibvs/feature_status of the same stamp (read by
-:func:`ibvs_common.conversions.read_feature_status`; measured: the detector found both
-markers in both images, blended or not). The others do not subscribe to it.
+Subscribes: /ibvs/features, /joint_states (``ibvs run``: /stereo/joint_states),
+/stereo/{left,right}/camera_info and /stereo/pose (the model is built once:
+:class:`ibvs_common.kit.StereoCameraInput`), /ibvs/target_features (latched; with
+``target_features_source`` 'taught'), /ibvs/feature_status (laws that need to know whether a
+frame was measured). Publishes: /ibvs/q_feedback (stamped with the frame), /diagnostics.
+Parameters: :data:`PARAMS` (docs/parameters.md). Determinism, staleness, rejections and the
+servo laws: docs/nodes.md.
 """
 
 from typing import Any

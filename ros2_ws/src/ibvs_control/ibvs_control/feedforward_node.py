@@ -1,29 +1,14 @@
 """
 feedforward_node: the feedforward of section 4.3, published once as a joint trajectory.
 
-q_target = IK of the target pose (eq. 43), on the branch nearest the encoder joints of the
-first /joint_states; q_feedforward = T_forward(z) q_target (eq. 44-45, at the physics
-rate). Initial condition: the filter starts at rest at those joints q(0), and the target
-enters right after t = 0 (:class:`ibvs_control.controllers.Feedforward`), so
-q_feedforward(0) = q(0): the arm is asked to stay where it is at t = 0 and to move from
-the next step on.
+q_target = IK of the target pose (eq. 43) near the first good /joint_states, filtered by
+T_forward(z) (eq. 44-45, :class:`.controllers.Feedforward`) from that state's stamp until
+settled; then the node leaves the lockstep (it unsubscribes).
 
-The feedforward depends on nothing measured after that first joint state, so the node
-computes it at once, from t_0 (the stamp of that /joint_states) until the filter is
-settled (:meth:`~ibvs_control.controllers.Feedforward.trajectory`: about 2 s), and
-publishes it as one trajectory_msgs/JointTrajectory on /ibvs/feedforward_trajectory
-(latched): point k at t_0 + k dt, the last point held for ever after, as a joint
-trajectory controller does. The joint controller then never waits for the feedforward,
-and this node leaves the lockstep: it unsubscribes from /joint_states once it has
-published (docs/design.md §4).
-
-A /joint_states that is malformed (wrong length, NaN, missing or unknown joint names, a
-position beyond its joint's travel: :func:`ibvs_common.conversions.travel_bounds`) or whose
-stamp breaks the one stamp rule (:func:`ibvs_common.conversions.read_stamp`: malformed, or
-more than ``stale_timeout_s`` and one physics step ahead of the node's /clock, 0 before the
-first /clock) is rejected (counted on /diagnostics) and the node keeps listening for the
-next one: the trajectory starts at the stamp of the state it comes from, and one from a bad
-publisher would hold the arm at its start until then.
+Subscribes: /joint_states (until it has published). Publishes:
+/ibvs/feedforward_trajectory (trajectory_msgs/JointTrajectory, latched), /diagnostics.
+Parameters: :data:`PARAMS` (docs/parameters.md). Initial condition and rejections:
+docs/nodes.md.
 """
 
 from typing import Any

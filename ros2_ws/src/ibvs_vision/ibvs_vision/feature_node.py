@@ -1,80 +1,18 @@
 """
 feature_node: stereo images -> /ibvs/features p_I, measured (eq. 2-3) or estimated (eq. 46).
 
-For every stereo frame (left and right image of equal stamp) the node publishes one
-PolygonStamped on /ibvs/features, stamped with the image stamp (docs/design.md §3):
+For each stereo frame, the features measured by the detector (:mod:`.detector`), or the
+model's estimate F(q_T) at the frame's joint state when the markers are not found, blended
+across a switch (:mod:`.blend`); the pairing rules are :class:`.stereo_pairing.StereoPairer`.
+Each frame the detector may spend ``detection_budget_share`` of the camera period.
 
-- measured p^_I when the detector (:mod:`.detector`, Hough + sub-pixel, section 2.2)
-  finds both fiducials in both images;
-- otherwise the estimate p~_I = F(q_T) (eq. 46, section 4.4) of the nominal camera-and-robot
-  model (eq. 30) at the encoder angles q_T of the /joint_states message with the image
-  stamp; the camera comes from both CameraInfo and /stereo/pose, never from constants;
-- across a switch between the two the output is blended (:mod:`.blend`, section 2.3).
-
-With each features message goes one /ibvs/feature_status (DiagnosticArray, same stamp,
-written by :func:`ibvs_common.conversions.feature_status_msg`) whose values say the mode
-(measured / blending / estimated), the source, the reason when the markers were not
-measured, and the share of the switch offset still blended. /diagnostics
-(once a second, and at each switch) carries the counts, the last switch time, the rejected
-inputs by reason and the processing time.
-
-A frame is published as soon as both images, the joint state of its stamp, the camera infos
-and the camera pose are there. The joint state of a frame stamped t is the one stamped t
-(the simulator's lockstep publishes the state of the step it renders from with the frame,
-so the estimate uses the very angles the image shows) or, as on a real cell whose
-joint_state_broadcaster publishes on its own cycle, the interpolation between the two that
-bracket t, at most 2.5 measured periods apart (:class:`ibvs_common.sync.JointTrack`). A
-frame that cannot be
-published (bad encoding, size that disagrees with CameraInfo, left and right stamps that do
-not match, no valid joint state at its stamp, older than ``stale_timeout_s`` behind the
-newest input) is dropped, logged and counted on /diagnostics; the node keeps running. A
-frame the camera lost (/stereo/frame_lost) brings no images: nothing is published for it.
-The pairing, matching and dropping rules are :class:`.stereo_pairing.StereoPairer` (plain
-Python, tested without rclpy); the node decodes, detects, publishes and counts. Every stamp
-goes through the one stamp rule (:func:`ibvs_common.conversions.read_stamp`) before the
-pairer sees it: a malformed one, or one more than ``stale_timeout_s`` and a camera period
-ahead of the newest time the node knows (its clock, its newest input; 0 before either), is
-rejected and never stored, so that one bad message cannot make every later frame stale.
-Joint states beyond ``POSITION_BOUND_RAD``, a joint state or an image whose stamp is not after
-the last one taken from its topic ('duplicate stamp', 'stamp went back':
-:class:`ibvs_common.conversions.StampOrder`), a CameraInfo that cannot be a lens
-(:func:`ibvs_common.conversions.check_camera_info`: size, focal length, principal point,
-baseline) and a camera pose looking away from the robot are rejected too; each rejection is
-counted under its topic's resolved name (the ZED wrapper's under its remap).
-
-Bounded detection time. Each pair may cost the detector ``detection_budget_share`` of the
-frame period (default half: 16.7 ms at 30 Hz, leaving the other half of the period to the
-feedback, the joint controller and the messages, so that a frame becomes a command within
-a frame period), in the detector's estimated cost (:mod:`.detector.budget`: work counted
-and priced, not the wall clock, so that a run stays deterministic). The search starts in
-windows of ``roi_margin_px`` around the prediction F(q_T) plus the model error the last
-measurement showed (F(q_T) alone before the first one, the last measurement without an
-estimate), and searches the whole images only with what is left. A pair the budget does not
-cover is dropped from detection: it is answered as any pair not measured (the estimate,
-blended; a law with ``feature_fallback`` 'hold' holds), counted as ``rejected[stereo frame:
-detection over budget]`` and ``frames_over_budget``, with the step that did not fit. The
-wall time and the CPU time of each detection are measured and reported beside the budget
-(``detection_ms_mean``, ``detection_ms_max``, ``detection_cpu_ms_mean``,
-``detection_cpu_ms_max``, ``detection_budget_ms``, ``detection_cost_ms_max``: the estimate;
-``detection_within_budget``: the largest CPU time within the budget).
-The taught target's pair, measured once before the run, gets TEACH_BUDGET_MS.
-
-Debug overlays. /ibvs/debug/left/image and /ibvs/debug/right/image (sensor_msgs/Image,
-rgb8, stamped with the frame) show each camera image with the detected markers, the
-estimate, the published features, the target and the mode (:mod:`.overlay`, as ViSP's
-display draws a servo task). They are drawn only while someone subscribes to them or with
-``publish_debug_images``: otherwise a frame costs one subscriber count per lens. The target
-p_bar drawn is the taught one (/ibvs/target_features, this node's own) or, with
-``target_features_source`` 'model', the target markers projected with the calibrated
-camera, F(q_target) of eq. 30, as the adaptive feedback computes it.
-
-Taught target. The stereo pair of the tool at the target pose
-(/stereo/teach/{left,right}/image_raw, latched, published by the simulator before the run
-with target_features_source 'taught') is measured once, as soon as the camera model is
-there, by the same detector searching the whole images; the result p_bar goes latched to
-/ibvs/target_features (PolygonStamped, as /ibvs/features). A pair in which the markers are
-not found is reported (ERROR log and /diagnostics) and nothing is published: the adaptive
-feedback then keeps waiting for its target.
+Subscribes: /stereo/{left,right}/image_raw, /stereo/teach/{left,right}/image_raw (latched),
+/stereo/{left,right}/camera_info and /stereo/pose (:class:`ibvs_common.kit.StereoCameraInput`),
+/joint_states (``ibvs run``: /stereo/joint_states). Publishes: /ibvs/features,
+/ibvs/feature_status (one each per frame), /ibvs/target_features (latched, the taught
+target), /ibvs/debug/{left,right}/image (overlays, while someone listens), /diagnostics.
+Parameters: :data:`PARAMS` (docs/parameters.md). What it rejects and counts, the budget,
+the overlays and the taught target: docs/nodes.md.
 """
 
 from collections import deque
@@ -135,10 +73,9 @@ DEBUG_IMAGES = {'left': contract.DEBUG_LEFT_IMAGE, 'right': contract.DEBUG_RIGHT
 
 _SIDES = ('left', 'right')
 _LENS_FRAMES = {'left': contract.LEFT_CAMERA_FRAME, 'right': contract.RIGHT_CAMERA_FRAME}
-#: OpenCV threads of this process. The detector's work is small (windows around the markers,
-#: one pair at a time) and OpenCV's thread pool costs more than it shares out: a tracked VGA
-#: pair took 1.8 ms with one thread and 3.2 ms with two (ibvs_vision.bench, two cores), and
-#: the other core is the simulator's. The results are the same.
+#: OpenCV threads of this process: the detector's work is small (windows around the markers,
+#: one pair at a time) and OpenCV's thread pool costs more than it shares out (measured:
+#: docs/speed.md). The results are the same.
 OPENCV_THREADS = 1
 #: The taught target's budget (ms of estimated cost): one pair, once, before the run.
 TEACH_BUDGET_MS = 1000.0

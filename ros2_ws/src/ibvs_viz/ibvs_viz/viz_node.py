@@ -1,49 +1,17 @@
 """
 viz_node: what a viewer (RViz, Foxglove) needs that a cell does not publish.
 
-The arm is not its business: on a cell abb_ros2's robot_state_publisher publishes
-/robot_description and the link frames from ABB's URDF, in simulation ibvs_sim's
-robot_state_node does the same (ABB's frames, :mod:`ibvs_model.abb_urdf`); this node
-publishes neither, so that a viewer and the controller manager get one value for each.
-It publishes:
+The tool's, the target's and (once known) the camera's frames on /tf_static, and the shapes
+no URDF of the cell has on /ibvs/markers: the tool, the ZED 2's body, each lens's field of
+view, the target, the tool's path, the markers estimated by the model and those measured.
+The arm's frames are robot_state_publisher's (ibvs_sim.robot_state_node in simulation).
 
-- /tf_static (tf2_msgs/TFMessage, transient local, one message as tf2_ros's static
-  broadcaster sends, again whole when the camera is known or changes): the tool fixed to
-  ABB's ``tool0`` (the paper's flange {E}; ``screwdriver``, ``marker_1`` at P1,
-  ``marker_2`` at P2: :func:`scene.tool_transforms`; ``tool_frames_tf``: off where the
-  cell's URDF has the tool), the target flange pose ``ibvs_target``, and once the camera is
-  known (both CameraInfo and /stereo/pose, or the hand-eye ``camera_pose`` parameter, as
-  the controllers take it) the camera's frames (:func:`scene.camera_transforms`); and,
-  where a lens's CameraInfo names another frame than ours (the ZED wrapper's
-  ``zed_left_camera_frame_optical``: zed-ros2-wrapper master 33dfefa,
-  ``zed_components/src/zed_camera/src/zed_camera_component_main.cpp`` L2251, camera name
-  ``zed`` by default), that frame at our lens's optical frame, so that a viewer places the
-  images (RViz's Camera display) and the hand-eye ``camera_pose`` is a transform to the
-  images' frames (``image_frames_tf``: off where the camera driver publishes those frames
-  itself, as zed-ros2-wrapper does with its URDF);
-- /ibvs/markers (visualization_msgs/MarkerArray), at most ``marker_rate_hz`` in sim time:
-  the shapes no URDF of the cell has (the screwdriver and the two fiducial spheres in their
-  frames, the ZED 2's body on ``stereo_center_optical_frame``), each lens's field of view
-  to ``frustum_depth_m``, the target pose (an arrow along the tool axis and the two markers
-  where they must end), the tool's path so far (the true angles the simulator renders,
-  encoder + ``disturbance_deg``: d_q, eq. 30, 0 on a real cell; of the simulated robot,
-  ``l2_scale``, ``l4_scale``), the two markers estimated by the nominal model at the
-  encoder angles (F of eq. 30, what the feature node falls back to) and, when the feature
-  node measured them, triangulated from /ibvs/features (eq. 19-22 inverted).
-
-It reads /joint_states; ``ibvs run`` remaps that to /stereo/joint_states (one per camera
-frame), so the node does not slow the 1 kHz lockstep. Bad inputs are rejected with a logged
-reason and counted on /diagnostics under their topic: a CameraInfo or /stereo/pose that
-cannot describe the camera (the camera drawn stays the last good one), joint positions
-beyond +-POSITION_BOUND_RAD, a joint state, features or feature status whose stamp is not
-after the last one taken from its topic ('duplicate stamp', 'stamp went back':
-:class:`ibvs_common.conversions.StampOrder`), measured
-features off the image (:func:`ibvs_common.conversions.check_features_in_image`), lenses
-that disagree (size or intrinsics), and every stamp through the one stamp rule
-(:func:`ibvs_common.conversions.read_stamp`: malformed, or more than ``stale_timeout_s``
-and a camera period ahead of the newest time the node knows), so that one far-future
-joint state cannot make every later one look old. While the camera is not known it says
-what it waits for once a second.
+Subscribes: /joint_states (``ibvs run``: /stereo/joint_states),
+/stereo/{left,right}/camera_info and /stereo/pose
+(:class:`ibvs_common.kit.StereoCameraInput`), /ibvs/features, /ibvs/feature_status.
+Publishes: /tf_static (latched), /ibvs/markers (at most ``marker_rate_hz`` of sim time),
+/diagnostics. Parameters: :data:`PARAMS` (docs/parameters.md). The frames it adds for the
+images, and what it rejects: docs/nodes.md.
 """
 
 from collections import OrderedDict
