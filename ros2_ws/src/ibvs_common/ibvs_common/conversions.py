@@ -12,7 +12,7 @@ from typing import NamedTuple, Optional, Tuple, TYPE_CHECKING, Union
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped
+from geometry_msgs.msg import Point32, PolygonStamped, Pose, PoseStamped, TransformStamped
 from ibvs_model import IRB4600, StereoCamera, StereoIntrinsics
 from nav_msgs.msg import Path
 import numpy as np
@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
+from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from . import contract
@@ -482,6 +483,27 @@ def matrix_poses(tfs: ArrayLike) -> list[Pose]:
         pose.orientation.z, pose.orientation.w = float(z), float(w)
         poses.append(pose)
     return poses
+
+
+def transforms_msg(triples: Sequence[tuple[str, str, ArrayLike]], stamp: Time) -> TFMessage:
+    """
+    Return (parent, child, 4x4 T_child^parent) triples as one tf2_msgs/TFMessage.
+
+    Every transform stamped ``stamp``, as tf2_ros's TransformBroadcaster sends a batch
+    (robot_state_node's links, viz_node's frames).
+    """
+    msg = TFMessage()
+    for (parent, child, _), pose in zip(triples, matrix_poses([tf for *_, tf in triples])):
+        t = TransformStamped()
+        t.header.stamp = stamp
+        t.header.frame_id = parent
+        t.child_frame_id = child
+        t.transform.translation.x = pose.position.x
+        t.transform.translation.y = pose.position.y
+        t.transform.translation.z = pose.position.z
+        t.transform.rotation = pose.orientation
+        msg.transforms.append(t)
+    return msg
 
 
 def matrix_pose(tf: ArrayLike) -> Pose:

@@ -57,6 +57,15 @@ L4_SCALE = Param('l4_scale', 1.0, 'factor on link length L4 of the simulated rob
                  '(model uncertainty, Figure 13)', '-', low=0.1, high=2.0)
 ACTUATORS = Param('actuators', 'ideal', "'ideal' (the paper: no limits) or 'limited' "
                   '(IRB 4600 speed and torque limits)', '-', choices=('ideal', 'limited'))
+MAX_JOINT_SPEED_DEG_S = Param(
+    'max_joint_speed_deg_s', 20.0,
+    "command_interface 'position': no joint reference moves faster than this, whatever the "
+    "arm's own limits (the joint controller's shaper takes the smaller of it and "
+    "speed_margin times the IRB 4600's per joint), and the simulated EGM drive caps each "
+    "joint's speed at it, as the RAPID's EGMActJoint \\MaxSpeedDeviation is set to the "
+    "same value on a cell. 20: abb_ros2's example RAPID (docs/real_cell.md); raise both "
+    'together',
+    'deg/s', low=0.0, high=1000.0, low_open=True)
 STALE_TIMEOUT_S = Param('stale_timeout_s', 0.5,
                         'inputs older than this (sim time) are rejected as stale, and '
                         '/joint_states stamped further than this ahead of the newest time a '

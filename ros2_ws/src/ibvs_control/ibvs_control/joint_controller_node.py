@@ -99,8 +99,8 @@ from ibvs_common.params import declare, ParameterError
 from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_interface,
                                        COMMAND_INTERFACE,
                                        COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
-                                       PHYSICS_RATE_HZ, POSITION_COMMAND_TYPE,
-                                       STALE_TIMEOUT_S, TAU_IN)
+                                       MAX_JOINT_SPEED_DEG_S, PHYSICS_RATE_HZ,
+                                       POSITION_COMMAND_TYPE, STALE_TIMEOUT_S, TAU_IN)
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import check_camera_rate, ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import IRB4600
@@ -115,8 +115,7 @@ from .controllers import JointLoop
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
 from .node_params import (ACCELERATION_MARGIN, FRAME_TIMEOUT_S, JOINT_STATE_TIMEOUT_S,
-                          MAX_JOINT_SPEED_DEG_S, SPEED_MARGIN, TORQUE_LIMITS,
-                          TRAJECTORY_WINDOW_POINTS)
+                          SPEED_MARGIN, TORQUE_LIMITS, TRAJECTORY_WINDOW_POINTS)
 from .position_interface import FeedbackHold, joint_permutation, PositionShaper
 from .servo_status import InputWatch, ServoStatus
 

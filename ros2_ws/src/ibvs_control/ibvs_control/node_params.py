@@ -121,13 +121,6 @@ SPEED_MARGIN = Param('speed_margin', controllers.SPEED_MARGIN, "'limited' actuat
 ACCELERATION_MARGIN = Param('acceleration_margin', controllers.ACCELERATION_MARGIN,
                             "'limited' actuators: share of the torque left after h(q, qdot) "
                             'that the governor may use', '-', low=0.0, high=1.0, low_open=True)
-MAX_JOINT_SPEED_DEG_S = Param(
-    'max_joint_speed_deg_s', 20.0,
-    "command_interface 'position': no joint reference moves faster than this, whatever the "
-    "arm's own limits (the shaper takes the smaller of it and speed_margin times the IRB "
-    "4600's per joint). 20: abb_ros2's example RAPID caps EGM's speed at "
-    "\\MaxSpeedDeviation:=20 deg/s (docs/real_cell.md); raise it with the RAPID's",
-    'deg/s', low=0.0, high=1000.0, low_open=True)
 TRAJECTORY_WINDOW_POINTS = Param(
     'trajectory_window_points', 26,
     "position_command_type 'joint_trajectory': points in each JointTrajectory, one every "

@@ -34,10 +34,9 @@ camera sees it. Bad joint states are rejected with a logged reason and counted o
 and :class:`ibvs_common.conversions.StampOrder`).
 """
 
-from geometry_msgs.msg import TransformStamped
 from ibvs_common import contract, shared_params
-from ibvs_common.conversions import (InputError, matrix_poses, position_bounds, read_joints,
-                                     read_stamp, stamp_lead_ns, StampOrder)
+from ibvs_common.conversions import (InputError, position_bounds, read_joints, read_stamp,
+                                     stamp_lead_ns, StampOrder, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
@@ -59,22 +58,6 @@ PARAMS = (
 )
 #: tf2_ros's TransformBroadcaster QoS (DynamicBroadcasterQoS): depth 100.
 TF_DEPTH = 100
-
-
-def transforms_msg(triples, stamp) -> TFMessage:
-    """Return (parent, child, 4x4) triples as a TFMessage stamped ``stamp``."""
-    msg = TFMessage()
-    for (parent, child, _), pose in zip(triples, matrix_poses([tf for *_, tf in triples])):
-        t = TransformStamped()
-        t.header.stamp = stamp
-        t.header.frame_id = parent
-        t.child_frame_id = child
-        t.transform.translation.x = pose.position.x
-        t.transform.translation.y = pose.position.y
-        t.transform.translation.z = pose.position.z
-        t.transform.rotation = pose.orientation
-        msg.transforms.append(t)
-    return msg
 
 
 class RobotStateNode(Node):

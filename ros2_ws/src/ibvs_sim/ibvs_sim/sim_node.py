@@ -121,12 +121,12 @@ from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (check_command_interface, COMMAND_INTERFACE,
                                        COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
-                                       POSITION_COMMAND_TYPE, TARGET_FEATURES_SOURCE,
-                                       target_from_parameters, TARGET_POSITION,
-                                       TARGET_ROTATION)
+                                       MAX_JOINT_SPEED_DEG_S, POSITION_COMMAND_TYPE,
+                                       TARGET_FEATURES_SOURCE, target_from_parameters,
+                                       TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.timing import period_ns, seconds_to_ns
 from ibvs_model import IRB4600
-from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
+from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S, SPEED_LIMITS
 from ibvs_model.mass_model import joint_efforts
 from nav_msgs.msg import Path
 import numpy as np
@@ -251,10 +251,10 @@ PARAMS = SimConfig.params() + (
     LOCKSTEP, COMMAND_INTERFACE, POSITION_COMMAND_TYPE, COMMAND_RATE_HZ, JOINTS,
     REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS,
     DURATION_S, FEEDBACK_LATENCY_S, JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S, EXTRA_JOINTS,
-    CAMERA_OUTAGE_S)
+    CAMERA_OUTAGE_S, MAX_JOINT_SPEED_DEG_S)
 #: The parameters that only free-running uses: lockstep warns when one is not its default.
 FREE_RUNNING_ONLY = (REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S,
-                     JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S)
+                     JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S, MAX_JOINT_SPEED_DEG_S)
 
 #: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
 CAMERA_OUTPUTS = {
@@ -449,9 +449,13 @@ class SimNode(Node):
         # Command value i is joint self._joints[i]; _to_contract reorders to joint_1..6.
         self._to_contract = np.array([self._joints.index(n) for n in contract.JOINT_NAMES])
         try:
-            self.servo = PositionServo(self.sim.dt_ns * 1e-9, self.sim.q_start,
-                                       bandwidth_hz=values['drive_bandwidth_hz'],
-                                       delay_s=values['drive_delay_s'])
+            # EGM's speed setting (the RAPID's \MaxSpeedDeviation) caps the drive as the
+            # joint controller's shaper is capped: max_joint_speed_deg_s, both.
+            self.servo = PositionServo(
+                self.sim.dt_ns * 1e-9, self.sim.q_start,
+                bandwidth_hz=values['drive_bandwidth_hz'], delay_s=values['drive_delay_s'],
+                speed_limits=np.minimum(SPEED_LIMITS,
+                                        np.radians(values['max_joint_speed_deg_s'])))
         except ValueError as exc:
             raise ParameterError(f"parameter 'drive_bandwidth_hz' = "
                                  f"{values['drive_bandwidth_hz']!r} is invalid: {exc}") from None

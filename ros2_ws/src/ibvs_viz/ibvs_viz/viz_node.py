@@ -17,12 +17,12 @@ images, and what it rejects: docs/nodes.md.
 from collections import OrderedDict
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, PolygonStamped, TransformStamped
+from geometry_msgs.msg import Point, PolygonStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (check_features_in_image, ignored_joints, InputError,
                                      matrix_poses, position_bounds, read_feature_status,
                                      read_features, read_joints, read_stamp, stamp_lead_ns,
-                                     StampOrder)
+                                     StampOrder, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
 from ibvs_common.node_main import run
@@ -80,23 +80,6 @@ def _rgba(rgb, alpha=1.0):
 
 
 MARKER_COLOURS = [_rgba([c / 255.0 for c in rgb]) for rgb in MARKER_RGB]
-
-
-def transforms_msg(triples, stamp):
-    """Return (parent, child, 4x4) triples as a TFMessage stamped ``stamp``."""
-    poses = matrix_poses([tf for _, _, tf in triples])
-    msg = TFMessage()
-    for (parent, child, _), pose in zip(triples, poses):
-        t = TransformStamped()
-        t.header.stamp = stamp
-        t.header.frame_id = parent
-        t.child_frame_id = child
-        t.transform.translation.x = pose.position.x
-        t.transform.translation.y = pose.position.y
-        t.transform.translation.z = pose.position.z
-        t.transform.rotation = pose.orientation
-        msg.transforms.append(t)
-    return msg
 
 
 def _points(array):
