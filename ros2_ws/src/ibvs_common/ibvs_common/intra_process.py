@@ -220,7 +220,8 @@ class Publisher:
         #: The rclpy publisher (its DDS match count, its name, destruction).
         self.rclpy = node.create_publisher(msg_type, topic, qos)
         self.topic_name = self.rclpy.topic_name
-        self._type = msg_type
+        #: The message type, as an rclpy publisher's ``msg_type``.
+        self.msg_type = self._type = msg_type
         self._bus = bus_of(node.context)
 
     def publish(self, msg: Any) -> None:

@@ -87,13 +87,13 @@ and the loop goes on as if the bad one had never come.
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from ibvs_common import contract, intra_process
+from ibvs_common import contract
 from ibvs_common.conversions import (check_finite, ignored_joints, InputError, joint_state,
                                      joint_trajectory, ns_stamp, position_bounds, read_joints,
                                      read_stamp,
                                      read_trajectory, stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import WaitReporter
+from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
 from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_interface,
@@ -173,18 +173,13 @@ class JointControllerNode(Node):
         self.diagnostics = Diagnostics(self, 'joint controller')
         self.diagnostics.update(actuators=values['actuators'], commands=0,
                                 torque_limits=self.torque_limits)
-        # With the simulator in this process, its messages and ours pass as objects
-        # (ibvs_common.intra_process).
-        self._pub = intra_process.publisher(self, JointState, contract.EFFORT_COMMANDS,
-                                            contract.RELIABLE)
-        intra_process.subscription(self, JointState, contract.JOINT_STATES,
-                                   self._on_joint_state, contract.RELIABLE)
-        self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
-                                 self._on_trajectory, contract.LATCHED)
-        intra_process.subscription(self, JointState, contract.Q_FEEDBACK, self._on_feedback,
-                                   contract.RELIABLE)
-        intra_process.subscription(self, Header, contract.FRAME_LOST, self._on_frame_lost,
-                                   contract.RELIABLE)
+        self._pub = publisher(self, JointState, contract.EFFORT_COMMANDS, contract.RELIABLE)
+        subscription(self, JointState, contract.JOINT_STATES, self._on_joint_state,
+                     contract.RELIABLE)
+        subscription(self, JointTrajectory, contract.FEEDFORWARD_TRAJECTORY, self._on_trajectory,
+                     contract.LATCHED)
+        subscription(self, JointState, contract.Q_FEEDBACK, self._on_feedback, contract.RELIABLE)
+        subscription(self, Header, contract.FRAME_LOST, self._on_frame_lost, contract.RELIABLE)
         self.waiting = WaitReporter(self, self._effort_waiting)
         self.diagnostics.log_progress(self._progress_line)
         self.get_logger().info(
@@ -228,22 +223,20 @@ class JointControllerNode(Node):
         self.diagnostics.update(command_interface='position', commands=0,
                                 position_command_type=values['position_command_type'])
         if values['position_command_type'] == 'forward_command':
-            self._pub = self.create_publisher(Float64MultiArray, contract.POSITION_COMMANDS,
-                                              contract.RELIABLE)
+            self._pub = publisher(self, Float64MultiArray, contract.POSITION_COMMANDS,
+                                  contract.RELIABLE)
         else:
-            self._pub = self.create_publisher(JointTrajectory, contract.TRAJECTORY_COMMANDS,
-                                              contract.RELIABLE)
-        self._pub_latency = self.create_publisher(TimeReference, contract.FRAME_LATENCY,
-                                                  contract.RELIABLE)
-        self._pub_status = self.create_publisher(Int8, contract.SERVO_STATUS, contract.LATCHED)
-        self.create_subscription(JointState, contract.JOINT_STATES, self._on_measured,
-                                 contract.RELIABLE)
-        self._camera_topic = self.create_subscription(
-            CameraInfo, contract.LEFT_INFO, self._on_camera, contract.IMAGES).topic_name
-        self.create_subscription(JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
-                                 self._on_trajectory, contract.LATCHED)
-        self.create_subscription(JointState, contract.Q_FEEDBACK, self._on_feedback,
-                                 contract.RELIABLE)
+            self._pub = publisher(self, JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                                  contract.RELIABLE)
+        self._pub_latency = publisher(self, TimeReference, contract.FRAME_LATENCY,
+                                      contract.RELIABLE)
+        self._pub_status = publisher(self, Int8, contract.SERVO_STATUS, contract.LATCHED)
+        subscription(self, JointState, contract.JOINT_STATES, self._on_measured, contract.RELIABLE)
+        self._camera_topic = subscription(self, CameraInfo, contract.LEFT_INFO, self._on_camera,
+                                          contract.CAMERA_INFO).topic_name
+        subscription(self, JointTrajectory, contract.FEEDFORWARD_TRAJECTORY, self._on_trajectory,
+                     contract.LATCHED)
+        subscription(self, JointState, contract.Q_FEEDBACK, self._on_feedback, contract.RELIABLE)
         self.create_timer(ns_to_seconds(self.command_period_ns), self._command)
         self.waiting = WaitReporter(self, self._position_waiting)
         self.get_logger().info(

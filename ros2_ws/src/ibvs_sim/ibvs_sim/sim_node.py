@@ -110,13 +110,13 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
-from ibvs_common import contract, intra_process
+from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, duration_ns, image_msg, InputError,
                                      joint_path, joint_state, ns_stamp, path_msg,
                                      pose_stamped, read_command_trajectory, read_joints,
                                      read_stamp, stamp_ns)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import WaitReporter
+from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param, ParameterError
 from ibvs_common.shared_params import (check_command_interface, COMMAND_INTERFACE,
@@ -363,33 +363,29 @@ class SimNode(Node):
         if device is not None:  # what draws the images: reported in the run's metrics
             self.diagnostics.update(render_device=device.gl_renderer,
                                     render_hardware=device.hardware)
-        self._pub_clock = self.create_publisher(ClockMsg, contract.CLOCK, contract.RELIABLE)
-        # The lockstep's and the frames' messages go to their readers in this process as
-        # objects, and through DDS to any elsewhere (ibvs_common.intra_process).
-        self._pub_joints = intra_process.publisher(self, JointState, contract.JOINT_STATES,
-                                                   contract.RELIABLE)
-        self._pub_frame_joints = intra_process.publisher(
-            self, JointState, contract.FRAME_JOINT_STATES, contract.RELIABLE)
-        self._pub_tool = self.create_publisher(Path, contract.TOOL_PATH, contract.RELIABLE)
-        self._pub_joint_path = self.create_publisher(JointTrajectory, contract.JOINT_PATH,
-                                                     contract.RELIABLE)
+        self._pub_clock = publisher(self, ClockMsg, contract.CLOCK, contract.RELIABLE)
+        self._pub_joints = publisher(self, JointState, contract.JOINT_STATES, contract.RELIABLE)
+        self._pub_frame_joints = publisher(self, JointState, contract.FRAME_JOINT_STATES,
+                                           contract.RELIABLE)
+        self._pub_tool = publisher(self, Path, contract.TOOL_PATH, contract.RELIABLE)
+        self._pub_joint_path = publisher(self, JointTrajectory, contract.JOINT_PATH,
+                                         contract.RELIABLE)
         self._pub_images = self._pub_infos = ()
         image_topics, info_topics, self._camera_frames, self._encoding, qos = \
             CAMERA_OUTPUTS[values['camera_topics']]
         if self._publish_images:
-            self._pub_images = tuple(intra_process.publisher(self, Image, topic, qos)
-                                     for topic in image_topics)
-            self._pub_infos = tuple(intra_process.publisher(self, CameraInfo, topic, qos)
+            self._pub_images = tuple(publisher(self, Image, topic, qos) for topic in image_topics)
+            self._pub_infos = tuple(publisher(self, CameraInfo, topic, qos)
                                     for topic in info_topics)
-        self._pub_lost = self.create_publisher(Header, contract.FRAME_LOST, contract.RELIABLE)
+        self._pub_lost = publisher(self, Header, contract.FRAME_LOST, contract.RELIABLE)
         # The controllers get the calibrated camera; the images show the true one.
-        pose_pub = self.create_publisher(PoseStamped, contract.STEREO_POSE, contract.LATCHED)
+        pose_pub = publisher(self, PoseStamped, contract.STEREO_POSE, contract.LATCHED)
         pose_pub.publish(pose_stamped(self.sim.calibrated_camera.pose_C_O, 0))
         self._pose_pub = pose_pub
         self._teach_pubs = ()
         if self.sim.teach_images is not None:
             self._teach_pubs = tuple(
-                self.create_publisher(Image, topic, contract.LATCHED)
+                publisher(self, Image, topic, contract.LATCHED)
                 for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE))
             for pub, image, frame in zip(self._teach_pubs, self.sim.teach_images,
                                          (contract.LEFT_CAMERA_FRAME,
@@ -401,8 +397,8 @@ class SimNode(Node):
             limit = EFFORT_BOUND_FACTOR * np.asarray(joint_efforts(self.sim.params),
                                                      dtype=float)
             self._effort_bound = (-limit, limit)
-            self._sub = intra_process.subscription(self, JointState, contract.EFFORT_COMMANDS,
-                                                   self._on_command, contract.RELIABLE)
+            self._sub = subscription(self, JointState, contract.EFFORT_COMMANDS,
+                                     self._on_command, contract.RELIABLE)
 
         self.started = False
         self._frame_step = False
@@ -472,12 +468,11 @@ class SimNode(Node):
         if values['position_command_type'] == 'joint_trajectory':
             self._follower = TrajectoryFollower(values['command_rate_hz'])
         if values['position_command_type'] == 'forward_command':
-            self._sub = self.create_subscription(Float64MultiArray, contract.POSITION_COMMANDS,
-                                                 self._on_position_command, contract.RELIABLE)
+            self._sub = subscription(self, Float64MultiArray, contract.POSITION_COMMANDS,
+                                     self._on_position_command, contract.RELIABLE)
         else:
-            self._sub = self.create_subscription(JointTrajectory, contract.TRAJECTORY_COMMANDS,
-                                                 self._on_trajectory_command,
-                                                 contract.RELIABLE)
+            self._sub = subscription(self, JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                                     self._on_trajectory_command, contract.RELIABLE)
         self.diagnostics.update(command='none yet', commands=0, real_time_factor=self._rtf)
         self._run_timer = None
 
