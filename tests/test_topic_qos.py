@@ -14,8 +14,8 @@ from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_control.feedforward_node import FeedforwardNode
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_sim.sim_node import SimNode
-from ibvs_viz.viz_node import VizNode
 from ibvs_vision.feature_node import FeatureNode
+from ibvs_viz.viz_node import VizNode
 import pytest
 from rclpy.parameter import Parameter
 
