@@ -36,7 +36,7 @@ def test_each_topic_has_one_qos_across_the_nodes(context, interface):
             nodes.append(cls(context=context, parameter_overrides=[
                 Parameter(k, value=v) for k, v in mode.items()]))
         profiles = defaultdict(set)
-        ends = [e for node in nodes for e in kit.opened(node.get_fully_qualified_name())]
+        ends = [e for node in nodes for e in kit.opened(node)]
         for end in ends:
             profiles[end.topic].add(_profile(end.qos))
             assert end.direct == kit.direct(end.qos), end

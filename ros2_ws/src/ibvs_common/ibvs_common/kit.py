@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Mapping, TYPE_CHECKING
+import weakref
 
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
@@ -72,23 +73,30 @@ class Endpoint:
     direct: bool = False
 
 
-#: Per node (fully qualified name), the topics it opened, by (topic, direction).
-_REGISTRY: dict[str, dict[tuple[str, str], Endpoint]] = {}
+#: Per node, the topics it opened, by (topic, direction); a node is forgotten when it goes.
+_REGISTRY: 'weakref.WeakKeyDictionary[Node, dict[tuple[str, str], Endpoint]]' = \
+    weakref.WeakKeyDictionary()
 
 
 def _record(node: 'Node', topic: str, msg_type: type, direction: str,
             qos: QoSProfile | int) -> None:
     package = msg_type.__module__.split('.')[0]
     profile = qos_profile(qos)
-    _REGISTRY.setdefault(node.get_fully_qualified_name(), {})[(topic, direction)] = Endpoint(
+    _REGISTRY.setdefault(node, {})[(topic, direction)] = Endpoint(
         node.get_fully_qualified_name(), topic, f'{package}/msg/{msg_type.__name__}',
         direction, profile, direct(profile))
 
 
-def opened(node_name: str | None = None) -> list[Endpoint]:
-    """Return the topics opened in this process (by ``node_name``, fully qualified, only)."""
-    nodes = [node_name] if node_name is not None else sorted(_REGISTRY)
-    return [e for name in nodes for e in _REGISTRY.get(name, {}).values()]
+def opened(node: 'Node | str | None' = None) -> list[Endpoint]:
+    """
+    Return the topics opened by the live nodes of this process.
+
+    ``node``: only those of this node, or of the nodes of this fully qualified name.
+    """
+    if node is not None and not isinstance(node, str):
+        return list(_REGISTRY.get(node, {}).values())
+    ends = [e for topics in list(_REGISTRY.values()) for e in topics.values()]
+    return [e for e in ends if node is None or e.node == node]
 
 
 def publisher(node: 'Node', msg_type: type, topic: str, qos: QoSProfile | int) -> Any:

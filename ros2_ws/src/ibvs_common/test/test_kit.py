@@ -1,5 +1,7 @@
 """The node kit (ibvs_common.kit): transport by QoS, the registry, waits, the camera input."""
 
+import gc
+
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ibvs_common import contract, intra_process, kit
@@ -46,8 +48,19 @@ def test_the_kit_records_each_topic_a_node_opens_with_its_transport(context):
         assert ends[('/probe/status', kit.SUBSCRIBES)].qos.depth == 10
         assert all(e.node == '/probe/kit_probe' for e in ends.values())
         assert set(kit.opened('/probe/kit_probe')) <= set(kit.opened())
+        assert kit.opened(node) == kit.opened('/probe/kit_probe')
     finally:
         node.destroy_node()
+
+
+def test_a_node_gone_is_forgotten(context):
+    node = Node('kit_gone', context=context)
+    kit.publisher(node, JointState, contract.Q_FEEDBACK, contract.RELIABLE)
+    assert len(kit.opened('/kit_gone')) == 1
+    node.destroy_node()
+    del node
+    gc.collect()
+    assert kit.opened('/kit_gone') == []
 
 
 class _Logger:
@@ -161,9 +174,9 @@ def test_the_camera_pose_parameter_replaces_the_topic(context):
     probe = _Camera(context, 'camera_pose_probe', camera_pose=pose)
     try:
         assert probe.input.missing() == [contract.LEFT_INFO, contract.RIGHT_INFO]
-        topics = {e.topic for e in kit.opened(probe.node.get_fully_qualified_name())}
+        topics = {e.topic for e in kit.opened(probe.node)}
         assert contract.STEREO_POSE not in topics and contract.LEFT_INFO in topics
-        subs = {e.topic: e for e in kit.opened(probe.node.get_fully_qualified_name())}
+        subs = {e.topic: e for e in kit.opened(probe.node)}
         assert subs[contract.LEFT_INFO].qos.depth == contract.CAMERA_INFO.depth
         assert subs[contract.LEFT_INFO].msg_type == 'sensor_msgs/msg/CameraInfo'
     finally:
