@@ -119,6 +119,7 @@ class AdaptiveFeedbackNode(Node):
         self.last_fresh_ns = None
         self.first_joint_ns = None
         self.frozen = False
+        self._envelope_seen = set()
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
         self.diagnostics.update(state='waiting for camera', frames=0)
@@ -366,6 +367,13 @@ class AdaptiveFeedbackNode(Node):
             singular_values=update.singular_values, condition_number=update.condition,
             rank=update.rank, image_error_norm_px=update.error_norm,
             q_estimate=update.q_estimate, correction_clipped=update.clipped)
+        counts = getattr(self.feedback, 'counts', None)  # the safety envelope's, if on
+        if counts is not None:
+            summary = ', '.join(f'{code.name} {n}' for code, n in sorted(counts.items()))
+            self.diagnostics.update(envelope_interventions=summary or 'none')
+            if set(counts) - self._envelope_seen:
+                self._envelope_seen |= set(counts)
+                self.get_logger().info(f'safety envelope at {t_ns * 1e-9:.3f} s: {summary}')
 
     def _watch_timeout(self, now_ns):
         """Mark the feedback frozen once no usable frame came for stale_timeout_s."""

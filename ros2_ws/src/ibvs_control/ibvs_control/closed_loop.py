@@ -79,6 +79,8 @@ class LoopConfig(ParamConfig):
     feature_fallback: str = param_field(node_params.FEATURE_FALLBACK)
     windup_horizon_s: float = param_field(node_params.WINDUP_HORIZON_S)
     joint_limit_margin_rad: float = param_field(node_params.JOINT_LIMIT_MARGIN_RAD)
+    safety_envelope: bool = param_field(node_params.SAFETY_ENVELOPE)
+    envelope_singularity_scaling: bool = param_field(node_params.ENVELOPE_SINGULARITY_SCALING)
 
     def __post_init__(self):
         """Check each value against its Param, then the combinations (class docstring)."""

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 
 from ibvs_common import shared_params
 from ibvs_model import (forward_kinematics, ik_solutions, InvalidInputError,
-                        inverse_kinematics, IRB4600, pose_error)
+                        inverse_kinematics, IRB4600, ModelError, pose_error)
+from ibvs_model.ik_branch import in_cone, nearest_branch_ik
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -222,9 +223,9 @@ class Feedforward:
         return self.q_target is not None
 
     def start(self, q0: ArrayLike) -> NDArray[np.float64]:
-        """Choose the IK branch nearest ``q0`` (eq. 43), rest the filter at q0; return it."""
+        """Choose the IK branch of the target (:func:`target_branch`), rest the filter at q0."""
         self.q_start = np.asarray(q0, dtype=float).copy()
-        self.q_target = inverse_kinematics(self.pose, self.params, seed=self.q_start)
+        self.q_target = target_branch(self.pose, self.q_start, self.params)
         self.filter.reset(rest_input=self.q_start)
         return self.q_target
 
@@ -263,6 +264,28 @@ class Feedforward:
     def pose_error(self) -> tuple[float, float]:
         """Return (m, rad) between FK(q_target) and the target pose: the IK residual."""
         return pose_error(forward_kinematics(self.q_target, self.params), self.pose)
+
+
+def target_branch(pose: ArrayLike, q0: ArrayLike, params: 'RobotParams' = IRB4600
+                  ) -> NDArray[np.float64]:
+    """
+    Return the IK branch of ``pose`` the feedforward goes to from ``q0`` (eq. 43).
+
+    The branch nearest ``q0`` inside the reach cone with q0's shoulder and elbow
+    (:func:`ibvs_model.ik_branch.nearest_branch_ik`): no arm flip on the way. When q0 is
+    itself outside the cone or no such branch exists, the branch nearest q0 whatever it
+    is (:func:`ibvs_model.inverse_kinematics`, the former choice). Where the nearest
+    branch is inside the cone on q0's arm (the paper's scenarios) both are the same.
+    """
+    q0 = np.asarray(q0, dtype=float)
+    if in_cone(q0, params):
+        try:
+            return nearest_branch_ik(pose, q0, params, same_arm_as=q0)
+        except InvalidInputError:
+            raise
+        except ModelError:
+            pass
+    return inverse_kinematics(pose, params, seed=q0)
 
 
 @dataclass(frozen=True)

@@ -52,6 +52,15 @@ JOINT_LIMIT_MARGIN_RAD = Param(
     'joint_limit_margin_rad', servo_laws.JOINT_LIMIT_MARGIN_RAD,
     "servo_law 'ibvs' / 'pbvs': the joint reference stays this far inside the joint limits",
     'rad', low=0.0, high=0.5)
+SAFETY_ENVELOPE = Param(
+    'safety_envelope', False,
+    'run the servo law inside the safety envelope (ibvs_control.envelope): joint-limit '
+    "avoidance ('ibvs' / 'pbvs': ViSP's secondary task), MoveIt Servo's singularity and "
+    'collision slow-down and halt, and the joint range kept; false: the law alone', '-')
+ENVELOPE_SINGULARITY_SCALING = Param(
+    'envelope_singularity_scaling', True,
+    "safety_envelope: slow down and halt by the condition number of the robot's Jacobian "
+    "(MoveIt Servo's thresholds 17 and 30); false: the envelope's other stages only", '-')
 JOINT_STATE_TIMEOUT_S = Param(
     'joint_state_timeout_s', 0.1,
     "command_interface 'position': /joint_states older than this (the node's clock less "
@@ -117,7 +126,8 @@ ACCELERATION_MARGIN = Param('acceleration_margin', controllers.ACCELERATION_MARG
 #: names (each law takes those it declares), besides its gain (:func:`check_servo_law`).
 LAW_PARAMS = (TAU_IN, OMEGA_N, ZETA, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MAX_CORRECTION_RAD,
               HOLD_SPEED_FRACTION, LINEARISE_AT, SWITCH_SETTLE_S, FEATURE_FALLBACK,
-              WINDUP_HORIZON_S, JOINT_LIMIT_MARGIN_RAD)
+              WINDUP_HORIZON_S, JOINT_LIMIT_MARGIN_RAD, SAFETY_ENVELOPE,
+              ENVELOPE_SINGULARITY_SCALING)
 
 
 def law_settings(values: Mapping[str, Any]) -> dict[str, Any]:

@@ -30,6 +30,7 @@ from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
                         IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
                         StereoIntrinsics)
+from ibvs_model.ik_branch import nearest_branch_ik
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -86,8 +87,9 @@ class Simulator:
         if given is not None:  # a task's start (issue 38): the true angles as given
             target = forward_kinematics(given, self.params)
         try:
-            self.q_start = inverse_kinematics(target, self.params) if given is None \
-                else given
+            # The branch nearest q = 0 inside the reach cone (no over-the-head arm).
+            self.q_start = nearest_branch_ik(target, np.zeros(6), self.params) \
+                if given is None else given
         except ModelError as exc:
             raise ConfigError('scenario', f'start pose of scenario {config.scenario} is '
                               f'unreachable by the simulated robot (l2_scale = '

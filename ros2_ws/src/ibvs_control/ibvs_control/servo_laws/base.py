@@ -18,6 +18,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import envelope
 from ..controllers import FeedbackUpdate
 from ..decoupling import SVD_RCOND
 
@@ -80,7 +81,23 @@ class ServoLaw:
     @classmethod
     def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
                **settings: Any) -> 'ServoLaw':
-        """Return the law for ``model``, target ``pose`` and camera period ``dt`` (s)."""
+        """
+        Return the law for ``model``, target ``pose`` and camera period ``dt`` (s).
+
+        With ``safety_envelope`` True in ``settings`` the law comes inside the safety
+        envelope (:class:`ibvs_control.envelope.EnvelopedLaw`, same interface; its
+        singularity scaling off with ``envelope_singularity_scaling`` False); without it,
+        or False, the law itself.
+        """
+        config = envelope.EnvelopeConfig(
+            singularity_scaling=bool(settings.get('envelope_singularity_scaling', True)))
+        return envelope.wrap(cls.build(model, pose, dt, **settings),
+                             bool(settings.get('safety_envelope', False)), config)
+
+    @classmethod
+    def build(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+              **settings: Any) -> 'ServoLaw':
+        """Return the law itself (no envelope) from the settings it declares."""
         return cls(model, pose, dt, **{k: settings[k] for k in cls.options if k in settings})
 
     @classmethod

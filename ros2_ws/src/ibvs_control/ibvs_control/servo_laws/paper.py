@@ -25,8 +25,8 @@ class Paper(AdaptiveFeedback, ServoLaw):
     holding = 'holding (arm slewing)'
 
     @classmethod
-    def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
-               **settings: Any) -> 'Paper':
+    def build(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+              **settings: Any) -> 'Paper':
         """Return the feedback with the Youla design's ``tau_in``, ``omega_n``, ``zeta``."""
         return cls(model, pose, settings['tau_in'], settings['omega_n'], settings['zeta'], dt,
                    **{k: settings[k] for k in cls.options if k in settings})

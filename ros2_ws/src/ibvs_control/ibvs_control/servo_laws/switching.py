@@ -58,11 +58,11 @@ class Switching(ServoLaw):
     holding = 'feedforward only (before the switch)'
 
     @classmethod
-    def create(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
-               **settings: Any) -> 'Switching':
+    def build(cls, model: 'CameraRobotModel', pose: ArrayLike, dt: float,
+              **settings: Any) -> 'Switching':
         """Wrap the paper's feedback made from the same ``settings``."""
         own = {k: settings[k] for k in cls.options if k in settings}
-        return cls(Paper.create(model, pose, dt, **settings), **own)
+        return cls(Paper.build(model, pose, dt, **settings), **own)
 
     @classmethod
     def needs_measured(cls, settings: Mapping[str, Any]) -> bool:
