@@ -292,6 +292,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_vsbench(args: argparse.Namespace) -> int:
+    """Run the workspace benchmark (make vsbench; ibvs vsbench --help for its options)."""
+    from . import vsbench
+    return vsbench.main(args.vsbench_args)
+
+
 def _study_defaults():
     from . import study
     return {'domains': study.DOMAIN_IDS, 'parallel': study.default_parallel()}
@@ -392,6 +398,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='run again the runs recorded as failed (a failed run stays cached '
                    'as failed otherwise)')
     p.set_defaults(func=cmd_report)
+    p = sub.add_parser('vsbench', help=cmd_vsbench.__doc__, add_help=False)
+    p.add_argument('vsbench_args', nargs=argparse.REMAINDER,
+                   help='the options of python -m ibvs_experiments.vsbench')
+    p.set_defaults(func=cmd_vsbench)
     for name in ('study', 'report'):
         p = sub.choices[name]
         p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
