@@ -266,25 +266,34 @@ class Feedforward:
         return pose_error(forward_kinematics(self.q_target, self.params), self.pose)
 
 
+#: :func:`target_branch` prefers a target branch this far (rad) inside the joint limits (the
+#: velocity laws' margin, servo_laws.JOINT_LIMIT_MARGIN_RAD).
+FEEDFORWARD_LIMIT_MARGIN_RAD = 0.05
+
+
 def target_branch(pose: ArrayLike, q0: ArrayLike, params: 'RobotParams' = IRB4600
                   ) -> NDArray[np.float64]:
     """
     Return the IK branch of ``pose`` the feedforward goes to from ``q0`` (eq. 43).
 
     The branch nearest ``q0`` inside the reach cone with q0's shoulder and elbow
-    (:func:`ibvs_model.ik_branch.nearest_branch_ik`): no arm flip on the way. When q0 is
+    (:func:`ibvs_model.ik_branch.nearest_branch_ik`): no arm flip on the way; one at least
+    :data:`FEEDFORWARD_LIMIT_MARGIN_RAD` inside every joint limit if there is one, so that
+    the feedforward's straight joint-space line from q0 stays out of that margin (the box
+    of the limits is convex), else the nearest in the cone. When q0 is
     itself outside the cone or no such branch exists, the branch nearest q0 whatever it
     is (:func:`ibvs_model.inverse_kinematics`, the former choice). Where the nearest
     branch is inside the cone on q0's arm (the paper's scenarios) both are the same.
     """
     q0 = np.asarray(q0, dtype=float)
     if in_cone(q0, params):
-        try:
-            return nearest_branch_ik(pose, q0, params, same_arm_as=q0)
-        except InvalidInputError:
-            raise
-        except ModelError:
-            pass
+        for margin in (FEEDFORWARD_LIMIT_MARGIN_RAD, 0.0):
+            try:
+                return nearest_branch_ik(pose, q0, params, same_arm_as=q0, margin_rad=margin)
+            except InvalidInputError:
+                raise
+            except ModelError:
+                pass
     return inverse_kinematics(pose, params, seed=q0)
 
 

@@ -52,13 +52,12 @@ from enum import IntEnum
 import math
 from typing import Any
 
-from ibvs_model import geometric_jacobian, inverse_kinematics, ModelError
+from ibvs_model import geometric_jacobian, ModelError
 from ibvs_model.capsules import Cell, clearances
-from ibvs_model.ik_branch import nearest_branch_ik
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .controllers import feature_error, FeedbackUpdate
+from .controllers import feature_error, FeedbackUpdate, target_branch
 from .servo_status import ServoStatus
 
 #: ViSP's defaults (vpServo.h): activation at rho of the range from a limit, the critical
@@ -350,11 +349,8 @@ class EnvelopedLaw:
                 self._ends = np.asarray(q_encoder, dtype=float).copy()[None]
             else:
                 q0 = np.asarray(q_encoder, dtype=float).copy()
-                try:
-                    q_target = nearest_branch_ik(self.core.pose, q0, params, same_arm_as=q0)
-                except ModelError:
-                    q_target = inverse_kinematics(self.core.pose, params, seed=q0)
-                self._ends = np.stack([q0, q_target])
+                # the feedforward's own choice (controllers.Feedforward.start)
+                self._ends = np.stack([q0, target_branch(self.core.pose, q0, params)])
         return self._ends
 
     def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,

@@ -11,7 +11,8 @@ The safety envelope by property (no ROS).
 
 import math
 
-from ibvs_control.controllers import FeedbackUpdate
+from ibvs_control.controllers import (FeedbackUpdate, FEEDFORWARD_LIMIT_MARGIN_RAD,
+                                      target_branch)
 from ibvs_control.envelope import (collision_scale, EnvelopeConfig, EnvelopedLaw,
                                    Intervention, joint_limit_avoidance,
                                    large_projection_operator,
@@ -20,6 +21,7 @@ from ibvs_control.servo_laws import make_law, SERVO_LAWS
 from ibvs_control.servo_status import ServoStatus
 from ibvs_model import default_model, forward_kinematics, inverse_kinematics, IRB4600, paper
 from ibvs_model.capsules import Cell
+from ibvs_model.ik_branch import arm_branch
 import numpy as np
 import pytest
 
@@ -211,3 +213,15 @@ def test_a_table_under_the_tool_slows_or_halts(gap, expected):
     scale = collision_scale(gap, SCENE_COLLISION_PROXIMITY_THRESHOLD)
     assert np.allclose(update.q_feedback, scale * wanted, rtol=1e-12, atol=0.0)
     assert (scale == 0.0) == (expected == Intervention.HALT_FOR_COLLISION)
+
+
+def test_feedforward_target_keeps_the_start_arm():
+    """From each scenario's start: q_target on q(0)'s arm, the former nearest branch."""
+    target = paper.target_pose()
+    for scenario in (1, 2, 3):
+        q0 = inverse_kinematics(paper.scenario_start_pose(scenario))
+        q_target = target_branch(target, q0)
+        assert arm_branch(q_target) == arm_branch(q0) == (1, 1)
+        assert np.array_equal(q_target, inverse_kinematics(target, seed=q0))
+        assert np.all(q_target >= Q_MIN + FEEDFORWARD_LIMIT_MARGIN_RAD)
+        assert np.all(q_target <= Q_MAX - FEEDFORWARD_LIMIT_MARGIN_RAD)
