@@ -398,10 +398,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='run again the runs recorded as failed (a failed run stays cached '
                    'as failed otherwise)')
     p.set_defaults(func=cmd_report)
+    # listed here; its options are vsbench's own (main hands them over before parsing)
     p = sub.add_parser('vsbench', help=cmd_vsbench.__doc__, add_help=False)
-    p.add_argument('vsbench_args', nargs=argparse.REMAINDER,
-                   help='the options of python -m ibvs_experiments.vsbench')
-    p.set_defaults(func=cmd_vsbench)
+    p.set_defaults(func=cmd_vsbench, vsbench_args=[])
     for name in ('study', 'report'):
         p = sub.choices[name]
         p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
@@ -412,7 +411,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument('--parallel', type=int,
                        help='runs at once on the local Ray (default: one per core, '
                        f"{study_defaults['parallel']} here)")
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ['vsbench']:
+        args = argparse.Namespace(func=cmd_vsbench, vsbench_args=argv[1:])
+    else:
+        args = parser.parse_args(argv)
     try:
         return args.func(args)
     except (scenario.ScenarioError, study_spec.StudyError, FileNotFoundError,

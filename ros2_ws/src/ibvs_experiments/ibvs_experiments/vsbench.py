@@ -115,7 +115,7 @@ def benchmark_path() -> Path:
 
 def imperfections(n: int, seed: int = IMPERFECTION_SEED) -> list[dict[str, Any]]:
     """
-    Return ``n`` drawn imperfections (the node parameters), one stream, task after task.
+    Return the drawn imperfections of the first tasks: node parameters, one stream.
 
     Per task: ``camera_pose_error_xyz_m`` (3 uniform in +-:data:`POSITION_ERROR_M`),
     ``camera_pose_error_rpy_deg`` (3 uniform in +-:data:`ROTATION_ERROR_DEG`),
@@ -344,8 +344,8 @@ def run_metrics(task: Mapping[str, Any], law: str, t: ArrayLike, q: ArrayLike,
         'task': task['id'], 'index': int(task['index']), 'law': law,
         'observability': float(task['observability']),
         'start_distance_m': float(np.linalg.norm(target[:3, 3] - position[0])),
-        'start_angle_deg': float(np.degrees(np.arccos(np.clip(start_axis @ target_axis,
-                                                               -1.0, 1.0)))),
+        'start_angle_deg': float(np.degrees(np.arccos(
+            np.clip(start_axis @ target_axis, -1.0, 1.0)))),
         'success': bool(SUCCESS.final(metrics)),
         'final_position_error_m': metrics.get('final_position_error_m'),
         'final_tool_axis_error_deg': metrics.get('final_tool_axis_error_deg'),
@@ -749,7 +749,7 @@ def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
              '## Success per law', ''] + summary_table(summary)
     if agree:
         lines += ['', '## Model loop against the graph (the tasks both ran)', '',
-                  'Agree: each rate lies within the other\'s 95 % Wilson interval.', '']
+                  "Agree: each rate lies within the other's 95 % Wilson interval.", '']
         lines += agreement_table(agree)
     lines += ['', '## Figures', ''] + [f'![{p.stem}]({p.name})' for p in figures]
     misses = [r for r in rows if not r['success']]
@@ -798,7 +798,8 @@ def timing_lines(rows: Sequence[Mapping[str, Any]], walls: Mapping[str, float],
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m ibvs_experiments.vsbench``: run the benchmark, write the report."""
-    parser = argparse.ArgumentParser(description='The workspace benchmark (module docstring).')
+    parser = argparse.ArgumentParser(prog='ibvs vsbench',
+                                     description='The workspace benchmark (module docstring).')
     parser.add_argument('--tasks', type=int, default=TASKS,
                         help=f'tasks through the model loop (default {TASKS})')
     parser.add_argument('--graph-tasks', type=int, default=100,
@@ -809,9 +810,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--parallel', type=int, default=None,
                         help='graph runs at once on Ray (default: one per core)')
     parser.add_argument('--duration', type=float, default=None,
-                        help=f'sim time per run (default the benchmark\'s, {DURATION_S} s)')
+                        help=f"sim time per run (default the benchmark's, {DURATION_S} s)")
     parser.add_argument('--resolution', choices=tuple(FEATURE_NOISE_PX), default=None,
                         help="image size of both loops (default the benchmark's, VGA)")
+    parser.add_argument('--only', type=int, metavar='K', default=None,
+                        help='run task K alone through the model loop, print its rows, exit')
     parser.add_argument('--measure-noise', action='store_true',
                         help='measure the feature noise at --resolution and exit')
     parser.add_argument('--benchmark', default=None, help='the benchmark file (default: '
@@ -835,6 +838,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     bench = load(args.benchmark)
     resolution = args.resolution or bench['graph']['resolution']
     laws = tuple(law for law in args.laws.split(',') if law)
+    if args.only is not None:
+        for law in laws:
+            row = model_run(bench['tasks'][args.only], law, bench['conditions'],
+                            args.duration or bench['duration_s'], resolution)
+            print(json.dumps(row))
+        return 0
     if not 0 <= args.graph_tasks <= args.tasks <= len(bench['tasks']):
         parser.error(f"need 0 <= --graph-tasks <= --tasks <= {len(bench['tasks'])}")
     duration = args.duration or bench['duration_s']
