@@ -19,7 +19,7 @@ PYTEST_ARGS ?=
 IBVS_ROS_DOMAINS ?= 0-101
 export IBVS_ROS_DOMAINS
 
-.PHONY: all check-system venv build test fuzz demo report bench lint lock clean
+.PHONY: all check-system venv build test fuzz demo report vsbench bench lint lock clean
 all: build
 
 check-system:
@@ -84,6 +84,12 @@ demo: build
 
 report: build
 	$(RUN) python -m ibvs_experiments.cli report
+
+# The workspace benchmark (issue 38): 500 tasks x 3 laws through the model loop, the first
+# 100 through the graph; VSBENCH_ARGS='--tasks 50 --graph-tasks 10' for a reduced run.
+VSBENCH_ARGS ?=
+vsbench: build
+	$(RUN) python -m ibvs_experiments.vsbench $(VSBENCH_ARGS)
 
 bench: build
 	$(RUN) python -m ibvs_experiments.bench

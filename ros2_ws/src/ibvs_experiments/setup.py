@@ -14,6 +14,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/studies', glob('studies/*.yaml')),
+        ('share/' + package_name + '/benchmarks', glob('benchmarks/*.json')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

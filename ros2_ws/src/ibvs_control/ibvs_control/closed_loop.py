@@ -16,7 +16,7 @@ joint controller's own lockstep, :class:`.feedback_lockstep.FeedbackLockstep`.
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any, TYPE_CHECKING
 
 from ibvs_common import shared_params
@@ -121,6 +121,11 @@ class LoopResult:
     q_target: np.ndarray
     model: CameraRobotModel
     rejected_frames: int = 0
+    #: Frames lost (``frame_drop_probability``): the law not updated, q_feedback held.
+    dropped_frames: int = 0
+    #: The safety envelope's interventions, frames per code (``envelope.Intervention``'s
+    #: value): empty without the envelope.
+    interventions: dict = field(default_factory=dict)
 
     @property
     def image_error(self) -> NDArray[np.float64]:
@@ -143,7 +148,8 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
              plant_camera: 'StereoCamera | None' = None, disturbance: ArrayLike | None = None,
              target: ArrayLike | None = None, integration: str = 'exact',
              estimate_out_of_view: bool = True, feature_noise_px: float = 0.0,
-             seed: int = 0) -> LoopResult:
+             seed: int = 0, frame_drop_probability: float = 0.0,
+             target_noise_px: float = 0.0) -> LoopResult:
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -176,6 +182,15 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
         for the detector's error, not rendered image noise.
     seed : int
         Seed of that noise.
+    frame_drop_probability : float
+        Probability that a frame is lost, in [0, 1): the law is not updated and its last
+        q_feedback is held, as the joint controller holds it on the simulator's notice of a
+        lost frame (docs/camera.md). Drawn from ``numpy.random.default_rng([seed, 1])``
+        (nothing drawn when 0).
+    target_noise_px : float
+        With a taught target: standard deviation of Gaussian noise on the taught p_bar (px),
+        the detector's error on the one teach pair; drawn once from
+        ``numpy.random.default_rng([seed, 2])`` (nothing drawn when 0).
 
     Notes
     -----
@@ -202,6 +217,9 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     if cam_ns < dt_ns:
         raise ValueError('the camera rate must not exceed the physics rate')
     latency_ns = int(round(config.feedback_latency_s * 1e9))
+    if not 0.0 <= frame_drop_probability < 1.0:
+        raise ValueError(f'frame_drop_probability must be in [0, 1), got '
+                         f'{frame_drop_probability}')
     if integration not in ('exact', 'semi-implicit'):
         raise ValueError(f"integration must be 'exact' or 'semi-implicit', got {integration!r}")
     semi_implicit = integration == 'semi-implicit'
@@ -220,10 +238,14 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
                      feedforward_method=law.feedforward_method(config.feedforward_method))
     q_target = ff.start(q)
     taught = config.target_features_source == 'taught'
-    fb = law.create(model, pose, cam_ns * 1e-9, gain=config.gain,
-                    p_target=plant.features(inverse_kinematics(pose, plant.params,
-                                                               seed=q_target))
-                    if taught else None, **node_params.law_settings(asdict(config)))
+    p_taught = None
+    if taught:
+        p_taught = plant.features(inverse_kinematics(pose, plant.params, seed=q_target))
+        if target_noise_px > 0.0:
+            p_taught = p_taught + np.random.default_rng([seed, 2]).normal(
+                0.0, target_noise_px, 6)
+    fb = law.create(model, pose, cam_ns * 1e-9, gain=config.gain, p_target=p_taught,
+                    **node_params.law_settings(asdict(config)))
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
     rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
@@ -231,8 +253,9 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     # The joint controller's rule: q_feedback = 0 until the first frame acts.
     lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
     rng = np.random.default_rng(seed)
+    drops = np.random.default_rng([seed, 1]) if frame_drop_probability > 0.0 else None
     next_frame = 0
-    rejected = 0
+    rejected = dropped = 0
     for k in range(steps):
         t_ns = k * dt_ns
         while next_frame * cam_ns <= t_ns:
@@ -242,6 +265,12 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
                 else model.features(q)
             if measured and feature_noise_px > 0.0:
                 p_hat = p_hat + rng.normal(0.0, feature_noise_px, 6)
+            if drops is not None and drops.random() < frame_drop_probability:
+                q_feedback = fb.q_feedback  # lost: the controller holds the last one
+                dropped += 1
+                _accepted(lockstep.offer_feedback(t_ns, q_feedback))
+                next_frame += 1
+                continue
             try:
                 q_feedback = fb.update(p_hat, q, qd, measured=measured,
                                        t=t_ns * 1e-9).q_feedback
@@ -270,4 +299,6 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
         t=np.arange(steps) * dt, q=rec['q'], q_true=rec['q'] + d_q,
         q_feedforward=rec['q_ff'], q_feedback=rec['q_fb'], frame_t=np.array(frames_t),
         features=np.array(frames_p), measured=np.array(frames_measured),
-        p_target=fb.p_target, q_target=q_target, model=plant, rejected_frames=rejected)
+        p_target=fb.p_target, q_target=q_target, model=plant, rejected_frames=rejected,
+        dropped_frames=dropped,
+        interventions={int(code): int(n) for code, n in getattr(fb, 'counts', {}).items()})

@@ -292,6 +292,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_vsbench(args: argparse.Namespace) -> int:
+    """Run the workspace benchmark (make vsbench; ibvs vsbench --help for its options)."""
+    from . import vsbench
+    return vsbench.main(args.vsbench_args)
+
+
 def _study_defaults():
     from . import study
     return {'domains': study.DOMAIN_IDS, 'parallel': study.default_parallel()}
@@ -392,6 +398,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='run again the runs recorded as failed (a failed run stays cached '
                    'as failed otherwise)')
     p.set_defaults(func=cmd_report)
+    # listed here; its options are vsbench's own (main hands them over before parsing)
+    p = sub.add_parser('vsbench', help=cmd_vsbench.__doc__, add_help=False)
+    p.set_defaults(func=cmd_vsbench, vsbench_args=[])
     for name in ('study', 'report'):
         p = sub.choices[name]
         p.add_argument('--address', help='an existing Ray cluster (ray start --head prints it); '
@@ -402,7 +411,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument('--parallel', type=int,
                        help='runs at once on the local Ray (default: one per core, '
                        f"{study_defaults['parallel']} here)")
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ['vsbench']:
+        args = argparse.Namespace(func=cmd_vsbench, vsbench_args=argv[1:])
+    else:
+        args = parser.parse_args(argv)
     try:
         return args.func(args)
     except (scenario.ScenarioError, study_spec.StudyError, FileNotFoundError,

@@ -1,0 +1,131 @@
+"""The workspace benchmark's definition, summary statistics and per-run metrics (no ROS)."""
+
+import math
+
+from ibvs_experiments import vsbench
+from ibvs_model import IRB4600
+import numpy as np
+import pytest
+from scipy import stats
+
+
+def test_the_committed_benchmark_file_is_what_its_definition_writes():
+    path = vsbench.benchmark_path()
+    assert path.read_text() == vsbench.dumps(vsbench.definition(vsbench.TASKS))
+    data = vsbench.load(path)
+    assert len(data['tasks']) == vsbench.TASKS
+    assert len({t['id'] for t in data['tasks']}) == vsbench.TASKS
+
+
+def test_a_shorter_definition_is_a_prefix_of_the_longer_one():
+    assert vsbench.definition(7)['tasks'] == vsbench.definition(12)['tasks'][:7]
+
+
+def test_the_imperfections_stay_within_their_bounds():
+    draws = vsbench.imperfections(400)
+    xyz = np.array([d['camera_pose_error_xyz_m'] for d in draws])
+    rpy = np.array([d['camera_pose_error_rpy_deg'] for d in draws])
+    focal = np.array([d['focal_length_error'] for d in draws])
+    assert np.abs(xyz).max() <= vsbench.POSITION_ERROR_M
+    assert np.abs(rpy).max() <= vsbench.ROTATION_ERROR_DEG
+    assert np.abs(focal - 1.0).max() <= vsbench.FOCAL_ERROR
+    # uniform over the whole range, not a corner of it
+    assert np.abs(xyz).max() > 0.9 * vsbench.POSITION_ERROR_M
+    assert all(isinstance(d['camera_seed'], int) for d in draws)
+    assert len({d['camera_seed'] for d in draws}) == len(draws)
+
+
+def test_a_file_of_another_version_is_refused(tmp_path):
+    path = tmp_path / 'b.json'
+    path.write_text('{"version": "vsbench-0", "tasks": []}')
+    with pytest.raises(ValueError, match='vsbench-0'):
+        vsbench.load(path)
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_the_wilson_interval_is_scipys_and_holds_the_rate(seed):
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        n = int(rng.integers(1, 600))
+        k = int(rng.integers(0, n + 1))
+        low, high = vsbench.wilson(k, n)
+        ci = stats.binomtest(k, n).proportion_ci(0.95, method='wilson')
+        assert (low, high) == (ci.low, ci.high)
+        assert 0.0 <= low <= k / n <= high <= 1.0
+        # more runs at the same rate: a narrower interval
+        low2, high2 = vsbench.wilson(4 * k, 4 * n)
+        assert high2 - low2 < high - low
+    assert all(math.isnan(v) for v in vsbench.wilson(0, 0))
+
+
+def _row(task, law, success, source='model', **extra):
+    return {'task': task, 'law': law, 'success': success, 'source': source,
+            'miss_reason': '' if success else 'stalled', 'time_to_1mm_s': 1.0,
+            'overshoot_m': 0.001, 'path_length_ratio': 1.2, 'peak_speed_ratio': 0.5,
+            'interventions': 2, 'limit_violations': 0, 'collisions': 0,
+            'min_limit_distance_rad': 0.3, 'min_self_clearance_m': 0.2,
+            'min_scene_clearance_m': 0.1, **extra}
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_the_summary_counts_each_law_and_takes_its_interval_from_scipy(seed):
+    rng = np.random.default_rng(seed)
+    rows = [_row(f't{i}', law, bool(rng.random() < p), source)
+            for source in ('model', 'graph') for law, p in (('paper', 0.9), ('ibvs', 0.3))
+            for i in range(int(rng.integers(1, 80)))]
+    for s in vsbench.summarise(rows):
+        group = [r for r in rows if r['source'] == s['source'] and r['law'] == s['law']]
+        wins = sum(r['success'] for r in group)
+        assert (s['runs'], s['successes']) == (len(group), wins)
+        assert s['rate'] == wins / len(group)
+        assert (s['ci_low'], s['ci_high']) == vsbench.wilson(wins, len(group))
+        assert sum(s['miss_classes'].values()) == len(group) - wins
+        assert s['interventions'] == 2 * len(group)
+
+
+def test_model_and_graph_agree_when_they_match_and_not_when_they_are_far_apart():
+    same = [_row(f't{i}', 'paper', i % 10 != 0, s) for s in ('model', 'graph')
+            for i in range(100)]
+    (entry,) = vsbench.agreement(same)
+    assert entry['agree'] and entry['same_verdict'] == 100 and entry['tasks'] == 100
+    apart = [_row(f't{i}', 'paper', s == 'model' or i < 20, s) for s in ('model', 'graph')
+             for i in range(100)]
+    (entry,) = vsbench.agreement(apart)
+    assert not entry['agree'] and entry['graph']['successes'] == 20
+    # only the tasks both ran are compared
+    extra = same + [_row('only-model', 'paper', False, 'model')]
+    assert vsbench.agreement(extra)[0]['tasks'] == 100
+
+
+def test_run_metrics_count_limit_violations_and_path_length():
+    task = vsbench.load()['tasks'][0]
+    q0, q1 = np.array(task['start_joints']), np.array(task['target_joints'])
+    s = np.linspace(0.0, 1.0, 200)[:, None]
+    q = q0 + s * (q1 - q0)
+    t = np.linspace(0.0, 2.0, 200)
+    row = vsbench.run_metrics(task, 'paper', t, q)
+    assert row['success'] and row['limit_violations'] == 0 and row['collisions'] == 0
+    assert row['path_length_ratio'] >= 1.0 - 1e-9
+    assert row['min_limit_distance_rad'] > 0.0
+    assert row['peak_speed_ratio'] > 0.0
+    # past joint 1's upper limit in 3 samples: 3 violations, a negative distance
+    q_bad = q.copy()
+    q_bad[50:53, 0] = IRB4600.q_max[0] + 0.01
+    bad = vsbench.run_metrics(task, 'paper', t, q_bad)
+    assert bad['limit_violations'] == 3
+    assert bad['min_limit_distance_rad'] == pytest.approx(-0.01)
+
+
+def test_graph_overrides_carry_the_task_and_its_imperfections():
+    bench = vsbench.load()
+    spec = vsbench.graph_spec(bench, 2, ('paper', 'ibvs'))
+    runs = spec.runs()
+    assert len(runs) == 4
+    first = runs[0].overrides
+    task = bench['tasks'][0]
+    for name in ('start_joints', 'target_position', 'camera_pose_error_xyz_m',
+                 'camera_seed', 'focal_length_error'):
+        assert first[name] == task[name]
+    assert first['resolution'] == 'VGA' and first['safety_envelope'] is True
+    assert runs[1].overrides['servo_law'] == 'ibvs'
+    assert runs[1].overrides['feedforward_method'] == 'hold'
