@@ -15,6 +15,9 @@ from ibvs_common import contract
 import yaml
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
+#: Keys of a run's parameters that the runner reads and no node declares: the runner
+#: names the run and stops it at its sim time limit itself.
+RUNNER_ONLY = ('scenario_name', 'run_duration_s', 'duration_s')
 
 
 class ScenarioError(ValueError):

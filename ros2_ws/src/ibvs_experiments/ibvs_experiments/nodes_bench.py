@@ -49,12 +49,8 @@ import numpy as np
 
 #: Measurement starts this long (wall s) after the first frame is sent.
 WARMUP_S = 1.0
-#: The nodes of a real cell (docs/real_cell.md "By hand"), in start order.
-NODES = ('feature_node', 'adaptive_feedback_node', 'feedforward_node', 'joint_controller_node')
 #: How long the nodes may take to subscribe (wall s) before the replay gives up.
 START_TIMEOUT_S = 60.0
-#: Parameters of the recorded run that only the simulator or the runner read.
-RUNNER_ONLY = ('scenario_name', 'run_duration_s')
 
 
 @dataclass
@@ -254,7 +250,7 @@ class Replayer:
 def _node_params(recording: Recording, path: Path) -> Path:
     """Write the nodes' parameters: the recorded run's, on the wall clock."""
     from ibvs_bringup import scenario
-    params = {k: v for k, v in recording.params.items() if k not in RUNNER_ONLY}
+    params = {k: v for k, v in recording.params.items() if k not in scenario.RUNNER_ONLY}
     params['use_sim_time'] = False
     return scenario.write_parameters(params, path)
 
@@ -269,6 +265,8 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
     """
     from ibvs_bringup import domains
     from ibvs_bringup.graph import GRAPH
+
+    from .cell import CELL_NODES
     from ibvs_bringup.supervision import NodeProcess, stop_all
     from ibvs_common import contract, dds
     from ibvs_common.conversions import stamp_ns
@@ -301,16 +299,16 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
             replayer = Replayer(node, recording, joint_rate, camera_rate, physics_rate)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
-            for name in NODES:
+            for name in CELL_NODES:
                 spec = GRAPH.node(name)
                 remaps = [arg for topic, remapped in spec.zed_remaps.items()
                           for arg in ('-r', f'{topic}:={remapped}')]
                 procs.append(NodeProcess(spec.package, name, params_file, log_dir, remaps))
-            progress(f'  nodes alone: ROS_DOMAIN_ID {domain}, {", ".join(NODES)} started, '
+            progress(f'  nodes alone: ROS_DOMAIN_ID {domain}, {", ".join(CELL_NODES)} started, '
                      f'replaying {bag_path} ({len(recording.frames)} frames, '
                      f'{recording.size[0]} x {recording.size[1]})')
             deadline = time.monotonic() + START_TIMEOUT_S
-            wanted = {'joint_states': len(NODES), 'image': 1, 'camera_info': 2}
+            wanted = {'joint_states': len(CELL_NODES), 'image': 1, 'camera_info': 2}
             while any(replayer.readers()[k] < n for k, n in wanted.items()):
                 executor.spin_once(timeout_sec=0.05)
                 dead = [p.name for p in procs if p.poll() is not None]
@@ -344,7 +342,7 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
     result['cpu'] = {name: {'cpu_s': after[0][name] - cpu[0][name],
                             'cores': (after[0][name] - cpu[0][name]) / window_s,
                             'ms_per_frame': (after[0][name] - cpu[0][name]) / frames * 1e3}
-                     for name in NODES}
+                     for name in CELL_NODES}
     result['cpu']['replayer (this process)'] = {
         'cpu_s': after[1] - cpu[1], 'cores': (after[1] - cpu[1]) / window_s,
         'ms_per_frame': (after[1] - cpu[1]) / frames * 1e3}

@@ -504,8 +504,7 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
     log_dir = out_dir / 'logs'
     log_dir.mkdir(exist_ok=True)
     # duration_s: the runner stops the graph at the run's sim time limit itself (watch).
-    runner_only = ('scenario_name', 'run_duration_s', 'duration_s')
-    node_params = {k: v for k, v in params.items() if k not in runner_only}
+    node_params = {k: v for k, v in params.items() if k not in scenario.RUNNER_ONLY}
     params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
     bag_path = out_dir / 'bag'
     if bag_path.exists():

@@ -46,7 +46,7 @@ from ibvs_control.closed_loop import LoopConfig, simulate
 from ibvs_control.envelope import Intervention
 from ibvs_control.servo_laws import feedforward_overrides
 from ibvs_model import (CameraRobotModel, default_model, forward_kinematics_batch, IRB4600,
-                        StereoCamera, task_sampler)
+                        pose_from, StereoCamera, task_sampler)
 from ibvs_model.capsules import Cell, clearances
 import numpy as np
 from numpy.typing import ArrayLike
@@ -182,10 +182,7 @@ def load(path: str | Path | None = None) -> dict[str, Any]:
 
 def target_pose(task: Mapping[str, Any]) -> np.ndarray:
     """Return a task's target flange pose T_E^O (4x4)."""
-    pose = np.eye(4)
-    pose[:3, 3] = task['target_position']
-    pose[:3, :3] = np.reshape(task['target_rotation'], (3, 3))
-    return pose
+    return pose_from(task['target_position'], np.reshape(task['target_rotation'], (3, 3)))
 
 
 def calibrated_model(true: CameraRobotModel, task: Mapping[str, Any]) -> CameraRobotModel:
@@ -538,9 +535,7 @@ def run_graph(bench: Mapping[str, Any], n_tasks: int, out_dir: Path,
     resolution = resolution or bench['graph']['resolution']
     spec = graph_spec(bench, n_tasks, laws, duration_s,
                       name=f'{NAME}_graph_{resolution.lower()}', resolution=resolution)
-    domains = study.parse_domains(os.environ.get('IBVS_ROS_DOMAINS', '0-101'))
-    records = study.run_studies([spec], out_dir, parallel=parallel, domains=domains,
-                                out=out)[spec.name]
+    records = study.run_studies([spec], out_dir, parallel=parallel, out=out)[spec.name]
     pairs = [(task, law) for task in bench['tasks'][:n_tasks] for law in laws]
     return [graph_row(task, law, record) for (task, law), record in zip(pairs, records)]
 
