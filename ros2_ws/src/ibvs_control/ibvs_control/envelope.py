@@ -57,7 +57,8 @@ from ibvs_model.capsules import Cell, clearances
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .controllers import feature_error, FeedbackUpdate, target_branch
+from .controllers import (feature_error, FeedbackUpdate, FEEDFORWARD_LIMIT_MARGIN_RAD,
+                          target_branch)
 from .servo_status import ServoStatus
 
 #: ViSP's defaults (vpServo.h): activation at rho of the range from a limit, the critical
@@ -81,7 +82,7 @@ SELF_COLLISION_PROXIMITY_THRESHOLD = 0.01
 SCENE_COLLISION_PROXIMITY_THRESHOLD = 0.02
 #: The final guarantee's margin inside the joint limits (rad): the velocity laws' own
 #: clamp (servo_laws.JOINT_LIMIT_MARGIN_RAD).
-FINAL_MARGIN_RAD = 0.05
+FINAL_MARGIN_RAD = FEEDFORWARD_LIMIT_MARGIN_RAD
 
 
 class Intervention(IntEnum):

@@ -316,22 +316,22 @@ class JointControllerNode(Node):
         if not self.shaper.started:
             self.shaper.start(self._measured[1])
             self._last_command_ns = now_ns - self.command_period_ns
-        ahead = np.arange(1, self.window_points) * self.command_period_ns
         if verdict.holding:
             if self._hold_target is None:  # a controlled stop
                 self._hold_target = self.shaper.stopping_point()
-            target, first_frame_ns = self._hold_target, None
-            targets = np.tile(target, (len(ahead), 1))
+            target, first_frame_ns, q_feedback = self._hold_target, None, None
         else:
             self._hold_target = None
             q_feedback, first_frame_ns = self._hold.use()
             target = self.q_feedforward(now_ns) + q_feedback
-            targets = [self.q_feedforward(now_ns + t) + q_feedback for t in ahead]
         q_command = self.shaper.step(target, ns_to_seconds(now_ns - self._last_command_ns))
         self._last_command_ns = now_ns
         if self._pub.msg_type is Float64MultiArray:
             self._pub.publish(Float64MultiArray(data=[float(v) for v in q_command[self._order]]))
         else:  # the window: now and its course ahead (module docstring)
+            ahead = np.arange(1, self.window_points) * self.command_period_ns
+            targets = (np.tile(target, (len(ahead), 1)) if q_feedback is None
+                       else [self.q_feedforward(now_ns + t) + q_feedback for t in ahead])
             window = np.vstack([q_command, self.shaper.preview(targets)])
             self._pub.publish(joint_trajectory(now_ns, self.command_period_ns,
                                                window[:, self._order], self.joints))

@@ -57,8 +57,7 @@ from ibvs_bringup.graph import GRAPH
 from ibvs_common import contract
 
 #: The nodes of a cell, in start order (docs/real_cell.md "By hand"): no simulator.
-CELL_NODES = ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
-              'joint_controller_node')
+CELL_NODES = tuple(n.name for n in GRAPH.cell_nodes() if n.paper)
 #: The parameter file of a cell, in ibvs_bringup's config (installed with the scenarios).
 CELL_CONFIG = 'cell.yaml'
 #: zed-ros2-wrapper's launch defaults (master 33dfefa zed_wrapper/launch/zed_camera.launch.py

@@ -40,11 +40,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import paper
-from .camera import look_at, StereoCamera, StereoIntrinsics
+# default_model: the package's (the paper's robot, the ZED 2 at the paper's pose), named
+# here too for the sampler's callers.
+from . import default_model  # noqa: F401
 from .combined import CameraRobotModel
 from .errors import ModelError
-from .robot import fiducial_points, forward_kinematics, ik_position_axis, IRB4600
+from .robot import fiducial_points, forward_kinematics, ik_position_axis
 from .scene import discs_apart, MARKER_RADIUS_M, wrist_clear, WRIST_CLEAR_DEG
 
 #: The version of the task set: a task set is (VERSION, n, seed). Change it with anything
@@ -73,13 +74,6 @@ class Margins:
 
 #: Where targets are drawn: the flange in this box of {O} (m), in front of the camera.
 TARGET_BOX_M = ((-1.4, -0.4, 0.0), (1.4, 0.5, 1.2))
-
-
-def default_model(resolution: str = 'HD720') -> CameraRobotModel:
-    """Return the paper's robot and the ZED 2 at the paper's pose (paper.CAMERA_EYE)."""
-    camera = StereoCamera(StereoIntrinsics.zed2(resolution),
-                          look_at(paper.CAMERA_EYE, paper.CAMERA_LOOK_AT))
-    return CameraRobotModel(camera, IRB4600)
 
 
 def axis_observability(model: CameraRobotModel, q: ArrayLike) -> float:

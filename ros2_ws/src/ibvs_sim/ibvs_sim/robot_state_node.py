@@ -38,6 +38,7 @@ from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (InputError, position_bounds, read_joints, read_stamp,
                                      stamp_lead_ns, StampOrder, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import publisher, subscription
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
 from ibvs_common.sim_time import node_time_ns
@@ -77,12 +78,11 @@ class RobotStateNode(Node):
         self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (
             f"/tf of {self._diag.values['tf_published']} joint states (last at "
             f'{self._last_joint_ns * 1e-9:.3f} s)'))
-        description = self.create_publisher(String, contract.ROBOT_DESCRIPTION,
-                                            contract.LATCHED)
-        static = self.create_publisher(TFMessage, contract.TF_STATIC, contract.LATCHED)
-        self._tf_pub = self.create_publisher(TFMessage, contract.TF, TF_DEPTH)
-        self._joints_topic = self.create_subscription(
-            JointState, contract.JOINT_STATES, self._on_joints, contract.RELIABLE).topic_name
+        description = publisher(self, String, contract.ROBOT_DESCRIPTION, contract.LATCHED)
+        static = publisher(self, TFMessage, contract.TF_STATIC, contract.LATCHED)
+        self._tf_pub = publisher(self, TFMessage, contract.TF, TF_DEPTH)
+        self._joints_topic = subscription(self, JointState, contract.JOINT_STATES,
+                                          self._on_joints, contract.RELIABLE).topic_name
         description.publish(String(data=abb_urdf.robot_description(self._params)))
         static.publish(transforms_msg(abb_urdf.fixed_transforms(),
                                       self.get_clock().now().to_msg()))

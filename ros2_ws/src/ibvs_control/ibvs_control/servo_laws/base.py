@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import envelope
-from ..controllers import FeedbackUpdate
+from ..controllers import FeedbackUpdate, FEEDFORWARD_LIMIT_MARGIN_RAD
 from ..decoupling import SVD_RCOND
 
 if TYPE_CHECKING:
@@ -45,7 +45,7 @@ FEATURE_FALLBACKS = ('estimate', 'hold')
 #: within qd_max * WINDUP_HORIZON_S of the encoder angles of the frame (s).
 WINDUP_HORIZON_S = 0.2
 #: Joint limits of the velocity laws: the reference stays this far (rad) inside them.
-JOINT_LIMIT_MARGIN_RAD = 0.05
+JOINT_LIMIT_MARGIN_RAD = FEEDFORWARD_LIMIT_MARGIN_RAD
 
 
 class ServoLaw:
