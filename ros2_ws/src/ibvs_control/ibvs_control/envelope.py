@@ -52,7 +52,7 @@ from enum import IntEnum
 import math
 from typing import Any
 
-from ibvs_model import geometric_jacobian, ModelError
+from ibvs_model import condition_number, ModelError
 from ibvs_model.capsules import Cell, clearances
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -156,12 +156,6 @@ def collision_scale(distance: float, threshold: float) -> float:
     if distance <= 0.0:
         return 0.0
     return math.exp(-math.log(0.001) / threshold * (distance - threshold))
-
-
-def condition_number(q: ArrayLike) -> float:
-    """Return sigma_max / sigma_min of the robot's geometric Jacobian at ``q`` (inf: singular)."""
-    s = np.linalg.svd(geometric_jacobian(q), compute_uv=False)
-    return float(s[0] / s[-1]) if s[-1] > 0.0 else math.inf
 
 
 def large_projection_operator(jac: ArrayLike, error: ArrayLike, svd_rcond: float = 1e-6,

@@ -1,9 +1,9 @@
 """
 ``make vsbench``: the workspace benchmark of issue 38 (500 seeded tasks, three servo laws).
 
-The benchmark is data (:func:`definition`, committed as ``benchmarks/vsbench-1.json``):
+The benchmark is data (:func:`definition`, committed as ``benchmarks/vsbench-2.json``):
 500 tasks of the workspace sampler (:func:`ibvs_model.task_sampler.tasks`, version
-``workspace-1``, seed :data:`TASK_SEED`), each with its own drawn imperfections (camera
+``workspace-2``, seed :data:`TASK_SEED`), each with its own drawn imperfections (camera
 calibration error within +-3 mm per axis, +-0.3 deg per axis, focal length within
 +-0.5 %, and the ``camera_seed`` of its image noise and lost frames: seed
 :data:`IMPERFECTION_SEED`) and the conditions every run shares (:data:`CONDITIONS`: limited
@@ -16,7 +16,7 @@ Two ways through the tasks, the same success rule (:data:`.convergence.SUCCESS`)
   every task and law, in a process pool (:func:`screen`): the calibration error as the
   model's camera against the true one, the detector's measured feature noise
   (:data:`FEATURE_NOISE_PX`, on every frame and on the taught target) and the lost frames;
-- the node graph (``ibvs run``, VGA, lockstep: deterministic) for the first
+- the node graph (``ibvs run``, HD720, lockstep: deterministic) for the first
   ``--graph-tasks`` tasks and every law as a study on Ray (:func:`graph_spec`; resumable:
   the study cache keeps finished runs).
 
@@ -31,6 +31,7 @@ and JSON of every run, and figures of success against start distance and start a
 """
 
 import argparse
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 import csv
@@ -58,7 +59,7 @@ from .laws_report import CASES
 
 #: The benchmark's name and version: change the version with anything that changes the file.
 NAME = 'vsbench'
-VERSION = 'vsbench-1'
+VERSION = 'vsbench-2'
 #: How many tasks, and the seeds of the tasks and of their imperfections.
 TASKS = 500
 TASK_SEED = 1
@@ -74,15 +75,19 @@ FOCAL_ERROR = 0.005
 #: The conditions of every run (node parameters): real-cell conditions of issue 38 item 3
 #: on the law study's limited case (:data:`.laws_report.CASES`), no joint disturbance d_q
 #: (a real encoder reads the joint: the calibration error is the cell's imperfection), the
-#: safety envelope on.
+#: safety envelope on, the target taught on the mean of 10 frames (a third of a second of
+#: the tool held still: one frame's noise left 1-1.6 mm of depth error on 8 of vsbench-2's
+#: 500 targets in the model loop, docs/vsbench.md).
 CONDITIONS = {**CASES['limited'], 'image_noise_stddev': 0.01, 'frame_drop_probability': 0.05,
-              'target_features_source': 'taught', 'safety_envelope': True,
+              'target_features_source': 'taught', 'teach_frames': 10, 'safety_envelope': True,
               'disturbance_deg': [0.0] * 6}
 #: Sim time of a run (s): the law study's limited runs need up to 3 s from the paper's
 #: starts; the tasks start up to 20 deg per joint away.
 DURATION_S = 6.0
-#: The graph's image size: VGA (the benchmark's graph runs; HD720 costs about 2x to render).
-GRAPH_RESOLUTION = 'VGA'
+#: The image size of both loops: HD720, the real cell's mode (vsbench-1 ran VGA: its
+#: feature noise, 2.2 times HD720's at half the focal length, decided the runs more than the
+#: law did, and the model loop was then harsher than the graph; docs/vsbench.md).
+GRAPH_RESOLUTION = 'HD720'
 #: The graph's base scenario (the rest of its parameters: rates, gains).
 SCENARIO = 'scenario1'
 #: The feature noise (px, standard deviation per value and frame) the detector gives with
@@ -137,7 +142,8 @@ def imperfections(n: int, seed: int = IMPERFECTION_SEED) -> list[dict[str, Any]]
 
 def definition(n: int = TASKS) -> dict[str, Any]:
     """Return the benchmark (module docstring) with its first ``n`` tasks, as JSON data."""
-    tasks = task_sampler.tasks(n, TASK_SEED)
+    tally = Counter()
+    tasks = task_sampler.tasks(n, TASK_SEED, tally=tally)
     return {
         'name': NAME, 'version': VERSION,
         'success': SUCCESS.describe(),
@@ -145,7 +151,8 @@ def definition(n: int = TASKS) -> dict[str, Any]:
         'conditions': dict(CONDITIONS),
         'duration_s': DURATION_S,
         'graph': {'scenario': SCENARIO, 'resolution': GRAPH_RESOLUTION, 'mode': 'lockstep'},
-        'tasks_definition': {**task_sampler.describe(), 'n': n, 'seed': TASK_SEED},
+        'tasks_definition': {**task_sampler.describe(), 'n': n, 'seed': TASK_SEED,
+                             'draws': dict(sorted(tally.items()))},
         'imperfections_definition': {
             'seed': IMPERFECTION_SEED, 'camera_pose_error_xyz_m': POSITION_ERROR_M,
             'camera_pose_error_rpy_deg': ROTATION_ERROR_DEG,
@@ -222,11 +229,13 @@ def model_run(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any] =
         feature_noise_px = FEATURE_NOISE_PX[resolution]
     noise = feature_noise_px if conditions.get('image_noise_stddev', 0.0) > 0.0 else 0.0
     taught = conditions.get('target_features_source') == 'taught'
+    # The teach pair averages teach_frames frames (sim_node): 1 / sqrt of one frame's noise.
+    teach_noise = noise / math.sqrt(conditions.get('teach_frames', 1)) if taught else 0.0
     result = simulate(loop_config(law, task, conditions), duration_s,
                       model=calibrated_model(true, task), plant_camera=true.camera,
                       disturbance=np.radians(conditions.get('disturbance_deg', [0.0] * 6)),
                       target=target_pose(task), feature_noise_px=noise,
-                      target_noise_px=noise if taught else 0.0, seed=int(task['camera_seed']),
+                      target_noise_px=teach_noise, seed=int(task['camera_seed']),
                       frame_drop_probability=float(conditions.get('frame_drop_probability',
                                                                   0.0)))
     modes = ['measured' if m else 'estimated' for m in result.measured]

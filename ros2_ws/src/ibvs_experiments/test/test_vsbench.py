@@ -126,6 +126,6 @@ def test_graph_overrides_carry_the_task_and_its_imperfections():
     for name in ('start_joints', 'target_position', 'camera_pose_error_xyz_m',
                  'camera_seed', 'focal_length_error'):
         assert first[name] == task[name]
-    assert first['resolution'] == 'VGA' and first['safety_envelope'] is True
+    assert first['resolution'] == 'HD720' and first['safety_envelope'] is True
     assert runs[1].overrides['servo_law'] == 'ibvs'
     assert runs[1].overrides['feedforward_method'] == 'hold'

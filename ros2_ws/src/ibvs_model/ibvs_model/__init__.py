@@ -11,13 +11,15 @@ from .camera import look_at, StereoCamera, StereoIntrinsics
 from .combined import CameraRobotModel
 from .errors import (BehindCameraError, InvalidInputError, ModelError, TriangulationError,
                      UnreachablePoseError)
-from .robot import (fiducial_points, forward_kinematics, forward_kinematics_batch,
-                    geometric_jacobian, ik_position_axis, ik_solutions, inverse_kinematics,
-                    IRB4600, joint_frames, point_jacobian, pose_error, pose_from, RobotParams)
+from .robot import (condition_number, fiducial_points, forward_kinematics,
+                    forward_kinematics_batch, geometric_jacobian, ik_position_axis,
+                    ik_solutions, inverse_kinematics, IRB4600, joint_frames, point_jacobian,
+                    pose_error, pose_from, RobotParams)
 
 __all__ = [
-    'BehindCameraError', 'CameraRobotModel', 'fiducial_points', 'forward_kinematics',
-    'forward_kinematics_batch', 'geometric_jacobian', 'ik_position_axis', 'ik_solutions',
+    'BehindCameraError', 'CameraRobotModel', 'condition_number', 'fiducial_points',
+    'forward_kinematics', 'forward_kinematics_batch', 'geometric_jacobian', 'ik_position_axis',
+    'ik_solutions',
     'InvalidInputError',
     'inverse_kinematics', 'IRB4600', 'joint_frames', 'look_at', 'ModelError',
     'nearest_rotation', 'point_jacobian', 'pose_error', 'pose_from', 'RobotParams',

@@ -319,6 +319,18 @@ def geometric_jacobian(q: ArrayLike, params: RobotParams = IRB4600) -> NDArray[n
     return jac
 
 
+def condition_number(q: ArrayLike, params: RobotParams = IRB4600) -> float:
+    """
+    Return sigma_max / sigma_min of :func:`geometric_jacobian` at ``q`` (inf: singular).
+
+    The measure MoveIt Servo scales velocity by near a singularity (the safety envelope,
+    ``ibvs_control.envelope``), and the task sampler keeps targets below its slow-down
+    threshold.
+    """
+    s = np.linalg.svd(geometric_jacobian(q, params), compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0.0 else math.inf
+
+
 def _wrap_pi(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 

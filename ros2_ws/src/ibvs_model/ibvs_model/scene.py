@@ -154,7 +154,8 @@ def wrist_clear(camera: 'StereoCamera', points: 'NDArray[np.float64]',
     Parameters
     ----------
     camera : StereoCamera
-        The camera (both lens centres: {C}'s origin and the baseline along x_C).
+        The camera (the lens centres at -b/2 and +b/2 along x_C, as
+        :meth:`.camera.StereoCamera.project` places them).
     points : ndarray, shape (2, 3)
         Marker 1 and marker 2 in {O} (m).
     min_angle_deg : float
@@ -167,8 +168,8 @@ def wrist_clear(camera: 'StereoCamera', points: 'NDArray[np.float64]',
     """
     p1, p2 = np.asarray(points, dtype=float)
     back = (p1 - p2) / np.linalg.norm(p1 - p2)
-    lenses = camera.to_base(np.array([[0.0, 0.0, 0.0],
-                                      [camera.intrinsics.baseline, 0.0, 0.0]]))
+    half_b = camera.intrinsics.baseline / 2.0
+    lenses = camera.to_base(np.array([[-half_b, 0.0, 0.0], [half_b, 0.0, 0.0]]))
     sight = lenses - p1
     cos = sight @ back / np.linalg.norm(sight, axis=1)
     return bool(np.all(cos <= math.cos(math.radians(min_angle_deg))))

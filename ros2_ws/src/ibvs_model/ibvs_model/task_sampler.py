@@ -20,7 +20,19 @@ A target is kept when (each a margin below, :class:`Margins`):
   from the floor to the shoulder), ``floor_clearance_m`` above the floor (``z =
   -mount_height_m``: the simulator's riser, 0.5 m by default; the simulated cell has no
   table, so the floor is the surface under the tool) and ``camera_clearance_m`` from the
-  camera's optical centre.
+  camera's optical centre;
+- the arm is away from its singularities: the condition number of its geometric Jacobian
+  (:func:`.robot.condition_number`) is below ``max_condition_number``, MoveIt Servo's
+  ``lower_singularity_threshold`` (17), where the safety envelope starts to slow a law down
+  (``ibvs_control.envelope``): a target inside that band is one no law may approach at speed;
+- the tool axis is observable to the success criterion: :func:`axis_observability` at
+  least ``min_observability_px_rad``. The taught target is one detection, so its features
+  carry the detector's noise sigma (0.0076 px per feature at HD720, measured:
+  ``ibvs vsbench --measure-noise --resolution HD720``) and the worst tilt of the taught
+  axis has a standard deviation of sigma / observability rad. Three of them within the
+  success criterion's 0.5 deg: observability >= 3 x 0.0076 / radians(0.5) = 2.6 px/rad. A
+  weaker target is a test of the camera, not of a servo law: no law can end within 0.5 deg
+  of a target the camera places 0.5 deg off. (workspace-1 kept them: 37 % of its 500.)
 
 A start is the target's joint angles plus a uniform offset of up to ``start_offset_rad``
 per joint (joint 6 too: its roll is unobservable and the loop never corrects it), kept when
@@ -33,6 +45,7 @@ weakly observable target is known before it is run.
 ``python -m ibvs_experiments.tasks`` writes a task set to JSON or CSV.
 """
 
+from collections import Counter
 from dataclasses import asdict, dataclass
 import math
 from typing import Any
@@ -45,12 +58,15 @@ from numpy.typing import ArrayLike
 from . import default_model  # noqa: F401
 from .combined import CameraRobotModel
 from .errors import ModelError
-from .robot import fiducial_points, forward_kinematics, ik_position_axis
+from .robot import condition_number, fiducial_points, forward_kinematics, ik_position_axis
 from .scene import discs_apart, MARKER_RADIUS_M, wrist_clear, WRIST_CLEAR_DEG
 
 #: The version of the task set: a task set is (VERSION, n, seed). Change it with anything
 #: that changes which tasks a seed draws (the bounds, margins, camera or the draw order).
-VERSION = 'workspace-1'
+#: workspace-2: targets below the singularity slow-down threshold and observable to the
+#: success criterion (module docstring); :func:`.scene.wrist_clear` with the lenses at
+#: -b/2 and +b/2 (workspace-1 put them at 0 and b).
+VERSION = 'workspace-2'
 
 
 @dataclass(frozen=True)
@@ -70,6 +86,8 @@ class Margins:
     camera_clearance_m: float = 0.5
     max_tilt_deg: float = 35.0
     start_offset_rad: float = math.radians(20.0)
+    max_condition_number: float = 17.0
+    min_observability_px_rad: float = 2.6
 
 
 #: Where targets are drawn: the flange in this box of {O} (m), in front of the camera.
@@ -156,6 +174,10 @@ def target_check(model: CameraRobotModel, q: ArrayLike, margins: Margins = Margi
         return 'the markers overlap in an image'
     if not wrist_clear(model.camera, points, margins.wrist_clear_deg):
         return 'a lens looks at P1 from behind the wrist'
+    if condition_number(q, model.params) >= margins.max_condition_number:
+        return 'the arm near a singularity (condition number)'
+    if axis_observability(model, q) < margins.min_observability_px_rad:
+        return 'the tool axis weakly observable'
     return None
 
 
@@ -189,11 +211,13 @@ def _task_dict(model, index, seed, q_start, q_target):
         # 0: joint 6 moves no feature); it mixes the tilt with the arm's joint scaling.
         'jacobian_sigma5': float(np.linalg.svd(model.jacobian(q_target),
                                                compute_uv=False)[4]),
+        'condition_number': condition_number(q_target, model.params),
     }
 
 
 def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
-          margins: Margins = Margins(), max_tries: int = 200000) -> list[dict[str, Any]]:
+          margins: Margins = Margins(), max_tries: int = 200000,
+          tally: 'Counter[str] | None' = None) -> list[dict[str, Any]]:
     """
     Return ``n`` tasks drawn with ``numpy.random.default_rng(seed)`` (module docstring).
 
@@ -209,6 +233,9 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         The margins kept.
     max_tries : int
         Draws before giving up (a RuntimeError: the margins leave no room).
+    tally : collections.Counter, optional
+        Filled with why draws were refused (the reasons of :func:`target_check` and
+        :func:`start_check`, 'unreachable' where the IK has no solution) and 'kept'.
 
     Returns
     -------
@@ -216,8 +243,9 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         Per task: ``id`` ('<VERSION>/<seed>/<k>'), ``version``, ``seed``, ``index``, the
         node parameters ``start_joints`` (6, rad), ``target_position`` (3, m),
         ``target_rotation`` (9, row-major), and ``target_joints`` (6, rad: the IK branch
-        found), ``observability`` (px/rad, :func:`axis_observability`) and
-        ``jacobian_sigma5`` (px/rad, the 5th singular value of C1 at the target).
+        found), ``observability`` (px/rad, :func:`axis_observability`),
+        ``jacobian_sigma5`` (px/rad, the 5th singular value of C1 at the target) and
+        ``condition_number`` (:func:`.robot.condition_number` at the target).
 
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
@@ -226,6 +254,7 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         raise ValueError(f'seed: expected an integer >= 0, got {seed!r}')
     model = default_model() if model is None else model
     rng = np.random.default_rng(seed)
+    tally = Counter() if tally is None else tally
     out = []
     tries = 0
     while len(out) < n:
@@ -243,12 +272,18 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         try:
             q = ik_position_axis(position, axis, q6, model.params)
         except ModelError:
+            tally['unreachable'] += 1
             continue
-        if target_check(model, q, margins) is not None:
+        why = target_check(model, q, margins)
+        if why is not None:
+            tally[f'target: {why}'] += 1
             continue
         q_start = q + offset
-        if start_check(model, q_start, margins) is not None:
+        why = start_check(model, q_start, margins)
+        if why is not None:
+            tally[f'start: {why}'] += 1
             continue
+        tally['kept'] += 1
         out.append(_task_dict(model, len(out), seed, q_start, q))
     return out
 

@@ -127,8 +127,8 @@ def test_wrist_clear_is_the_angle_of_each_lens_from_behind_the_wrist():
     q = inverse_kinematics(paper.target_pose(), IRB4600)
     p1, p2 = fiducial_points(q, IRB4600)
     back = (p1 - p2) / np.linalg.norm(p1 - p2)
-    lenses = MODEL.camera.to_base(np.array([[0.0, 0.0, 0.0],
-                                            [MODEL.camera.intrinsics.baseline, 0.0, 0.0]]))
+    half_b = MODEL.camera.intrinsics.baseline / 2.0  # the lenses at -b/2 and +b/2 on x_C
+    lenses = MODEL.camera.to_base(np.array([[-half_b, 0.0, 0.0], [half_b, 0.0, 0.0]]))
     angles = [math.degrees(math.acos((lens - p1) @ back / np.linalg.norm(lens - p1)))
               for lens in lenses]
     assert wrist_clear(MODEL.camera, np.vstack([p1, p2]), min(angles) - 1e-6)

@@ -73,6 +73,13 @@ CAMERA_POSE_ERROR_RPY_DEG = Param(
     'orientation: the published /stereo/pose is the true one turned by roll, pitch, yaw '
     'about the true camera axes x, y, z (R = Rz Ry Rx)', 'deg', low=-10.0, high=10.0,
     length=3)
+#: Most frames a taught pair may average.
+MAX_TEACH_FRAMES = 100
+TEACH_FRAMES = Param(
+    'teach_frames', 1, "stereo frames of the tool held at the target that the teach pair "
+    "averages, pixel by pixel (each its own image noise; target_features_source 'taught'): "
+    'the features of the taught target then carry 1 / sqrt(teach_frames) of one '
+    "frame's noise; 1: one frame", '-', low=1, high=MAX_TEACH_FRAMES)
 FOCAL_LENGTH_ERROR = Param(
     'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
     'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
@@ -105,6 +112,7 @@ class SimConfig(ParamConfig):
     image_noise_stddev: float = param_field(IMAGE_NOISE_STDDEV)
     frame_drop_probability: float = param_field(FRAME_DROP_PROBABILITY)
     camera_seed: int = param_field(CAMERA_SEED)
+    teach_frames: int = param_field(TEACH_FRAMES)
     camera_pose_error_xyz_m: tuple[float, float, float] = param_field(CAMERA_POSE_ERROR_XYZ_M)
     camera_pose_error_rpy_deg: tuple[float, float, float] = \
         param_field(CAMERA_POSE_ERROR_RPY_DEG)

@@ -125,7 +125,7 @@ class Simulator:
                 raise ConfigError('target_position', f'the target pose to teach is '
                                   f'unreachable by the simulated robot: {exc}') from None
             self.world.reset(self.teach_q)
-            self.teach_images = self._render()
+            self.teach_images = self._teach(config.teach_frames)
         self.world.reset(self.q_start)
         self.k = 0
         self.next_frame = 0
@@ -200,12 +200,33 @@ class Simulator:
         self.next_frame += 1
         return stamp
 
+    def _draw(self):
+        """Return the stereo pair of the current state as the true camera sees it."""
+        return self.world.render_stereo(self.camera, self.render_supersampling,
+                                        self.world.marker_spheres(),
+                                        self.render_marker_supersampling)
+
     def _render(self):
         """Return the stereo pair of the current state: true camera, image noise added."""
-        images = self.world.render_stereo(self.camera, self.render_supersampling,
-                                          self.world.marker_spheres(),
-                                          self.render_marker_supersampling)
-        return self.effects.noisy(images)
+        return self.effects.noisy(self._draw())
+
+    def _teach(self, frames):
+        """
+        Return the teach pair: ``frames`` noisy pairs of the still tool, averaged.
+
+        One frame is :meth:`_render`'s pair. More are the pixelwise mean of as many 8-bit
+        pairs, each with its own noise, rounded to 8 bits: what a user who holds the tool
+        still at the target and averages the camera's frames gets (the scene is static, so
+        the pair is drawn once and only the noise differs).
+        """
+        if frames == 1:
+            return self._render()
+        clean = self._draw()
+        total = [np.zeros(image.shape, np.float64) for image in clean]
+        for _ in range(frames):
+            for acc, image in zip(total, self.effects.noisy(clean)):
+                acc += image
+        return tuple(np.rint(acc / frames).astype(np.uint8) for acc in total)
 
     def hold_torque(self) -> NDArray[np.float64]:
         """Return the torque that stops the arm where it is in one step (World.hold_torque)."""

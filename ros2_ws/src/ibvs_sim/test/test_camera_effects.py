@@ -150,3 +150,26 @@ def test_the_config_refuses_bad_camera_effects_naming_the_parameter(kwargs, name
     with pytest.raises(ParameterError) as info:
         SimConfig(**kwargs)
     assert info.value.param == name
+
+
+def test_a_pair_taught_on_n_frames_carries_one_over_sqrt_n_of_the_noise():
+    from ibvs_model.paper import target_pose
+    noise = {}
+    for frames in (1, 16):
+        sim = Simulator(SimConfig(resolution='VGA', image_noise_stddev=0.05, camera_seed=3,
+                                  teach_frames=frames), teach_pose=target_pose())
+        try:
+            sim.world.reset(sim.teach_q)  # the arm is at its start now: back to the teach
+            clean = sim._draw()
+            assert all(t.dtype == np.uint8 and t.shape == c.shape
+                       for t, c in zip(sim.teach_images, clean))
+            # away from clipping (mid-grey and brighter pixels below 230)
+            left = clean[0].astype(float)
+            keep = (left > 30) & (left < 225)
+            noise[frames] = np.std(sim.teach_images[0].astype(float)[keep] - left[keep])
+        finally:
+            sim.close()
+    assert noise[1] == pytest.approx(0.05 * 255, rel=0.05)
+    # 1/4 of it, and the rounding of the mean to 8 bits (uniform, 1/sqrt(12) of a level)
+    expected = math.hypot(0.05 * 255 / 4.0, 1.0 / math.sqrt(12.0))
+    assert noise[16] == pytest.approx(expected, rel=0.1)
