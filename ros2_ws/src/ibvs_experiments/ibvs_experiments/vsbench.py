@@ -101,7 +101,7 @@ FEATURE_NOISE_PX = {'VGA': 0.017, 'HD720': 0.0076}
 #: limits (rad/s^2), per joint the smallest (tau_max - |g(q)|) / M_ii over the first 50
 #: tasks' targets (:func:`acceleration_limits`, the URDF's torque limits and masses),
 #: rounded down; joint 6's is capped at the parameter's range.
-ACCELERATION_LIMITS = (60.0, 24.0, 120.0, 14000.0, 56000.0, 1.0e6)
+ACCELERATION_LIMITS = (57.0, 24.0, 120.0, 14000.0, 56000.0, 1.0e6)
 #: Joint-limit distance (rad) under which a stalled run is classed 'limit'.
 LIMIT_CLASS_RAD = 0.1
 #: Where the committed benchmark file lies (source tree and install share).

@@ -155,3 +155,11 @@ def test_scenario3_start_reaches_shifted_targets_without_the_over_the_head_branc
         row = vsbench.run_metrics(task, 'paper', result.t, result.q_true)
         assert row['overshoot_m'] <= 0.020, (k, shift, row['overshoot_m'])
         assert row['success'], (k, row)
+
+
+def test_the_model_loops_acceleration_limits_are_the_first_targets_rounded_down():
+    computed = vsbench.acceleration_limits()
+    limits = np.asarray(vsbench.ACCELERATION_LIMITS)
+    assert np.all(limits[:5] <= computed[:5])
+    # rounded down to two significant figures, not further
+    assert np.all(limits[:5] >= 0.9 * computed[:5])
