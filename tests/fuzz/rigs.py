@@ -236,7 +236,7 @@ class JointControllerPositionRig(Rig):
 
     def next_ns(self):
         """Return the stamp of the next joint state."""
-        return self.t_ns + self.node.command_period_ns
+        return self.t_ns + self.node.mode.command_period_ns
 
     def next_frame_ns(self):
         """Return the stamp of the first camera frame after the next joint state."""
