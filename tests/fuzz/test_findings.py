@@ -180,7 +180,7 @@ def test_finding13_feature_node_counts_minor_inputs_under_their_topic(context):
 def test_fuzz_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
     rig = _run(rigs.SimPositionRig(context, 'joint_trajectory'))
     try:
-        reference = rig.node.servo.reference.copy()
+        reference = rig.node.mode.servo.reference.copy()
         rows = np.tile(rig.q_start, (3, 1))
         rows[0, 2] = np.nan  # the last point, the one the drive takes, is good
         rig.deliver(rig.topic, joint_trajectory(0, MS, rows))
@@ -195,7 +195,7 @@ def test_fuzz_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
         assert reasons['non-finite positions'] == 1 and reasons['wrong positions length'] == 1
         assert reasons['negative time'] == 1 and reasons['malformed stamp'] == 1
         assert reasons['stamp in the future'] == 1
-        np.testing.assert_array_equal(rig.node.servo.reference, reference)
+        np.testing.assert_array_equal(rig.node.mode.servo.reference, reference)
         assert rig.recovered()
     finally:
         rig.close()
