@@ -15,8 +15,7 @@ and the holding torque h(q, 0) goes out instead.
 from typing import TYPE_CHECKING
 
 from ibvs_common import contract
-from ibvs_common.conversions import (ignored_joints, InputError, joint_state, position_bounds,
-                                     read_joints, read_stamp, velocity_bounds)
+from ibvs_common.conversions import joint_state
 from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.params import ParameterError
 from ibvs_common.sim_time import node_time_ns
@@ -90,18 +89,13 @@ class EffortController(JointControllerMode):
         return node_time_ns(self.node, self._lockstep.last_answered_ns)
 
     def _on_joint_state(self, msg):
-        source = contract.JOINT_STATES
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
-            q = read_joints(msg, bound=position_bounds())
-            qd = read_joints(msg, 'velocity', bound=velocity_bounds())
-        except InputError as exc:
-            self.diagnostics.reject(source, exc.reason, exc.detail)
+        state = self.read_joint_state(msg, velocity=True)
+        if state is None:
             return
-        self.diagnostics.note_ignored(source, ignored_joints(msg))
+        t_ns, q, qd = state
         rejection = self._lockstep.offer_state(t_ns, (q, qd))
         if rejection is not None:
-            self.diagnostics.reject(source, *rejection)
+            self.diagnostics.reject(contract.JOINT_STATES, *rejection)
             return
         self._drain()
 
@@ -117,15 +111,12 @@ class EffortController(JointControllerMode):
         return rejection
 
     def _on_frame_lost(self, msg):
-        source = contract.FRAME_LOST
-        try:
-            t_ns = read_stamp(msg.stamp, self.now_ns(), self.frame_lead_ns, self.frames)
-        except InputError as exc:
-            self.diagnostics.reject(source, exc.reason, exc.detail)
+        t_ns = self.read_frame_stamp(contract.FRAME_LOST, msg.stamp)
+        if t_ns is None:
             return
         rejection = self._lockstep.offer_lost(t_ns)
         if rejection is not None:
-            self.diagnostics.reject(source, *rejection)
+            self.diagnostics.reject(contract.FRAME_LOST, *rejection)
             return
         self.frames_lost += 1
         self.diagnostics.update(frames_lost=self.frames_lost)

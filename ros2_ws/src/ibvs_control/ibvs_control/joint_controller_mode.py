@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING
 
 from ibvs_common import contract
 from ibvs_common import shared_params as shared
-from ibvs_common.conversions import (check_finite, InputError, read_joints, read_stamp,
-                                     read_trajectory, stamp_lead_ns)
+from ibvs_common.conversions import (check_finite, ignored_joints, InputError,
+                                     position_bounds, read_joints, read_stamp, read_trajectory,
+                                     stamp_lead_ns, velocity_bounds)
 from ibvs_common.kit import subscription
 from ibvs_common.params import param_field, ParamConfig
 from ibvs_common.timing import period_ns
@@ -28,6 +29,7 @@ from trajectory_msgs.msg import JointTrajectory
 from . import node_params as own
 
 if TYPE_CHECKING:
+    from builtin_interfaces.msg import Time
     from rclpy.node import Node
 
 #: Largest |q_feedback| per joint (rad) that is taken as meant: the joint's whole travel.
@@ -129,6 +131,27 @@ class JointControllerMode:
         rejection = self.take_feedback(t_ns, q)
         if rejection is not None:
             self.diagnostics.reject(source, *rejection)
+
+    def read_joint_state(self, msg: JointState, velocity: bool = False
+                         ) -> tuple[int, NDArray[np.float64], NDArray[np.float64] | None] | None:
+        """Return a /joint_states' (stamp ns, q, qd or None), or None once rejected."""
+        try:
+            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
+            q = read_joints(msg, bound=position_bounds())
+            qd = read_joints(msg, 'velocity', bound=velocity_bounds()) if velocity else None
+        except InputError as exc:
+            self.diagnostics.reject(contract.JOINT_STATES, exc.reason, exc.detail)
+            return None
+        self.diagnostics.note_ignored(contract.JOINT_STATES, ignored_joints(msg))
+        return t_ns, q, qd
+
+    def read_frame_stamp(self, source: str, stamp: 'Time') -> int | None:
+        """Return a frame's stamp (ns) by the stamp rule, or None once rejected."""
+        try:
+            return read_stamp(stamp, self.now_ns(), self.frame_lead_ns, self.frames)
+        except InputError as exc:
+            self.diagnostics.reject(source, exc.reason, exc.detail)
+            return None
 
     def q_feedforward(self, t_ns: int) -> NDArray[np.float64]:
         """Return the feedforward at ``t_ns``: the trajectory's point, held past its ends."""

@@ -1,27 +1,20 @@
 """
 The position joint controller: joint references for the arm's own drive, free-running.
 
-The drive closes the joint loop (ros2_control and ABB's EGM on a real cell,
-:class:`ibvs_sim.position_servo.PositionServo` in simulation). Every 1 / ``command_rate_hz``
-of the node's clock it sends q_ref = q_feedforward(t) + q_feedback shaped to the arm's
-speed and acceleration limits (:class:`.position_interface.PositionShaper`, started from
-the measured joints), in the order of ``joints``: a std_msgs/Float64MultiArray on
-/forward_position_controller/commands, or with ``position_command_type:
-joint_trajectory`` a trajectory_msgs/JointTrajectory window (the reference now and its
-shaped course ahead, :meth:`.position_interface.PositionShaper.preview`) on
-/joint_trajectory_controller/joint_trajectory. Nobody waits: a command uses the newest
-q_feedback (:class:`.position_interface.FeedbackHold`); the first command that uses a
-frame's is reported on /ibvs/frame_latency. Stale inputs stop and hold the arm
-(:mod:`.servo_status`, reported on /ibvs/servo_status and /diagnostics). Details:
-docs/nodes.md, docs/design.md §4.
+Every 1 / ``command_rate_hz`` of the node's clock it sends q_ref = q_feedforward(t) +
+q_feedback (the newest: :class:`.position_interface.FeedbackHold`), shaped to the arm's
+limits (:class:`.position_interface.PositionShaper`), on
+/forward_position_controller/commands or as a JointTrajectory window on
+/joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
+command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input stops and
+holds the arm (:mod:`.servo_status`, on /ibvs/servo_status). In full: docs/nodes.md.
 """
 
 from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract
-from ibvs_common.conversions import (ignored_joints, InputError, joint_trajectory, ns_stamp,
-                                     position_bounds, read_joints, read_stamp)
+from ibvs_common.conversions import joint_trajectory, ns_stamp
 from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.params import ParameterError
 from ibvs_common.sim_time import node_time_ns
@@ -114,16 +107,12 @@ class PositionController(JointControllerMode):
         return node_time_ns(self.node, self._measured[0] if self._measured else None)
 
     def _on_measured(self, msg):
-        source = contract.JOINT_STATES
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
-            q = read_joints(msg, bound=position_bounds())
-        except InputError as exc:
-            self.diagnostics.reject(source, exc.reason, exc.detail)
+        state = self.read_joint_state(msg)
+        if state is None:
             return
-        self.diagnostics.note_ignored(source, ignored_joints(msg))
+        t_ns, q, _ = state
         if self._measured is not None and t_ns <= self._measured[0]:
-            self.diagnostics.reject(source, 'out of order',
+            self.diagnostics.reject(contract.JOINT_STATES, 'out of order',
                                     f'{t_ns} ns, not newer than {self._measured[0]} ns')
             return
         self._measured = (t_ns, q)
@@ -131,12 +120,9 @@ class PositionController(JointControllerMode):
 
     def _on_camera(self, msg):
         """Note a camera frame (its camera_info, stamped with the exposure): its age only."""
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.frame_lead_ns)
-        except InputError as exc:
-            self.diagnostics.reject(self._camera_topic, exc.reason, exc.detail)
-            return
-        self._watch.heard('camera', t_ns)
+        t_ns = self.read_frame_stamp(self._camera_topic, msg.header.stamp)
+        if t_ns is not None:
+            self._watch.heard('camera', t_ns)
 
     def trajectory_arrived(self, start_ns):
         """Note the feedforward: the first command waits for it."""

@@ -1,22 +1,15 @@
 """
 The free-running simulator: a position-controlled arm on a real cell's timing.
 
-After step 0 a steady-clock timer advances the physics on its own, ``real_time_factor`` sim
-seconds per wall second (Gazebo's setting), never skipping sim time; when the machine
-cannot keep the factor the node says so (WARN, /diagnostics ``real_time_factor_held``),
-and from the first position reference on it measures the factor held over 1 s windows
-(``real_time_factor_servo_min_1s``, ``real_time_factor_servo_mean``). /joint_states go out
-as joint_state_broadcaster publishes them, at ``joint_state_rate_hz`` from
-``joint_state_phase_s``; no /stereo/joint_states. Each frame is delivered
-``feedback_latency_s`` after its exposure, whatever anybody is doing; none is taken within
-``camera_outage_s``. The arm follows joint references (/forward_position_controller/
-commands in the order of ``joints``, or JointTrajectory windows on
-/joint_trajectory_controller/joint_trajectory sampled as joint_trajectory_controller
-samples them: :class:`.position_servo.TrajectoryFollower`) through the drive model
-:class:`.position_servo.PositionServo`; a reference older than ``command_timeout_s`` is
-stale and the drive stops and holds the arm. A command refused as ros2_controllers refuses
-it (:func:`ibvs_common.conversions.read_command_trajectory`) or with a position outside a
-joint's range is rejected and counted. Details: docs/nodes.md.
+After step 0 a steady-clock timer advances the physics at ``real_time_factor`` (never
+skipping sim time; the factor held is reported); /joint_states go out on
+joint_state_broadcaster's cycle (``joint_state_rate_hz``, ``joint_state_phase_s``), each
+frame ``feedback_latency_s`` after its exposure, none within ``camera_outage_s``. The drive
+model (:class:`.position_servo.PositionServo`) follows the references of
+/forward_position_controller/commands or /joint_trajectory_controller/joint_trajectory
+(:class:`.position_servo.TrajectoryFollower`) and holds the arm when they go stale
+(``command_timeout_s``); a command ros2_controllers would refuse, or out of a joint's
+range, is rejected and counted. In full: docs/nodes.md.
 """
 
 import time
