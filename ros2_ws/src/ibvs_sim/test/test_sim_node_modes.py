@@ -16,7 +16,7 @@ from ibvs_sim.sim_node import PARAMS, SimNode
 import pytest
 from rclpy.parameter import Parameter
 
-FREE = dict(lockstep=False, command_interface='position')
+FREE = {'lockstep': False, 'command_interface': 'position'}
 LIGHT = [Parameter('publish_images', value=False), Parameter('resolution', value='VGA')]
 
 
@@ -24,15 +24,15 @@ def test_config_checks_the_rules_across_parameters():
     assert [p.name for p in PARAMS] == [p.name for p in SimNodeConfig.params()]
     assert SimNodeConfig(**FREE).lockstep is False
     for params, match in (
-            (dict(lockstep=False), "'lockstep' = False is invalid"),
-            (dict(command_interface='position'), "'lockstep' = True is invalid"),
-            (dict(target_features_source='taught', publish_images=False),
+            ({'lockstep': False}, "'lockstep' = False is invalid"),
+            ({'command_interface': 'position'}, "'lockstep' = True is invalid"),
+            ({'target_features_source': 'taught', 'publish_images': False},
              "'target_features_source' = 'taught' is invalid"),
-            (dict(camera_outage_s=[1.0, 0.5]), "'camera_outage_s' = \\[1.0, 0.5\\] is invalid "
-                                               'in lockstep'),
-            (dict(extra_joints=['track', 'track']), "'extra_joints'"),
-            (dict(extra_joints=['joint_2']), "'extra_joints'"),
-            (dict(clock_rate_hz=0.0), "'clock_rate_hz'")):
+            ({'camera_outage_s': [1.0, 0.5]},
+             "'camera_outage_s' = \\[1.0, 0.5\\] is invalid in lockstep"),
+            ({'extra_joints': ['track', 'track']}, "'extra_joints'"),
+            ({'extra_joints': ['joint_2']}, "'extra_joints'"),
+            ({'clock_rate_hz': 0.0}, "'clock_rate_hz'")):
         with pytest.raises(ParameterError, match=match):
             SimNodeConfig(**params)
     assert SimNodeConfig(camera_outage_s=[1.0, 0.5], **FREE).camera_outage_s == (1.0, 0.5)
@@ -47,7 +47,7 @@ def _subscribed(node):
 @pytest.mark.parametrize('params, mode, command', [
     ({}, LockstepSim, contract.EFFORT_COMMANDS),
     (FREE, FreeRunningSim, contract.POSITION_COMMANDS),
-    (dict(FREE, position_command_type='joint_trajectory'), FreeRunningSim,
+    ({**FREE, 'position_command_type': 'joint_trajectory'}, FreeRunningSim,
      contract.TRAJECTORY_COMMANDS)])
 def test_the_time_mode_picks_the_class_and_its_command_topic(context, params, mode, command):
     sim = SimNode(context=context, parameter_overrides=LIGHT + [
@@ -62,8 +62,8 @@ def test_the_time_mode_picks_the_class_and_its_command_topic(context, params, mo
 
 def test_free_running_clock_runs_at_least_at_the_command_rate(context):
     sim = SimNode(context=context, parameter_overrides=LIGHT + [
-        Parameter(k, value=v) for k, v in dict(FREE, clock_rate_hz=10.0,
-                                               command_rate_hz=250.0).items()])
+        Parameter(k, value=v) for k, v in {**FREE, 'clock_rate_hz': 10.0,
+                                           'command_rate_hz': 250.0}.items()])
     try:
         assert sim.clock_period_ns == 4_000_000
     finally:
