@@ -31,8 +31,9 @@ from trajectory_msgs.msg import JointTrajectory
 from .position_servo import PositionServo, TrajectoryFollower
 
 if TYPE_CHECKING:
+    from rclpy.node import Node
+
     from .node_params import SimNodeConfig
-    from .sim_node import SimNode
 
 #: The longest the stepping timer waits (wall s), and the most physics steps one of its
 #: calls takes before it lets the executor run other callbacks.
@@ -48,12 +49,17 @@ SERVO_RTF_WINDOW_S = 1.0
 
 
 class FreeRunningSim:
-    """Steps on a steady-clock timer; a position drive follows the references (module doc)."""
+    """
+    Steps on a steady-clock timer; a position drive follows the references (module doc).
+
+    ``node``: the :class:`ibvs_sim.sim_node.SimNode` whose simulator, publishers and step
+    (:meth:`~ibvs_sim.sim_node.SimNode.advance`) it drives.
+    """
 
     #: No effort command is ever refused here: the drive has no torque input.
     held_steps = 0
 
-    def __init__(self, node: 'SimNode', config: 'SimNodeConfig') -> None:
+    def __init__(self, node: 'Node', config: 'SimNodeConfig') -> None:
         """Build the drive and the command subscription (ParameterError naming a bad one)."""
         self.node = node
         self.sim = sim = node.sim

@@ -24,8 +24,9 @@ import numpy as np
 from sensor_msgs.msg import JointState
 
 if TYPE_CHECKING:
+    from rclpy.node import Node
+
     from .node_params import SimNodeConfig
-    from .sim_node import SimNode
 
 #: Largest |effort| of a command, in multiples of its joint's rated torque
 #: (ibvs_model.mass_model.joint_efforts). Not the rating itself: the paper's ideal actuators
@@ -40,12 +41,17 @@ FREE_RUNNING_ONLY = ('real_time_factor', 'command_timeout_s', 'drive_bandwidth_h
 
 
 class LockstepSim:
-    """Steps on each effort command of the current stamp (module docstring)."""
+    """
+    Steps on each effort command of the current stamp (module docstring).
+
+    ``node``: the :class:`ibvs_sim.sim_node.SimNode` whose simulator, publishers and step
+    (:meth:`~ibvs_sim.sim_node.SimNode.advance`) it drives.
+    """
 
     #: Frames go out at their exposure's step: the joint controller applies the latency.
     delivery_delay_ns = 0
 
-    def __init__(self, node: 'SimNode', config: 'SimNodeConfig') -> None:
+    def __init__(self, node: 'Node', config: 'SimNodeConfig') -> None:
         """Warn about the free-running parameters set; subscribe to the effort commands."""
         self.node = node
         self.sim = node.sim

@@ -52,7 +52,9 @@ from .node_params import SimNodeConfig
 from .simulator import Simulator
 
 PARAMS = SimNodeConfig.params()
-#: lockstep -> the class that runs the time mode.
+#: lockstep -> the class that runs the time mode. The node reads its ``clock_rate_hz``,
+#: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``held_steps`` and ``command_sub``
+#: and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and ``waiting_line``.
 MODES = {True: LockstepSim, False: FreeRunningSim}
 
 #: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
