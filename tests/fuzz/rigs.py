@@ -156,7 +156,7 @@ class SimPositionRig(Rig):
             Parameter('position_command_type', value=command_type),
             Parameter('publish_images', value=False)])
         self.joints = []
-        self.topic = node._sub.topic_name
+        self.topic = node.mode.command_sub.topic_name
         self.n = 0
         super().__init__(context, node, node.diagnostics)
         self.driver.create_subscription(JointState, contract.JOINT_STATES,
@@ -170,7 +170,7 @@ class SimPositionRig(Rig):
 
     def past_ns(self):
         """Return a stamp whose two-point trajectory ended a command timeout ago and more."""
-        return self.node.sim.t_ns - 2 * self.node._command_timeout_ns - 2 * MS
+        return self.node.sim.t_ns - 2 * self.node.mode._command_timeout_ns - 2 * MS
 
     @property
     def q_start(self):
@@ -187,10 +187,10 @@ class SimPositionRig(Rig):
         """Send a new reference (0.01 rad either side of the start); tracked from the next step."""
         self.n += 1
         q = self.q_start + (0.01 if self.n % 2 else -0.01)
-        before, t = self.node.commands, self.node.sim.t_ns
+        before, t = self.node.mode.commands, self.node.sim.t_ns
         self.deliver(self.topic, self.command(q))
-        return lambda: (self.node.commands > before and self.node.sim.t_ns > t
-                        and np.allclose(self.node.servo.reference, q + self.node.sim.d_q)
+        return lambda: (self.node.mode.commands > before and self.node.sim.t_ns > t
+                        and np.allclose(self.node.mode.servo.reference, q + self.node.sim.d_q)
                         and self.node.diagnostics.values['command'] == 'tracking')
 
     def cases(self):
@@ -236,7 +236,7 @@ class JointControllerPositionRig(Rig):
 
     def next_ns(self):
         """Return the stamp of the next joint state."""
-        return self.t_ns + self.node.command_period_ns
+        return self.t_ns + self.node.mode.command_period_ns
 
     def next_frame_ns(self):
         """Return the stamp of the first camera frame after the next joint state."""

@@ -46,7 +46,7 @@ def test_finding2_future_q_feedback_is_not_stored_and_cannot_fill_the_buffer(con
             rig.deliver(contract.Q_FEEDBACK, joint_state(
                 rigs.frame_ns(n + 100_000), np.zeros(6)))
         assert rig.reasons(contract.Q_FEEDBACK)['stamp in the future'] == 1100
-        assert len(node._lockstep.feedback) <= 2
+        assert len(node.mode._lockstep.feedback) <= 2
         for _ in range(3 * CAMERA_NS // MS):  # past three frames: new q_feedbacks get in
             assert rig.recovered()
         assert rig.reasons(contract.Q_FEEDBACK)['buffer full'] == 0
@@ -115,7 +115,7 @@ def test_finding6_joint_controller_refuses_bad_trajectory_stamps(context):
             msg.header.stamp = bad
             rig.deliver(contract.FEEDFORWARD_TRAJECTORY, msg)
         assert sum(rig.reasons(contract.FEEDFORWARD_TRAJECTORY).values()) == 3
-        assert rig.node._trajectory[0] == 0  # the good one still holds
+        assert rig.node.mode._trajectory[0] == 0  # the good one still holds
         assert rig.recovered()
     finally:
         rig.close()
@@ -180,7 +180,7 @@ def test_finding13_feature_node_counts_minor_inputs_under_their_topic(context):
 def test_fuzz_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
     rig = _run(rigs.SimPositionRig(context, 'joint_trajectory'))
     try:
-        reference = rig.node.servo.reference.copy()
+        reference = rig.node.mode.servo.reference.copy()
         rows = np.tile(rig.q_start, (3, 1))
         rows[0, 2] = np.nan  # the last point, the one the drive takes, is good
         rig.deliver(rig.topic, joint_trajectory(0, MS, rows))
@@ -195,7 +195,7 @@ def test_fuzz_sim_node_refuses_a_trajectory_command_bad_anywhere(context):
         assert reasons['non-finite positions'] == 1 and reasons['wrong positions length'] == 1
         assert reasons['negative time'] == 1 and reasons['malformed stamp'] == 1
         assert reasons['stamp in the future'] == 1
-        np.testing.assert_array_equal(rig.node.servo.reference, reference)
+        np.testing.assert_array_equal(rig.node.mode.servo.reference, reference)
         assert rig.recovered()
     finally:
         rig.close()

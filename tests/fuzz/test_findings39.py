@@ -104,13 +104,13 @@ def test_finding5_the_simulated_trajectory_controller_refuses_what_jtc_refuses(c
     rig = _run(rigs.SimPositionRig(context, 'joint_trajectory'))
     try:
         node = rig.node
-        reference = node.servo.reference.copy()
+        reference = node.mode.servo.reference.copy()
         q = rig.q_start
         beyond = np.r_[q[:3], 10.0, q[4:]]
         first_bad = joint_trajectory(0, MS, np.vstack([beyond, q + 0.02]))
         stale = joint_trajectory(0, MS, np.tile(q + 0.02, (2, 1)))
         stale.header.stamp.sec, stale.header.stamp.nanosec = divmod(
-            node.sim.t_ns - 2 * node._command_timeout_ns - 2 * MS, 10 ** 9)
+            node.sim.t_ns - 2 * node.mode._command_timeout_ns - 2 * MS, 10 ** 9)
         negative = joint_trajectory(0, MS, np.atleast_2d(q + 0.02))
         negative.points[0].time_from_start = Duration(sec=-1)
         nan_velocity = joint_trajectory(0, MS, np.tile(q + 0.02, (2, 1)))
@@ -120,7 +120,7 @@ def test_finding5_the_simulated_trajectory_controller_refuses_what_jtc_refuses(c
         assert rig.reasons(rig.topic) == {'out of range': 1, 'trajectory ends in the past': 1,
                                           'negative time_from_start': 1,
                                           'non-finite velocities': 1}
-        np.testing.assert_array_equal(node.servo.reference, reference)
+        np.testing.assert_array_equal(node.mode.servo.reference, reference)
         assert any(kv.key == f'rejected[{rig.topic}: out of range]'
                    for kv in node.diagnostics.status().values)
         assert rig.recovered()

@@ -87,14 +87,14 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
         rows[9:, 0] += 0.1  # the feedforward asks joint_1 to move at 9 ms
         pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, rows))
         pubs[contract.JOINT_STATES].publish(joint_state(0, Q0, np.zeros(6)))
-        spin_until(executor, lambda: node._trajectory is not None and
-                   node._measured is not None, what='trajectory and joint state')
+        spin_until(executor, lambda: node.mode._trajectory is not None and
+                   node.mode._measured is not None, what='trajectory and joint state')
         clock_to(executor, pubs, 4 * MS)
         spin_until(executor, lambda: changes(rec['status']) == [ServoStatus.WAITING],
                    what='waiting for the camera and the feedback')
         assert not rec['commands']  # nothing moves before the loop is closed
         frame(pubs, 0)
-        spin_until(executor, lambda: node._hold.stamp_ns == 0, what="frame 0's feedback")
+        spin_until(executor, lambda: node.mode._hold.stamp_ns == 0, what="frame 0's feedback")
         for t in range(8, 45, 4):
             clock_to(executor, pubs, t * MS)
             spin_until(executor, lambda n=t // 4 - 1: len(rec['commands']) >= n,
@@ -112,7 +112,7 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
         assert changes(rec['status']) == [ServoStatus.WAITING, ServoStatus.NO_WARNING]
         # a q_feedback of the frame exposed at 34 ms: the next command uses it and says so
         frame(pubs, 34 * MS, np.full(6, 1e-3))
-        spin_until(executor, lambda: node._hold.stamp_ns == 34 * MS, what='the feedback')
+        spin_until(executor, lambda: node.mode._hold.stamp_ns == 34 * MS, what='the feedback')
         clock_to(executor, pubs, 48 * MS)
         spin_until(executor, lambda: len(rec['latency']) == 2, what='the latency record')
         report = rec['latency'][1]
@@ -140,8 +140,8 @@ def test_joint_trajectory_controller_gets_a_stamped_window_by_joint_name(context
             f'joint_{i}' for i in range(6, 0, -1)] + ['track_1'])
         pubs[contract.JOINT_STATES].publish(state)
         frame(pubs, 0)
-        spin_until(executor, lambda: node._trajectory is not None and
-                   node._measured is not None and node._hold.stamp_ns == 0,
+        spin_until(executor, lambda: node.mode._trajectory is not None and
+                   node.mode._measured is not None and node.mode._hold.stamp_ns == 0,
                    what='trajectory, joint state and feedback')
         clock_to(executor, pubs, 4 * MS)
         spin_until(executor, lambda: rec['trajectories'], what='a trajectory command')
@@ -193,7 +193,7 @@ def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(contex
 
         pubs[contract.JOINT_STATES].publish(joint_state(0, measured, np.zeros(6)))
         frame(pubs, 0)
-        spin_until(executor, lambda: not node._watch.missing(), what='every input once')
+        spin_until(executor, lambda: not node.mode._watch.missing(), what='every input once')
         commands = []
         for k in range(1, 350):  # 1.4 s: camera on to 0.2 s, off to 1.1 s, on again
             t_ns = k * 4 * MS
@@ -204,7 +204,7 @@ def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(contex
                 measured = commands[-1][1]
         assert changes(rec['status'])[-3:] == [
             ServoStatus.NO_WARNING, ServoStatus.HOLD_STALE_CAMERA, ServoStatus.NO_WARNING]
-        assert node.holds == 1
+        assert node.mode.holds == 1
         times = np.array([t for t, _ in commands])
         q = np.array([c for _, c in commands])
         # the last frame before the outage is at 200 ms: stale from 500 ms; joint_1 moves at
@@ -219,7 +219,7 @@ def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(contex
         # it resumes toward the target; no step larger than the speed limit allows
         assert q[-1, 0] > q[held, 0][-1]
         steps = np.abs(np.diff(q, axis=0)) / 4e-3
-        assert np.all(steps <= np.asarray(node.shaper.governor.v_max) + 1e-9)
+        assert np.all(steps <= np.asarray(node.mode.shaper.governor.v_max) + 1e-9)
     finally:
         executor.shutdown()
         node.destroy_node()

@@ -412,13 +412,13 @@ def dynamics():
 def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, dynamics):
     with controller_harness(context) as (node, h, out):
         h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
-        h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state buffered')
-        assert node._missing(0)[0].startswith('the feedforward trajectory')
+        h.spin_until(lambda: len(node.mode._lockstep.states) == 1, 'joint state buffered')
+        assert node.mode._missing(0)[0].startswith('the feedforward trajectory')
         # Q0 at t = 0, then Q0 + 0.01, held after its last point (2 ms)
         h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0, Q0 + 0.01, Q0 + 0.01]))
-        h.spin_until(lambda: node._trajectory is not None, 'the trajectory')
+        h.spin_until(lambda: node.mode._trajectory is not None, 'the trajectory')
         # frame 0 acts at t = 0 (latency 0): still waiting for its q_feedback
-        assert node.commands == 0 and node._missing(0) == [
+        assert node.mode.commands == 0 and node.mode._missing(0) == [
             f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 1, 'effort command')
@@ -461,8 +461,8 @@ def test_joint_controller_with_latency_needs_no_feedback_at_first(context):
             h.publish(contract.JOINT_STATES, joint_state(k * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 2, 'answers before the first frame acts')
         h.publish(contract.JOINT_STATES, joint_state(20 * MS, Q0, np.zeros(6)))
-        h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state at 20 ms buffered')
-        assert node._missing(20 * MS) == [
+        h.spin_until(lambda: len(node.mode._lockstep.states) == 1, 'joint state at 20 ms buffered')
+        assert node.mode._missing(20 * MS) == [
             f'{contract.Q_FEEDBACK} of frame 0 ns (or its {contract.FRAME_LOST})']
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answer at 20 ms')
@@ -515,7 +515,7 @@ def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_on
         for k in (1, 2, 30):  # good states (frame 0's q_feedback acts until 33.3 ms)
             h.publish(contract.JOINT_STATES, joint_state(k * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 4, 'answers after the bad ones')
-        assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node._lockstep.states
+        assert stamps(out) == [0, MS, 2 * MS, 30 * MS] and not node.mode._lockstep.states
 
 
 def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dynamics):
@@ -546,7 +546,7 @@ def test_joint_controller_rejects_unusable_q_feedback_and_recovers(context, dyna
         assert node.diagnostics.rejected_total == len(bad)
         frame1 = frame_stamp_ns(1, CAMERA_NS, MS)  # frame 1 on the physics grid: 34 ms
         h.publish(contract.Q_FEEDBACK, joint_state(frame1, np.r_[np.zeros(5), 13.9]))
-        h.spin_until(lambda: frame1 in node._lockstep.feedback,
+        h.spin_until(lambda: frame1 in node.mode._lockstep.feedback,
                      'a large but possible J6 correction')
 
 
@@ -555,8 +555,8 @@ def test_limited_joint_controller_clips_torque(context, dynamics):
         actuators='limited', torque_limits=[50.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
     h = Harness(context, node)
     try:
-        np.testing.assert_allclose(node.torque_limits[1:], dynamics.torque_limits[1:])
-        assert node.torque_limits[0] == 50.0
+        np.testing.assert_allclose(node.mode.torque_limits[1:], dynamics.torque_limits[1:])
+        assert node.mode.torque_limits[0] == 50.0
         h.wait_matched([contract.JOINT_STATES, contract.FEEDFORWARD_TRAJECTORY,
                         contract.Q_FEEDBACK])
         out = h.received[contract.EFFORT_COMMANDS]
@@ -566,7 +566,7 @@ def test_limited_joint_controller_clips_torque(context, dynamics):
             h.publish(contract.JOINT_STATES, joint_state(k * MS, Q0, np.zeros(6)))
         h.spin_until(lambda: len(out) == 3, 'answers')
         efforts = np.array([read_joints(m, 'effort') for m in out])
-        assert np.all(np.abs(efforts) <= node.torque_limits + 1e-9)
+        assert np.all(np.abs(efforts) <= node.mode.torque_limits + 1e-9)
     finally:
         h.close()
 
@@ -586,7 +586,7 @@ def test_feedforward_and_joint_controller_in_lockstep_with_a_stand_in_plant(cont
         qd = np.zeros(6)
         out = h.received[contract.EFFORT_COMMANDS]
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
-        dyn = jc.dynamics
+        dyn = jc.mode.dynamics
         for k in range(10):
             h.publish(contract.JOINT_STATES, joint_state(k * MS, q, qd))
             h.spin_until(lambda: len(out) == k + 1, f'command {k}')
@@ -620,8 +620,8 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         # frame 1 (due at 33.33 ms, stamped 34 ms) is lost: at 34 ms the controller would wait
         # for its q_feedback
         h.publish(contract.JOINT_STATES, joint_state(34 * MS, Q0, np.zeros(6)))
-        h.spin_until(lambda: len(node._lockstep.states) == 1, 'joint state at 34 ms buffered')
-        assert node.commands == 1
+        h.spin_until(lambda: len(node.mode._lockstep.states) == 1, 'joint state at 34 ms buffered')
+        assert node.mode.commands == 1
         lost_pub.publish(Header(stamp=joint_state(34 * MS, Q0).header.stamp))
         h.spin_until(lambda: len(out) == 2, 'answer at 34 ms')
         # ... and it holds frame 0's q_feedback
@@ -630,7 +630,7 @@ def test_joint_controller_holds_the_last_q_feedback_through_a_lost_frame(context
         loop.step(Q0 + q_fb, Q0, np.zeros(6), mass, bias)
         expected = loop.step(Q0 + q_fb, Q0, np.zeros(6), mass, bias)
         np.testing.assert_allclose(read_joints(out[1], 'effort'), expected, rtol=1e-9)
-        assert node.frames_lost == 1
+        assert node.mode.frames_lost == 1
         # a q_feedback for the lost frame is rejected, frame 2 applies again
         h.publish(contract.Q_FEEDBACK, joint_state(34 * MS, np.zeros(6)))
         rejected = node.diagnostics.rejections

@@ -305,7 +305,7 @@ def test_bad_commands_are_rejected_counted_and_the_arm_holds(graph):
     assert counts[f'{contract.EFFORT_COMMANDS}: non-finite effort'] == 2
     for reason in reasons[2:]:
         assert counts[f'{contract.EFFORT_COMMANDS}: {reason}'] == 1
-    assert sim.held_steps == 4
+    assert sim.mode.held_steps == 4
 
     def published():
         for msg in stand_in.rec['diagnostics']:

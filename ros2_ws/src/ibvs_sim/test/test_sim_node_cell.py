@@ -156,6 +156,6 @@ def test_lockstep_warns_about_what_only_free_running_uses(context, capfd):
         err = capfd.readouterr().err
         assert "parameter 'joint_state_rate_hz' = 100.0 is ignored in lockstep" in err
         assert 'real_time_factor' not in err  # at its default: nothing to say
-        assert sim._outage is None
+        assert sim.mode.exposes(1_000_000_000)  # no outage
     finally:
         sim.destroy_node()

@@ -93,16 +93,16 @@ def test_a_stale_command_stops_and_holds_the_arm_and_says_so(cell):
     target = sim.sim.q_start.copy()
     target[0] += 1.0  # far: the arm is still moving when the command goes stale
     cmd.send(target[::-1])
-    spin_until(executor, lambda: sim.servo.holding, what='the command to go stale')
+    spin_until(executor, lambda: sim.mode.servo.holding, what='the command to go stale')
     assert sim.diagnostics.values['command'] == 'stale'
     assert 'stale' in sim.diagnostics.message
-    spin_until(executor, lambda: np.abs(sim.servo.qd).max() < 1e-6, what='the arm to stop')
-    held, k = sim.servo.q.copy(), sim.sim.k
+    spin_until(executor, lambda: np.abs(sim.mode.servo.qd).max() < 1e-6, what='the arm to stop')
+    held, k = sim.mode.servo.q.copy(), sim.sim.k
     spin_until(executor, lambda: sim.sim.k > k + 20, what='more steps')
-    np.testing.assert_allclose(sim.servo.q, held, atol=1e-6)
+    np.testing.assert_allclose(sim.mode.servo.q, held, atol=1e-6)
     assert abs(held[0] - sim.sim.q_start[0]) < 1.0  # stopped short of the old reference
     cmd.send(target[::-1])  # a fresh command: tracking again
-    spin_until(executor, lambda: not sim.servo.holding, what='tracking again')
+    spin_until(executor, lambda: not sim.mode.servo.holding, what='tracking again')
     assert sim.diagnostics.values['command'] == 'tracking'
 
 
@@ -136,8 +136,8 @@ def test_joint_trajectory_commands_are_mapped_by_name_and_bad_names_refused(cell
     scrambled = ['joint_3', 'joint_5', 'joint_1', 'joint_6', 'joint_2', 'joint_4']
     send(scrambled[:5] + ['joint_3'], target[[2, 4, 0, 5, 1, 3]])  # joint_3 twice
     send(scrambled, target[[2, 4, 0, 5, 1, 3]])  # another order: mapped by name
-    spin_until(executor, lambda: abs(sim.servo.q[2] - target[2]) < 1e-5, what='joint_3')
-    np.testing.assert_allclose(np.delete(sim.servo.q, 2), np.delete(q0, 2), atol=1e-12)
+    spin_until(executor, lambda: abs(sim.mode.servo.q[2] - target[2]) < 1e-5, what='joint_3')
+    np.testing.assert_allclose(np.delete(sim.mode.servo.q, 2), np.delete(q0, 2), atol=1e-12)
     assert sim.diagnostics.rejections[f'{contract.TRAJECTORY_COMMANDS}: wrong joint names'] == 1
 
 

@@ -1,0 +1,211 @@
+"""
+The position joint controller: joint references for the arm's own drive, free-running.
+
+Every 1 / ``command_rate_hz`` of the node's clock it sends q_ref = q_feedforward(t) +
+q_feedback (the newest: :class:`.position_interface.FeedbackHold`), shaped to the arm's
+limits (:class:`.position_interface.PositionShaper`), on
+/forward_position_controller/commands or as a JointTrajectory window on
+/joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
+command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input stops and
+holds the arm (:mod:`.servo_status`, on /ibvs/servo_status). In full: docs/nodes.md.
+"""
+
+from typing import TYPE_CHECKING
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from ibvs_common import contract
+from ibvs_common.conversions import joint_trajectory, ns_stamp
+from ibvs_common.kit import publisher, subscription, WaitReporter
+from ibvs_common.params import ParameterError
+from ibvs_common.sim_time import node_time_ns
+from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
+import numpy as np
+from sensor_msgs.msg import CameraInfo, JointState, TimeReference
+from std_msgs.msg import Float64MultiArray, Header, Int8
+from trajectory_msgs.msg import JointTrajectory
+
+from .joint_controller_mode import JointControllerMode
+from .position_interface import FeedbackHold, joint_permutation, PositionShaper
+from .servo_status import InputWatch, ServoStatus
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+
+    from .joint_controller_mode import JointControllerConfig
+
+#: The parameters only the effort interface uses: a warning names those set off default.
+EFFORT_ONLY = ('actuators', 'torque_limits', 'acceleration_margin')
+#: What each input the first command waits for is, in the wait reporter's words.
+INPUTS = {'feedforward': f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}',
+          'joint_states': f'a {contract.JOINT_STATES} (the shaper starts from it)',
+          'camera': 'a camera frame ({})', 'feedback': f'a {contract.Q_FEEDBACK}'}
+
+
+class PositionController(JointControllerMode):
+    """Position references for the arm's drive, free-running (module docstring)."""
+
+    def __init__(self, node: 'Node', config: 'JointControllerConfig') -> None:
+        """Check the joints, build the shaper and the input watch, open the topics."""
+        super().__init__(node, config)
+        try:
+            self._order = joint_permutation(config.joints, contract.JOINT_NAMES)
+        except ValueError as exc:
+            raise ParameterError(f"parameter 'joints' = {list(config.joints)!r} is invalid: "
+                                 f'{exc}') from None
+        self._warn_ignored(node, config)
+        self.joints = list(config.joints)
+        self.command_period_ns = period_ns(config.command_rate_hz)
+        self.shaper = PositionShaper(config.command_rate_hz, speed_margin=config.speed_margin,
+                                     max_speed=np.radians(config.max_joint_speed_deg_s))
+        self._hold = FeedbackHold(np.zeros(6))
+        self._measured = None
+        frame_timeout_ns = seconds_to_ns(config.frame_timeout_s)
+        self._watch = InputWatch({'joint_states': seconds_to_ns(config.joint_state_timeout_s),
+                                  'camera': frame_timeout_ns, 'feedback': frame_timeout_ns},
+                                 required=('feedforward',))
+        self._verdict = None
+        self._hold_target = None
+        self.holds = 0
+        self.frames_used = 0
+        self.last_command_ns = None
+        self.diagnostics.update(command_interface='position', commands=0,
+                                position_command_type=config.position_command_type)
+        if config.position_command_type == 'forward_command':
+            self._pub = publisher(node, Float64MultiArray, contract.POSITION_COMMANDS,
+                                  contract.RELIABLE)
+        else:
+            self._pub = publisher(node, JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                                  contract.RELIABLE)
+        self._pub_latency = publisher(node, TimeReference, contract.FRAME_LATENCY,
+                                      contract.RELIABLE)
+        self._pub_status = publisher(node, Int8, contract.SERVO_STATUS, contract.LATCHED)
+        subscription(node, JointState, contract.JOINT_STATES, self._on_measured,
+                     contract.RELIABLE)
+        self._camera_topic = subscription(node, CameraInfo, contract.LEFT_INFO, self._on_camera,
+                                          contract.CAMERA_INFO).topic_name
+        self.subscribe_inputs()
+        node.create_timer(ns_to_seconds(self.command_period_ns), self._command)
+        self.waiting = WaitReporter(node, self._waiting)
+        self.diagnostics.log_progress(self._progress_line)
+        node.get_logger().info(
+            f'position references at {config.command_rate_hz:g} Hz on '
+            f'{self._pub.topic_name} ({config.position_command_type}), joints {self.joints}')
+
+    @staticmethod
+    def _warn_ignored(node, config):
+        """Log one warning naming the effort-only parameters set off their defaults."""
+        defaults = type(config)()
+        ignored = [f'{name} = {getattr(config, name)!r}' for name in EFFORT_ONLY
+                   if getattr(config, name) != getattr(defaults, name)]
+        if ignored:
+            node.get_logger().warn(
+                "ignored with command_interface 'position' (the arm's drive limits it, not "
+                f"this node's torque model; a known gap): {', '.join(ignored)}")
+
+    def now_ns(self) -> int:
+        """Return the newest time the node knows: its clock and its last joint state."""
+        return node_time_ns(self.node, self._measured[0] if self._measured else None)
+
+    def _on_measured(self, msg):
+        state = self.read_joint_state(msg)
+        if state is None:
+            return
+        t_ns, q, _ = state
+        if self._measured is not None and t_ns <= self._measured[0]:
+            self.diagnostics.reject(contract.JOINT_STATES, 'out of order',
+                                    f'{t_ns} ns, not newer than {self._measured[0]} ns')
+            return
+        self._measured = (t_ns, q)
+        self._watch.heard('joint_states', t_ns)
+
+    def _on_camera(self, msg):
+        """Note a camera frame (its camera_info, stamped with the exposure): its age only."""
+        t_ns = self.read_frame_stamp(self._camera_topic, msg.header.stamp)
+        if t_ns is not None:
+            self._watch.heard('camera', t_ns)
+
+    def trajectory_arrived(self, start_ns):
+        """Note the feedforward: the first command waits for it."""
+        self._watch.heard('feedforward', start_ns)
+
+    def take_feedback(self, t_ns, q):
+        """Hold the q_feedback for the next command (newest wins)."""
+        rejection = self._hold.offer(t_ns, q)
+        if rejection is None:
+            self._watch.heard('feedback', t_ns)
+        return rejection
+
+    def _report(self, now_ns, verdict=None):
+        """Publish the status on a change (and with ``verdict`` None, once a second)."""
+        if verdict is None:
+            verdict = self._verdict
+        elif self._verdict is not None and verdict.status == self._verdict.status:
+            self._verdict = verdict  # the same status; its words (an age) may move on
+            return
+        else:
+            previous, self._verdict = self._verdict, verdict
+            if verdict.holding:
+                self.holds += 1
+                self.node.get_logger().warn(f'{verdict.status.name}: {verdict.detail}')
+            elif previous is not None and previous.holding:
+                self.node.get_logger().info(f'fresh input at {now_ns * 1e-9:.3f} s: servoing '
+                                            'resumes')
+            level = (DiagnosticStatus.WARN if verdict.holding else DiagnosticStatus.OK)
+            self.diagnostics.set_level(level, verdict.detail)
+            self.diagnostics.update(servo_status=verdict.status.name, holds=self.holds)
+        if verdict is not None:
+            self._pub_status.publish(Int8(data=int(verdict.status)))
+
+    def _command(self):
+        """Send one position reference (module docstring)."""
+        now_ns = self.node.get_clock().now().nanoseconds
+        verdict = self._watch.verdict(now_ns)
+        self._report(now_ns, verdict)
+        if verdict.status == ServoStatus.WAITING:
+            return
+        if not self.shaper.started:
+            self.shaper.start(self._measured[1])
+            self.last_command_ns = now_ns - self.command_period_ns
+        if verdict.holding:
+            if self._hold_target is None:  # a controlled stop
+                self._hold_target = self.shaper.stopping_point()
+            target, first_frame_ns, q_feedback = self._hold_target, None, None
+        else:
+            self._hold_target = None
+            q_feedback, first_frame_ns = self._hold.use()
+            target = self.q_feedforward(now_ns) + q_feedback
+        q_command = self.shaper.step(target, ns_to_seconds(now_ns - self.last_command_ns))
+        self.last_command_ns = now_ns
+        if self._pub.msg_type is Float64MultiArray:
+            self._pub.publish(Float64MultiArray(data=[float(v) for v in q_command[self._order]]))
+        else:  # the window: now and its course ahead (module docstring)
+            ahead = np.arange(1, self.config.trajectory_window_points) * self.command_period_ns
+            targets = (np.tile(target, (len(ahead), 1)) if q_feedback is None
+                       else [self.q_feedforward(now_ns + t) + q_feedback for t in ahead])
+            window = np.vstack([q_command, self.shaper.preview(targets)])
+            self._pub.publish(joint_trajectory(now_ns, self.command_period_ns,
+                                               window[:, self._order], self.joints))
+        if first_frame_ns is not None:
+            self._pub_latency.publish(TimeReference(
+                header=Header(stamp=ns_stamp(now_ns)), time_ref=ns_stamp(first_frame_ns),
+                source=contract.Q_FEEDBACK))
+            self.frames_used += 1
+        self.commands += 1
+        self.waiting.progress()
+        self.diagnostics.update(commands=self.commands, frames_used=self.frames_used,
+                                last_command_ns=now_ns)
+
+    def _progress_line(self):
+        """Return the progress line: references sent, up to when (None before the first)."""
+        if not self.commands:
+            return None
+        return (f'{self.commands} position references sent (last at '
+                f'{self.last_command_ns * 1e-9:.3f} s), {self.frames_used} frames of '
+                'q_feedback used')
+
+    def _waiting(self):
+        """Report the servo status; return the wait reporter's line (None when ready)."""
+        missing = [INPUTS[name].format(self._camera_topic) for name in self._watch.missing()]
+        self._report(self.node.get_clock().now().nanoseconds)
+        return 'waiting to send position references for ' + ', '.join(missing) \
+            if missing else None

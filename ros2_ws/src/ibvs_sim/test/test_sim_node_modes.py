@@ -1,0 +1,76 @@
+"""
+sim_node: one class per time mode, picked from a typed config checked before any topic.
+
+:class:`ibvs_sim.node_params.SimNodeConfig` is pure Python: its rules across parameters
+are checked without a node. The node starts the class of ``lockstep`` and opens the
+command topic of that mode only.
+"""
+
+from ibvs_common import contract
+from ibvs_common.kit import opened, SUBSCRIBES
+from ibvs_common.params import ParameterError
+from ibvs_sim.free_running_sim import FreeRunningSim
+from ibvs_sim.lockstep_sim import LockstepSim
+from ibvs_sim.node_params import SimNodeConfig
+from ibvs_sim.sim_node import PARAMS, SimNode
+import pytest
+from rclpy.parameter import Parameter
+
+FREE = {'lockstep': False, 'command_interface': 'position'}
+LIGHT = [Parameter('publish_images', value=False), Parameter('resolution', value='VGA')]
+
+
+def test_config_checks_the_rules_across_parameters():
+    assert [p.name for p in PARAMS] == [p.name for p in SimNodeConfig.params()]
+    assert SimNodeConfig(**FREE).lockstep is False
+    for params, match in (
+            ({'lockstep': False}, "'lockstep' = False is invalid"),
+            ({'command_interface': 'position'}, "'lockstep' = True is invalid"),
+            ({'target_features_source': 'taught', 'publish_images': False},
+             "'target_features_source' = 'taught' is invalid"),
+            ({'camera_outage_s': [1.0, 0.5]},
+             "'camera_outage_s' = \\[1.0, 0.5\\] is invalid in lockstep"),
+            ({'extra_joints': ['track', 'track']}, "'extra_joints'"),
+            ({'extra_joints': ['joint_2']}, "'extra_joints'"),
+            ({'clock_rate_hz': 0.0}, "'clock_rate_hz'")):
+        with pytest.raises(ParameterError, match=match):
+            SimNodeConfig(**params)
+    assert SimNodeConfig(camera_outage_s=[1.0, 0.5], **FREE).camera_outage_s == (1.0, 0.5)
+    assert SimNodeConfig(joint_state_rate_hz=100.0).off_default(
+        ('joint_state_rate_hz', 'real_time_factor')) == [('joint_state_rate_hz', 100.0)]
+
+
+def _subscribed(node):
+    return {e.topic for e in opened(node) if e.direction == SUBSCRIBES}
+
+
+@pytest.mark.parametrize('params, mode, command', [
+    ({}, LockstepSim, contract.EFFORT_COMMANDS),
+    (FREE, FreeRunningSim, contract.POSITION_COMMANDS),
+    ({**FREE, 'position_command_type': 'joint_trajectory'}, FreeRunningSim,
+     contract.TRAJECTORY_COMMANDS)])
+def test_the_time_mode_picks_the_class_and_its_command_topic(context, params, mode, command):
+    sim = SimNode(context=context, parameter_overrides=LIGHT + [
+        Parameter(k, value=v) for k, v in params.items()])
+    try:
+        assert type(sim.mode) is mode
+        assert _subscribed(sim) == {command}
+        assert sim.mode.command_sub.topic_name == command
+    finally:
+        sim.destroy_node()
+
+
+def test_free_running_clock_runs_at_least_at_the_command_rate(context):
+    sim = SimNode(context=context, parameter_overrides=LIGHT + [
+        Parameter(k, value=v) for k, v in {**FREE, 'clock_rate_hz': 10.0,
+                                           'command_rate_hz': 250.0}.items()])
+    try:
+        assert sim.clock_period_ns == 4_000_000
+    finally:
+        sim.destroy_node()
+    lockstep = SimNode(context=context, parameter_overrides=LIGHT + [
+        Parameter('clock_rate_hz', value=10.0)])
+    try:
+        assert lockstep.clock_period_ns == 100_000_000
+    finally:
+        lockstep.destroy_node()
