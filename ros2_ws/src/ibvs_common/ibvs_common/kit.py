@@ -7,6 +7,8 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
   DDS as well when another process reads it; a transient-local one goes through DDS only.
   Each topic opened is recorded (:class:`Endpoint`, :func:`opened`), so that what a graph
   reads and writes can be read from the nodes themselves.
+- :func:`config`: a node's typed configuration (:class:`.params.ParamConfig`): its
+  parameters declared with their ranges, checked, and its rules between parameters run.
 - :class:`WaitReporter`: the "waiting for" log, once a second while the node made no
   progress, naming what is missing.
 - :class:`StereoCameraInput`: both CameraInfo and the camera pose (the ``camera_pose``
@@ -17,7 +19,7 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any, Mapping, TYPE_CHECKING
+from typing import Any, Mapping, TYPE_CHECKING, TypeVar
 import weakref
 
 from geometry_msgs.msg import PoseStamped
@@ -28,6 +30,7 @@ from sensor_msgs.msg import CameraInfo
 from . import contract, intra_process
 from .conversions import (camera_from_msgs, check_camera_info, InputError, pose_stamped,
                           read_camera_pose)
+from .params import declare, ParamConfig
 from .shared_params import camera_pose_from
 
 if TYPE_CHECKING:
@@ -123,6 +126,22 @@ def subscription(node: 'Node', msg_type: type, topic: str, callback: Callable[[A
         sub = node.create_subscription(msg_type, topic, callback, qos)
     _record(node, sub.topic_name, msg_type, SUBSCRIBES, qos)
     return sub
+
+
+Config = TypeVar('Config', bound=ParamConfig)
+
+
+def config(node: 'Node', cls: type[Config], **others: Any) -> Config:
+    """
+    Return the typed configuration ``cls`` of ``node``, its parameters declared and checked.
+
+    Each Param field of ``cls`` is declared on ``node`` with its descriptor (units, range)
+    and checked (:func:`.params.declare`, ParameterError naming it), the class's ``RULES``
+    between parameters run (:func:`.params.check_rules`); ``others`` sets the fields
+    without a Param.
+    """
+    values = declare(node, cls.params(), getattr(cls, 'RULES', ()))
+    return cls.from_values(values, **others)
 
 
 class WaitReporter:

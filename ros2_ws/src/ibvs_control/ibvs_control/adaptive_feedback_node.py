@@ -28,7 +28,7 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (CAMERA_POSE, CAMERA_RATE_HZ,
+from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
                                        STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
@@ -48,6 +48,8 @@ from .servo_laws import law_class
 PARAMS = (CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION, STALE_TIMEOUT_S,
           TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0, LAMBDA_INF,
           LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (check_gains, check_servo_law, target_from, camera_pose_from)
 
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
@@ -59,8 +61,7 @@ class AdaptiveFeedbackNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters and create the interfaces."""
         super().__init__('adaptive_feedback_node', **kwargs)
-        self.values = values = declare(self, PARAMS)
-        check_gains(values)
+        self.values = values = declare(self, PARAMS, RULES)
         self.gain = check_servo_law(values)
         self.law = law_class(values['servo_law'])
         self.needs_status = self.law.needs_measured(values)

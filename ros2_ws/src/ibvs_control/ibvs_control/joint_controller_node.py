@@ -96,13 +96,13 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, ParameterError
-from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_command_interface,
-                                       COMMAND_INTERFACE,
+from ibvs_common.shared_params import (ACTUATORS, CAMERA_RATE_HZ, check_camera_rate_param,
+                                       check_command_interface, COMMAND_INTERFACE,
                                        COMMAND_RATE_HZ, FEEDBACK_LATENCY_S, JOINTS, LOCKSTEP,
                                        MAX_JOINT_SPEED_DEG_S, PHYSICS_RATE_HZ,
                                        POSITION_COMMAND_TYPE, STALE_TIMEOUT_S, TAU_IN)
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.timing import check_camera_rate, ns_to_seconds, period_ns, seconds_to_ns
+from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import IRB4600
 import numpy as np
 from numpy.typing import NDArray
@@ -124,6 +124,8 @@ PARAMS = (TAU_IN, PHYSICS_RATE_HZ, CAMERA_RATE_HZ, FEEDBACK_LATENCY_S, ACTUATORS
           COMMAND_INTERFACE, COMMAND_RATE_HZ, POSITION_COMMAND_TYPE, JOINTS, LOCKSTEP,
           JOINT_STATE_TIMEOUT_S, FRAME_TIMEOUT_S, MAX_JOINT_SPEED_DEG_S,
           TRAJECTORY_WINDOW_POINTS)
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (check_command_interface, check_camera_rate_param)
 
 #: Most buffered inputs of each kind (lockstep keeps one or two; this bounds a flood).
 MAX_BUFFER = 1000
@@ -137,8 +139,7 @@ class JointControllerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, load the dynamics model, create interfaces."""
         super().__init__('joint_controller_node', **kwargs)
-        values = declare(self, PARAMS)
-        check_command_interface(values)
+        values = declare(self, PARAMS, RULES)
         self.command_interface = values['command_interface']
         self.dynamics = None
         if self.command_interface == 'position':
@@ -150,11 +151,6 @@ class JointControllerNode(Node):
         self.state_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
         self.frame_lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
         self._frames = (self.camera_ns, self.dt_ns)
-        try:
-            check_camera_rate(values['camera_rate_hz'], values['physics_rate_hz'])
-        except ValueError as exc:
-            raise ParameterError(f"parameter 'camera_rate_hz' = {values['camera_rate_hz']!r} "
-                                 f'is invalid: {exc}') from None
         self.dynamics = RobotDynamics(IRB4600, with_tool=True)
         limits = np.asarray(values['torque_limits'], dtype=float)
         self.torque_limits = np.where(limits > 0.0, limits, self.dynamics.torque_limits)

@@ -252,6 +252,8 @@ PARAMS = SimConfig.params() + (
     REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S, CAMERA_TOPICS,
     DURATION_S, FEEDBACK_LATENCY_S, JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S, EXTRA_JOINTS,
     CAMERA_OUTAGE_S, MAX_JOINT_SPEED_DEG_S)
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (check_command_interface,)
 #: The parameters that only free-running uses: lockstep warns when one is not its default.
 FREE_RUNNING_ONLY = (REAL_TIME_FACTOR, COMMAND_TIMEOUT_S, DRIVE_BANDWIDTH_HZ, DRIVE_DELAY_S,
                      JOINT_STATE_RATE_HZ, JOINT_STATE_PHASE_S, MAX_JOINT_SPEED_DEG_S)
@@ -307,8 +309,7 @@ class SimNode(Node):
             raise
 
     def _setup(self):
-        values = declare(self, PARAMS)
-        check_command_interface(values)
+        values = declare(self, PARAMS, RULES)
         self._lockstep = values['lockstep']
         self._position = values['command_interface'] == 'position'
         self._publish_images = values['publish_images']

@@ -68,6 +68,8 @@ PARAMS = (
     shared_params.TARGET_POSITION,
     shared_params.TARGET_ROTATION,
 )
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (shared_params.camera_pose_from,)
 #: The overlay images (:mod:`.overlay`), one per lens.
 DEBUG_IMAGES = {'left': contract.DEBUG_LEFT_IMAGE, 'right': contract.DEBUG_RIGHT_IMAGE}
 
@@ -89,7 +91,7 @@ class FeatureNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the subscriptions and publishers."""
         super().__init__('feature_node', **kwargs)
-        p = declare(self, PARAMS)
+        p = declare(self, PARAMS, RULES)
         cv2.setNumThreads(OPENCV_THREADS)
         self._config = DetectorConfig.from_parameters(p)
         self._budget_ms = p['detection_budget_share'] * 1e3 / p['camera_rate_hz']

@@ -67,6 +67,8 @@ PARAMS = (
     Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
           'oldest go first)', '-', low=2, high=1_000_000),
 )
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (shared_params.camera_pose_from,)
 #: Marker namespaces, one per thing drawn.
 NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'
 NS_MEASURED, NS_ESTIMATED = 'markers_measured', 'markers_estimated'
@@ -92,7 +94,7 @@ class VizNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the publishers and subscriptions."""
         super().__init__('viz_node', **kwargs)
-        p = declare(self, PARAMS)
+        p = declare(self, PARAMS, RULES)
         self._params = IRB4600.scaled(p['l2_scale'], p['l4_scale'])
         self._d_q = np.radians(p['disturbance_deg'])
         self._target = shared_params.target_from_parameters(p)
