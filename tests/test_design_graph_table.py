@@ -69,3 +69,10 @@ def test_node_topics_merge_pairs_and_name_modes():
     rows.append(graph_topics.Opened('n', 'subscribes', '/c', 't', 'RELIABLE', ('zed',)))
     assert graph_topics.node_topics('n', 'subscribes', rows) == '/a/{left,right}/b; /c (zed)'
     assert graph_topics.node_topics('n', 'publishes', rows) == ''
+
+
+def test_nodes_md_lists_each_nodes_topics_and_parameters():
+    text = (ROOT / 'docs' / 'nodes.md').read_text()
+    generated = text.split('<!-- nodes: generated -->\n', 1)[1].split('<!-- nodes: end -->', 1)[0]
+    # On a difference: paste graph_topics.node_tables() between the markers.
+    assert generated == graph_topics.node_tables()

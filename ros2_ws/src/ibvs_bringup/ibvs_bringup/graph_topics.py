@@ -238,6 +238,34 @@ def expected_counts(nodes: Iterable[str], mode: str = 'effort',
     return {t: tuple(v) for t, v in out.items()}
 
 
+def node_tables(graph: Graph = GRAPH, rows: Iterable[Opened] | None = None) -> str:
+    """
+    Return docs/nodes.md's generated part: each node's topics and parameters (markdown).
+
+    Topics: what the node records opening (:func:`opened`), as it names them (``ros2
+    run``; :meth:`~ibvs_bringup.graph.Graph.remaps` says what ``ibvs run`` remaps), with
+    the modes that open it where not all. Parameters: its module's ``PARAMS``, with their
+    defaults, units and allowed values (``ros2 param describe`` shows the same).
+    """
+    rows = list(opened() if rows is None else rows)
+    out = []
+    for n in graph.nodes:
+        out += [f'### {n.name}', '', '| opens | topic | type | QoS | modes |',
+                '|---|---|---|---|---|']
+        for r in rows:
+            if r.node == n.name:
+                modes = 'all' if set(r.modes) >= set(MODES) else ', '.join(r.modes)
+                out.append(f'| {r.direction} | `{r.topic}` | {r.msg_type} | {r.qos} | '
+                           f'{modes} |')
+        out += ['', '| parameter | default | units | allowed |', '|---|---|---|---|']
+        for spec in importlib.import_module(n.module).PARAMS:
+            default = spec.default if not isinstance(spec.default, str) else repr(spec.default)
+            out.append(f'| `{spec.name}` | {default} | {spec.units or "-"} | '
+                       f'{spec.allowed().replace("|", "/")} |')
+        out.append('')
+    return '\n'.join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Write (``--write``) or check (default) :mod:`ibvs_bringup.opened_topics`."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())

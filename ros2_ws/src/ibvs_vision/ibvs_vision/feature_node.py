@@ -6,13 +6,8 @@ model's estimate F(q_T) at the frame's joint state when the markers are not foun
 across a switch (:mod:`.blend`); the pairing rules are :class:`.stereo_pairing.StereoPairer`.
 Each frame the detector may spend ``detection_budget_share`` of the camera period.
 
-Subscribes: /stereo/{left,right}/image_raw, /stereo/teach/{left,right}/image_raw (latched),
-/stereo/{left,right}/camera_info and /stereo/pose (:class:`ibvs_common.kit.StereoCameraInput`),
-/joint_states (``ibvs run``: /stereo/joint_states). Publishes: /ibvs/features,
-/ibvs/feature_status (one each per frame), /ibvs/target_features (latched, the taught
-target), /ibvs/debug/{left,right}/image (overlays, while someone listens), /diagnostics.
-Parameters: :data:`PARAMS` (docs/parameters.md). What it rejects and counts, the budget,
-the overlays and the taught target: docs/nodes.md.
+Its topics and parameters: docs/nodes.md (generated from what it opens and :data:`PARAMS`).
+What it rejects and counts, the budget, the overlays and the taught target: docs/nodes.md.
 """
 
 from collections import deque
@@ -25,10 +20,9 @@ from geometry_msgs.msg import PolygonStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (feature_status_msg, features_msg, FeatureStatus,
                                      ignored_joints, image_msg, InputError, ns_stamp,
-                                     position_bounds, read_joints, read_stamp, stamp_lead_ns,
-                                     StampOrder)
+                                     position_bounds, read_joints, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, StereoCameraInput, subscription
+from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
@@ -99,11 +93,9 @@ class FeatureNode(Node):
         self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(p['stale_timeout_s']),
                                     history_ns=seconds_to_ns(p['joint_history_s']),
                                     sides=_SIDES)
-        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         #: Each input's resolved topic name (the ZED wrapper's under a remap), which its
         #: rejections are counted under; filled as the subscriptions are created.
         self._topics = {}
-        self._order = StampOrder()
         self._camera_problem = None
         self._model = None
         self._detector = None
@@ -119,6 +111,8 @@ class FeatureNode(Node):
         self._target_features = None
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
+        self._inputs = Inputs(self._diag, self.now_ns,
+                              stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz'])))
         self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, frames_over_budget=0,
@@ -156,14 +150,6 @@ class FeatureNode(Node):
         """Return the newest time the node knows: its clock and its newest input's stamp."""
         return node_time_ns(self, self._stereo.newest_ns)
 
-    def _read_stamp(self, topic, stamp):
-        """Return ``stamp`` in ns by the one stamp rule, or None (rejected, counted)."""
-        try:
-            return read_stamp(stamp, self.now_ns(), self._lead_ns)
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return None
-
     def _progress(self):
         """Return the progress line: images in, features out, model fallbacks."""
         v = self._diag.values
@@ -175,16 +161,11 @@ class FeatureNode(Node):
 
     def _on_image(self, side, msg):
         self._images_in[side] += 1
-        topic = self._topics[side]
-        t_ns = self._read_stamp(topic, msg.header.stamp)
-        if t_ns is None:
+        # In order: an image of a stamp seen already would replace or follow its frame's.
+        got = self._inputs.read(self._topics[side], msg)
+        if got is None:
             return
-        try:  # an image of a stamp seen already would replace or follow its frame's
-            self._order.check(topic, t_ns)
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return
-        self._order.take(topic, t_ns)
+        t_ns = got[0]
         try:
             image, error = image_array(msg), None
         except InputError as exc:
@@ -234,14 +215,11 @@ class FeatureNode(Node):
 
     def _on_joints(self, msg):
         topic = self._topics['joints']
-        t_ns = self._read_stamp(topic, msg.header.stamp)
-        if t_ns is None:
+        # Out of order: not offered, the state of that stamp is there already.
+        got = self._inputs.read(topic, msg, take=False)
+        if got is None:
             return
-        try:
-            self._order.check(topic, t_ns)
-        except InputError as exc:  # not offered: the state of that stamp is there already
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return
+        t_ns = got[0]
         try:
             q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
@@ -249,7 +227,7 @@ class FeatureNode(Node):
             self._stereo.offer_bad_joints(t_ns, exc.reason)
         else:
             self._diag.note_ignored(topic, ignored_joints(msg))
-            self._order.take(topic, t_ns)
+            self._inputs.order.take(topic, t_ns)
             self._stereo.offer_joints(t_ns, q)
         self._try_frames()
 

@@ -6,12 +6,9 @@ no URDF of the cell has on /ibvs/markers: the tool, the ZED 2's body, each lens'
 view, the target, the tool's path, the markers estimated by the model and those measured.
 The arm's frames are robot_state_publisher's (ibvs_sim.robot_state_node in simulation).
 
-Subscribes: /joint_states (``ibvs run``: /stereo/joint_states),
-/stereo/{left,right}/camera_info and /stereo/pose
-(:class:`ibvs_common.kit.StereoCameraInput`), /ibvs/features, /ibvs/feature_status.
-Publishes: /tf_static (latched), /ibvs/markers (at most ``marker_rate_hz`` of sim time),
-/diagnostics. Parameters: :data:`PARAMS` (docs/parameters.md). The frames it adds for the
-images, and what it rejects: docs/nodes.md.
+/ibvs/markers at most ``marker_rate_hz`` of sim time. Its topics and parameters:
+docs/nodes.md (generated from what it opens and :data:`PARAMS`).
+The frames it adds for the images, and what it rejects: docs/nodes.md.
 """
 
 from collections import OrderedDict
@@ -21,10 +18,9 @@ from geometry_msgs.msg import Point, PolygonStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (check_features_in_image, ignored_joints, InputError,
                                      matrix_poses, position_bounds, read_feature_status,
-                                     read_features, read_joints, read_stamp, stamp_lead_ns,
-                                     StampOrder, transforms_msg)
+                                     read_features, read_joints, stamp_lead_ns, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
+from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
@@ -103,12 +99,10 @@ class VizNode(Node):
         self._path_points = p['tool_path_points']
         self._image_frames_tf = p['image_frames_tf']
         self._tool_frames_tf = p['tool_frames_tf']
-        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         self._camera = None
         self._path = []
         self._last_markers_ns = None
         self._last_joint_ns = None
-        self._order = StampOrder()
         self._features = OrderedDict()
         #: The markers triangulated from the newest measured /ibvs/features (2, 3), or None
         #: when the newest frame was not measured.
@@ -116,6 +110,8 @@ class VizNode(Node):
         self._estimated = None
 
         self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
+        self._inputs = Inputs(self._diag, self.now_ns,
+                              stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz'])))
         self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['joint_states_taken']
@@ -190,27 +186,20 @@ class VizNode(Node):
         return node_time_ns(self, self._last_joint_ns)
 
     def _on_features(self, msg):
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
-            self._order.check(contract.FEATURES, t_ns)  # a second one would replace the first
-            features = read_features(msg)
-        except InputError as exc:
-            self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
+        # In order: a second message of one stamp would replace the first.
+        got = self._inputs.read(contract.FEATURES, msg, read_features)
+        if got is None:
             return
-        self._order.take(contract.FEATURES, t_ns)
+        t_ns, features = got
         self._features[t_ns] = features
         while len(self._features) > _PENDING_FEATURES:
             self._features.popitem(last=False)
 
     def _on_status(self, msg):
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
-            self._order.check(contract.FEATURE_STATUS, t_ns)
-            mode = read_feature_status(msg).mode
-        except InputError as exc:
-            self._diag.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
+        got = self._inputs.read(contract.FEATURE_STATUS, msg, read_feature_status)
+        if got is None:
             return
-        self._order.take(contract.FEATURE_STATUS, t_ns)
+        t_ns, mode = got[0], got[1].mode
         features = self._features.pop(t_ns, None)
         if features is None or self._camera is None:
             return
@@ -227,16 +216,12 @@ class VizNode(Node):
     # --- joint states -----------------------------------------------------------------------
 
     def _on_joints(self, msg):
-        topic = self._joints_topic
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
-            self._order.check(topic, t_ns)  # a duplicate would draw the same /tf again
-            q = read_joints(msg, bound=position_bounds())
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
+        topic = self._joints_topic  # in order: a duplicate would draw the same /tf again
+        got = self._inputs.read(topic, msg, lambda m: read_joints(m, bound=position_bounds()))
+        if got is None:
             return
+        t_ns, q = got
         self._diag.note_ignored(topic, ignored_joints(msg))
-        self._order.take(topic, t_ns)
         self._last_joint_ns = t_ns
         self._diag.values['joint_states_taken'] += 1
         # ABB's tool0 is the flange {E} of eq. (7): the true arm's, where the camera sees it.
