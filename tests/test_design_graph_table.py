@@ -1,5 +1,5 @@
 """
-docs/design.md §1 and §3 show what the nodes record opening: one source (ibvs_bringup.graph_topics).
+design.md §1 and §3 and nodes.md show what the nodes record opening (ibvs_bringup.graph_topics).
 
 The records (ibvs_bringup/opened_topics.py) are regenerated here from the nodes themselves,
 so that a node opening another topic fails this test until the file, and with it §1's node
@@ -10,7 +10,6 @@ from pathlib import Path
 import re
 
 from ibvs_bringup import graph_topics
-from ibvs_bringup.graph import GRAPH
 
 ROOT = Path(__file__).resolve().parents[1]
 DESIGN = ROOT / 'docs' / 'design.md'
@@ -44,8 +43,8 @@ def test_opened_topics_are_what_the_nodes_record():
 
 
 def test_design_md_shows_the_graph_description():
-    # On a difference: paste GRAPH.markdown_table() into docs/design.md §1.
-    assert _section_1_table(DESIGN.read_text()) == GRAPH.markdown_table()
+    # On a difference: paste graph_topics.node_table() into docs/design.md §1.
+    assert _section_1_table(DESIGN.read_text()) == graph_topics.node_table()
 
 
 def test_design_md_section_3_is_generated_and_describes_every_topic():

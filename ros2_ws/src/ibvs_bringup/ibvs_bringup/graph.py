@@ -5,9 +5,10 @@ The node graph in one place: nodes, processes, remappings, the readers of step 0
 graph reads it: the runner's process plan (:func:`process_plan`: :meth:`Graph.processes`
 with :meth:`Graph.remaps`) and its start handshake (:meth:`Graph.step0_readers`),
 ``compose``'s node table (:meth:`Graph.compose_table`), and the table of docs/design.md
-§1 (:meth:`Graph.markdown_table`, checked against the file by a test). Adding a node to the graph
-is one :class:`Node` entry here plus its module (and its executable in its package's
-``setup.py``, which ``ros2 run`` needs; a test checks that each node has one).
+§1 (:func:`.graph_topics.node_table`, checked against the file by a test). Adding a node
+to the graph is one :class:`Node` entry here plus its module (and its executable in its
+package's ``setup.py``, which ``ros2 run`` needs; a test checks that each node has one),
+and the records of what it opens regenerated (:mod:`.graph_topics`).
 """
 
 from collections.abc import Mapping
@@ -50,8 +51,8 @@ class Node:
     is not). ``sim_side``: the simulator's, standing in for the cell (the simulator itself,
     and robot_state_node for the driver's robot_state_publisher): a run beside a real cell
     (``ibvs cell``) leaves these out (:meth:`Graph.cell_nodes`). The ``doc_*`` fields are
-    its row of docs/design.md §1, whose reads and writes are what the node records
-    (:mod:`ibvs_bringup.graph_topics`).
+    its row of docs/design.md §1 (:func:`.graph_topics.node_table`), whose reads and writes
+    are what the node records opening.
     """
 
     name: str
@@ -167,32 +168,6 @@ class Graph:
     def compose_table(self) -> dict[str, tuple[str, str]]:
         """Return {node: (module, class)}: the nodes ``compose`` can hold."""
         return {n.name: (n.module, n.cls) for n in self.nodes}
-
-    def markdown_table(self, opened: Any = None) -> str:
-        """
-        Return the node table of docs/design.md §1 (markdown).
-
-        Reads and writes: what each node opens (``opened``, default the committed records,
-        :func:`.graph_topics.opened`), with the remappings of a run.
-        """
-        from .graph_topics import node_topics, PUBLISHES, SUBSCRIBES
-        rows = ['| node | package, module | process | reads | writes | rate |',
-                '|---|---|---|---|---|---|']
-        for n in self.nodes:
-            remapped = ''.join(f'; {t} read as {r} (`ibvs run`'
-                               f'{", lockstep" if FRAME_STATES.get(t) == r else ""})'
-                               for t, r in n.remaps.items())
-            where = (f'`{n.process}` ({", ".join(self.shared(n.process))})' if n.process
-                     else 'its own')
-            rows.append(f'| `{n.name}` | `{n.module}`'
-                        f'{" (" + n.doc_module + ")" if n.doc_module else ""} | {where} | '
-                        f'{node_topics(n.name, SUBSCRIBES, opened)}{remapped} | '
-                        f'{node_topics(n.name, PUBLISHES, opened)} | {n.doc_rate} |')
-        rows.append('| recorder (in the runner) | `ibvs_bringup.recorder.Recorder` | the '
-                    "runner's | every topic (images, /joint_states and /joint_effort_commands "
-                    'on request: /ibvs/joint_path has their values) | the MCAP bag | as '
-                    'messages arrive |')
-        return '\n'.join(rows) + '\n'
 
 
 #: The graph of docs/design.md §1, in start order. The paper's nodes run in one process

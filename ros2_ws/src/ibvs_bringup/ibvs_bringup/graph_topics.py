@@ -8,7 +8,7 @@ once per mode that opens different topics (:data:`MODES`), and reads those recor
 result is committed as :mod:`ibvs_bringup.opened_topics` (``python -m
 ibvs_bringup.graph_topics --write``; a test regenerates it and compares). From that file,
 without rclpy, come the reads and writes of docs/design.md §1's table
-(:meth:`~ibvs_bringup.graph.Graph.markdown_table`), §3's table of who opens what
+(:func:`node_table`), §3's table of who opens what
 (:func:`contract_table`) and the topic graph tests/test_process_graph.py expects
 (:func:`expected_counts`).
 
@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 
 from ibvs_common import contract
 
-from .graph import GRAPH, Graph, uses_frame_states, uses_zed_names
+from .graph import FRAME_STATES, GRAPH, Graph, uses_frame_states, uses_zed_names
 
 #: The modes whose nodes open different topics: name -> parameters given to every node
 #: that declares them (the rest keep their defaults). 'effort' is scenario 1's.
@@ -191,6 +191,32 @@ def node_topics(name: str, direction: str, rows: Iterable[Opened] | None = None)
         text = ', '.join(compact(topics))
         parts.append(text if not modes else f'{text} ({", ".join(modes)})')
     return '; '.join(parts)
+
+
+def node_table(graph: Graph = GRAPH, rows: Iterable[Opened] | None = None) -> str:
+    """
+    Return the node table of docs/design.md §1 (markdown).
+
+    Reads and writes: what each node opens (``rows``, default :func:`opened`), with the
+    remappings of a run; the rest is the graph's description (:class:`.graph.Node`).
+    """
+    out = ['| node | package, module | process | reads | writes | rate |',
+           '|---|---|---|---|---|---|']
+    for n in graph.nodes:
+        remapped = ''.join(f'; {t} read as {r} (`ibvs run`'
+                           f'{", lockstep" if FRAME_STATES.get(t) == r else ""})'
+                           for t, r in n.remaps.items())
+        where = (f'`{n.process}` ({", ".join(graph.shared(n.process))})' if n.process
+                 else 'its own')
+        out.append(f'| `{n.name}` | `{n.module}`'
+                   f'{" (" + n.doc_module + ")" if n.doc_module else ""} | {where} | '
+                   f'{node_topics(n.name, SUBSCRIBES, rows)}{remapped} | '
+                   f'{node_topics(n.name, PUBLISHES, rows)} | {n.doc_rate} |')
+    out.append('| recorder (in the runner) | `ibvs_bringup.recorder.Recorder` | the '
+               "runner's | every topic (images, /joint_states and /joint_effort_commands "
+               'on request: /ibvs/joint_path has their values) | the MCAP bag | as '
+               'messages arrive |')
+    return '\n'.join(out) + '\n'
 
 
 def contract_table(rows: Iterable[Opened] | None = None, graph: Graph = GRAPH) -> str:

@@ -119,7 +119,8 @@ def test_adding_a_node_is_one_entry_of_the_description():
         ('dummy_node', 'feedforward_node', 'joint_controller_node')
     assert bigger.compose_table()['dummy_node'] == ('ibvs_dummy.dummy_node', 'DummyNode')
     assert '| `dummy_node` | `ibvs_dummy.dummy_node` | its own | /joint_states; ' \
-        f'{contract.LEFT_INFO} read as /elsewhere/camera_info' in bigger.markdown_table(opened)
+        f'{contract.LEFT_INFO} read as /elsewhere/camera_info' in \
+        graph_topics.node_table(bigger, opened)
     # Into the simulator's process: one field more.
     shared = dataclasses.replace(dummy, process='lockstep')
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (shared,) + GRAPH.nodes[at:])
