@@ -272,6 +272,10 @@ class ParamConfig:
         """Return the :class:`Param` of each field that has one, in field order."""
         return tuple(f.metadata['param'] for f in fields(cls) if 'param' in f.metadata)
 
+    def values(self) -> dict[str, Any]:
+        """Return the Param fields by name: the mapping the shared rules and readers take."""
+        return {spec.name: getattr(self, spec.name) for spec in self.params()}
+
     @classmethod
     def from_values(cls, values: Mapping[str, Any], **others: Any) -> Self:
         """

@@ -12,6 +12,7 @@ The frames it adds for the images, and what it rejects: docs/nodes.md.
 """
 
 from collections import OrderedDict
+from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped
@@ -20,9 +21,10 @@ from ibvs_common.conversions import (check_features_in_image, ignored_joints, In
                                      matrix_poses, position_bounds, read_feature_status,
                                      read_features, read_joints, stamp_lead_ns, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription, WaitReporter
+from ibvs_common.kit import (config, Inputs, publisher, StereoCameraInput, subscription,
+                             WaitReporter)
 from ibvs_common.node_main import run
-from ibvs_common.params import declare, Param
+from ibvs_common.params import Param, param_field, ParamConfig
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
 from ibvs_model import abb_urdf, IRB4600
@@ -39,32 +41,42 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from . import scene
 
-PARAMS = (
-    shared_params.DISTURBANCE_DEG,
-    shared_params.L2_SCALE,
-    shared_params.L4_SCALE,
-    shared_params.TARGET_POSITION,
-    shared_params.TARGET_ROTATION,
-    shared_params.CAMERA_POSE,
-    shared_params.CAMERA_RATE_HZ,
-    shared_params.STALE_TIMEOUT_S,
-    Param('marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time '
-          '(/tf goes out with every joint state)', 'Hz', low=0.0, high=1000.0,
-          low_open=True),
-    Param('frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
-          low=0.0, high=100.0, low_open=True),
-    Param('image_frames_tf', True, "publish on /tf_static the frame each lens's CameraInfo "
-          'names, where it is not ours, at our optical frame of that lens (false where the '
-          'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)',
-          '-'),
-    Param('tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, "
-          "marker_2) on /tf_static fixed to tool0 (false where the cell's URDF has the tool)",
-          '-'),
-    Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
-          'oldest go first)', '-', low=2, high=1_000_000),
-)
-#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-RULES = (shared_params.camera_pose_from,)
+
+@dataclass(frozen=True)
+class VizConfig(ParamConfig):
+    """The viz node's parameters, typed (:func:`ibvs_common.kit.config`)."""
+
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (shared_params.camera_pose_from,)
+
+    disturbance_deg: tuple = param_field(shared_params.DISTURBANCE_DEG)
+    l2_scale: float = param_field(shared_params.L2_SCALE)
+    l4_scale: float = param_field(shared_params.L4_SCALE)
+    target_position: tuple = param_field(shared_params.TARGET_POSITION)
+    target_rotation: tuple = param_field(shared_params.TARGET_ROTATION)
+    camera_pose: tuple = param_field(shared_params.CAMERA_POSE)
+    camera_rate_hz: float = param_field(shared_params.CAMERA_RATE_HZ)
+    stale_timeout_s: float = param_field(shared_params.STALE_TIMEOUT_S)
+    marker_rate_hz: float = param_field(Param(
+        'marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time (/tf '
+        'goes out with every joint state)', 'Hz', low=0.0, high=1000.0, low_open=True))
+    frustum_depth_m: float = param_field(Param(
+        'frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
+        low=0.0, high=100.0, low_open=True))
+    image_frames_tf: bool = param_field(Param(
+        'image_frames_tf', True, "publish on /tf_static the frame each lens's CameraInfo "
+        'names, where it is not ours, at our optical frame of that lens (false where the '
+        'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)', '-'))
+    tool_frames_tf: bool = param_field(Param(
+        'tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, marker_2) "
+        "on /tf_static fixed to tool0 (false where the cell's URDF has the tool)", '-'))
+    tool_path_points: int = param_field(Param(
+        'tool_path_points', 20000, 'most tool positions kept for the drawn path (the oldest '
+        'go first)', '-', low=2, high=1_000_000))
+
+
+PARAMS = VizConfig.params()
+RULES = VizConfig.RULES
 #: Marker namespaces, one per thing drawn.
 NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'
 NS_MEASURED, NS_ESTIMATED = 'markers_measured', 'markers_estimated'
@@ -90,15 +102,11 @@ class VizNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the publishers and subscriptions."""
         super().__init__('viz_node', **kwargs)
-        p = declare(self, PARAMS, RULES)
-        self._params = IRB4600.scaled(p['l2_scale'], p['l4_scale'])
-        self._d_q = np.radians(p['disturbance_deg'])
-        self._target = shared_params.target_from_parameters(p)
-        self._marker_period_ns = period_ns(p['marker_rate_hz'])
-        self._frustum_depth = p['frustum_depth_m']
-        self._path_points = p['tool_path_points']
-        self._image_frames_tf = p['image_frames_tf']
-        self._tool_frames_tf = p['tool_frames_tf']
+        self.config = c = config(self, VizConfig)
+        self._params = IRB4600.scaled(c.l2_scale, c.l4_scale)
+        self._d_q = np.radians(c.disturbance_deg)
+        self._target = shared_params.target_from_parameters(c.values())
+        self._marker_period_ns = period_ns(c.marker_rate_hz)
         self._camera = None
         self._path = []
         self._last_markers_ns = None
@@ -111,7 +119,7 @@ class VizNode(Node):
 
         self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
         self._inputs = Inputs(self._diag, self.now_ns,
-                              stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz'])))
+                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
         self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['joint_states_taken']
@@ -120,7 +128,7 @@ class VizNode(Node):
                                       f"{self._diag.values['markers_published']} /ibvs/markers"))
         self._static_pub = publisher(self, TFMessage, contract.TF_STATIC, contract.LATCHED)
         self._markers_pub = publisher(self, MarkerArray, contract.MARKERS, 10)
-        self.camera_input = StereoCameraInput(self, self._diag, p, self._on_camera)
+        self.camera_input = StereoCameraInput(self, self._diag, c.values(), self._on_camera)
         self._joints_topic = subscription(self, JointState, contract.JOINT_STATES,
                                           self._on_joints, contract.RELIABLE).topic_name
         subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
@@ -144,13 +152,13 @@ class VizNode(Node):
     def _publish_static(self):
         """Publish every fixed frame of this node in one /tf_static message (module doc)."""
         static = [(contract.BASE_FRAME, scene.TARGET_FRAME, self._target)]
-        if self._tool_frames_tf:
+        if self.config.tool_frames_tf:
             static += scene.tool_transforms(self._params)
         stamp = Time().to_msg()
         if self._camera is not None:
             static += scene.camera_transforms(self._camera.pose_C_O,
                                               self._camera.intrinsics.baseline)
-            if self._image_frames_tf:
+            if self.config.image_frames_tf:
                 static += self._image_frames(static)
             stamp = self.camera_input.pose.header.stamp
         self._static_pub.publish(transforms_msg(static, stamp))
@@ -226,7 +234,7 @@ class VizNode(Node):
         self._diag.values['joint_states_taken'] += 1
         # ABB's tool0 is the flange {E} of eq. (7): the true arm's, where the camera sees it.
         tool = forward_kinematics(q + self._d_q, self._params)
-        self._path = (self._path + [tool[:3, 3]])[-self._path_points:]
+        self._path = (self._path + [tool[:3, 3]])[-self.config.tool_path_points:]
         self._estimated = fiducial_points(q, IRB4600)
         if self._camera is not None and (self._last_markers_ns is None or
                                          t_ns - self._last_markers_ns >= self._marker_period_ns):
@@ -263,7 +271,7 @@ class VizNode(Node):
         body.scale.x, body.scale.y, body.scale.z = scene.ZED2_BODY_SIZE_M
         body.color = _rgba((0.1, 0.1, 0.1))
         out.markers.append(body)
-        lines = scene.frustum_lines(self._camera.intrinsics, self._frustum_depth)
+        lines = scene.frustum_lines(self._camera.intrinsics, self.config.frustum_depth_m)
         for i, frame in enumerate(scene.LENS_FRAMES):
             m = self._marker(NS_FRUSTUM, i, Marker.LINE_LIST, stamp, frame)
             m.scale.x = 0.005
