@@ -10,7 +10,6 @@ Its topics and parameters: docs/nodes.md (generated from what it opens and :data
 What it rejects and counts, the budget, the overlays and the taught target: docs/nodes.md.
 """
 
-from collections import deque
 from functools import partial
 import time
 
@@ -37,6 +36,7 @@ from . import overlay
 from .blend import BumplessSwitch
 from .detector import DetectorConfig, Reason, StereoDetector
 from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
+from .frame_stats import FrameStats
 from .imageconv import image_array
 from .stereo_pairing import Drop, Ready, StereoPairer
 
@@ -75,8 +75,6 @@ _LENS_FRAMES = {'left': contract.LEFT_CAMERA_FRAME, 'right': contract.RIGHT_CAME
 OPENCV_THREADS = 1
 #: The taught target's budget (ms of estimated cost): one pair, once, before the run.
 TEACH_BUDGET_MS = 1000.0
-#: Detections whose wall time the mean and max on /diagnostics cover.
-TIMING_WINDOW = 200
 
 
 class FeatureNode(Node):
@@ -101,8 +99,7 @@ class FeatureNode(Node):
         self._detector = None
         self._model_error = None
         self._last_measured = None
-        self._times_ms = deque(maxlen=TIMING_WINDOW)
-        self._detection_ms = {key: deque(maxlen=TIMING_WINDOW) for key in ('wall', 'cpu', 'cost')}
+        self._stats = FrameStats(self._budget_ms)
         self._teach = {}
         self._teach_done = False
         self._debug_always = p['publish_debug_images']
@@ -113,7 +110,6 @@ class FeatureNode(Node):
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._inputs = Inputs(self._diag, self.now_ns,
                               stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz'])))
-        self._reasons = {}
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, frames_over_budget=0,
                           detection_budget_ms=self._budget_ms, last_switch_time_s='none',
@@ -330,27 +326,13 @@ class FeatureNode(Node):
         return estimate if self._model_error is None else estimate + self._model_error
 
     def _record_detection(self, detection, wall_ms, cpu_ms):
-        """
-        Count a pair over budget; keep the wall time, CPU time and estimated cost of detection.
-
-        The CPU time is this thread's (OpenCV runs on it, OPENCV_THREADS): what the detector
-        took, whereas the wall time also holds the waits for a core that other processes
-        had. ``detection_within_budget`` compares the largest CPU time with the budget.
-        """
+        """Count a pair over budget; keep the detection's times (:class:`.FrameStats`)."""
         d = self._diag
         if detection.reason is Reason.OVER_BUDGET:
             d.values['frames_over_budget'] += 1
             d.reject('stereo frame', 'detection over budget', detection.detail)
-        kept = self._detection_ms
-        for key, value in (('wall', wall_ms), ('cpu', cpu_ms), ('cost', detection.cost_ms)):
-            kept[key].append(value)
-        d.update(detection_ms_last=wall_ms,
-                 detection_ms_mean=float(np.mean(kept['wall'])),
-                 detection_ms_max=float(np.max(kept['wall'])),
-                 detection_cpu_ms_mean=float(np.mean(kept['cpu'])),
-                 detection_cpu_ms_max=float(np.max(kept['cpu'])),
-                 detection_cost_ms_max=float(np.max(kept['cost'])),
-                 detection_within_budget=bool(np.max(kept['cpu']) <= self._budget_ms))
+        # The CPU time is this thread's: OpenCV runs on it (OPENCV_THREADS).
+        d.update(**self._stats.detection(wall_ms, cpu_ms, detection.cost_ms))
 
     def _publish_overlays(self, t_ns, images, encoding, detection, estimate, output):
         """Draw and publish each lens's overlay that someone listens to (module docstring)."""
@@ -390,17 +372,12 @@ class FeatureNode(Node):
         else:
             values['frames_estimated'] += 1
             reason = f'{detection.reason.value}: {detection.detail}'
-            key = detection.reason.value
-            self._reasons[key] = self._reasons.get(key, 0) + 1
-        self._times_ms.append(elapsed_ms)
+        estimated = self._stats.estimated(None if detection.ok else detection.reason.value)
         switch = self._switch
         d.update(mode=switch.mode, source=switch.source, detection=reason,
                  search=detection.search, switches=switch.switches,
-                 processing_ms_last=elapsed_ms,
-                 processing_ms_median=float(np.median(self._times_ms)),
-                 processing_ms_max=float(np.max(self._times_ms)), waiting_for='')
-        for key, n in self._reasons.items():
-            d.values[f'estimated_because[{key}]'] = n
+                 **self._stats.processing(elapsed_ms), waiting_for='')
+        d.update(**estimated)
         if switch.last_switch_ns is not None and switch.source != previous \
                 and previous is not None:
             t_s = ns_to_seconds(switch.last_switch_ns)
