@@ -10,6 +10,7 @@ import time
 
 from ibvs_bringup import scenario
 from ibvs_bringup.graph import GRAPH
+from ibvs_bringup.graph_topics import expected_counts
 from ibvs_bringup.supervision import NodeProcess
 import pytest
 import rclpy
@@ -21,34 +22,22 @@ NODE_NAMES = {'sim_node', 'feature_node', 'joint_controller_node', 'feedforward_
 EXECUTABLES = GRAPH.paper_nodes() + tuple((n.package, n.name) for n in GRAPH.nodes
                                           if n.sim_side and not n.paper)
 
-#: topic -> (type, publishers, subscribers): the contract of docs/design.md §3.
+#: topic -> (type, publishers, subscribers): what the nodes record opening (ibvs_bringup.
+#: graph_topics, the one source of docs/design.md §1 and §3), as ``ros2 run`` starts them.
+OPENED = expected_counts(name for _, name in EXECUTABLES)
 EXPECTED = {
+    **OPENED,
+    # The feedforward node drops its subscription after the first good state: MIN_SUBSCRIBERS.
+    '/joint_states': OPENED['/joint_states'][:2] + (None,),
+    # rclpy's time source in every node (use_sim_time) reads /clock: MIN_SUBSCRIBERS.
     '/clock': ('rosgraph_msgs/msg/Clock', 1, None),
-    '/joint_states': ('sensor_msgs/msg/JointState', 1, None),
-    '/stereo/left/image_raw': ('sensor_msgs/msg/Image', 1, 1),
-    '/stereo/right/image_raw': ('sensor_msgs/msg/Image', 1, 1),
-    '/stereo/left/camera_info': ('sensor_msgs/msg/CameraInfo', 1, None),
-    '/stereo/right/camera_info': ('sensor_msgs/msg/CameraInfo', 1, None),
-    '/stereo/pose': ('geometry_msgs/msg/PoseStamped', 1, None),
-    '/ibvs/features': ('geometry_msgs/msg/PolygonStamped', 1, 1),
-    '/ibvs/feature_status': ('diagnostic_msgs/msg/DiagnosticArray', 1, 0),
-    '/ibvs/feedforward_trajectory': ('trajectory_msgs/msg/JointTrajectory', 1, 1),
-    '/ibvs/q_feedback': ('sensor_msgs/msg/JointState', 1, 1),
-    '/joint_effort_commands': ('sensor_msgs/msg/JointState', 1, 1),
-    '/ibvs/tool_path': ('nav_msgs/msg/Path', 1, 0),
-    '/stereo/joint_states': ('sensor_msgs/msg/JointState', 1, 0),
-    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 6, 0),
-    # robot_state_node alone (ABB's frames); the viewers' node is not started here
-    '/robot_description': ('std_msgs/msg/String', 1, 0),
-    '/tf': ('tf2_msgs/msg/TFMessage', 1, 0),
-    '/tf_static': ('tf2_msgs/msg/TFMessage', 1, 0),
+    # Each node's ibvs_common.diagnostics.Diagnostics, not opened through the kit.
+    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', len(EXECUTABLES), 0),
 }
 #: Who must read what (subscriber counts of at least these).
 MIN_SUBSCRIBERS = {
-    '/joint_states': 3,           # feature node, feedforward, joint controller (+ feedback)
-    '/stereo/left/camera_info': 1,
-    '/stereo/pose': 1,
     '/clock': 4,                  # every node with use_sim_time
+    '/joint_states': OPENED['/joint_states'][2] - 1,
 }
 
 

@@ -5,9 +5,10 @@ The node graph in one place: nodes, processes, remappings, the readers of step 0
 graph reads it: the runner's process plan (:func:`process_plan`: :meth:`Graph.processes`
 with :meth:`Graph.remaps`) and its start handshake (:meth:`Graph.step0_readers`),
 ``compose``'s node table (:meth:`Graph.compose_table`), and the table of docs/design.md
-§1 (:meth:`Graph.markdown_table`, checked against the file by a test). Adding a node to the graph
-is one :class:`Node` entry here plus its module (and its executable in its package's
-``setup.py``, which ``ros2 run`` needs; a test checks that each node has one).
+§1 (:func:`.graph_topics.node_table`, checked against the file by a test). Adding a node
+to the graph is one :class:`Node` entry here plus its module (and its executable in its
+package's ``setup.py``, which ``ros2 run`` needs; a test checks that each node has one),
+and the records of what it opens regenerated (:mod:`.graph_topics`).
 """
 
 from collections.abc import Mapping
@@ -50,7 +51,8 @@ class Node:
     is not). ``sim_side``: the simulator's, standing in for the cell (the simulator itself,
     and robot_state_node for the driver's robot_state_publisher): a run beside a real cell
     (``ibvs cell``) leaves these out (:meth:`Graph.cell_nodes`). The ``doc_*`` fields are
-    its row of docs/design.md §1.
+    its row of docs/design.md §1 (:func:`.graph_topics.node_table`), whose reads and writes
+    are what the node records opening.
     """
 
     name: str
@@ -64,8 +66,6 @@ class Node:
     paper: bool = True
     sim_side: bool = False
     doc_module: str = ''
-    doc_reads: str = ''
-    doc_writes: str = ''
     doc_rate: str = ''
 
 
@@ -169,25 +169,6 @@ class Graph:
         """Return {node: (module, class)}: the nodes ``compose`` can hold."""
         return {n.name: (n.module, n.cls) for n in self.nodes}
 
-    def markdown_table(self) -> str:
-        """Return the node table of docs/design.md §1 (markdown)."""
-        rows = ['| node | package, module | process | reads | writes | rate |',
-                '|---|---|---|---|---|---|']
-        for n in self.nodes:
-            remapped = ''.join(f'; {t} read as {r} (`ibvs run`'
-                               f'{", lockstep" if FRAME_STATES.get(t) == r else ""})'
-                               for t, r in n.remaps.items())
-            where = (f'`{n.process}` ({", ".join(self.shared(n.process))})' if n.process
-                     else 'its own')
-            rows.append(f'| `{n.name}` | `{n.module}`'
-                        f'{" (" + n.doc_module + ")" if n.doc_module else ""} | {where} | '
-                        f'{n.doc_reads}{remapped} | {n.doc_writes} | {n.doc_rate} |')
-        rows.append('| recorder (in the runner) | `ibvs_bringup.recorder.Recorder` | the '
-                    "runner's | every topic (images, /joint_states and /joint_effort_commands "
-                    'on request: /ibvs/joint_path has their values) | the MCAP bag | as '
-                    'messages arrive |')
-        return '\n'.join(rows) + '\n'
-
 
 #: The graph of docs/design.md §1, in start order. The paper's nodes run in one process
 #: (``lockstep``, ibvs_bringup.compose), as gazebo_ros2_control runs the controllers inside
@@ -215,57 +196,47 @@ GRAPH = Graph(
              step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                           contract.RIGHT_INFO),
              doc_module="pure: `ibvs_viz.scene`; not one of the paper's nodes, §12",
-             doc_reads='/joint_states, camera_info, /stereo/pose, /ibvs/features, '
-                       '/ibvs/feature_status',
-             doc_writes='/tf_static (camera, tool, target frames), /ibvs/markers',
-             doc_rate='one per frame; nothing waits for it'),
+             doc_rate='one per frame (/tf_static: camera, tool, target frames); nothing '
+                      'waits for it'),
         Node('robot_state_node', 'ibvs_sim', 'ibvs_sim.robot_state_node', 'RobotStateNode',
              remaps=FRAME_STATES, paper=False, sim_side=True,
              step0_reads=(contract.FRAME_JOINT_STATES,),
              doc_module="pure: `ibvs_model.abb_urdf`; the simulator's stand-in for "
                         'robot_state_publisher, §12',
-             doc_reads='/joint_states',
-             doc_writes="/robot_description (ABB's frames), /tf (base_link -> link_1..link_6), "
-                        '/tf_static (base, flange, tool0)',
-             doc_rate='/tf one per frame; nothing waits for it'),
+             doc_rate="/robot_description (ABB's frames) once; /tf (base_link -> "
+                      'link_1..link_6) one per frame; /tf_static (base, flange, tool0) '
+                      'once; nothing waits for it'),
         Node('feature_node', 'ibvs_vision', 'ibvs_vision.feature_node', 'FeatureNode',
              process='lockstep', remaps=FRAME_STATES, zed_remaps=ZED_TOPICS,
              step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                           contract.RIGHT_INFO),
              doc_module='pure: `detector`, `blend`',
-             doc_reads='images, camera_info, /stereo/pose, /joint_states',
-             doc_writes='/ibvs/features, /ibvs/feature_status',
              doc_rate='one message each per stereo frame'),
         Node('adaptive_feedback_node', 'ibvs_control', 'ibvs_control.adaptive_feedback_node',
              'AdaptiveFeedbackNode', process='lockstep', remaps=FRAME_STATES, zed_remaps=ZED_INFO,
              step0_reads=(contract.FRAME_JOINT_STATES, contract.LEFT_INFO,
                           contract.RIGHT_INFO),
              doc_module='pure: `controllers.AdaptiveFeedback`',
-             doc_reads='/ibvs/features, /joint_states, camera_info, /stereo/pose',
-             doc_writes='/ibvs/q_feedback', doc_rate='one per frame'),
+             doc_rate='one per frame'),
         Node('feedforward_node', 'ibvs_control', 'ibvs_control.feedforward_node',
              'FeedforwardNode', process='lockstep', step0_reads=(contract.JOINT_STATES,),
              doc_module='pure: `controllers.Feedforward`',
-             doc_reads='the first good /joint_states', doc_writes='/ibvs/feedforward_trajectory',
              doc_rate='once, then it unsubscribes'),
         Node('joint_controller_node', 'ibvs_control', 'ibvs_control.joint_controller_node',
              'JointControllerNode', process='lockstep', step0_reads=(contract.JOINT_STATES,),
              zed_remaps=ZED_INFO,
              doc_module='pure: `controllers.JointLoop`, `dynamics.RobotDynamics`',
-             doc_reads='/joint_states, the trajectory, /ibvs/q_feedback',
-             doc_writes='/joint_effort_commands', doc_rate='one per /joint_states'),
+             doc_rate='one per /joint_states'),
         Node('sim_node', 'ibvs_sim', 'ibvs_sim.sim_node', 'SimNode', process='lockstep',
              sim_side=True,
              doc_module='core: `ibvs_sim.simulator.Simulator`, `ibvs_sim.world.World`',
-             doc_reads='/joint_effort_commands',
-             doc_writes='/joint_states: every physics step (`physics_rate_hz`, 1 kHz; '
-                        'free-running `joint_state_rate_hz`, 250 Hz, §4.1); '
-                        '/ibvs/tool_path (the poses of every step), /ibvs/joint_path (the '
-                        '/joint_states of every step) and /clock: `clock_rate_hz` (10 Hz); '
-                        '/stereo/joint_states: every camera frame (lockstep only); '
-                        'images and camera_info: every camera frame (`camera_rate_hz`, '
-                        '30 Hz); /stereo/pose: once',
-             doc_rate='one step per effort command (lockstep, §4)'),
+             doc_rate='one step per effort command (lockstep, §4); /joint_states every '
+                      'physics step (`physics_rate_hz`, 1 kHz; free-running '
+                      '`joint_state_rate_hz`, 250 Hz, §4.1); /ibvs/tool_path (the poses of '
+                      'every step), /ibvs/joint_path (the /joint_states of every step) and '
+                      '/clock: `clock_rate_hz` (10 Hz); /stereo/joint_states: every camera '
+                      'frame (lockstep only); images and camera_info: every camera frame '
+                      '(`camera_rate_hz`, 30 Hz); /stereo/pose: once'),
     ),
     simulator='sim_node',
     # The runner's recorder and monitor also read /ibvs/tool_path, and the recorder

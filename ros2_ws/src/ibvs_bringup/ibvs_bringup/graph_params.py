@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from typing import Any, TYPE_CHECKING
 
 from ibvs_common.params import check_declared, Param, ParameterError, plain_value
+from ibvs_common.params import check_rules as check_rules_of
 
 from .scenario import ScenarioError
 
@@ -68,23 +69,39 @@ def check(params: Mapping[str, Any], where: str = 'parameter') -> None:
             raise ScenarioError(f'{where}: {exc}') from None
 
 
-def check_rules(params: Mapping[str, Any], where: str = 'parameters') -> None:
+def rules(graph: 'Graph | None' = None) -> tuple:
+    """
+    Return the rules between parameters of every node of ``graph``, each once, in node order.
+
+    Each node's module lists them as ``RULES`` (:func:`ibvs_common.params.check_rules`): the
+    functions the node runs on its values at start (``declare(node, PARAMS, RULES)``).
+    """
+    import importlib
+    from .graph import GRAPH
+    out = []
+    for node in (graph or GRAPH).nodes:
+        for rule in getattr(importlib.import_module(node.module), 'RULES', ()):
+            if rule not in out:
+                out.append(rule)
+    return tuple(out)
+
+
+def check_rules(params: Mapping[str, Any], where: str = 'parameters',
+                graph: 'Graph | None' = None) -> None:
     """
     Raise :class:`ScenarioError` if ``params`` break a rule between parameters.
 
-    The rules are the nodes' own functions, run on ``params`` over every declared default
-    (a parameter not given is the node's default): the command interface and the time mode
-    (:func:`ibvs_common.shared_params.check_command_interface`, which the simulator and
-    the joint controller run at their start) and a unit quaternion in ``camera_pose``
-    (:func:`ibvs_common.shared_params.camera_pose_from`). A run that breaks one is refused
-    before any node starts, not by a node seconds into its start.
+    The rules are the nodes' own functions (:func:`rules`: the command interface against
+    the time mode, the servo law against the feedforward and its gains, omega_n against
+    tau_in, the camera rate against the physics rate, a reachable target, a unit quaternion
+    in ``camera_pose``, ...), run on ``params`` over every declared default (a parameter not
+    given is the node's default). A run that breaks one is refused before any node starts,
+    with the message the node would log, not by a node seconds into its start.
     """
-    from ibvs_common.shared_params import camera_pose_from, check_command_interface
-    values = {name: spec.default for name, spec in declared().items()}
+    values = {name: spec.default for name, spec in declared(graph).items()}
     values.update({name: plain_value(value, values.get(name))
                    for name, value in params.items()})
     try:
-        check_command_interface(values)
-        camera_pose_from(values)
+        check_rules_of(rules(graph), values)
     except ParameterError as exc:
         raise ScenarioError(f'{where}: {exc}') from None

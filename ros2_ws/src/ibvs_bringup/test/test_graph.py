@@ -5,7 +5,7 @@ import os
 from pathlib import Path
 
 from ament_index_python.packages import get_package_prefix
-from ibvs_bringup import compose, graph, supervision
+from ibvs_bringup import compose, graph, graph_topics, supervision
 from ibvs_bringup.graph import GRAPH, Node
 from ibvs_bringup.supervision import ProcessSpec
 from ibvs_common import contract
@@ -103,7 +103,11 @@ def test_adding_a_node_is_one_entry_of_the_description():
     # /joint_states at step 0 and a remapped camera_info, with no other edit.
     dummy = Node('dummy_node', 'ibvs_dummy', 'ibvs_dummy.dummy_node', 'DummyNode',
                  remaps={contract.LEFT_INFO: '/elsewhere/camera_info'},
-                 step0_reads=(contract.JOINT_STATES,), doc_reads='/joint_states')
+                 step0_reads=(contract.JOINT_STATES,))
+    # What it opens: the records of ibvs_bringup.graph_topics, one row more.
+    opened = graph_topics.opened() + (graph_topics.Opened(
+        'dummy_node', 'subscribes', contract.JOINT_STATES, 'sensor_msgs/msg/JointState',
+        'RELIABLE', tuple(graph_topics.MODES)),)
     at = [n.name for n in GRAPH.nodes].index('adaptive_feedback_node') + 1
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (dummy,) + GRAPH.nodes[at:])
     plan = graph.process_plan({}, bigger)
@@ -115,7 +119,8 @@ def test_adding_a_node_is_one_entry_of_the_description():
         ('dummy_node', 'feedforward_node', 'joint_controller_node')
     assert bigger.compose_table()['dummy_node'] == ('ibvs_dummy.dummy_node', 'DummyNode')
     assert '| `dummy_node` | `ibvs_dummy.dummy_node` | its own | /joint_states; ' \
-        f'{contract.LEFT_INFO} read as /elsewhere/camera_info' in bigger.markdown_table()
+        f'{contract.LEFT_INFO} read as /elsewhere/camera_info' in \
+        graph_topics.node_table(bigger, opened)
     # Into the simulator's process: one field more.
     shared = dataclasses.replace(dummy, process='lockstep')
     bigger = dataclasses.replace(GRAPH, nodes=GRAPH.nodes[:at] + (shared,) + GRAPH.nodes[at:])

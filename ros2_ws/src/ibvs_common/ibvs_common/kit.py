@@ -7,8 +7,12 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
   DDS as well when another process reads it; a transient-local one goes through DDS only.
   Each topic opened is recorded (:class:`Endpoint`, :func:`opened`), so that what a graph
   reads and writes can be read from the nodes themselves.
+- :func:`config`: a node's typed configuration (:class:`.params.ParamConfig`): its
+  parameters declared with their ranges, checked, and its rules between parameters run.
 - :class:`WaitReporter`: the "waiting for" log, once a second while the node made no
   progress, naming what is missing.
+- :class:`Inputs`: a node's stamped inputs: the one stamp rule, the stamp order per topic,
+  each message read, a rejection counted on /diagnostics under the topic.
 - :class:`StereoCameraInput`: both CameraInfo and the camera pose (the ``camera_pose``
   parameter or /stereo/pose), checked, rejected with a reason counted on /diagnostics, and
   a :class:`ibvs_model.StereoCamera` once they describe one.
@@ -17,7 +21,7 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any, Mapping, TYPE_CHECKING
+from typing import Any, Mapping, TYPE_CHECKING, TypeVar
 import weakref
 
 from geometry_msgs.msg import PoseStamped
@@ -27,7 +31,8 @@ from sensor_msgs.msg import CameraInfo
 
 from . import contract, intra_process
 from .conversions import (camera_from_msgs, check_camera_info, InputError, pose_stamped,
-                          read_camera_pose)
+                          read_camera_pose, read_stamp, StampOrder)
+from .params import declare, ParamConfig
 from .shared_params import camera_pose_from
 
 if TYPE_CHECKING:
@@ -125,6 +130,22 @@ def subscription(node: 'Node', msg_type: type, topic: str, callback: Callable[[A
     return sub
 
 
+Config = TypeVar('Config', bound=ParamConfig)
+
+
+def config(node: 'Node', cls: type[Config], **others: Any) -> Config:
+    """
+    Return the typed configuration ``cls`` of ``node``, its parameters declared and checked.
+
+    Each Param field of ``cls`` is declared on ``node`` with its descriptor (units, range)
+    and checked (:func:`.params.declare`, ParameterError naming it), the class's ``RULES``
+    between parameters run (:func:`.params.check_rules`); ``others`` sets the fields
+    without a Param.
+    """
+    values = declare(node, cls.params(), getattr(cls, 'RULES', ()))
+    return cls.from_values(values, **others)
+
+
 class WaitReporter:
     """
     Log what the node waits for, once every ``period_s`` (steady clock) without progress.
@@ -153,6 +174,47 @@ class WaitReporter:
         if line and not self._progress:
             self._node.get_logger().info(line)
         self._progress = False
+
+
+class Inputs:
+    """
+    A node's stamped inputs: the stamp rule, the order per topic, rejections counted.
+
+    :meth:`read` takes a message's stamp by the one stamp rule
+    (:func:`.conversions.read_stamp`, against ``now_ns()`` and ``lead_ns``), checks it
+    against the topic's order (:class:`.conversions.StampOrder`: a duplicate or a stamp that
+    went back) where ``ordered``, then reads the message with ``reader``; an
+    :class:`.conversions.InputError` from any of them is counted on ``diagnostics`` under
+    the topic (docs/design.md §3). A message read whole takes its stamp (``take``), so that
+    a message refused for its values leaves the stamp to a good one.
+    """
+
+    def __init__(self, diagnostics: 'Diagnostics', now_ns: Callable[[], int],
+                 lead_ns: int) -> None:
+        """Count on ``diagnostics``; ``now_ns()`` is the newest time the node knows."""
+        self._diag = diagnostics
+        self._now_ns = now_ns
+        self.lead_ns = lead_ns
+        self.order = StampOrder()
+
+    def read(self, topic: str, msg: Any, reader: Callable[[Any], Any] | None = None,
+             ordered: bool = True, take: bool = True) -> tuple[int, Any] | None:
+        """Return (stamp ns, ``reader(msg)`` or None), or None: rejected and counted."""
+        try:
+            t_ns = read_stamp(msg.header.stamp, self._now_ns(), self.lead_ns)
+            if ordered:
+                self.order.check(topic, t_ns)
+            value = None if reader is None else reader(msg)
+        except InputError as exc:
+            self.reject(topic, exc)
+            return None
+        if ordered and take:
+            self.order.take(topic, t_ns)
+        return t_ns, value
+
+    def reject(self, topic: str, exc: InputError, note: str = '') -> None:
+        """Count ``exc`` under ``topic`` (``note`` appended to its detail)."""
+        self._diag.reject(topic, exc.reason, exc.detail + note)
 
 
 class StereoCameraInput:

@@ -16,7 +16,7 @@ the closest declared names: by ``ibvs run`` for the graph
 (:func:`ibvs_common.node_main.check_arguments`), in the same words.
 """
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, fields
 import difflib
 import math
@@ -192,12 +192,32 @@ def plain_value(value: Any, default: Any) -> Any:
     return value
 
 
-def declare(node: 'Node', specs: Iterable[Param]) -> dict[str, Any]:
+#: A rule between parameters: called with the values by name, raises ParameterError naming
+#: the parameters when they do not go together (its result, if any, is the node's to use).
+Rule = Callable[[Mapping[str, Any]], Any]
+
+
+def check_rules(rules: Iterable[Rule], values: Mapping[str, Any]) -> None:
+    """
+    Run each rule on ``values``: ParameterError from the first one broken.
+
+    A node module lists its rules as ``RULES``; the node runs them at start (:func:`declare`)
+    and ``ibvs run`` before any node starts (:func:`ibvs_bringup.graph_params.check_rules`),
+    so that each rule is one function, called by both.
+    """
+    for rule in rules:
+        rule(values)
+
+
+def declare(node: 'Node', specs: Iterable[Param], rules: Iterable[Rule] = ()
+            ) -> dict[str, Any]:
     """
     Declare every :class:`Param` on ``node`` and return their validated values by name.
 
     Integer defaults accept integer values only; float defaults also accept integers
-    (a YAML ``1`` for a float parameter is a common slip), which are converted.
+    (a YAML ``1`` for a float parameter is a common slip), which are converted. ``rules``:
+    the node's rules between parameters (its module's ``RULES``), run on the values
+    (:func:`check_rules`).
     """
     values = {}
     for spec in specs:
@@ -211,6 +231,7 @@ def declare(node: 'Node', specs: Iterable[Param]) -> dict[str, Any]:
             raise ParameterError(f"parameter '{spec.name}': {exc}; allowed: {spec.allowed()}") \
                 from None
         values[spec.name] = spec.check(plain_value(param.value, spec.default))
+    check_rules(rules, values)
     return values
 
 
@@ -250,6 +271,10 @@ class ParamConfig:
     def params(cls) -> tuple[Param, ...]:
         """Return the :class:`Param` of each field that has one, in field order."""
         return tuple(f.metadata['param'] for f in fields(cls) if 'param' in f.metadata)
+
+    def values(self) -> dict[str, Any]:
+        """Return the Param fields by name: the mapping the shared rules and readers take."""
+        return {spec.name: getattr(self, spec.name) for spec in self.params()}
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any], **others: Any) -> Self:

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .params import Param, ParameterError
+from .timing import check_camera_rate
 
 SCENARIO = Param('scenario', 1, 'paper scenario (section 5.1) giving the start pose', '-',
                  low=1, high=3)
@@ -136,6 +137,19 @@ def check_command_interface(values: Mapping[str, Any]) -> None:
         raise ParameterError("parameter 'lockstep' = False is invalid with command_interface "
                              "'effort': the computed-torque loop runs in lockstep only; "
                              "allowed: true (or command_interface 'position')")
+
+
+def check_camera_rate_param(values: Mapping[str, Any]) -> None:
+    """
+    Refuse a camera rate above the physics rate (ParameterError naming both).
+
+    A frame is taken on a physics step (:func:`ibvs_common.timing.check_camera_rate`).
+    """
+    try:
+        check_camera_rate(values['camera_rate_hz'], values['physics_rate_hz'])
+    except ValueError as exc:
+        raise ParameterError(f"parameter 'camera_rate_hz' = {values['camera_rate_hz']!r} "
+                             f'is invalid: {exc}') from None
 
 
 CAMERA_POSE = Param(

@@ -181,3 +181,42 @@ def test_the_camera_pose_parameter_replaces_the_topic(context):
         assert subs[contract.LEFT_INFO].msg_type == 'sensor_msgs/msg/CameraInfo'
     finally:
         probe.node.destroy_node()
+
+
+class _Counts:
+    """A stand-in for Diagnostics.reject: the rejections, in order."""
+
+    def __init__(self):
+        self.seen = []
+
+    def reject(self, source, reason, detail=''):
+        self.seen.append((source, reason, detail))
+
+
+def _joint_state(sec, positions=(0.0,) * 6):
+    msg = JointState(name=list(contract.JOINT_NAMES), position=list(positions))
+    msg.header.stamp.sec = sec
+    return msg
+
+
+def test_inputs_apply_the_stamp_rule_and_the_order_and_count_rejections():
+    from ibvs_common.conversions import InputError, read_joints
+    counts = _Counts()
+    inputs = kit.Inputs(counts, lambda: 10 * 10**9, lead_ns=10**9)
+    got = inputs.read('/j', _joint_state(5), read_joints)
+    assert got[0] == 5 * 10**9 and np.allclose(got[1], 0.0) and counts.seen == []
+    assert inputs.read('/j', _joint_state(5)) is None  # the same stamp again
+    assert inputs.read('/j', _joint_state(4)) is None  # back in time
+    assert inputs.read('/j', _joint_state(60)) is None  # beyond now + lead
+    assert [reason for _, reason, _ in counts.seen] == [
+        'duplicate stamp', 'stamp went back', 'stamp in the future']
+    assert all(source == '/j' for source, _, _ in counts.seen)
+    # A message refused for its values leaves its stamp to a good one.
+    assert inputs.read('/j', _joint_state(6, [float('nan')] * 6), read_joints) is None
+    assert inputs.read('/j', _joint_state(6), read_joints)[0] == 6 * 10**9
+    # take=False: checked, not taken; ordered=False: no order at all.
+    assert inputs.read('/k', _joint_state(7), take=False)[0] == 7 * 10**9
+    assert inputs.read('/k', _joint_state(7))[0] == 7 * 10**9
+    assert inputs.read('/k', _joint_state(7), ordered=False)[0] == 7 * 10**9
+    inputs.reject('/k', InputError('bad', 'why'), '; held')
+    assert counts.seen[-1] == ('/k', 'bad', 'why; held')

@@ -7,13 +7,8 @@ q_feedback = k_d(z) C1^+ (p_bar - p_hat) (eq. 38-42), with the frame's encoder j
 (:class:`.frame_lockstep.FrameLockstep`). Every frame is answered, one it cannot use with
 the held q_feedback.
 
-Subscribes: /ibvs/features, /joint_states (``ibvs run``: /stereo/joint_states),
-/stereo/{left,right}/camera_info and /stereo/pose (the model is built once:
-:class:`ibvs_common.kit.StereoCameraInput`), /ibvs/target_features (latched; with
-``target_features_source`` 'taught'), /ibvs/feature_status (laws that need to know whether a
-frame was measured). Publishes: /ibvs/q_feedback (stamped with the frame), /diagnostics.
-Parameters: :data:`PARAMS` (docs/parameters.md). Determinism, staleness, rejections and the
-servo laws: docs/nodes.md.
+Its topics and parameters: docs/nodes.md (generated from what it opens and :data:`PARAMS`).
+Determinism, staleness, rejections and the servo laws: docs/nodes.md.
 """
 
 from typing import Any
@@ -23,12 +18,12 @@ from geometry_msgs.msg import PolygonStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (ignored_joints, InputError, joint_state, position_bounds,
                                      read_feature_status, read_features, read_joints,
-                                     read_stamp, stamp_lead_ns, velocity_bounds)
+                                     stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
+from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import (CAMERA_POSE, CAMERA_RATE_HZ,
+from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
                                        STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
                                        TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
@@ -48,6 +43,15 @@ from .servo_laws import law_class
 PARAMS = (CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION, STALE_TIMEOUT_S,
           TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0, LAMBDA_INF,
           LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (check_gains, check_servo_law, target_from, camera_pose_from)
+
+
+def _read_state(msg: JointState) -> tuple:
+    """Return the positions and velocities of a /joint_states (InputError if bad)."""
+    return (read_joints(msg, bound=position_bounds()),
+            read_joints(msg, 'velocity', bound=velocity_bounds()))
+
 
 #: Encoder joint states kept for matching frames (2 s at 1 kHz); most frames buffered.
 HISTORY = 2000
@@ -59,15 +63,13 @@ class AdaptiveFeedbackNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters and create the interfaces."""
         super().__init__('adaptive_feedback_node', **kwargs)
-        self.values = values = declare(self, PARAMS)
-        check_gains(values)
+        self.values = values = declare(self, PARAMS, RULES)
         self.gain = check_servo_law(values)
         self.law = law_class(values['servo_law'])
         self.needs_status = self.law.needs_measured(values)
         self.pose = target_from(values)
         self.camera_ns = period_ns(values['camera_rate_hz'])
         self.stale_timeout_ns = seconds_to_ns(values['stale_timeout_s'])
-        self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.camera_ns)
         self.feedback = None
         self._camera = None
         self._taught = values['target_features_source'] == 'taught'
@@ -78,6 +80,8 @@ class AdaptiveFeedbackNode(Node):
         self._envelope_seen = set()
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
+        self._inputs = Inputs(self.diagnostics, self.now_ns,
+                              stamp_lead_ns(values['stale_timeout_s'], self.camera_ns))
         self.diagnostics.update(state='waiting for camera', frames=0)
         self.diagnostics.log_progress(self._progress)
         self._pub = publisher(self, JointState, contract.Q_FEEDBACK, contract.RELIABLE)
@@ -184,13 +188,10 @@ class AdaptiveFeedbackNode(Node):
         return node_time_ns(self, self._lockstep.joints.newest)
 
     def _on_joint_state(self, msg):
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
-            q = read_joints(msg, bound=position_bounds())
-            qd = read_joints(msg, 'velocity', bound=velocity_bounds())
-        except InputError as exc:
-            self.diagnostics.reject(self._joints_topic, exc.reason, exc.detail)
+        got = self._inputs.read(self._joints_topic, msg, _read_state, ordered=False)
+        if got is None:
             return
+        t_ns, (q, qd) = got
         self.diagnostics.note_ignored(self._joints_topic, ignored_joints(msg))
         rejection = self._lockstep.offer_joints(t_ns, (q, qd))
         if rejection is not None:
@@ -202,18 +203,16 @@ class AdaptiveFeedbackNode(Node):
         self._drain()
 
     def _on_features(self, msg):
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
-        except InputError as exc:
-            self.diagnostics.reject(contract.FEATURES, exc.reason, exc.detail)
+        got = self._inputs.read(contract.FEATURES, msg, ordered=False)
+        if got is None:
             return
+        t_ns = got[0]
         try:
             features = read_features(msg)
         except InputError as exc:
             # Counted now; answered with the held q_feedback in its turn (the joint
             # controller waits for an answer to every frame).
-            self.diagnostics.reject(contract.FEATURES, exc.reason,
-                                    f'{exc.detail}; q_feedback held')
+            self._inputs.reject(contract.FEATURES, exc, '; q_feedback held')
             features = exc
         rejection = self._lockstep.offer_frame(t_ns, features)
         if rejection is not None:
@@ -223,12 +222,10 @@ class AdaptiveFeedbackNode(Node):
 
     def _on_status(self, msg):
         """Keep whether the frame of this /ibvs/feature_status stamp was measured."""
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self.lead_ns)
-            status = read_feature_status(msg)
-        except InputError as exc:
-            self.diagnostics.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
+        got = self._inputs.read(contract.FEATURE_STATUS, msg, read_feature_status, ordered=False)
+        if got is None:
             return
+        t_ns, status = got
         rejection = self._lockstep.offer_status(t_ns, status.measured)
         if rejection is not None:
             self.diagnostics.reject(contract.FEATURE_STATUS, *rejection)

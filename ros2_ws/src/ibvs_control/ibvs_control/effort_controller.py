@@ -17,9 +17,8 @@ from typing import TYPE_CHECKING
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state
 from ibvs_common.kit import publisher, subscription, WaitReporter
-from ibvs_common.params import ParameterError
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.timing import check_camera_rate, ns_to_seconds, seconds_to_ns
+from ibvs_common.timing import ns_to_seconds, seconds_to_ns
 from ibvs_model import IRB4600
 import numpy as np
 from sensor_msgs.msg import JointState
@@ -43,15 +42,10 @@ class EffortController(JointControllerMode):
     """Computed torque with the sampled Youla G_c, in lockstep (module docstring)."""
 
     def __init__(self, node: 'Node', config: 'JointControllerConfig') -> None:
-        """Check the rates, load the dynamics model, open the effort interface's topics."""
+        """Load the dynamics model, open the effort topics (the rates: the node's RULES)."""
         super().__init__(node, config)
         self.frames = (self.camera_ns, self.dt_ns)
         self.latency_ns = seconds_to_ns(config.feedback_latency_s)
-        try:
-            check_camera_rate(config.camera_rate_hz, config.physics_rate_hz)
-        except ValueError as exc:
-            raise ParameterError(f"parameter 'camera_rate_hz' = {config.camera_rate_hz!r} "
-                                 f'is invalid: {exc}') from None
         self.dynamics = RobotDynamics(IRB4600, with_tool=True)
         limits = np.asarray(config.torque_limits, dtype=float)
         self.torque_limits = np.where(limits > 0.0, limits, self.dynamics.torque_limits)

@@ -35,6 +35,8 @@ from .node_params import FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, target_from
 
 PARAMS = (TAU_IN, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
           FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, STALE_TIMEOUT_S)
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (target_from,)
 
 
 class FeedforwardNode(Node):
@@ -43,7 +45,7 @@ class FeedforwardNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, design the filter, create the interfaces."""
         super().__init__('feedforward_node', **kwargs)
-        values = declare(self, PARAMS)
+        values = declare(self, PARAMS, RULES)
         self.pose = target_from(values)
         self.dt_ns = period_ns(values['physics_rate_hz'])
         self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)

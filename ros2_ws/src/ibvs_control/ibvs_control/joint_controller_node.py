@@ -22,6 +22,7 @@ from typing import Any
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
+from ibvs_common.shared_params import check_camera_rate_param, check_command_interface
 from rclpy.node import Node
 
 from .effort_controller import EffortController
@@ -31,6 +32,8 @@ from .position_controller import PositionController
 PARAMS = JointControllerConfig.params()
 #: command_interface -> the class that runs it.
 MODES = {'effort': EffortController, 'position': PositionController}
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (check_command_interface, check_camera_rate_param)
 
 
 class JointControllerNode(Node):
@@ -39,7 +42,7 @@ class JointControllerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, then start the command interface's class."""
         super().__init__('joint_controller_node', **kwargs)
-        self.config = JointControllerConfig.from_values(declare(self, PARAMS))
+        self.config = JointControllerConfig.from_values(declare(self, PARAMS, RULES))
         self.mode = None
         self.diagnostics = Diagnostics(self, 'joint controller')
         self.mode = MODES[self.config.command_interface](self, self.config)

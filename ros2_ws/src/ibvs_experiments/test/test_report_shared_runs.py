@@ -19,7 +19,9 @@ def test_run_identity_resolves_defaults_and_tells_different_runs_apart():
                                              'servo_law': 'paper'}, 3.0) == plain
     assert report.run_identity('scenario1', {}, 2.0) != plain
     assert report.run_identity('scenario1', {'l2_scale': 0.9}, None) != plain
-    assert report.run_identity('scenario1', {'servo_law': 'ibvs'}, None) != plain
+    # a law with its feedforward, as the law study sets it (without: refused, test_param_rules)
+    assert report.run_identity('scenario1', {'servo_law': 'ibvs', 'feedforward_method': 'hold'},
+                               None) != plain
     assert report.run_identity('scenario2', {}, None) != plain
 
 

@@ -35,7 +35,7 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import publisher, WaitReporter
 from ibvs_common.node_main import run
 from ibvs_common.params import declare
-from ibvs_common.shared_params import target_from_parameters
+from ibvs_common.shared_params import check_command_interface, target_from_parameters
 from ibvs_common.timing import period_ns
 from nav_msgs.msg import Path
 import numpy as np
@@ -56,6 +56,8 @@ PARAMS = SimNodeConfig.params()
 #: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``held_steps`` and ``command_sub``
 #: and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and ``waiting_line``.
 MODES = {True: LockstepSim, False: FreeRunningSim}
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (check_command_interface,)
 
 #: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
 CAMERA_OUTPUTS = {
@@ -89,7 +91,7 @@ class SimNode(Node):
             raise
 
     def _setup(self):
-        config = self.config = SimNodeConfig.from_values(declare(self, PARAMS))
+        config = self.config = SimNodeConfig.from_values(declare(self, PARAMS, RULES))
         self._duration_ns = int(round(config.duration_s * 1e9))
         self.finished = False
         self._extra_joints = list(config.extra_joints)

@@ -6,16 +6,10 @@ model's estimate F(q_T) at the frame's joint state when the markers are not foun
 across a switch (:mod:`.blend`); the pairing rules are :class:`.stereo_pairing.StereoPairer`.
 Each frame the detector may spend ``detection_budget_share`` of the camera period.
 
-Subscribes: /stereo/{left,right}/image_raw, /stereo/teach/{left,right}/image_raw (latched),
-/stereo/{left,right}/camera_info and /stereo/pose (:class:`ibvs_common.kit.StereoCameraInput`),
-/joint_states (``ibvs run``: /stereo/joint_states). Publishes: /ibvs/features,
-/ibvs/feature_status (one each per frame), /ibvs/target_features (latched, the taught
-target), /ibvs/debug/{left,right}/image (overlays, while someone listens), /diagnostics.
-Parameters: :data:`PARAMS` (docs/parameters.md). What it rejects and counts, the budget,
-the overlays and the taught target: docs/nodes.md.
+Its topics and parameters: docs/nodes.md (generated from what it opens and :data:`PARAMS`).
+What it rejects and counts, the budget, the overlays and the taught target: docs/nodes.md.
 """
 
-from collections import deque
 from functools import partial
 import time
 
@@ -25,10 +19,9 @@ from geometry_msgs.msg import PolygonStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (feature_status_msg, features_msg, FeatureStatus,
                                      ignored_joints, image_msg, InputError, ns_stamp,
-                                     position_bounds, read_joints, read_stamp, stamp_lead_ns,
-                                     StampOrder)
+                                     position_bounds, read_joints, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, StereoCameraInput, subscription
+from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription
 from ibvs_common.node_main import run
 from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
@@ -43,6 +36,7 @@ from . import overlay
 from .blend import BumplessSwitch
 from .detector import DetectorConfig, Reason, StereoDetector
 from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
+from .frame_stats import FrameStats
 from .imageconv import image_array
 from .stereo_pairing import Drop, Ready, StereoPairer
 
@@ -68,6 +62,8 @@ PARAMS = (
     shared_params.TARGET_POSITION,
     shared_params.TARGET_ROTATION,
 )
+#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+RULES = (shared_params.camera_pose_from,)
 #: The overlay images (:mod:`.overlay`), one per lens.
 DEBUG_IMAGES = {'left': contract.DEBUG_LEFT_IMAGE, 'right': contract.DEBUG_RIGHT_IMAGE}
 
@@ -79,8 +75,6 @@ _LENS_FRAMES = {'left': contract.LEFT_CAMERA_FRAME, 'right': contract.RIGHT_CAME
 OPENCV_THREADS = 1
 #: The taught target's budget (ms of estimated cost): one pair, once, before the run.
 TEACH_BUDGET_MS = 1000.0
-#: Detections whose wall time the mean and max on /diagnostics cover.
-TIMING_WINDOW = 200
 
 
 class FeatureNode(Node):
@@ -89,7 +83,7 @@ class FeatureNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the subscriptions and publishers."""
         super().__init__('feature_node', **kwargs)
-        p = declare(self, PARAMS)
+        p = declare(self, PARAMS, RULES)
         cv2.setNumThreads(OPENCV_THREADS)
         self._config = DetectorConfig.from_parameters(p)
         self._budget_ms = p['detection_budget_share'] * 1e3 / p['camera_rate_hz']
@@ -97,18 +91,15 @@ class FeatureNode(Node):
         self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(p['stale_timeout_s']),
                                     history_ns=seconds_to_ns(p['joint_history_s']),
                                     sides=_SIDES)
-        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
         #: Each input's resolved topic name (the ZED wrapper's under a remap), which its
         #: rejections are counted under; filled as the subscriptions are created.
         self._topics = {}
-        self._order = StampOrder()
         self._camera_problem = None
         self._model = None
         self._detector = None
         self._model_error = None
         self._last_measured = None
-        self._times_ms = deque(maxlen=TIMING_WINDOW)
-        self._detection_ms = {key: deque(maxlen=TIMING_WINDOW) for key in ('wall', 'cpu', 'cost')}
+        self._stats = FrameStats(self._budget_ms)
         self._teach = {}
         self._teach_done = False
         self._debug_always = p['publish_debug_images']
@@ -117,7 +108,8 @@ class FeatureNode(Node):
         self._target_features = None
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
-        self._reasons = {}
+        self._inputs = Inputs(self._diag, self.now_ns,
+                              stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz'])))
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, frames_over_budget=0,
                           detection_budget_ms=self._budget_ms, last_switch_time_s='none',
@@ -154,14 +146,6 @@ class FeatureNode(Node):
         """Return the newest time the node knows: its clock and its newest input's stamp."""
         return node_time_ns(self, self._stereo.newest_ns)
 
-    def _read_stamp(self, topic, stamp):
-        """Return ``stamp`` in ns by the one stamp rule, or None (rejected, counted)."""
-        try:
-            return read_stamp(stamp, self.now_ns(), self._lead_ns)
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return None
-
     def _progress(self):
         """Return the progress line: images in, features out, model fallbacks."""
         v = self._diag.values
@@ -173,16 +157,11 @@ class FeatureNode(Node):
 
     def _on_image(self, side, msg):
         self._images_in[side] += 1
-        topic = self._topics[side]
-        t_ns = self._read_stamp(topic, msg.header.stamp)
-        if t_ns is None:
+        # In order: an image of a stamp seen already would replace or follow its frame's.
+        got = self._inputs.read(self._topics[side], msg)
+        if got is None:
             return
-        try:  # an image of a stamp seen already would replace or follow its frame's
-            self._order.check(topic, t_ns)
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return
-        self._order.take(topic, t_ns)
+        t_ns = got[0]
         try:
             image, error = image_array(msg), None
         except InputError as exc:
@@ -232,14 +211,11 @@ class FeatureNode(Node):
 
     def _on_joints(self, msg):
         topic = self._topics['joints']
-        t_ns = self._read_stamp(topic, msg.header.stamp)
-        if t_ns is None:
+        # Out of order: not offered, the state of that stamp is there already.
+        got = self._inputs.read(topic, msg, take=False)
+        if got is None:
             return
-        try:
-            self._order.check(topic, t_ns)
-        except InputError as exc:  # not offered: the state of that stamp is there already
-            self._diag.reject(topic, exc.reason, exc.detail)
-            return
+        t_ns = got[0]
         try:
             q = read_joints(msg, bound=position_bounds())
         except InputError as exc:
@@ -247,7 +223,7 @@ class FeatureNode(Node):
             self._stereo.offer_bad_joints(t_ns, exc.reason)
         else:
             self._diag.note_ignored(topic, ignored_joints(msg))
-            self._order.take(topic, t_ns)
+            self._inputs.order.take(topic, t_ns)
             self._stereo.offer_joints(t_ns, q)
         self._try_frames()
 
@@ -350,27 +326,13 @@ class FeatureNode(Node):
         return estimate if self._model_error is None else estimate + self._model_error
 
     def _record_detection(self, detection, wall_ms, cpu_ms):
-        """
-        Count a pair over budget; keep the wall time, CPU time and estimated cost of detection.
-
-        The CPU time is this thread's (OpenCV runs on it, OPENCV_THREADS): what the detector
-        took, whereas the wall time also holds the waits for a core that other processes
-        had. ``detection_within_budget`` compares the largest CPU time with the budget.
-        """
+        """Count a pair over budget; keep the detection's times (:class:`.FrameStats`)."""
         d = self._diag
         if detection.reason is Reason.OVER_BUDGET:
             d.values['frames_over_budget'] += 1
             d.reject('stereo frame', 'detection over budget', detection.detail)
-        kept = self._detection_ms
-        for key, value in (('wall', wall_ms), ('cpu', cpu_ms), ('cost', detection.cost_ms)):
-            kept[key].append(value)
-        d.update(detection_ms_last=wall_ms,
-                 detection_ms_mean=float(np.mean(kept['wall'])),
-                 detection_ms_max=float(np.max(kept['wall'])),
-                 detection_cpu_ms_mean=float(np.mean(kept['cpu'])),
-                 detection_cpu_ms_max=float(np.max(kept['cpu'])),
-                 detection_cost_ms_max=float(np.max(kept['cost'])),
-                 detection_within_budget=bool(np.max(kept['cpu']) <= self._budget_ms))
+        # The CPU time is this thread's: OpenCV runs on it (OPENCV_THREADS).
+        d.update(**self._stats.detection(wall_ms, cpu_ms, detection.cost_ms))
 
     def _publish_overlays(self, t_ns, images, encoding, detection, estimate, output):
         """Draw and publish each lens's overlay that someone listens to (module docstring)."""
@@ -410,17 +372,12 @@ class FeatureNode(Node):
         else:
             values['frames_estimated'] += 1
             reason = f'{detection.reason.value}: {detection.detail}'
-            key = detection.reason.value
-            self._reasons[key] = self._reasons.get(key, 0) + 1
-        self._times_ms.append(elapsed_ms)
+        estimated = self._stats.estimated(None if detection.ok else detection.reason.value)
         switch = self._switch
         d.update(mode=switch.mode, source=switch.source, detection=reason,
                  search=detection.search, switches=switch.switches,
-                 processing_ms_last=elapsed_ms,
-                 processing_ms_median=float(np.median(self._times_ms)),
-                 processing_ms_max=float(np.max(self._times_ms)), waiting_for='')
-        for key, n in self._reasons.items():
-            d.values[f'estimated_because[{key}]'] = n
+                 **self._stats.processing(elapsed_ms), waiting_for='')
+        d.update(**estimated)
         if switch.last_switch_ns is not None and switch.source != previous \
                 and previous is not None:
             t_s = ns_to_seconds(switch.last_switch_ns)

@@ -6,27 +6,25 @@ no URDF of the cell has on /ibvs/markers: the tool, the ZED 2's body, each lens'
 view, the target, the tool's path, the markers estimated by the model and those measured.
 The arm's frames are robot_state_publisher's (ibvs_sim.robot_state_node in simulation).
 
-Subscribes: /joint_states (``ibvs run``: /stereo/joint_states),
-/stereo/{left,right}/camera_info and /stereo/pose
-(:class:`ibvs_common.kit.StereoCameraInput`), /ibvs/features, /ibvs/feature_status.
-Publishes: /tf_static (latched), /ibvs/markers (at most ``marker_rate_hz`` of sim time),
-/diagnostics. Parameters: :data:`PARAMS` (docs/parameters.md). The frames it adds for the
-images, and what it rejects: docs/nodes.md.
+/ibvs/markers at most ``marker_rate_hz`` of sim time. Its topics and parameters:
+docs/nodes.md (generated from what it opens and :data:`PARAMS`).
+The frames it adds for the images, and what it rejects: docs/nodes.md.
 """
 
 from collections import OrderedDict
+from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped
 from ibvs_common import contract, shared_params
 from ibvs_common.conversions import (check_features_in_image, ignored_joints, InputError,
                                      matrix_poses, position_bounds, read_feature_status,
-                                     read_features, read_joints, read_stamp, stamp_lead_ns,
-                                     StampOrder, transforms_msg)
+                                     read_features, read_joints, stamp_lead_ns, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, StereoCameraInput, subscription, WaitReporter
+from ibvs_common.kit import (config, Inputs, publisher, StereoCameraInput, subscription,
+                             WaitReporter)
 from ibvs_common.node_main import run
-from ibvs_common.params import declare, Param
+from ibvs_common.params import Param, param_field, ParamConfig
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
 from ibvs_model import abb_urdf, IRB4600
@@ -43,30 +41,42 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from . import scene
 
-PARAMS = (
-    shared_params.DISTURBANCE_DEG,
-    shared_params.L2_SCALE,
-    shared_params.L4_SCALE,
-    shared_params.TARGET_POSITION,
-    shared_params.TARGET_ROTATION,
-    shared_params.CAMERA_POSE,
-    shared_params.CAMERA_RATE_HZ,
-    shared_params.STALE_TIMEOUT_S,
-    Param('marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time '
-          '(/tf goes out with every joint state)', 'Hz', low=0.0, high=1000.0,
-          low_open=True),
-    Param('frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
-          low=0.0, high=100.0, low_open=True),
-    Param('image_frames_tf', True, "publish on /tf_static the frame each lens's CameraInfo "
-          'names, where it is not ours, at our optical frame of that lens (false where the '
-          'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)',
-          '-'),
-    Param('tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, "
-          "marker_2) on /tf_static fixed to tool0 (false where the cell's URDF has the tool)",
-          '-'),
-    Param('tool_path_points', 20000, 'most tool positions kept for the drawn path (the '
-          'oldest go first)', '-', low=2, high=1_000_000),
-)
+
+@dataclass(frozen=True)
+class VizConfig(ParamConfig):
+    """The viz node's parameters, typed (:func:`ibvs_common.kit.config`)."""
+
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (shared_params.camera_pose_from,)
+
+    disturbance_deg: tuple = param_field(shared_params.DISTURBANCE_DEG)
+    l2_scale: float = param_field(shared_params.L2_SCALE)
+    l4_scale: float = param_field(shared_params.L4_SCALE)
+    target_position: tuple = param_field(shared_params.TARGET_POSITION)
+    target_rotation: tuple = param_field(shared_params.TARGET_ROTATION)
+    camera_pose: tuple = param_field(shared_params.CAMERA_POSE)
+    camera_rate_hz: float = param_field(shared_params.CAMERA_RATE_HZ)
+    stale_timeout_s: float = param_field(shared_params.STALE_TIMEOUT_S)
+    marker_rate_hz: float = param_field(Param(
+        'marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time (/tf '
+        'goes out with every joint state)', 'Hz', low=0.0, high=1000.0, low_open=True))
+    frustum_depth_m: float = param_field(Param(
+        'frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
+        low=0.0, high=100.0, low_open=True))
+    image_frames_tf: bool = param_field(Param(
+        'image_frames_tf', True, "publish on /tf_static the frame each lens's CameraInfo "
+        'names, where it is not ours, at our optical frame of that lens (false where the '
+        'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)', '-'))
+    tool_frames_tf: bool = param_field(Param(
+        'tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, marker_2) "
+        "on /tf_static fixed to tool0 (false where the cell's URDF has the tool)", '-'))
+    tool_path_points: int = param_field(Param(
+        'tool_path_points', 20000, 'most tool positions kept for the drawn path (the oldest '
+        'go first)', '-', low=2, high=1_000_000))
+
+
+PARAMS = VizConfig.params()
+RULES = VizConfig.RULES
 #: Marker namespaces, one per thing drawn.
 NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'
 NS_MEASURED, NS_ESTIMATED = 'markers_measured', 'markers_estimated'
@@ -92,21 +102,15 @@ class VizNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the publishers and subscriptions."""
         super().__init__('viz_node', **kwargs)
-        p = declare(self, PARAMS)
-        self._params = IRB4600.scaled(p['l2_scale'], p['l4_scale'])
-        self._d_q = np.radians(p['disturbance_deg'])
-        self._target = shared_params.target_from_parameters(p)
-        self._marker_period_ns = period_ns(p['marker_rate_hz'])
-        self._frustum_depth = p['frustum_depth_m']
-        self._path_points = p['tool_path_points']
-        self._image_frames_tf = p['image_frames_tf']
-        self._tool_frames_tf = p['tool_frames_tf']
-        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
+        self.config = c = config(self, VizConfig)
+        self._params = IRB4600.scaled(c.l2_scale, c.l4_scale)
+        self._d_q = np.radians(c.disturbance_deg)
+        self._target = shared_params.target_from_parameters(c.values())
+        self._marker_period_ns = period_ns(c.marker_rate_hz)
         self._camera = None
         self._path = []
         self._last_markers_ns = None
         self._last_joint_ns = None
-        self._order = StampOrder()
         self._features = OrderedDict()
         #: The markers triangulated from the newest measured /ibvs/features (2, 3), or None
         #: when the newest frame was not measured.
@@ -114,6 +118,8 @@ class VizNode(Node):
         self._estimated = None
 
         self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
+        self._inputs = Inputs(self._diag, self.now_ns,
+                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
         self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['joint_states_taken']
@@ -122,7 +128,7 @@ class VizNode(Node):
                                       f"{self._diag.values['markers_published']} /ibvs/markers"))
         self._static_pub = publisher(self, TFMessage, contract.TF_STATIC, contract.LATCHED)
         self._markers_pub = publisher(self, MarkerArray, contract.MARKERS, 10)
-        self.camera_input = StereoCameraInput(self, self._diag, p, self._on_camera)
+        self.camera_input = StereoCameraInput(self, self._diag, c.values(), self._on_camera)
         self._joints_topic = subscription(self, JointState, contract.JOINT_STATES,
                                           self._on_joints, contract.RELIABLE).topic_name
         subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
@@ -146,13 +152,13 @@ class VizNode(Node):
     def _publish_static(self):
         """Publish every fixed frame of this node in one /tf_static message (module doc)."""
         static = [(contract.BASE_FRAME, scene.TARGET_FRAME, self._target)]
-        if self._tool_frames_tf:
+        if self.config.tool_frames_tf:
             static += scene.tool_transforms(self._params)
         stamp = Time().to_msg()
         if self._camera is not None:
             static += scene.camera_transforms(self._camera.pose_C_O,
                                               self._camera.intrinsics.baseline)
-            if self._image_frames_tf:
+            if self.config.image_frames_tf:
                 static += self._image_frames(static)
             stamp = self.camera_input.pose.header.stamp
         self._static_pub.publish(transforms_msg(static, stamp))
@@ -188,27 +194,20 @@ class VizNode(Node):
         return node_time_ns(self, self._last_joint_ns)
 
     def _on_features(self, msg):
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
-            self._order.check(contract.FEATURES, t_ns)  # a second one would replace the first
-            features = read_features(msg)
-        except InputError as exc:
-            self._diag.reject(contract.FEATURES, exc.reason, exc.detail)
+        # In order: a second message of one stamp would replace the first.
+        got = self._inputs.read(contract.FEATURES, msg, read_features)
+        if got is None:
             return
-        self._order.take(contract.FEATURES, t_ns)
+        t_ns, features = got
         self._features[t_ns] = features
         while len(self._features) > _PENDING_FEATURES:
             self._features.popitem(last=False)
 
     def _on_status(self, msg):
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
-            self._order.check(contract.FEATURE_STATUS, t_ns)
-            mode = read_feature_status(msg).mode
-        except InputError as exc:
-            self._diag.reject(contract.FEATURE_STATUS, exc.reason, exc.detail)
+        got = self._inputs.read(contract.FEATURE_STATUS, msg, read_feature_status)
+        if got is None:
             return
-        self._order.take(contract.FEATURE_STATUS, t_ns)
+        t_ns, mode = got[0], got[1].mode
         features = self._features.pop(t_ns, None)
         if features is None or self._camera is None:
             return
@@ -225,21 +224,17 @@ class VizNode(Node):
     # --- joint states -----------------------------------------------------------------------
 
     def _on_joints(self, msg):
-        topic = self._joints_topic
-        try:
-            t_ns = read_stamp(msg.header.stamp, self.now_ns(), self._lead_ns)
-            self._order.check(topic, t_ns)  # a duplicate would draw the same /tf again
-            q = read_joints(msg, bound=position_bounds())
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
+        topic = self._joints_topic  # in order: a duplicate would draw the same /tf again
+        got = self._inputs.read(topic, msg, lambda m: read_joints(m, bound=position_bounds()))
+        if got is None:
             return
+        t_ns, q = got
         self._diag.note_ignored(topic, ignored_joints(msg))
-        self._order.take(topic, t_ns)
         self._last_joint_ns = t_ns
         self._diag.values['joint_states_taken'] += 1
         # ABB's tool0 is the flange {E} of eq. (7): the true arm's, where the camera sees it.
         tool = forward_kinematics(q + self._d_q, self._params)
-        self._path = (self._path + [tool[:3, 3]])[-self._path_points:]
+        self._path = (self._path + [tool[:3, 3]])[-self.config.tool_path_points:]
         self._estimated = fiducial_points(q, IRB4600)
         if self._camera is not None and (self._last_markers_ns is None or
                                          t_ns - self._last_markers_ns >= self._marker_period_ns):
@@ -276,7 +271,7 @@ class VizNode(Node):
         body.scale.x, body.scale.y, body.scale.z = scene.ZED2_BODY_SIZE_M
         body.color = _rgba((0.1, 0.1, 0.1))
         out.markers.append(body)
-        lines = scene.frustum_lines(self._camera.intrinsics, self._frustum_depth)
+        lines = scene.frustum_lines(self._camera.intrinsics, self.config.frustum_depth_m)
         for i, frame in enumerate(scene.LENS_FRAMES):
             m = self._marker(NS_FRUSTUM, i, Marker.LINE_LIST, stamp, frame)
             m.scale.x = 0.005

@@ -1,0 +1,94 @@
+"""
+Rules between parameters: refused before any node starts, by the nodes' own functions.
+
+Each node module lists its rules as ``RULES`` and runs them at start
+(``ibvs_common.params.declare(node, PARAMS, RULES)``); ``ibvs run`` (runner.resolve),
+``ibvs study`` and ``ibvs cell`` run the same functions (graph_params.check_rules) before
+anything starts. Issue 36: ``runner.resolve('scenario1', {'servo_law': 'ibvs'})`` passed,
+and the feedback node refused only after start.
+"""
+
+import importlib
+import itertools
+
+from ibvs_bringup import graph_params
+from ibvs_bringup.graph import GRAPH
+from ibvs_bringup.scenario import ScenarioError
+from ibvs_common.params import ParameterError
+from ibvs_experiments import runner
+import pytest
+from rclpy.parameter import Parameter
+
+#: A broken rule per example, the parameters its message must name, and a node that runs it.
+BROKEN = [
+    ({'servo_law': 'ibvs'}, ('feedforward_method', 'servo_law'), 'adaptive_feedback_node'),
+    ({'lambda_inf': 1e3, 'lambda_slope': 1.0}, ('lambda_inf',), 'adaptive_feedback_node'),
+    ({'omega_n': 1000.0}, ('omega_n', 'tau_in'), 'adaptive_feedback_node'),
+    ({'target_position': [2.9, 2.9, 2.9]}, ('target_position', 'unreachable'),
+     'feedforward_node'),
+    ({'command_interface': 'position'}, ('lockstep', 'command_interface'),
+     'joint_controller_node'),
+    ({'lockstep': False}, ('lockstep', 'command_interface'), 'joint_controller_node'),
+    ({'camera_pose': [0.5, 0.0, 1.0, 0.0, 0.0, 0.0, 2.0]}, ('camera_pose', 'quaternion'),
+     'feature_node'),
+]
+
+
+def _node_class(name):
+    spec = GRAPH.node(name)
+    return getattr(importlib.import_module(spec.module), spec.cls)
+
+
+@pytest.mark.parametrize('overrides, names, node', BROKEN)
+def test_resolve_refuses_a_broken_rule_naming_the_parameters(overrides, names, node):
+    with pytest.raises(ScenarioError) as caught:
+        runner.resolve('scenario1', overrides)
+    for name in names:
+        assert name in str(caught.value), caught.value
+
+
+@pytest.mark.parametrize('overrides, names, node', BROKEN)
+def test_the_node_refuses_with_the_same_message(context, overrides, names, node):
+    # One function per rule: the node's refusal at start is the pre-check's, word for word.
+    with pytest.raises(ScenarioError) as pre:
+        graph_params.check_rules(overrides, 'x')
+    declared = {p.name for p in importlib.import_module(GRAPH.node(node).module).PARAMS}
+    with pytest.raises(ParameterError) as started:
+        _node_class(node)(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in overrides.items() if k in declared])
+    assert str(pre.value) == f'x: {started.value}'
+
+
+def test_the_camera_rate_rule_names_both_rates():
+    from ibvs_common.shared_params import check_camera_rate_param
+    with pytest.raises(ParameterError, match='camera_rate_hz.*physics_rate_hz'):
+        check_camera_rate_param({'camera_rate_hz': 30.0, 'physics_rate_hz': 20.0})
+    check_camera_rate_param({'camera_rate_hz': 30.0, 'physics_rate_hz': 30.0})
+
+
+def test_every_node_rule_is_checked_before_start_and_scenario1_keeps_them():
+    rules = graph_params.rules()
+    for n in GRAPH.nodes:
+        for rule in getattr(importlib.import_module(n.module), 'RULES', ()):
+            assert rule in rules, (n.name, rule)
+    params, _ = runner.resolve('scenario1')
+    graph_params.check_rules(params)
+
+
+def test_a_servo_law_with_its_feedforward_passes():
+    from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
+    for law in SERVO_LAWS:
+        runner.resolve('scenario1', {'servo_law': law, **feedforward_overrides(law)})
+
+
+@pytest.mark.parametrize('interface, lockstep, camera, physics', itertools.product(
+    ['effort', 'position'], [True, False], [10.0, 30.0, 100.0], [100.0, 1000.0]))
+def test_pre_check_passes_exactly_when_every_rule_does(interface, lockstep, camera, physics):
+    params = {'command_interface': interface, 'lockstep': lockstep, 'camera_rate_hz': camera,
+              'physics_rate_hz': physics}
+    # Within their ranges (camera_rate_hz <= 100, physics_rate_hz >= 100) the rates agree.
+    if (interface == 'effort') == lockstep:
+        graph_params.check_rules(params)
+    else:
+        with pytest.raises(ScenarioError, match="'lockstep' = .* command_interface"):
+            graph_params.check_rules(params)
