@@ -88,8 +88,8 @@ def analyse(bag: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         'path_max_image_error_px': float(along.max()),
         'path_max_at': float(s[int(np.argmax(along))]),
     }
-    series = {'t': t, 'error': error, 'step': step, 'distance': distance, 'run_t': run.t, 'position': position,
-              'axis': axis, 's': s, 'along': along}
+    series = {'t': t, 'error': error, 'step': step, 'distance': distance, 'run_t': run.t,
+              'position': position, 'axis': axis, 's': s, 'along': along}
     return numbers, series
 
 
@@ -123,7 +123,7 @@ def plot(numbers: dict[str, Any], series: dict[str, np.ndarray], path: Path) -> 
     ax.plot(series['s'], series['along'])
     ax.set_xlabel('s: q_end + s (q_target - q_end), joint space')
     ax.set_ylabel('image error |e| [px]')
-    ax.set_title(f"towards the target the error first rises to "
+    ax.set_title('towards the target the error first rises to '
                  f"{numbers['path_max_image_error_px']:.1f} px", fontsize=10)
     ax.grid(True, alpha=0.3)
     fig.suptitle('classic IBVS (q_dot = -lambda J+ e) in a local minimum of the image error '

@@ -76,7 +76,7 @@ CAMERA_POSE_ERROR_RPY_DEG = Param(
 #: Most frames a taught pair may average.
 MAX_TEACH_FRAMES = 100
 TEACH_FRAMES = Param(
-    'teach_frames', 1, "stereo frames of the tool held at the target that the teach pair "
+    'teach_frames', 1, 'stereo frames of the tool held at the target that the teach pair '
     "averages, pixel by pixel (each its own image noise; target_features_source 'taught'): "
     'the features of the taught target then carry 1 / sqrt(teach_frames) of one '
     "frame's noise; 1: one frame", '-', low=1, high=MAX_TEACH_FRAMES)
