@@ -286,7 +286,11 @@ def read_frames(bag_path: str | Path) -> Iterator[Frame]:
                 if conn.topic == contract.TF_STATIC:
                     static.update(local)
                 elif msg.transforms:
-                    dynamic[stamp_ns(msg.transforms[0].header.stamp)] = local
+                    # Two publishers stamp /tf alike (robot_state_node: the links;
+                    # viz_node: the tool frames on tool0): a stamp's frames are both's,
+                    # in whichever order the bag holds them.
+                    dynamic.setdefault(stamp_ns(msg.transforms[0].header.stamp),
+                                       {}).update(local)
     pairs = _recorded_pairs(bag_path, sides) if sides else replayed_images(bag_path)
     for t_ns, left, right in pairs:
         if t_ns not in dynamic:
