@@ -29,7 +29,9 @@ from .effort_controller import EffortController
 from .joint_controller_mode import JointControllerConfig
 from .position_controller import PositionController
 
-PARAMS = JointControllerConfig.params()
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = JointControllerConfig
+PARAMS = CONFIG.params()
 #: command_interface -> the class that runs it.
 MODES = {'effort': EffortController, 'position': PositionController}
 #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.

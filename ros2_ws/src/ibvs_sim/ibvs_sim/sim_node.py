@@ -51,7 +51,9 @@ from .lockstep_sim import LockstepSim
 from .node_params import SimNodeConfig
 from .simulator import Simulator
 
-PARAMS = SimNodeConfig.params()
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = SimNodeConfig
+PARAMS = CONFIG.params()
 #: lockstep -> the class that runs the time mode. The node reads its ``clock_rate_hz``,
 #: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``held_steps`` and ``command_sub``
 #: and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and ``waiting_line``.
