@@ -119,10 +119,10 @@ class AdaptiveFeedbackNode(Node):
         """Return the progress line: frames answered, the image error norm, the state."""
         if not self.frames:
             return None
-        values = self.diagnostics.values
-        error = values.get('image_error_norm_px')
+        shown = self.diagnostics.values
+        error = shown.get('image_error_norm_px')
         error = 'no image error yet' if error is None else f'image error norm {error:.3f} px'
-        return f"{self.frames} frames answered, {error} ({self.law.name}, {values['state']})"
+        return f"{self.frames} frames answered, {error} ({self.law.name}, {shown['state']})"
 
     def _waiting(self):
         """Return the 'waiting' line (the wait reporter's), and say it on /diagnostics."""

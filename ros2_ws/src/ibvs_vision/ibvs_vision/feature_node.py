@@ -343,13 +343,13 @@ class FeatureNode(Node):
 
     def _record(self, detection, previous, elapsed_ms):
         d = self._diag
-        values = d.values
-        values['frames_published'] += 1
+        counts = d.values
+        counts['frames_published'] += 1
         if detection.ok:
-            values['frames_measured'] += 1
+            counts['frames_measured'] += 1
             reason = 'measured'
         else:
-            values['frames_estimated'] += 1
+            counts['frames_estimated'] += 1
             reason = f'{detection.reason.value}: {detection.detail}'
         estimated = self._stats.estimated(None if detection.ok else detection.reason.value)
         switch = self._switch
