@@ -124,6 +124,9 @@ CAMERA_TOPICS = Param(
 class SimNodeConfig(SimConfig):
     """The parameters of sim_node: the simulator's (:class:`.config.SimConfig`), then its own."""
 
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (shared.check_command_interface,)
+
     publish_images: bool = param_field(PUBLISH_IMAGES)
     clock_rate_hz: float = param_field(CLOCK_RATE_HZ)
     min_joint_state_subscribers: int = param_field(MIN_JOINT_STATE_SUBSCRIBERS)
