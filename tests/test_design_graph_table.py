@@ -58,8 +58,7 @@ def test_design_md_section_3_is_generated_and_describes_every_topic():
                  for cell in [line.split('|')[1]] for m in TOPIC.findall(cell)
                  for t in _expand(m)}
     opened = {r.topic for mode in graph_topics.MODES for r in graph_topics.endpoints(mode)}
-    # /diagnostics: each node's Diagnostics, not opened through the kit.
-    assert described == opened | {'/diagnostics'}
+    assert described == opened
 
 
 def test_node_topics_merge_pairs_and_name_modes():

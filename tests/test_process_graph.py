@@ -31,8 +31,6 @@ EXPECTED = {
     '/joint_states': OPENED['/joint_states'][:2] + (None,),
     # rclpy's time source in every node (use_sim_time) reads /clock: MIN_SUBSCRIBERS.
     '/clock': ('rosgraph_msgs/msg/Clock', 1, None),
-    # Each node's ibvs_common.diagnostics.Diagnostics, not opened through the kit.
-    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', len(EXECUTABLES), 0),
 }
 #: Who must read what (subscriber counts of at least these).
 MIN_SUBSCRIBERS = {

@@ -168,3 +168,14 @@ def test_ibvs_run_applies_the_nodes_cross_parameter_rules_before_any_node(capsys
     assert code == 2 and "'camera_pose'" in err and 'quaternion' in err, err
     assert time.monotonic() - began < 10.0
     assert not (tmp_path / 'out' / 'logs').exists()
+
+
+def test_ibvs_run_builds_every_node_config_before_any_node(capsys, monkeypatch, tmp_path):
+    # Refused by the feature node's config (its detector's Hough radii) and the simulator's
+    # (a camera outage in lockstep) as they are built, not by a rule: exit 2, no output.
+    code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'hough_min_radius_px:=40')
+    assert code == 2 and "'hough_max_radius_px' = 40 is invalid" in err, err
+    code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'camera_outage_s:=[0.1, 0.2]')
+    assert code == 2 and "'camera_outage_s'" in err and 'lockstep' in err, err
+    assert 'Traceback' not in err
+    assert not (tmp_path / 'out').exists()

@@ -7,13 +7,15 @@ checks a run's parameters (scenario file, ``-p`` overrides, a study's grid and d
 the very same :class:`Param` objects and the same conversion before any node starts
 (:func:`check`), so that a value a node would refuse is refused in a second, not after the
 graph has started, and a name that no node declares, which every node would silently
-ignore, is refused with the nearest declared names.
+ignore, is refused with the nearest declared names. Then the rules between parameters, and
+every node's typed configuration built from the run's values (:func:`check_rules`,
+:func:`configs`): what a node would refuse at start is refused before any node starts.
 """
 
 from collections.abc import Mapping
 from typing import Any, TYPE_CHECKING
 
-from ibvs_common.params import check_declared, Param, ParameterError, plain_value
+from ibvs_common.params import check_declared, Param, ParamConfig, ParameterError, plain_value
 from ibvs_common.params import check_rules as check_rules_of
 
 from .scenario import ScenarioError
@@ -86,6 +88,45 @@ def rules(graph: 'Graph | None' = None) -> tuple:
     return tuple(out)
 
 
+def values(params: Mapping[str, Any], graph: 'Graph | None' = None) -> dict[str, Any]:
+    """
+    Return every declared parameter's value in a run of ``params``: its default, else given.
+
+    The values as a node takes them (:func:`ibvs_common.params.plain_value`); a name no node
+    declares is kept as given (:func:`check` refuses it).
+    """
+    out = {name: spec.default for name, spec in declared(graph).items()}
+    out.update({name: plain_value(value, out.get(name)) for name, value in params.items()})
+    return out
+
+
+def configs(params: Mapping[str, Any], where: str = 'parameters',
+            graph: 'Graph | None' = None) -> dict[str, ParamConfig]:
+    """
+    Return each node's typed configuration in a run of ``params``, by node name.
+
+    Each node's module names its :class:`ibvs_common.params.ParamConfig` as ``CONFIG``
+    (the one the node builds at start, :func:`ibvs_common.kit.config`); it is built here from
+    :func:`values`, so that what its construction checks (each value's range, its rules
+    across values: e.g. the simulator's camera outage in lockstep, the detector's Hough
+    radii) raises :class:`ScenarioError` with the node's own message, before any node
+    starts. A module without ``CONFIG`` is left out.
+    """
+    import importlib
+    from .graph import GRAPH
+    run_values = values(params, graph)
+    out = {}
+    for node in (graph or GRAPH).nodes:
+        cls = getattr(importlib.import_module(node.module), 'CONFIG', None)
+        if cls is None:
+            continue
+        try:
+            out[node.name] = cls.from_values(run_values)
+        except ParameterError as exc:
+            raise ScenarioError(f'{where}: {exc}') from None
+    return out
+
+
 def check_rules(params: Mapping[str, Any], where: str = 'parameters',
                 graph: 'Graph | None' = None) -> None:
     """
@@ -95,13 +136,12 @@ def check_rules(params: Mapping[str, Any], where: str = 'parameters',
     the time mode, the servo law against the feedforward and its gains, omega_n against
     tau_in, the camera rate against the physics rate, a reachable target, a unit quaternion
     in ``camera_pose``, ...), run on ``params`` over every declared default (a parameter not
-    given is the node's default). A run that breaks one is refused before any node starts,
-    with the message the node would log, not by a node seconds into its start.
+    given is the node's default, :func:`values`); then every node's configuration is built
+    (:func:`configs`). A run that breaks one is refused before any node starts, with the
+    message the node would log, not by a node seconds into its start.
     """
-    values = {name: spec.default for name, spec in declared(graph).items()}
-    values.update({name: plain_value(value, values.get(name))
-                   for name, value in params.items()})
     try:
-        check_rules_of(rules(graph), values)
+        check_rules_of(rules(graph), values(params, graph))
     except ParameterError as exc:
         raise ScenarioError(f'{where}: {exc}') from None
+    configs(params, where, graph)

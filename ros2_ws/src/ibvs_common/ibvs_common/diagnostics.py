@@ -17,7 +17,7 @@ import weakref
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 
-from . import contract
+from . import contract, kit
 from .profiling import Stopwatch
 from .sim_time import guard_clock
 
@@ -78,7 +78,8 @@ class Diagnostics:
         self._name = f'{node.get_name()}: {name}'
         self._hardware_id = node.get_fully_qualified_name()
         self._log_period_s = log_period_s
-        self._pub = node.create_publisher(DiagnosticArray, contract.DIAGNOSTICS, 10)
+        # Through the kit like every topic, so that it is recorded (kit.opened).
+        self._pub = kit.publisher(node, DiagnosticArray, contract.DIAGNOSTICS, 10)
         self.rejections = Counter()
         self.values = {}
         #: Wall time per section of the node's work (ibvs_common.profiling), published too.

@@ -20,12 +20,9 @@ from ibvs_common.conversions import (ignored_joints, InputError, joint_state, po
                                      read_feature_status, read_features, read_joints,
                                      stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription, WaitReporter
+from ibvs_common.kit import (config, Inputs, publisher, StereoCameraInput, subscription,
+                             WaitReporter)
 from ibvs_common.node_main import run
-from ibvs_common.params import declare
-from ibvs_common.shared_params import (CAMERA_POSE, camera_pose_from, CAMERA_RATE_HZ,
-                                       STALE_TIMEOUT_S, TARGET_FEATURES_SOURCE,
-                                       TARGET_POSITION, TARGET_ROTATION)
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
 from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
@@ -35,16 +32,13 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from .frame_lockstep import FrameLockstep
-from .node_params import (check_gains, check_servo_law, FEEDFORWARD_METHOD, LAMBDA_0,
-                          LAMBDA_INF, LAMBDA_SLOPE, LAW_PARAMS, law_settings, SERVO_LAW,
-                          target_from)
+from .node_params import AdaptiveFeedbackConfig, check_servo_law, target_from
 from .servo_laws import law_class
 
-PARAMS = (CAMERA_RATE_HZ, TARGET_POSITION, TARGET_ROTATION, STALE_TIMEOUT_S,
-          TARGET_FEATURES_SOURCE, SERVO_LAW, FEEDFORWARD_METHOD, LAMBDA_0, LAMBDA_INF,
-          LAMBDA_SLOPE, CAMERA_POSE) + LAW_PARAMS
-#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-RULES = (check_gains, check_servo_law, target_from, camera_pose_from)
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = AdaptiveFeedbackConfig
+PARAMS = CONFIG.params()
+RULES = CONFIG.RULES
 
 
 def _read_state(msg: JointState) -> tuple:
@@ -63,16 +57,17 @@ class AdaptiveFeedbackNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters and create the interfaces."""
         super().__init__('adaptive_feedback_node', **kwargs)
-        self.values = values = declare(self, PARAMS, RULES)
+        self.config = c = config(self, AdaptiveFeedbackConfig)
+        values = c.values()
         self.gain = check_servo_law(values)
-        self.law = law_class(values['servo_law'])
+        self.law = law_class(c.servo_law)
         self.needs_status = self.law.needs_measured(values)
         self.pose = target_from(values)
-        self.camera_ns = period_ns(values['camera_rate_hz'])
-        self.stale_timeout_ns = seconds_to_ns(values['stale_timeout_s'])
+        self.camera_ns = period_ns(c.camera_rate_hz)
+        self.stale_timeout_ns = seconds_to_ns(c.stale_timeout_s)
         self.feedback = None
         self._camera = None
-        self._taught = values['target_features_source'] == 'taught'
+        self._taught = c.target_features_source == 'taught'
         self._p_target = None
         self.last_fresh_ns = None
         self.first_joint_ns = None
@@ -81,7 +76,7 @@ class AdaptiveFeedbackNode(Node):
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
         self._inputs = Inputs(self.diagnostics, self.now_ns,
-                              stamp_lead_ns(values['stale_timeout_s'], self.camera_ns))
+                              stamp_lead_ns(c.stale_timeout_s, self.camera_ns))
         self.diagnostics.update(state='waiting for camera', frames=0)
         self.diagnostics.log_progress(self._progress)
         self._pub = publisher(self, JointState, contract.Q_FEEDBACK, contract.RELIABLE)
@@ -124,10 +119,10 @@ class AdaptiveFeedbackNode(Node):
         """Return the progress line: frames answered, the image error norm, the state."""
         if not self.frames:
             return None
-        values = self.diagnostics.values
-        error = values.get('image_error_norm_px')
+        shown = self.diagnostics.values
+        error = shown.get('image_error_norm_px')
         error = 'no image error yet' if error is None else f'image error norm {error:.3f} px'
-        return f"{self.frames} frames answered, {error} ({self.law.name}, {values['state']})"
+        return f"{self.frames} frames answered, {error} ({self.law.name}, {shown['state']})"
 
     def _waiting(self):
         """Return the 'waiting' line (the wait reporter's), and say it on /diagnostics."""
@@ -166,7 +161,7 @@ class AdaptiveFeedbackNode(Node):
             self.feedback = self.law.create(
                 CameraRobotModel(self._camera, IRB4600), self.pose,
                 ns_to_seconds(self.camera_ns), gain=self.gain, p_target=self._p_target,
-                **law_settings(self.values))
+                **self.config.law_settings())
         except ModelError as exc:
             # e.g. the target behind the camera: nothing to servo on; counted under the
             # input that completed the model, and the camera inputs are awaited again.

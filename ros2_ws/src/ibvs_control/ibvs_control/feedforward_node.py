@@ -7,8 +7,8 @@ settled; then the node leaves the lockstep (it unsubscribes).
 
 Subscribes: /joint_states (until it has published). Publishes:
 /ibvs/feedforward_trajectory (trajectory_msgs/JointTrajectory, latched), /diagnostics.
-Parameters: :data:`PARAMS` (docs/parameters.md). Initial condition and rejections:
-docs/nodes.md.
+Parameters: :class:`.node_params.FeedforwardConfig` (docs/parameters.md). Initial condition
+and rejections: docs/nodes.md.
 """
 
 from typing import Any
@@ -17,11 +17,8 @@ from ibvs_common import contract
 from ibvs_common.conversions import (ignored_joints, InputError, joint_trajectory, read_joints,
                                      read_stamp, stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, subscription
+from ibvs_common.kit import config, publisher, subscription
 from ibvs_common.node_main import run
-from ibvs_common.params import declare
-from ibvs_common.shared_params import (PHYSICS_RATE_HZ, STALE_TIMEOUT_S,
-                                       TARGET_POSITION, TARGET_ROTATION, TAU_IN)
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import ns_to_seconds, period_ns
 from ibvs_model import ModelError
@@ -31,12 +28,12 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import Feedforward
-from .node_params import FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, target_from
+from .node_params import FeedforwardConfig, target_from
 
-PARAMS = (TAU_IN, PHYSICS_RATE_HZ, TARGET_POSITION, TARGET_ROTATION,
-          FEEDFORWARD_METHOD, FEEDFORWARD_RATIO, STALE_TIMEOUT_S)
-#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-RULES = (target_from,)
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = FeedforwardConfig
+PARAMS = CONFIG.params()
+RULES = CONFIG.RULES
 
 
 class FeedforwardNode(Node):
@@ -45,13 +42,13 @@ class FeedforwardNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, design the filter, create the interfaces."""
         super().__init__('feedforward_node', **kwargs)
-        values = declare(self, PARAMS, RULES)
-        self.pose = target_from(values)
-        self.dt_ns = period_ns(values['physics_rate_hz'])
-        self.lead_ns = stamp_lead_ns(values['stale_timeout_s'], self.dt_ns)
-        self.ff = Feedforward(self.pose, values['tau_in'], ns_to_seconds(self.dt_ns),
-                              feedforward_ratio=values['feedforward_ratio'],
-                              feedforward_method=values['feedforward_method'])
+        self.config = c = config(self, FeedforwardConfig)
+        self.pose = target_from(c.values())
+        self.dt_ns = period_ns(c.physics_rate_hz)
+        self.lead_ns = stamp_lead_ns(c.stale_timeout_s, self.dt_ns)
+        self.ff = Feedforward(self.pose, c.tau_in, ns_to_seconds(self.dt_ns),
+                              feedforward_ratio=c.feedforward_ratio,
+                              feedforward_method=c.feedforward_method)
         self.t0_ns = None
         self.diagnostics = Diagnostics(self, 'feedforward')
         self.diagnostics.update(started=False)
@@ -62,8 +59,8 @@ class FeedforwardNode(Node):
                                  contract.RELIABLE)
         self.get_logger().info(
             f'target {np.round(self.pose[:3, 3], 4).tolist()} m; T_forward '
-            f"'{values['feedforward_method']}' at {1e9 / self.dt_ns:g} Hz, double pole at "
-            f"{values['feedforward_ratio']:g} tau_in")
+            f"'{c.feedforward_method}' at {1e9 / self.dt_ns:g} Hz, double pole at "
+            f'{c.feedforward_ratio:g} tau_in')
 
     def _progress(self):
         """Return the progress line: the trajectory published (None before the start)."""

@@ -40,6 +40,9 @@ FEEDBACK_BOUND_RAD = np.asarray(IRB4600.q_max) - np.asarray(IRB4600.q_min)
 class JointControllerConfig(ParamConfig):
     """The parameters of joint_controller_node (each field: the parameter of its name)."""
 
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (shared.check_command_interface, shared.check_camera_rate_param)
+
     tau_in: float = param_field(shared.TAU_IN)
     physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
     camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)

@@ -20,20 +20,21 @@ interface (stamps, buffering, lost frames, stopping safely): docs/nodes.md.
 from typing import Any
 
 from ibvs_common.diagnostics import Diagnostics
+from ibvs_common.kit import config
 from ibvs_common.node_main import run
-from ibvs_common.params import declare
-from ibvs_common.shared_params import check_camera_rate_param, check_command_interface
 from rclpy.node import Node
 
 from .effort_controller import EffortController
 from .joint_controller_mode import JointControllerConfig
 from .position_controller import PositionController
 
-PARAMS = JointControllerConfig.params()
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = JointControllerConfig
+PARAMS = CONFIG.params()
 #: command_interface -> the class that runs it.
 MODES = {'effort': EffortController, 'position': PositionController}
 #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-RULES = (check_command_interface, check_camera_rate_param)
+RULES = CONFIG.RULES
 
 
 class JointControllerNode(Node):
@@ -42,7 +43,7 @@ class JointControllerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         """Declare and check the parameters, then start the command interface's class."""
         super().__init__('joint_controller_node', **kwargs)
-        self.config = JointControllerConfig.from_values(declare(self, PARAMS, RULES))
+        self.config = config(self, JointControllerConfig)
         self.mode = None
         self.diagnostics = Diagnostics(self, 'joint controller')
         self.mode = MODES[self.config.command_interface](self, self.config)

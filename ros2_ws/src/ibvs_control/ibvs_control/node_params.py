@@ -1,5 +1,5 @@
 """
-Parameters of the three control nodes and their start-time checks (no message handling).
+Parameters of the three control nodes, their start-time checks and typed configurations.
 
 Shared parameters come from :mod:`ibvs_common.shared_params`; the ones below belong to this
 package. The checks turn a configuration the controllers cannot work with into a
@@ -8,9 +8,11 @@ at start (exit code 2, ibvs_common.node_main.run) instead of misbehaving later.
 """
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, TYPE_CHECKING
 
-from ibvs_common.params import Param, ParameterError
+from ibvs_common import shared_params as shared
+from ibvs_common.params import Param, param_field, ParamConfig, ParameterError
 from ibvs_common.shared_params import OMEGA_N, target_from_parameters, TAU_IN, ZETA
 from ibvs_model import IRB4600, ModelError
 import numpy as np
@@ -192,3 +194,63 @@ def target_from(values: Mapping[str, Any], params: 'RobotParams' = IRB4600
                              f'is invalid: unreachable target: {exc}; allowed: a pose with '
                              'an IK branch within the joint limits') from None
     return pose
+
+
+@dataclass(frozen=True)
+class FeedforwardConfig(ParamConfig):
+    """The parameters of feedforward_node (each field: the parameter of its name)."""
+
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (target_from,)
+
+    tau_in: float = param_field(TAU_IN)
+    physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
+    target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
+    target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
+    feedforward_method: str = param_field(FEEDFORWARD_METHOD)
+    feedforward_ratio: float = param_field(FEEDFORWARD_RATIO)
+    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
+
+
+@dataclass(frozen=True)
+class AdaptiveFeedbackConfig(ParamConfig):
+    """
+    The parameters of adaptive_feedback_node: the frame, the target, the servo law's.
+
+    The fields after ``camera_pose`` are :data:`LAW_PARAMS`, handed to the servo law
+    (:meth:`law_settings`).
+    """
+
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (check_gains, check_servo_law, target_from, shared.camera_pose_from)
+
+    camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
+    target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
+    target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
+    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
+    target_features_source: str = param_field(shared.TARGET_FEATURES_SOURCE)
+    servo_law: str = param_field(SERVO_LAW)
+    feedforward_method: str = param_field(FEEDFORWARD_METHOD)
+    lambda_0: float = param_field(LAMBDA_0)
+    lambda_inf: float = param_field(LAMBDA_INF)
+    lambda_slope: float = param_field(LAMBDA_SLOPE)
+    camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
+    tau_in: float = param_field(TAU_IN)
+    omega_n: float = param_field(OMEGA_N)
+    zeta: float = param_field(ZETA)
+    feedback_design: str = param_field(FEEDBACK_DESIGN)
+    svd_rcond: float = param_field(SVD_RCOND)
+    svd_damping: float = param_field(SVD_DAMPING)
+    max_correction_rad: float = param_field(MAX_CORRECTION_RAD)
+    hold_speed_fraction: float = param_field(HOLD_SPEED_FRACTION)
+    linearise_at: str = param_field(LINEARISE_AT)
+    switch_settle_s: float = param_field(SWITCH_SETTLE_S)
+    feature_fallback: str = param_field(FEATURE_FALLBACK)
+    windup_horizon_s: float = param_field(WINDUP_HORIZON_S)
+    joint_limit_margin_rad: float = param_field(JOINT_LIMIT_MARGIN_RAD)
+    safety_envelope: bool = param_field(SAFETY_ENVELOPE)
+    envelope_singularity_scaling: bool = param_field(ENVELOPE_SINGULARITY_SCALING)
+
+    def law_settings(self) -> dict[str, Any]:
+        """Return the values of :data:`LAW_PARAMS` by name (the servo law's settings)."""
+        return law_settings(self.values())

@@ -14,7 +14,7 @@ import itertools
 from ibvs_bringup import graph_params
 from ibvs_bringup.graph import GRAPH
 from ibvs_bringup.scenario import ScenarioError
-from ibvs_common.params import ParameterError
+from ibvs_common.params import check_rules, ParameterError
 from ibvs_experiments import runner
 import pytest
 from rclpy.parameter import Parameter
@@ -92,3 +92,50 @@ def test_pre_check_passes_exactly_when_every_rule_does(interface, lockstep, came
     else:
         with pytest.raises(ScenarioError, match="'lockstep' = .* command_interface"):
             graph_params.check_rules(params)
+
+
+#: Refused by a node's typed configuration as it is built (its __post_init__), not by a RULE:
+#: the overrides, the parameters its message must name, the node that builds it.
+BUILT = [
+    ({'hough_min_radius_px': 40}, ('hough_max_radius_px', 'hough_min_radius_px'),
+     'feature_node'),
+    ({'camera_outage_s': [0.1, 0.2]}, ('camera_outage_s', 'lockstep'), 'sim_node'),
+    ({'extra_joints': ['joint_1']}, ('extra_joints',), 'sim_node'),
+    ({'target_features_source': 'taught', 'publish_images': False},
+     ('target_features_source', 'publish_images'), 'sim_node'),
+]
+
+
+@pytest.mark.parametrize('overrides, names, node', BUILT)
+def test_resolve_refuses_what_only_a_node_config_checks(overrides, names, node):
+    # No rule of RULES breaks: the refusal is the config's, built before any node starts.
+    graph_params.check(overrides)
+    check_rules(graph_params.rules(), graph_params.values(overrides))
+    with pytest.raises(ScenarioError) as caught:
+        runner.resolve('scenario1', overrides)
+    for name in names:
+        assert name in str(caught.value), caught.value
+
+
+@pytest.mark.parametrize('overrides, names, node', BUILT)
+def test_the_node_refuses_its_config_with_the_same_message(context, overrides, names, node):
+    with pytest.raises(ScenarioError) as pre:
+        graph_params.configs(overrides, 'x')
+    with pytest.raises(ParameterError) as started:
+        _node_class(node)(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in overrides.items()])
+    assert str(pre.value) == f'x: {started.value}'
+
+
+def test_every_node_config_is_its_parameters_and_scenario1_builds_them_all():
+    params, _ = runner.resolve('scenario1')
+    built = graph_params.configs(params)
+    assert list(built) == [n.name for n in GRAPH.nodes]
+    for n in GRAPH.nodes:
+        module = importlib.import_module(n.module)
+        assert module.PARAMS == module.CONFIG.params(), n.name
+        assert isinstance(built[n.name], module.CONFIG)
+        # Each field holds the run's value, as the node would declare it.
+        for name, value in built[n.name].values().items():
+            expected = graph_params.values(params)[name]
+            assert value == (tuple(expected) if isinstance(expected, list) else expected), name

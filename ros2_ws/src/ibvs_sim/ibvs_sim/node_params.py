@@ -1,5 +1,5 @@
 """
-sim_node's parameters and its typed configuration (:class:`SimNodeConfig`), no ROS.
+The typed configurations of ibvs_sim's nodes (:class:`SimNodeConfig`, :class:`RobotStateConfig`).
 
 :class:`SimNodeConfig` is :class:`.config.SimConfig` (what the simulator simulates) and the
 node's own parameters below: each value checked against its Param at construction, then
@@ -13,7 +13,7 @@ from typing import Any
 
 from ibvs_common import contract
 from ibvs_common import shared_params as shared
-from ibvs_common.params import Param, param_field, ParameterError
+from ibvs_common.params import Param, param_field, ParamConfig, ParameterError
 from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
 
 from .config import SimConfig
@@ -124,6 +124,9 @@ CAMERA_TOPICS = Param(
 class SimNodeConfig(SimConfig):
     """The parameters of sim_node: the simulator's (:class:`.config.SimConfig`), then its own."""
 
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
+    RULES = (shared.check_command_interface,)
+
     publish_images: bool = param_field(PUBLISH_IMAGES)
     clock_rate_hz: float = param_field(CLOCK_RATE_HZ)
     min_joint_state_subscribers: int = param_field(MIN_JOINT_STATE_SUBSCRIBERS)
@@ -175,3 +178,14 @@ class SimNodeConfig(SimConfig):
         defaults = SimNodeConfig()
         return [(name, getattr(self, name)) for name in names
                 if getattr(self, name) != getattr(defaults, name)]
+
+
+@dataclass(frozen=True)
+class RobotStateConfig(ParamConfig):
+    """The parameters of robot_state_node: the simulated arm drawn and the stamp rule's."""
+
+    disturbance_deg: tuple[float, ...] = param_field(shared.DISTURBANCE_DEG)
+    l2_scale: float = param_field(shared.L2_SCALE)
+    l4_scale: float = param_field(shared.L4_SCALE)
+    camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
+    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)

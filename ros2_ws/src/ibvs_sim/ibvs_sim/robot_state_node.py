@@ -34,13 +34,12 @@ camera sees it. Bad joint states are rejected with a logged reason and counted o
 and :class:`ibvs_common.conversions.StampOrder`).
 """
 
-from ibvs_common import contract, shared_params
+from ibvs_common import contract
 from ibvs_common.conversions import (InputError, position_bounds, read_joints, read_stamp,
                                      stamp_lead_ns, StampOrder, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, subscription
+from ibvs_common.kit import config, publisher, subscription
 from ibvs_common.node_main import run
-from ibvs_common.params import declare
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
 from ibvs_model import abb_urdf, IRB4600
@@ -50,13 +49,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
-PARAMS = (
-    shared_params.DISTURBANCE_DEG,
-    shared_params.L2_SCALE,
-    shared_params.L4_SCALE,
-    shared_params.CAMERA_RATE_HZ,
-    shared_params.STALE_TIMEOUT_S,
-)
+from .node_params import RobotStateConfig
+
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = RobotStateConfig
+PARAMS = CONFIG.params()
 #: tf2_ros's TransformBroadcaster QoS (DynamicBroadcasterQoS): depth 100.
 TF_DEPTH = 100
 
@@ -67,10 +64,10 @@ class RobotStateNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters; publish the description and the fixed frames."""
         super().__init__('robot_state_node', **kwargs)
-        p = declare(self, PARAMS)
-        self._params = IRB4600.scaled(p['l2_scale'], p['l4_scale'])
-        self._d_q = np.radians(p['disturbance_deg'])
-        self._lead_ns = stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz']))
+        self.config = c = config(self, RobotStateConfig)
+        self._params = IRB4600.scaled(c.l2_scale, c.l4_scale)
+        self._d_q = np.radians(c.disturbance_deg)
+        self._lead_ns = stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz))
         self._order = StampOrder()
         self._last_joint_ns = None
         self._diag = Diagnostics(self, 'robot description and link frames')

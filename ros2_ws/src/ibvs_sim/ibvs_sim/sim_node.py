@@ -32,10 +32,9 @@ from ibvs_common import contract
 from ibvs_common.conversions import (camera_infos, image_msg, joint_path, joint_state,
                                      ns_stamp, path_msg, pose_stamped)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import publisher, WaitReporter
+from ibvs_common.kit import config as kit_config, publisher, WaitReporter
 from ibvs_common.node_main import run
-from ibvs_common.params import declare
-from ibvs_common.shared_params import check_command_interface, target_from_parameters
+from ibvs_common.shared_params import target_from_parameters
 from ibvs_common.timing import period_ns
 from nav_msgs.msg import Path
 import numpy as np
@@ -51,13 +50,15 @@ from .lockstep_sim import LockstepSim
 from .node_params import SimNodeConfig
 from .simulator import Simulator
 
-PARAMS = SimNodeConfig.params()
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = SimNodeConfig
+PARAMS = CONFIG.params()
 #: lockstep -> the class that runs the time mode. The node reads its ``clock_rate_hz``,
 #: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``held_steps`` and ``command_sub``
 #: and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and ``waiting_line``.
 MODES = {True: LockstepSim, False: FreeRunningSim}
 #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-RULES = (check_command_interface,)
+RULES = CONFIG.RULES
 
 #: camera_topics -> (image topics, camera_info topics, frame ids, encoding, QoS).
 CAMERA_OUTPUTS = {
@@ -91,7 +92,7 @@ class SimNode(Node):
             raise
 
     def _setup(self):
-        config = self.config = SimNodeConfig.from_values(declare(self, PARAMS, RULES))
+        config = self.config = kit_config(self, SimNodeConfig)
         self._duration_ns = int(round(config.duration_s * 1e9))
         self.finished = False
         self._extra_joints = list(config.extra_joints)

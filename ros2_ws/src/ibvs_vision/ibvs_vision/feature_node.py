@@ -21,9 +21,8 @@ from ibvs_common.conversions import (feature_status_msg, features_msg, FeatureSt
                                      ignored_joints, image_msg, InputError, ns_stamp,
                                      position_bounds, read_joints, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import Inputs, publisher, StereoCameraInput, subscription
+from ibvs_common.kit import config, Inputs, publisher, StereoCameraInput, subscription
 from ibvs_common.node_main import run
-from ibvs_common.params import declare, Param
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
 from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
@@ -34,36 +33,16 @@ from sensor_msgs.msg import Image, JointState
 
 from . import overlay
 from .blend import BumplessSwitch
-from .detector import DetectorConfig, Reason, StereoDetector
-from .detector.config import NODE_PARAMS as DETECTOR_PARAMS
+from .detector import Reason, StereoDetector
 from .frame_stats import FrameStats
 from .imageconv import image_array
+from .node_params import FeatureConfig
 from .stereo_pairing import Drop, Ready, StereoPairer
 
-PARAMS = (
-    Param('blend_time_s', 0.2, 'time over which the published features move from the '
-          'estimate to the measurement (and back) after a switch (section 2.3); 0: switch '
-          'outright', 's', low=0.0, high=10.0),
-    Param('hold_model_error', False, 'while the markers are not seen, publish F(q_T) plus '
-          'the model error the last measurement showed instead of F(q_T) alone (the paper)',
-          '-'),
-    *DETECTOR_PARAMS,
-    Param('detection_budget_share', 0.5, 'share of the camera frame period the detector may '
-          'spend on a stereo pair, in its estimated cost (detector.budget); a pair that needs '
-          'more is not measured', '-', low=0.0, high=1.0, low_open=True),
-    Param('joint_history_s', 2.0, 'how long joint states are kept to match image stamps',
-          's', low=0.0, high=60.0, low_open=True),
-    Param('publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/'
-          'image for every frame even when nobody subscribes (e.g. to record them)', '-'),
-    shared_params.CAMERA_RATE_HZ,
-    shared_params.STALE_TIMEOUT_S,
-    shared_params.CAMERA_POSE,
-    shared_params.TARGET_FEATURES_SOURCE,
-    shared_params.TARGET_POSITION,
-    shared_params.TARGET_ROTATION,
-)
-#: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-RULES = (shared_params.camera_pose_from,)
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = FeatureConfig
+PARAMS = CONFIG.params()
+RULES = CONFIG.RULES
 #: The overlay images (:mod:`.overlay`), one per lens.
 DEBUG_IMAGES = {'left': contract.DEBUG_LEFT_IMAGE, 'right': contract.DEBUG_RIGHT_IMAGE}
 
@@ -83,13 +62,13 @@ class FeatureNode(Node):
     def __init__(self, **kwargs):
         """Declare and check the parameters, then create the subscriptions and publishers."""
         super().__init__('feature_node', **kwargs)
-        p = declare(self, PARAMS, RULES)
+        self.config = c = config(self, FeatureConfig)
         cv2.setNumThreads(OPENCV_THREADS)
-        self._config = DetectorConfig.from_parameters(p)
-        self._budget_ms = p['detection_budget_share'] * 1e3 / p['camera_rate_hz']
-        self._switch = BumplessSwitch(p['blend_time_s'], p['hold_model_error'])
-        self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(p['stale_timeout_s']),
-                                    history_ns=seconds_to_ns(p['joint_history_s']),
+        self._config = c.detector_config()
+        self._budget_ms = c.budget_ms
+        self._switch = BumplessSwitch(c.blend_time_s, c.hold_model_error)
+        self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(c.stale_timeout_s),
+                                    history_ns=seconds_to_ns(c.joint_history_s),
                                     sides=_SIDES)
         #: Each input's resolved topic name (the ZED wrapper's under a remap), which its
         #: rejections are counted under; filled as the subscriptions are created.
@@ -102,14 +81,14 @@ class FeatureNode(Node):
         self._stats = FrameStats(self._budget_ms)
         self._teach = {}
         self._teach_done = False
-        self._debug_always = p['publish_debug_images']
-        self._taught_source = p['target_features_source'] == 'taught'
-        self._target_pose = shared_params.target_from_parameters(p)
+        self._debug_always = c.publish_debug_images
+        self._taught_source = c.target_features_source == 'taught'
+        self._target_pose = shared_params.target_from_parameters(c.values())
         self._target_features = None
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._inputs = Inputs(self._diag, self.now_ns,
-                              stamp_lead_ns(p['stale_timeout_s'], period_ns(p['camera_rate_hz'])))
+                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, frames_over_budget=0,
                           detection_budget_ms=self._budget_ms, last_switch_time_s='none',
@@ -133,7 +112,7 @@ class FeatureNode(Node):
                 self._topics[side + kind] = subscription(self, Image, topic,
                                                          partial(on_message, side),
                                                          qos).topic_name
-        self.camera_input = StereoCameraInput(self, self._diag, p, self._on_camera,
+        self.camera_input = StereoCameraInput(self, self._diag, c.values(), self._on_camera,
                                               lambda source: self._try_frames())
         joints = subscription(self, JointState, contract.JOINT_STATES, self._on_joints,
                               contract.RELIABLE)
@@ -364,13 +343,13 @@ class FeatureNode(Node):
 
     def _record(self, detection, previous, elapsed_ms):
         d = self._diag
-        values = d.values
-        values['frames_published'] += 1
+        counts = d.values
+        counts['frames_published'] += 1
         if detection.ok:
-            values['frames_measured'] += 1
+            counts['frames_measured'] += 1
             reason = 'measured'
         else:
-            values['frames_estimated'] += 1
+            counts['frames_estimated'] += 1
             reason = f'{detection.reason.value}: {detection.detail}'
         estimated = self._stats.estimated(None if detection.ok else detection.reason.value)
         switch = self._switch

@@ -75,7 +75,9 @@ class VizConfig(ParamConfig):
         'go first)', '-', low=2, high=1_000_000))
 
 
-PARAMS = VizConfig.params()
+#: The node's typed configuration, built by ``ibvs run`` before any node starts.
+CONFIG = VizConfig
+PARAMS = CONFIG.params()
 RULES = VizConfig.RULES
 #: Marker namespaces, one per thing drawn.
 NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'

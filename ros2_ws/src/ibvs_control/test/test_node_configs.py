@@ -1,0 +1,33 @@
+"""The typed configurations of the feedback and feedforward nodes, without ROS."""
+
+from ibvs_common.params import ParameterError
+from ibvs_control import node_params
+from ibvs_control.node_params import AdaptiveFeedbackConfig, FeedforwardConfig, LAW_PARAMS
+import pytest
+
+
+def test_the_feedback_config_holds_every_setting_of_the_servo_law():
+    params = AdaptiveFeedbackConfig.params()
+    assert all(any(spec is p for p in params) for spec in LAW_PARAMS)
+    c = AdaptiveFeedbackConfig(omega_n=2, svd_damping=0.5)
+    settings = c.law_settings()
+    assert list(settings) == [spec.name for spec in LAW_PARAMS]
+    assert settings['omega_n'] == 2.0 and isinstance(settings['omega_n'], float)
+    assert settings['svd_damping'] == 0.5
+
+
+def test_a_value_out_of_range_is_refused_naming_it():
+    with pytest.raises(ParameterError, match="'feedforward_ratio'"):
+        FeedforwardConfig(feedforward_ratio=0.0)
+    with pytest.raises(ParameterError, match="'servo_law'"):
+        AdaptiveFeedbackConfig(servo_law='nope')
+
+
+def test_the_configs_rules_are_the_modules_functions():
+    # The node runs them at start (kit.config) and ibvs run before any node starts.
+    assert AdaptiveFeedbackConfig.RULES[:3] == (node_params.check_gains,
+                                                node_params.check_servo_law,
+                                                node_params.target_from)
+    assert FeedforwardConfig.RULES == (node_params.target_from,)
+    with pytest.raises(ParameterError, match='feedforward_method'):
+        node_params.check_servo_law(AdaptiveFeedbackConfig(servo_law='ibvs').values())

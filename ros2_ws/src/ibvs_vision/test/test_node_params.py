@@ -1,0 +1,24 @@
+"""feature_node's typed configuration, without ROS."""
+
+from ibvs_common.params import ParameterError
+from ibvs_vision.detector import DetectorConfig
+from ibvs_vision.node_params import FeatureConfig
+import pytest
+
+
+def test_defaults_give_the_detectors_defaults_and_the_budget():
+    c = FeatureConfig()
+    assert c.detector_config() == DetectorConfig()
+    assert c.budget_ms == pytest.approx(0.5 * 1e3 / 30.0)
+    assert FeatureConfig(camera_rate_hz=60, detection_budget_share=1).budget_ms == \
+        pytest.approx(1e3 / 60.0)
+
+
+def test_the_detectors_rule_is_checked_when_the_config_is_built():
+    with pytest.raises(ParameterError) as caught:
+        FeatureConfig(hough_min_radius_px=40, hough_max_radius_px=40)
+    with pytest.raises(ParameterError) as detector:
+        DetectorConfig(hough_min_radius_px=40, hough_max_radius_px=40)
+    assert str(caught.value) == str(detector.value)
+    assert FeatureConfig(hough_min_radius_px=40, hough_max_radius_px=41) \
+        .detector_config().hough_max_radius_px == 41
