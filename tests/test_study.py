@@ -41,12 +41,14 @@ def _ray_processes(proc_tools):
 @pytest.mark.slow
 def test_grid_study_records_a_failure_and_resumes_from_cache(
         installed_workspace, tmp_path, proc_tools):
-    # omega_n < 1 / tau_in (eq. 36): tau_in = 0.05 s with omega_n = 30 rad/s is refused by
-    # the controller nodes at start, the other grid point runs. Two products (their union)
-    # sweep both parameters with one run that fails and one that runs, at the same time.
+    # A robot with L2 and L4 at 30 % cannot reach scenario 1's start pose: the simulator
+    # refuses at start (exit 2; every rule between parameters is refused before any run,
+    # so a run that fails has to fail in its nodes), the other grid point runs. Two
+    # products (their union) sweep both parameters with one run that fails and one that
+    # runs, at the same time.
     spec = study_spec.load(grid_spec(tmp_path, 'grid', 0.3,
-                                     [{'tau_in': [0.01], 'omega_n': [10.0]},
-                                      {'tau_in': [0.05], 'omega_n': [30.0]}]))
+                                     [{'l2_scale': [1.0], 'l4_scale': [1.0]},
+                                      {'l2_scale': [0.3], 'l4_scale': [0.3]}]))
     out = tmp_path / 'studies'
     # A job beside the runs (as the report's model-only sweeps), and each record as it comes.
     answers, seen = [], []
@@ -57,11 +59,11 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
     assert sorted(r['index'] for r in seen) == [0, 1] and all('status' in r for r in seen)
 
     assert [r['swept'] for r in records] == [
-        {'tau_in': 0.01, 'omega_n': 10.0}, {'tau_in': 0.05, 'omega_n': 30.0}]
+        {'l2_scale': 1.0, 'l4_scale': 1.0}, {'l2_scale': 0.3, 'l4_scale': 0.3}]
     status = [r['status'] for r in records]
     assert status == ['ok', 'failed'], [r.get('reason') for r in records]
     failed = records[1]
-    assert 'omega_n' in failed['reason'] and 'exited with code 2' in failed['reason']
+    assert 'unreachable' in failed['reason'] and 'exited with code 2' in failed['reason']
     assert (Path(failed['run_dir']) / 'runner.log').is_file()
     # A study's runs write metrics and bag, not their own figures (run_figures: false).
     assert (Path(records[0]['run_dir']) / 'metrics.json').is_file()
@@ -73,15 +75,15 @@ def test_grid_study_records_a_failure_and_resumes_from_cache(
     with open(out / 'grid' / 'table.csv') as f:
         rows = list(csv.DictReader(f))
     assert [row['status'] for row in rows] == status
-    assert [float(row['tau_in']) for row in rows] == [0.01, 0.05]
-    assert [float(row['omega_n']) for row in rows] == [10.0, 30.0]
+    assert [float(row['l2_scale']) for row in rows] == [1.0, 0.3]
+    assert [float(row['l4_scale']) for row in rows] == [1.0, 0.3]
     assert float(rows[0]['final_position_error_m']) == \
         records[0]['metrics']['final_position_error_m']
     assert float(rows[0]['wall_s']) > 0.0
-    assert rows[1]['final_position_error_m'] == '' and 'omega_n' in rows[1]['reason']
+    assert rows[1]['final_position_error_m'] == '' and 'unreachable' in rows[1]['reason']
     table = (out / 'grid' / 'table.md').read_text()
     assert table.count('| failed |') == 1 and table.count('| ok |') == 1
-    for figure in ('error_vs_tau_in.png', 'error_vs_omega_n.png', 'success_rate.png'):
+    for figure in ('error_vs_l2_scale.png', 'error_vs_l4_scale.png', 'success_rate.png'):
         assert (out / 'grid' / figure).stat().st_size > 0
     assert not _ray_processes(proc_tools)
 
