@@ -21,7 +21,7 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any, Mapping, TYPE_CHECKING, TypeVar
+from typing import Any, Mapping, Protocol, TYPE_CHECKING, TypeVar
 import weakref
 
 from geometry_msgs.msg import PoseStamped
@@ -39,7 +39,13 @@ if TYPE_CHECKING:
     from ibvs_model import StereoCamera
     from rclpy.node import Node
 
-    from .diagnostics import Diagnostics
+
+class Rejections(Protocol):
+    """What the input assemblers need of a node's diagnostics (``diagnostics.Diagnostics``)."""
+
+    def reject(self, source: str, reason: str, detail: str = '') -> None:
+        """Log and count one rejected message of ``source``."""
+
 
 #: Steady-clock period of the "waiting for" log (s).
 WAIT_LOG_S = 1.0
@@ -189,7 +195,7 @@ class Inputs:
     a message refused for its values leaves the stamp to a good one.
     """
 
-    def __init__(self, diagnostics: 'Diagnostics', now_ns: Callable[[], int],
+    def __init__(self, diagnostics: Rejections, now_ns: Callable[[], int],
                  lead_ns: int) -> None:
         """Count on ``diagnostics``; ``now_ns()`` is the newest time the node knows."""
         self._diag = diagnostics
@@ -237,7 +243,7 @@ class StereoCameraInput:
 
     SIDES = ('left', 'right')
 
-    def __init__(self, node: 'Node', diagnostics: 'Diagnostics', values: Mapping[str, Any],
+    def __init__(self, node: 'Node', diagnostics: Rejections, values: Mapping[str, Any],
                  on_camera: Callable[['StereoCamera | None', str], None],
                  on_input: Callable[[str], None] | None = None) -> None:
         """Open the inputs on ``node``; ``values`` holds the ``camera_pose`` parameter."""
