@@ -7,9 +7,10 @@ declares only those it uses (undeclared overrides are ignored by rclpy).
 """
 
 from collections.abc import Mapping
+import math
 from typing import Any
 
-from ibvs_model import paper
+from ibvs_model import IRB4600, paper
 import numpy as np
 from numpy.typing import NDArray
 
@@ -186,8 +187,10 @@ def start_joints(values: Any) -> NDArray[np.float64] | None:
     """
     Return ``start_joints`` as 6 angles (rad), or None when empty (the scenario's start).
 
-    Raises :class:`ParameterError` naming it unless it is empty or has 6 values. The
-    simulator and the model-only loop start from it alike (issue 38: tasks as data).
+    Raises :class:`ParameterError` naming it unless it is empty or has 6 values, each
+    within its joint's range (``IRB4600.q_min``, ``q_max``: a start the arm cannot be in
+    would leave the feedforward nothing to plan from). The simulator, its config's check
+    before start and the model-only loop take it alike (issue 38: tasks as data).
     """
     values = START_JOINTS.check(list(values))
     if not values:
@@ -196,4 +199,11 @@ def start_joints(values: Any) -> NDArray[np.float64] | None:
         raise ParameterError(f"parameter 'start_joints' = {list(values)!r} is invalid: has "
                              f"{len(values)} values; allowed: empty (the scenario's start) "
                              'or 6 joint angles (rad)', START_JOINTS.name)
-    return np.asarray(values, dtype=float)
+    q = np.asarray(values, dtype=float)
+    low, high = np.asarray(IRB4600.q_min), np.asarray(IRB4600.q_max)
+    for j in np.flatnonzero((q < low) | (q > high)):
+        raise ParameterError(
+            f"parameter 'start_joints' = {list(values)!r} is invalid: joint {j + 1} at "
+            f'{math.degrees(q[j]):.1f} deg is outside its range [{math.degrees(low[j]):.1f}, '
+            f'{math.degrees(high[j]):.1f}] deg', START_JOINTS.name)
+    return q

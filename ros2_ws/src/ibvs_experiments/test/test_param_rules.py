@@ -139,3 +139,11 @@ def test_every_node_config_is_its_parameters_and_scenario1_builds_them_all():
         for name, value in built[n.name].values().items():
             expected = graph_params.values(params)[name]
             assert value == (tuple(expected) if isinstance(expected, list) else expected), name
+
+
+def test_a_start_outside_a_joints_range_is_refused_before_any_node_starts():
+    # It used to start, and the graph stalled with the feedforward unable to plan from it.
+    with pytest.raises(ScenarioError, match=r"'start_joints'.*joint 1 at 229\.2 deg is "
+                                            r'outside its range \[-180\.0, 180\.0\] deg'):
+        runner.resolve('scenario1', {'start_joints': [4.0, 0.0, 0.0, 0.0, 0.0, 0.0]})
+    runner.resolve('scenario1', {'start_joints': [3.0, 0.0, 0.0, 0.0, 0.0, 0.0]})

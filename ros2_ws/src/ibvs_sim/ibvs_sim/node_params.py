@@ -159,6 +159,7 @@ class SimNodeConfig(SimConfig):
         """Check each value, then the rules across them (module docstring)."""
         super().__post_init__()
         shared.check_command_interface(vars(self))
+        shared.start_joints(self.start_joints)  # 6 angles within the joints' ranges, or none
         if self.target_features_source == 'taught' and not self.publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')

@@ -74,3 +74,10 @@ def test_free_running_clock_runs_at_least_at_the_command_rate(context):
         assert lockstep.clock_period_ns == 100_000_000
     finally:
         lockstep.destroy_node()
+
+
+def test_a_start_outside_a_joints_range_is_refused_by_the_config():
+    start = [4.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # joint 1 at 229.2 deg, its range +-180 deg
+    with pytest.raises(ParameterError, match=r"'start_joints'.*joint 1 at 229\.2 deg"):
+        SimNodeConfig(start_joints=start)
+    assert SimNodeConfig(start_joints=[0.1] * 6).start_joints == (0.1,) * 6
