@@ -61,6 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array
 from .mass_model import link_shapes, matrix_rpy
+from .mass_model import rpy_matrix as rotation_of_rpy
 from .robot import IRB4600, RobotParams
 from .urdf import _link_xml, _material_xml, _num, _origin, BASE_RGBA, ROBOT_RGBA
 from .urdf import joint_origins as dh_origins
@@ -103,13 +104,8 @@ def rpy_matrix(rpy: ArrayLike) -> NDArray[np.float64]:
     ndarray, shape (4, 4)
 
     """
-    r, p, y = (float(v) for v in rpy)
-    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
-                              math.cos(y), math.sin(y))
     tf = np.eye(4)
-    tf[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                  [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                  [-sp, cp * sr, cp * cr]]
+    tf[:3, :3] = rotation_of_rpy([float(v) for v in rpy])
     return tf
 
 
