@@ -574,7 +574,11 @@ def miss_category(record: Mapping[str, Any]) -> str:
     reason = why_missed(record)
     if not reason:
         return ''
-    failed = record.get('status') != 'ok'
+    return reason_category(reason, failed=record.get('status') != 'ok')
+
+
+def reason_category(reason: str, failed: bool) -> str:
+    """Return the :data:`MISS_CATEGORIES` category of a failed or finished run's reason."""
     for category, if_failed, if_finished in MISS_CATEGORIES:
         if any(word in reason for word in (if_failed if failed else if_finished)):
             return category

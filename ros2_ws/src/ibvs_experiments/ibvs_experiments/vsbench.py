@@ -56,6 +56,7 @@ from scipy import stats
 from . import analysis
 from .convergence import SUCCESS
 from .laws_report import CASES
+from .study import reason_category
 
 #: The benchmark's name and version: change the version with anything that changes the file.
 NAME = 'vsbench'
@@ -379,9 +380,9 @@ def miss_class(row: Mapping[str, Any], last_limit_distance: float) -> str:
 
     'collision' (a clearance reached 0, or the envelope halted for one), 'limit' (stalled
     within :data:`LIMIT_CLASS_RAD` of a joint limit in the last 0.5 s), 'singular' (the
-    envelope halted for a singularity and the run stalled), else the words of
-    :func:`.convergence.miss_reason`: 'lost features', 'stalled', 'timed out', 'no final
-    pose'.
+    envelope halted for a singularity and the run stalled), else the study's category of
+    :func:`.convergence.miss_reason`'s words (:func:`.study.reason_category`): 'lost
+    features', 'stalled', 'timed out', 'no final pose'.
     """
     if row['success']:
         return ''
@@ -389,17 +390,13 @@ def miss_class(row: Mapping[str, Any], last_limit_distance: float) -> str:
     codes = row.get('intervention_codes', {})
     if row.get('collisions') or codes.get('HALT_FOR_COLLISION'):
         return 'collision'
-    for words, category in (('features lost', 'lost features'), ('no final pose',
-                                                                 'no final pose')):
-        if text.startswith(words):
-            return category
-    if text.startswith('stalled'):
+    category = reason_category(text, failed=False)  # the study's words for the reason
+    if category == 'stalled':
         if last_limit_distance < LIMIT_CLASS_RAD:
             return 'limit'
         if codes.get('HALT_FOR_SINGULARITY'):
             return 'singular'
-        return 'stalled'
-    return 'timed out' if text.startswith('timed out') else (text.split(' ')[0] or 'missed')
+    return category
 
 
 class Progress:
