@@ -25,7 +25,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.signals import SignalHandlerOptions
 import yaml
 
-from . import contract, dds
+from . import contract, dds, process
 from .diagnostics import publish_last, publisher_of
 from .intra_process import bus_of
 from .params import check_declared, ParameterError
@@ -345,6 +345,7 @@ def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None 
     except (dds.DomainError, ParameterError) as exc:
         logger.fatal(str(exc))
         sys.exit(2)
+    process.keep_freed_memory()  # frames' buffers from the heap, not fresh pages each
     stop = StopRequest()
     stop.install()
     dds.configure()

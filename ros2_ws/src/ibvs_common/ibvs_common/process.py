@@ -1,13 +1,14 @@
 """
-A child process that dies with its parent, and one that ends without the interpreter's teardown.
+Process-wide settings: dying with the parent, ending at once, quiet imports, kept memory.
 
-Two kinds of children use it: the processes a runner supervises (the nodes of a run, a
-study's runs: :func:`supervised_child`, their ``preexec_fn``) and the simulator's lens
-worker (:mod:`ibvs_sim.lens_server`, which calls :func:`die_with_parent` itself and stays in
-the simulator's process group, so that it is stopped with it). :func:`exit_now` ends a
-worker process that has released what it holds, as a ``multiprocessing`` child ends.
-:func:`quiet_output` keeps what C code writes meanwhile from the terminal (PyBullet's
-build-time banner, written as its module loads).
+The processes a runner supervises (the nodes of a run, a study's runs) start with
+:func:`supervised_child` (their ``preexec_fn``); :func:`die_with_parent` is its part that
+any process may call itself. :func:`exit_now` ends a process that has released what it
+holds, as a ``multiprocessing`` child ends. :func:`quiet_output` keeps what C code writes
+meanwhile from the terminal (PyBullet's build-time banner, written as its module loads).
+:func:`keep_freed_memory` stops glibc from giving back, and faulting in again, the
+megabytes of every frame's images (every node's process calls it at start:
+:func:`ibvs_common.node_main.run`).
 """
 
 import contextlib
@@ -18,6 +19,17 @@ import sys
 
 #: prctl's option that asks for a signal when the parent dies (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
+#: mallopt's parameters (glibc's malloc.h).
+M_TRIM_THRESHOLD = -1
+M_MMAP_THRESHOLD = -3
+#: Blocks from this size (bytes) up are mapped on their own: glibc's largest mmap threshold
+#: on 64-bit (4 MiB x sizeof(long)), above any image's buffer (an HD720 RGB image: 2.8 MB;
+#: an HD2K BGRA one: 18.7 MB).
+MMAP_THRESHOLD_BYTES = 32 * 2 ** 20
+#: Free memory (bytes) at the heap's top that malloc keeps instead of giving it back: room
+#: for several frames' buffers (a stereo frame at HD720 allocates and frees about 20 MB in
+#: the simulator's process: its images, their messages, the detector's arrays).
+TRIM_THRESHOLD_BYTES = 256 * 2 ** 20
 
 
 def die_with_parent() -> None:
@@ -51,7 +63,7 @@ def exit_now(code: int = 0) -> None:
     caller has closed what it holds, and the interpreter's teardown, freeing every module's
     objects one by one (0.15-0.25 s with numpy, scipy, OpenCV, PyBullet and rclpy loaded),
     would only hold up whoever waits for this process to exit. C's stdio is flushed too:
-    PyBullet and the EGL plugin print through it, into a log file that is fully buffered.
+    PyBullet prints through it, into a log file that is fully buffered.
     """
     for stream in (sys.stdout, sys.stderr):
         try:
@@ -63,6 +75,31 @@ def exit_now(code: int = 0) -> None:
     except (OSError, AttributeError):
         pass
     os._exit(code)
+
+
+def keep_freed_memory() -> bool:
+    """
+    Have glibc's malloc keep the memory it frees for the next allocation; True if it could.
+
+    By default glibc maps a block above its mmap threshold (128 KiB at start, raised to the
+    size of each mapped block freed) on its own and unmaps it when it is freed, and gives
+    back the free top of the heap beyond its trim threshold (twice the mmap threshold).
+    Image buffers of a few megabytes, allocated and freed 60 times a simulated second, then
+    come back as fresh pages that the kernel faults in one by one as they are first written:
+    about 1 ms an HD720 image on this repository's machine, in the renderer's readback, the
+    messages' copies and the detector. Fixed thresholds (:data:`MMAP_THRESHOLD_BYTES`,
+    :data:`TRIM_THRESHOLD_BYTES`; ``mallopt``, as ``GLIBC_TUNABLES=glibc.malloc.*`` would
+    set them) keep those pages in the heap: ``make demo``'s real-time factor went from
+    0.91-0.92 to 1.06-1.09 (docs/speed.md). The cost is memory the process holds after a
+    peak, at most the trim threshold more. No-op (False) where the C library is not glibc.
+    """
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    return bool(mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+                and mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES))
 
 
 @contextlib.contextmanager
