@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import math
 import os
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -350,6 +351,7 @@ class GLRenderer:
         self._moderngl = moderngl
         self._ctx = None
         self._fbos = []
+        self._rgba = []  # a readback buffer a pass (_readback)
         #: Why a context did not open on each device tried before the one that draws.
         self.devices_refused = []
         order = ([None] if os.environ.get(DEVICE_INDEX_VARIABLE)
@@ -528,11 +530,22 @@ class GLRenderer:
                                                first=first)
                 drawn.append((fbo, viewport))
             images = []
-            for fbo, viewport in drawn:
-                image = np.empty((viewport[3], viewport[2], 3), dtype=np.uint8)
-                fbo.read_into(image, viewport=viewport, components=3, alignment=1)
-                images.append(image)
+            for index, (fbo, viewport) in enumerate(drawn):
+                # Read as the framebuffer holds it (RGBA) and drop alpha in OpenCV: Mesa
+                # packs RGB pixel by pixel, 0.9 ms an HD720 image on llvmpipe against
+                # 0.08 + 0.08 ms (measured 2026-11-27); the same bytes.
+                rgba = self._readback(index, viewport[2], viewport[3])
+                fbo.read_into(rgba, viewport=viewport, components=4, alignment=1)
+                images.append(cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB))
         return images
+
+    def _readback(self, index, width, height):
+        """Return pass ``index``'s (height, width, 4) RGBA buffer, kept between calls."""
+        while len(self._rgba) <= index:
+            self._rgba.append(np.empty((0, 0, 4), np.uint8))
+        if self._rgba[index].shape[:2] != (height, width):
+            self._rgba[index] = np.empty((height, width, 4), np.uint8)
+        return self._rgba[index]
 
     def _runs(self, modelview, clip, width, height, covered):
         """
