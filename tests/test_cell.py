@@ -34,15 +34,13 @@ def ibvs_cell(tmp_path, *args, stdout=subprocess.PIPE):
 
 
 def test_nothing_on_the_domain_exits_naming_the_image_topic(installed_workspace, tmp_path):
-    start = time.monotonic()
     proc = ibvs_cell(tmp_path)
     try:
-        out, err = proc.communicate(timeout=20.0)
+        out, err = proc.communicate(timeout=60.0)  # a hang guard: it waits 10 s (check-timeout)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
-    assert time.monotonic() - start < 20.0
     assert proc.returncode == 5, (out, err)
     assert 'no /zed/zed_node/left/color/rect/image: is video.publish_left_right true?' in err
     assert 'no subscriber on /forward_command_controller_position/commands' in err

@@ -13,7 +13,6 @@ import os
 from pathlib import Path
 import subprocess
 import sys
-import time
 
 from ibvs_bringup import domains
 from ibvs_common import dds
@@ -39,12 +38,16 @@ def executable(prefix, package, name):
     return str(path)
 
 
-def start(command, env=None, timeout_s=20.0):
-    """Run ``command`` to its end; return (exit code, output, wall seconds)."""
-    began = time.monotonic()
+def start(command, env=None, timeout_s=60.0):
+    """
+    Run ``command`` to its end; return (exit code, output).
+
+    ``timeout_s`` only guards against a hang (a node that started instead of refusing spins
+    until stopped); how fast a refusal comes is ``make bench``'s, not a test's, to say.
+    """
     done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s,
                           env=env, stdin=subprocess.DEVNULL)
-    return done.returncode, done.stdout + done.stderr, time.monotonic() - began
+    return done.returncode, done.stdout + done.stderr
 
 
 def test_domain_ids_are_plain_numbers_within_the_safe_range():
@@ -80,28 +83,28 @@ def test_parameter_arguments_are_read_as_rcl_reads_them(tmp_path):
 
 
 @pytest.mark.parametrize('package,name', EXECUTABLES)
-def test_an_executable_refuses_an_undeclared_parameter_within_5_s(installed_workspace,
-                                                                  package, name):
+def test_an_executable_refuses_an_undeclared_parameter_at_start(installed_workspace,
+                                                                package, name):
     node = executable(installed_workspace, package, name)
-    code, out, wall = start([node, '--ros-args', '-p', 'stale_timeout_ss:=1'])
+    code, out = start([node, '--ros-args', '-p', 'stale_timeout_ss:=1'])
     assert code == 2, out
     assert "'stale_timeout_ss'" in out and 'declares it' in out
     if name != 'sim_node':  # the simulator does not declare it: its nearest differs
         assert "'stale_timeout_s'" in out
-    assert 'Traceback' not in out and wall < 5.0, (wall, out)
+    assert 'Traceback' not in out, out
 
 
 def test_compose_refuses_a_name_neither_of_its_nodes_declares(installed_workspace):
     compose = executable(installed_workspace, 'ibvs_bringup', 'compose')
-    code, out, wall = start([compose, 'sim_node', 'joint_controller_node', '--ros-args',
+    code, out = start([compose, 'sim_node', 'joint_controller_node', '--ros-args',
                              '-p', 'lockstepp:=false'])
-    assert code == 2 and "did you mean 'lockstep'" in out and wall < 5.0, (wall, out)
+    assert code == 2 and "did you mean 'lockstep'" in out, out
 
 
 def test_an_executable_refuses_a_wrong_type_and_a_bad_parameter_file(
         installed_workspace, tmp_path):
     node = executable(installed_workspace, 'ibvs_control', 'joint_controller_node')
-    code, out, _ = start([node, '--ros-args', '-p', 'camera_rate_hz:=abc'])
+    code, out = start([node, '--ros-args', '-p', 'camera_rate_hz:=abc'])
     assert code == 2 and "'camera_rate_hz' = 'abc' is invalid: not a number" in out, out
     broken = tmp_path / 'broken.yaml'
     broken.write_text('/**:\n  ros__parameters: {tau_in: [0.01\n')
@@ -109,17 +112,17 @@ def test_an_executable_refuses_a_wrong_type_and_a_bad_parameter_file(
     misspelt.write_text('joint_controller_node:\n  ros__parameters: {camera_rate_hzz: 30.0}\n')
     for path, said in ((tmp_path / 'missing.yaml', 'cannot read it'),
                        (broken, 'not valid YAML'), (misspelt, "did you mean 'camera_rate_hz'")):
-        code, out, _ = start([node, '--ros-args', '--params-file', str(path)])
+        code, out = start([node, '--ros-args', '--params-file', str(path)])
         assert code == 2 and (str(path) in out or 'camera_rate_hzz' in out), out
         assert said in out and 'Traceback' not in out, out
-    code, out, _ = start([node, '--ros-args', '-r', 'no_rule'])
+    code, out = start([node, '--ros-args', '-r', 'no_rule'])
     assert code == 2 and 'the ROS arguments were refused' in out and 'Traceback' not in out
 
 
 def test_an_executable_refuses_a_domain_ros_must_not_use(installed_workspace):
     node = executable(installed_workspace, 'ibvs_vision', 'feature_node')
     for bad in ('-1', '233'):
-        code, out, _ = start([node], env=dict(os.environ, ROS_DOMAIN_ID=bad))
+        code, out = start([node], env=dict(os.environ, ROS_DOMAIN_ID=bad))
         assert code == 2 and f"ROS_DOMAIN_ID='{bad}'" in out and 'Traceback' not in out, out
 
 
@@ -142,7 +145,7 @@ def test_ibvs_run_refuses_bad_domains_before_anything(capsys, monkeypatch, tmp_p
 
 
 def test_a_broken_domain_pool_ends_any_ibvs_command_with_code_2(installed_workspace):
-    code, out, _ = start([sys.executable, '-m', 'ibvs_experiments.cli', 'run', 'scenario1'],
+    code, out = start([sys.executable, '-m', 'ibvs_experiments.cli', 'run', 'scenario1'],
                          env=dict(os.environ, IBVS_ROS_DOMAINS='a-b'))
     assert code == 2 and "IBVS_ROS_DOMAINS='a-b'" in out and 'Traceback' not in out, out
 
@@ -160,14 +163,12 @@ def test_ibvs_run_refuses_an_output_it_cannot_write(capsys, monkeypatch, tmp_pat
 
 def test_ibvs_run_applies_the_nodes_cross_parameter_rules_before_any_node(capsys, monkeypatch,
                                                                           tmp_path):
-    began = time.monotonic()
     code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'command_interface:=position')
     assert code == 2 and "'lockstep' = True is invalid" in err, err
     code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p',
                         'camera_pose:=[1.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5]')
     assert code == 2 and "'camera_pose'" in err and 'quaternion' in err, err
-    assert time.monotonic() - began < 10.0
-    assert not (tmp_path / 'out' / 'logs').exists()
+    assert not (tmp_path / 'out' / 'logs').exists()  # refused before any node started
 
 
 def test_ibvs_run_builds_every_node_config_before_any_node(capsys, monkeypatch, tmp_path):
