@@ -97,7 +97,7 @@ def test_an_executable_refuses_an_undeclared_parameter_at_start(installed_worksp
 def test_compose_refuses_a_name_neither_of_its_nodes_declares(installed_workspace):
     compose = executable(installed_workspace, 'ibvs_bringup', 'compose')
     code, out = start([compose, 'sim_node', 'joint_controller_node', '--ros-args',
-                             '-p', 'lockstepp:=false'])
+                       '-p', 'lockstepp:=false'])
     assert code == 2 and "did you mean 'lockstep'" in out, out
 
 
@@ -146,7 +146,7 @@ def test_ibvs_run_refuses_bad_domains_before_anything(capsys, monkeypatch, tmp_p
 
 def test_a_broken_domain_pool_ends_any_ibvs_command_with_code_2(installed_workspace):
     code, out = start([sys.executable, '-m', 'ibvs_experiments.cli', 'run', 'scenario1'],
-                         env=dict(os.environ, IBVS_ROS_DOMAINS='a-b'))
+                      env=dict(os.environ, IBVS_ROS_DOMAINS='a-b'))
     assert code == 2 and "IBVS_ROS_DOMAINS='a-b'" in out and 'Traceback' not in out, out
 
 
