@@ -26,8 +26,9 @@ measures that with the real nodes and no simulator:
    (``ros2 run``), with the bag's parameters but ``use_sim_time: false``, the ZED wrapper's
    topics remapped as the graph remaps them, DDS between them and to this process.
 
-Measured after a warm-up of :data:`WARMUP_S` (the detector's first full search, the
-feedforward's start): the wall time from the publication of a frame's first image to the
+Measured from :data:`WARMUP_S` after the first joint command that used a frame (before it
+the graph starts: the feedforward plans its trajectory, which the joint controller waits
+for, and the detector makes its first full search): the wall time from the publication of a frame's first image to the
 first joint command that uses it (the joint controller's /ibvs/frame_latency: the command's
 stamp and the frame's), as mean, p95 and max, over the frames used; the frames sent and
 used (a frame the nodes skip has no command of its own); and the CPU time each node's
@@ -47,7 +48,9 @@ from typing import Any
 
 import numpy as np
 
-#: Measurement starts this long (wall s) after the first frame is sent.
+#: Measurement starts this long (wall s) after the first joint command that used a frame:
+#: the graph's start (the feedforward's trajectory, 60 s of it at 1 kHz, which the joint
+#: controller waits for; the detector's first full search) is not a frame's latency.
 WARMUP_S = 1.0
 #: How long the nodes may take to subscribe (wall s) before the replay gives up.
 START_TIMEOUT_S = 60.0
@@ -316,12 +319,14 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
                     raise RuntimeError(f'the nodes did not start: {dead or replayer.readers()}'
                                        f' (logs in {log_dir})')
             thread = threading.Thread(target=replayer.run, args=(duration_s, stop))
-            begin = time.time_ns()
             thread.start()
-            cpu, since = None, begin + int(WARMUP_S * 1e9)
+            cpu, since, began = None, None, time.monotonic()
             while thread.is_alive():
                 executor.spin_once(timeout_sec=0.01)
-                if cpu is None and time.time_ns() >= since:
+                if since is None and commands:  # the graph is up (WARMUP_S)
+                    started_s = time.monotonic() - began
+                    since = time.time_ns() + int(WARMUP_S * 1e9)
+                if cpu is None and since is not None and time.time_ns() >= since:
                     cpu = ({p.name: process_cpu_s(p.proc.pid) for p in procs},
                            time.process_time(), time.monotonic())
             end = time.monotonic()
@@ -334,8 +339,9 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
             codes = stop_all(procs) if procs else {}
             context.try_shutdown()
     if cpu is None:
-        raise ValueError(f'replay of {duration_s} s is not longer than the warm-up '
-                         f'({WARMUP_S} s)')
+        raise ValueError(f'replay of {duration_s} s: ' + (
+            f'no joint command used a frame (logs in {log_dir})' if since is None else
+            f'it ended within {WARMUP_S} s of the first command ({started_s:.1f} s in)'))
     window_s = end - cpu[2]
     result = latency_stats(replayer.sent, commands, since)
     frames = max(result['frames_sent'], 1)
@@ -347,7 +353,8 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
         'cpu_s': after[1] - cpu[1], 'cores': (after[1] - cpu[1]) / window_s,
         'ms_per_frame': (after[1] - cpu[1]) / frames * 1e3}
     result.update(width=recording.size[0], height=recording.size[1], replay_s=duration_s,
-                  measured_s=window_s, warmup_s=WARMUP_S, bag=str(bag_path),
+                  measured_s=window_s, warmup_s=WARMUP_S, first_command_s=started_s,
+                  bag=str(bag_path),
                   exit_codes=codes, load_average=f'{os.getloadavg()[0]:.2f}')
     return result
 
@@ -383,7 +390,8 @@ def print_result(result: dict[str, Any]) -> None:
     """Print one replay's latency and CPU lines."""
     period_ms = 1e3 / 30.0
     head = (f'nodes alone at {result["resolution"]} ({result["width"]} x {result["height"]}), '
-            f'30 Hz for {result["measured_s"]:.1f} s after {result["warmup_s"]:g} s warm-up, '
+            f'30 Hz for {result["measured_s"]:.1f} s, from {result["warmup_s"]:g} s after the '
+            f'first command ({result["first_command_s"]:.1f} s into the replay), '
             f'load average {result["load_average"]}:')
     print(head)
     if result['frames_used']:
