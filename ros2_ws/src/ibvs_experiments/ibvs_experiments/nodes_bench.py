@@ -28,14 +28,14 @@ measures that with the real nodes and no simulator:
 
 Measured from :data:`WARMUP_S` after the first joint command that used a frame (before it
 the graph starts: the feedforward plans its trajectory, which the joint controller waits
-for, and the detector makes its first full search): the wall time from the publication of a frame's first image to the
-first joint command that uses it (the joint controller's /ibvs/frame_latency: the command's
-stamp and the frame's), as mean, p95 and max, over the frames used; the frames sent and
-used (a frame the nodes skip has no command of its own); and the CPU time each node's
-process takes (user + system, /proc), per wall second and per frame sent, and this
-process's (the stand-in camera and driver). The latency counts the transfer of both images
-from this process to the feature node (DDS), which a camera driver in a process of its own
-costs too.
+for, and the detector makes its first full search): the wall time from the publication of
+a frame's first image to the first joint command that uses it (the joint controller's
+/ibvs/frame_latency: the command's stamp and the frame's), as mean, p95 and max, over the
+frames used; the frames sent and used (a frame the nodes skip has no command of its own);
+and the CPU time each node's process takes (user + system, /proc), per wall second and per
+frame sent, and this process's (the stand-in camera and driver). The latency counts the
+transfer of both images from this process to the feature node (DDS), which a camera driver
+in a process of its own costs too.
 """
 
 from collections.abc import Callable, Sequence
