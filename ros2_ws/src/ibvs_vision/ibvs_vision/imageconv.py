@@ -9,6 +9,7 @@ the rejection reason on /diagnostics.
 
 from typing import TYPE_CHECKING
 
+import cv2
 from ibvs_common.conversions import InputError
 import numpy as np
 from numpy.typing import NDArray
@@ -71,4 +72,6 @@ def image_array(msg: 'Image') -> tuple[NDArray[np.uint8], str]:
         return pixels, encoding
     if channels == 1:
         return np.repeat(pixels, 3, axis=2), encoding
-    return np.ascontiguousarray(pixels[:, :, :3]), encoding
+    # OpenCV drops the alpha in 0.1 ms an HD720 image; numpy's strided copy takes 4-5 ms,
+    # a quarter of the feature node's CPU a frame on the ZED wrapper's images (make bench).
+    return cv2.cvtColor(pixels, cv2.COLOR_BGRA2BGR), encoding

@@ -41,6 +41,17 @@ def test_bgra8_of_the_zed_wrapper_reads_as_bgr8(image):
     assert got == 'bgr8' and np.array_equal(array, image[:, :, ::-1])
 
 
+def test_bgra8_rows_with_padding(image):
+    # A driver may pad each row (step > 4 * width): the alpha and the padding both go.
+    msg = image_msg(image, 0, 'bgra8')
+    padded = np.full((5, 32), 77, np.uint8)
+    padded[:, :28] = np.frombuffer(msg.data, np.uint8).reshape(5, 28)
+    msg.step, msg.data = 32, padded.tobytes()
+    array, got = image_array(msg)
+    assert got == 'bgr8' and array.shape == (5, 7, 3)
+    assert np.array_equal(array, image[:, :, ::-1])
+
+
 def test_mono8_reads_as_three_equal_channels(image):
     msg = image_msg(image, 0)
     msg.encoding, msg.step, msg.data = 'mono8', 7, image[:, :, 0].tobytes()
