@@ -22,7 +22,8 @@ if TYPE_CHECKING:
 
 #: Encodings read besides the detector's own (rgb8, bgr8): channels per pixel, and the
 #: detector encoding their first three channels become. bgra8 is what zed-ros2-wrapper
-#: publishes (its alpha is dropped); mono8 is spread over three equal channels (the
+#: publishes (its alpha is dropped; its rows may be padded: ``sl_tools.cpp`` L200, L244-245
+#: at 33dfefa, docs/real_cell.md); mono8 is spread over three equal channels (the
 #: detector finds the markers by colour, so a monochrome camera is not expected to give
 #: measured features; feature_status says which mode each frame had).
 CONVERTED = {'bgra8': (4, 'bgr8'), 'mono8': (1, 'rgb8')}
