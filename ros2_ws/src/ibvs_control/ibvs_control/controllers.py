@@ -266,9 +266,11 @@ class Feedforward:
         return pose_error(forward_kinematics(self.q_target, self.params), self.pose)
 
 
-#: :func:`target_branch` prefers a target branch this far (rad) inside the joint limits (the
-#: velocity laws' margin, servo_laws.JOINT_LIMIT_MARGIN_RAD).
-FEEDFORWARD_LIMIT_MARGIN_RAD = 0.05
+#: The one margin (rad) inside the joint limits: :func:`target_branch` prefers a target
+#: branch this far inside them, the velocity laws keep their reference this far inside
+#: (``joint_limit_margin_rad``, :mod:`.servo_laws`), and so does the safety envelope's final
+#: guarantee (:class:`.envelope.EnvelopeConfig`).
+JOINT_LIMIT_MARGIN_RAD = 0.05
 
 
 def target_branch(pose: ArrayLike, q0: ArrayLike, params: 'RobotParams' = IRB4600
@@ -278,7 +280,7 @@ def target_branch(pose: ArrayLike, q0: ArrayLike, params: 'RobotParams' = IRB460
 
     The branch nearest ``q0`` inside the reach cone with q0's shoulder and elbow
     (:func:`ibvs_model.ik_branch.nearest_branch_ik`): no arm flip on the way; one at least
-    :data:`FEEDFORWARD_LIMIT_MARGIN_RAD` inside every joint limit if there is one, so that
+    :data:`JOINT_LIMIT_MARGIN_RAD` inside every joint limit if there is one, so that
     the feedforward's straight joint-space line from q0 stays out of that margin (the box
     of the limits is convex), else the nearest in the cone. When q0 is
     itself outside the cone or no such branch exists, the branch nearest q0 whatever it
@@ -287,7 +289,7 @@ def target_branch(pose: ArrayLike, q0: ArrayLike, params: 'RobotParams' = IRB460
     """
     q0 = np.asarray(q0, dtype=float)
     if in_cone(q0, params):
-        for margin in (FEEDFORWARD_LIMIT_MARGIN_RAD, 0.0):
+        for margin in (JOINT_LIMIT_MARGIN_RAD, 0.0):
             try:
                 return nearest_branch_ik(pose, q0, params, same_arm_as=q0, margin_rad=margin)
             except InvalidInputError:

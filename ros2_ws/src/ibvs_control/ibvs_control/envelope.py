@@ -57,7 +57,7 @@ from ibvs_model.capsules import Cell, clearances
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .controllers import (feature_error, FeedbackUpdate, FEEDFORWARD_LIMIT_MARGIN_RAD,
+from .controllers import (feature_error, FeedbackUpdate, JOINT_LIMIT_MARGIN_RAD,
                           target_branch)
 from .servo_status import ServoStatus
 
@@ -80,9 +80,6 @@ LEAVING_MIN_SCALE = 0.1
 #: MoveIt Servo's collision proximity thresholds (m).
 SELF_COLLISION_PROXIMITY_THRESHOLD = 0.01
 SCENE_COLLISION_PROXIMITY_THRESHOLD = 0.02
-#: The final guarantee's margin inside the joint limits (rad): the velocity laws' own
-#: clamp (servo_laws.JOINT_LIMIT_MARGIN_RAD).
-FINAL_MARGIN_RAD = FEEDFORWARD_LIMIT_MARGIN_RAD
 
 
 class Intervention(IntEnum):
@@ -277,7 +274,7 @@ class EnvelopeConfig:
     leaving_min_scale: float = LEAVING_MIN_SCALE
     self_collision_proximity_threshold: float = SELF_COLLISION_PROXIMITY_THRESHOLD
     scene_collision_proximity_threshold: float = SCENE_COLLISION_PROXIMITY_THRESHOLD
-    final_margin_rad: float = FINAL_MARGIN_RAD
+    final_margin_rad: float = JOINT_LIMIT_MARGIN_RAD
     cell: Cell = Cell()
 
     def __post_init__(self):

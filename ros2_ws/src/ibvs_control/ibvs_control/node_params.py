@@ -1,5 +1,8 @@
 """
-Parameters of the three control nodes, their start-time checks and typed configurations.
+Parameters of the control nodes, their start-time checks, and two typed configurations.
+
+The feedforward's and the feedback's configurations are here; the joint controller's is in
+:mod:`.joint_controller_mode`.
 
 Shared parameters come from :mod:`ibvs_common.shared_params`; the ones below belong to this
 package. The checks turn a configuration the controllers cannot work with into a

@@ -11,7 +11,7 @@ The safety envelope by property (no ROS).
 
 import math
 
-from ibvs_control.controllers import (FeedbackUpdate, FEEDFORWARD_LIMIT_MARGIN_RAD,
+from ibvs_control.controllers import (FeedbackUpdate, JOINT_LIMIT_MARGIN_RAD,
                                       target_branch)
 from ibvs_control.envelope import (collision_scale, EnvelopeConfig, EnvelopedLaw,
                                    Intervention, joint_limit_avoidance,
@@ -223,5 +223,5 @@ def test_feedforward_target_keeps_the_start_arm():
         q_target = target_branch(target, q0)
         assert arm_branch(q_target) == arm_branch(q0) == (1, 1)
         assert np.array_equal(q_target, inverse_kinematics(target, seed=q0))
-        assert np.all(q_target >= Q_MIN + FEEDFORWARD_LIMIT_MARGIN_RAD)
-        assert np.all(q_target <= Q_MAX - FEEDFORWARD_LIMIT_MARGIN_RAD)
+        assert np.all(q_target >= Q_MIN + JOINT_LIMIT_MARGIN_RAD)
+        assert np.all(q_target <= Q_MAX - JOINT_LIMIT_MARGIN_RAD)

@@ -2,9 +2,11 @@
 The simulator's configuration (:class:`SimConfig`): its parameters, declared once.
 
 Each field of :class:`SimConfig` is a sim_node parameter of the same name
-(:class:`ibvs_common.params.Param`: default, units, allowed values); sim_node declares them
-and builds the config from their values (:meth:`SimConfig.from_values`), a test builds one
-directly. No ROS here.
+(:class:`ibvs_common.params.Param`: default, units, allowed values); sim_node's
+:class:`.node_params.SimNodeConfig` extends it with the node's own parameters and is built
+from the declared values (:func:`ibvs_common.kit.config`); the replay builds a SimConfig
+from recorded values (:meth:`SimConfig.from_values`), a test builds one directly. No ROS
+here.
 """
 
 from dataclasses import dataclass

@@ -226,14 +226,15 @@ class FreeRunningSim:
         return np.any((q_true < np.asarray(IRB4600.q_min))
                       | (q_true > np.asarray(IRB4600.q_max)), axis=1)
 
-    def _take_reference(self, q_encoder, source, checked=False, trajectory=None):
+    def _take_reference(self, q_encoder, source, trajectory=None):
         """
         Take a reference in encoder angles (contract order): range check, then the drive.
 
-        ``trajectory`` (stamp ns, times ns, positions): a checked joint_trajectory command,
-        for the trajectory controller (:class:`.position_servo.TrajectoryFollower`).
+        ``trajectory`` (stamp ns, times ns, positions): a joint_trajectory command whose
+        points were range-checked already, for the trajectory controller
+        (:class:`.position_servo.TrajectoryFollower`).
         """
-        if not checked and self._beyond_range(q_encoder)[0]:
+        if trajectory is None and self._beyond_range(q_encoder)[0]:
             self.diagnostics.reject(source, 'out of range', f'{q_encoder.tolist()} rad: '
                                     'beyond a joint range')
             return
@@ -285,6 +286,6 @@ class FreeRunningSim:
                                     f'{positions[outside[0]].tolist()} rad: beyond a joint '
                                     'range')
             return
-        self._take_reference(positions[-1], source, checked=True, trajectory=(
+        self._take_reference(positions[-1], source, trajectory=(
             stamp_ns(msg.header.stamp), [duration_ns(p.time_from_start) for p in msg.points],
             positions))

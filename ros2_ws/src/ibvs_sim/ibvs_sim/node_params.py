@@ -52,9 +52,10 @@ MIN_JOINT_PATH_SUBSCRIBERS = Param(
 
 REAL_TIME_FACTOR = Param(
     'real_time_factor', 0.05, 'free-running (lockstep false): sim seconds per wall second '
-    "(Gazebo's real_time_factor); 0.05 leaves margin on a loaded 2-core machine, where one "
-    'HD720 stereo pair takes about 80 ms to render (0.1 was held at 0.05-0.09 with three '
-    'other test suites running); when it cannot be held the node says so',
+    "(Gazebo's real_time_factor); 0.05 leaves margin for any graph on a loaded 2-core "
+    'machine (0.1 was held at 0.05-0.09 with three other test suites running); real_cell.yaml '
+    'sets 0.6, what the idle machine holds at HD720 (docs/speed.md); when it cannot be held '
+    'the node says so',
     '-', low=0.0, high=10.0, low_open=True)
 COMMAND_TIMEOUT_S = Param(
     'command_timeout_s', 0.1, 'free-running: a position reference older than this (sim '

@@ -30,15 +30,15 @@ frame of every joint state it reads (``ibvs run`` remaps /joint_states to
 /stereo/joint_states: one per camera frame). The angles drawn are the true ones of the
 simulated arm, encoder + ``disturbance_deg`` (d_q, eq. 30), so that tool0 is where the
 camera sees it. Bad joint states are rejected with a logged reason and counted on
-/diagnostics (as viz_node: :func:`ibvs_common.conversions.read_joints`, the one stamp rule
-and :class:`ibvs_common.conversions.StampOrder`).
+/diagnostics (as viz_node: :class:`ibvs_common.kit.Inputs`, the one stamp rule and order
+per topic, with :func:`ibvs_common.conversions.read_joints`).
 """
 
 from ibvs_common import contract
-from ibvs_common.conversions import (InputError, position_bounds, read_joints, read_stamp,
-                                     stamp_lead_ns, StampOrder, transforms_msg)
+from ibvs_common.conversions import (position_bounds, read_joints, stamp_lead_ns,
+                                     transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import config, publisher, subscription
+from ibvs_common.kit import config, Inputs, publisher, subscription
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
@@ -67,10 +67,10 @@ class RobotStateNode(Node):
         self.config = c = config(self, RobotStateConfig)
         self._params = IRB4600.scaled(c.l2_scale, c.l4_scale)
         self._d_q = np.radians(c.disturbance_deg)
-        self._lead_ns = stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz))
-        self._order = StampOrder()
         self._last_joint_ns = None
         self._diag = Diagnostics(self, 'robot description and link frames')
+        self._inputs = Inputs(self._diag, lambda: node_time_ns(self, self._last_joint_ns),
+                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
         self._diag.update(tf_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (
             f"/tf of {self._diag.values['tf_published']} joint states (last at "
@@ -85,17 +85,11 @@ class RobotStateNode(Node):
                                       self.get_clock().now().to_msg()))
 
     def _on_joints(self, msg):
-        topic = self._joints_topic
-        try:
-            t_ns = read_stamp(msg.header.stamp, node_time_ns(self, self._last_joint_ns),
-                              self._lead_ns)
-            self._order.check(topic, t_ns)
-            q = read_joints(msg, bound=position_bounds())
-        except InputError as exc:
-            self._diag.reject(topic, exc.reason, exc.detail)
+        got = self._inputs.read(self._joints_topic, msg,
+                                lambda m: read_joints(m, bound=position_bounds()))
+        if got is None:
             return
-        self._order.take(topic, t_ns)
-        self._last_joint_ns = t_ns
+        self._last_joint_ns, q = got
         joints = abb_urdf.joint_transforms(q + self._d_q, self._params)
         self._tf_pub.publish(transforms_msg(joints, msg.header.stamp))
         self._diag.values['tf_published'] += 1

@@ -217,9 +217,9 @@ class Simulator:
         One frame is :meth:`_render`'s pair. More are the pixelwise mean of as many 8-bit
         pairs, each with its own noise, rounded to 8 bits: what a user who holds the tool
         still at the target and averages the camera's frames gets (the scene is static, so
-        the pair is drawn once and only the noise differs).
+        the pair is drawn once and only the noise differs; without noise, that one pair).
         """
-        if frames == 1:
+        if frames == 1 or self.effects.noise_stddev == 0.0:
             return self._render()
         clean = self._draw()
         total = [np.zeros(image.shape, np.float64) for image in clean]

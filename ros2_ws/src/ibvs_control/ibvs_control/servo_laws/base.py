@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import envelope
-from ..controllers import FeedbackUpdate, FEEDFORWARD_LIMIT_MARGIN_RAD
+from ..controllers import FeedbackUpdate, JOINT_LIMIT_MARGIN_RAD
 from ..decoupling import SVD_RCOND
 
 if TYPE_CHECKING:
@@ -44,8 +44,6 @@ FEATURE_FALLBACKS = ('estimate', 'hold')
 #: Anti-windup of the velocity laws (:func:`guard_reference`): the joint reference stays
 #: within qd_max * WINDUP_HORIZON_S of the encoder angles of the frame (s).
 WINDUP_HORIZON_S = 0.2
-#: Joint limits of the velocity laws: the reference stays this far (rad) inside them.
-JOINT_LIMIT_MARGIN_RAD = FEEDFORWARD_LIMIT_MARGIN_RAD
 
 
 class ServoLaw:
@@ -90,7 +88,9 @@ class ServoLaw:
         or False, the law itself.
         """
         config = envelope.EnvelopeConfig(
-            singularity_scaling=bool(settings.get('envelope_singularity_scaling', True)))
+            singularity_scaling=bool(settings.get('envelope_singularity_scaling', True)),
+            final_margin_rad=float(settings.get('joint_limit_margin_rad',
+                                                JOINT_LIMIT_MARGIN_RAD)))
         return envelope.wrap(cls.build(model, pose, dt, **settings),
                              bool(settings.get('safety_envelope', False)), config)
 
