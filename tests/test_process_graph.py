@@ -16,11 +16,10 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-NODE_NAMES = {'sim_node', 'feature_node', 'joint_controller_node', 'feedforward_node',
-              'adaptive_feedback_node', 'robot_state_node'}
 #: The paper's nodes and the simulator's stand-in for robot_state_publisher.
 EXECUTABLES = GRAPH.paper_nodes() + tuple((n.package, n.name) for n in GRAPH.nodes
                                           if n.sim_side and not n.paper)
+NODE_NAMES = {name for _, name in EXECUTABLES}
 
 #: topic -> (type, publishers, subscribers): what the nodes record opening (ibvs_bringup.
 #: graph_topics, the one source of docs/design.md §1 and §3), as ``ros2 run`` starts them.

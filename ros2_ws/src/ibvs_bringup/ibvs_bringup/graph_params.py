@@ -18,14 +18,14 @@ from typing import Any, TYPE_CHECKING
 from ibvs_common.params import check_declared, Param, ParamConfig, ParameterError, plain_value
 from ibvs_common.params import check_rules as check_rules_of
 
-from .scenario import ScenarioError
+from .scenario import RUNNER_KEYS, ScenarioError
 
 if TYPE_CHECKING:
     from .graph import Graph
 
 #: Parameters that are not a node's: ROS's own (every node declares use_sim_time) and the
-#: runner's (a scenario's name and its sim time limit).
-NOT_NODES = ('use_sim_time', 'scenario_name', 'run_duration_s')
+#: runner's (:data:`.scenario.RUNNER_KEYS`).
+NOT_NODES = ('use_sim_time',) + RUNNER_KEYS
 
 
 def declared(graph: 'Graph | None' = None) -> dict[str, Param]:

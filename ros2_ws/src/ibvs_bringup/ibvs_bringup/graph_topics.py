@@ -24,6 +24,7 @@ import sys
 from typing import Any, NamedTuple
 
 from ibvs_common import contract
+from ibvs_common.kit import PUBLISHES, SUBSCRIBES
 
 from .graph import FRAME_STATES, GRAPH, Graph, uses_frame_states, uses_zed_names
 
@@ -37,7 +38,6 @@ MODES = {
     'taught': {'target_features_source': 'taught'},
     'zed': {'camera_topics': 'zed_wrapper'},
 }
-PUBLISHES, SUBSCRIBES = 'publishes', 'subscribes'  # as ibvs_common.kit names them
 #: The contract's profiles by name, in the order a name is chosen, and the message types
 #: each names ('' any): CAMERA_INFO is the images' profile, ZED_IMAGES the wrapper's.
 QOS_NAMES = (('RELIABLE', contract.RELIABLE, ''),
@@ -200,6 +200,7 @@ def node_table(graph: Graph = GRAPH, rows: Iterable[Opened] | None = None) -> st
     Reads and writes: what each node opens (``rows``, default :func:`opened`), with the
     remappings of a run; the rest is the graph's description (:class:`.graph.Node`).
     """
+    rows = list(opened() if rows is None else rows)
     out = ['| node | package, module | process | reads | writes | rate |',
            '|---|---|---|---|---|---|']
     for n in graph.nodes:

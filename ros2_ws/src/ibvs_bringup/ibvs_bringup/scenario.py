@@ -15,9 +15,12 @@ from ibvs_common import contract
 import yaml
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
-#: Keys of a run's parameters that the runner reads and no node declares: the runner
-#: names the run and stops it at its sim time limit itself.
-RUNNER_ONLY = ('scenario_name', 'run_duration_s', 'duration_s')
+#: Keys of a run's parameters that only the runner reads and no node declares: the run's
+#: name and its sim time limit.
+RUNNER_KEYS = ('scenario_name', 'run_duration_s')
+#: What the runner keeps from the nodes: its own keys, and sim_node's ``duration_s`` (the
+#: runner stops the run at its limit itself; a node started by hand may use it).
+RUNNER_ONLY = RUNNER_KEYS + ('duration_s',)
 
 
 class ScenarioError(ValueError):

@@ -24,7 +24,7 @@ M_TRIM_THRESHOLD = -1
 M_MMAP_THRESHOLD = -3
 #: Blocks from this size (bytes) up are mapped on their own: glibc's largest mmap threshold
 #: on 64-bit (4 MiB x sizeof(long)), above any image's buffer (an HD720 RGB image: 2.8 MB;
-#: an HD2K BGRA one: 18.7 MB).
+#: an HD2K BGRA one: 11.0 MB).
 MMAP_THRESHOLD_BYTES = 32 * 2 ** 20
 #: Free memory (bytes) at the heap's top that malloc keeps instead of giving it back: room
 #: for several frames' buffers (a stereo frame at HD720 allocates and frees about 20 MB in
@@ -90,8 +90,9 @@ def keep_freed_memory() -> bool:
     messages' copies and the detector. Fixed thresholds (:data:`MMAP_THRESHOLD_BYTES`,
     :data:`TRIM_THRESHOLD_BYTES`; ``mallopt``, as ``GLIBC_TUNABLES=glibc.malloc.*`` would
     set them) keep those pages in the heap: ``make demo``'s real-time factor went from
-    0.91-0.92 to 1.06-1.09 (docs/speed.md). The cost is memory the process holds after a
-    peak, at most the trim threshold more. No-op (False) where the C library is not glibc.
+    0.91-0.93 to 1.05-1.07 (two runs each, docs/speed.md). The cost is memory the process
+    holds after a peak, at most the trim threshold more. No-op (False) where the C library
+    is not glibc.
     """
     try:
         mallopt = ctypes.CDLL(None).mallopt

@@ -11,7 +11,7 @@ docs/nodes.md (generated from what it opens and :data:`PARAMS`).
 The frames it adds for the images, and what it rejects: docs/nodes.md.
 """
 
-from collections import OrderedDict
+from collections import deque, OrderedDict
 from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -110,7 +110,7 @@ class VizNode(Node):
         self._target = shared_params.target_from_parameters(c.values())
         self._marker_period_ns = period_ns(c.marker_rate_hz)
         self._camera = None
-        self._path = []
+        self._path = deque(maxlen=self.config.tool_path_points)  # Points, oldest first
         self._last_markers_ns = None
         self._last_joint_ns = None
         self._features = OrderedDict()
@@ -236,7 +236,8 @@ class VizNode(Node):
         self._diag.values['joint_states_taken'] += 1
         # ABB's tool0 is the flange {E} of eq. (7): the true arm's, where the camera sees it.
         tool = forward_kinematics(q + self._d_q, self._params)
-        self._path = (self._path + [tool[:3, 3]])[-self.config.tool_path_points:]
+        # One Point a joint state (250 Hz on a cell), not a copy of the whole path
+        self._path.append(Point(x=float(tool[0, 3]), y=float(tool[1, 3]), z=float(tool[2, 3])))
         self._estimated = fiducial_points(q, IRB4600)
         if self._camera is not None and (self._last_markers_ns is None or
                                          t_ns - self._last_markers_ns >= self._marker_period_ns):
@@ -293,7 +294,7 @@ class VizNode(Node):
         goal.colors = [_rgba((0.1, 0.8, 0.1), 0.5)] * 2
         out.markers.append(goal)
         path = self._marker(NS_PATH, 0, Marker.LINE_STRIP, stamp)
-        path.points = _points(self._path)
+        path.points = list(self._path)
         path.scale.x = 0.003
         path.color = _rgba((0.9, 0.9, 0.2), 1.0)
         out.markers.append(path)
