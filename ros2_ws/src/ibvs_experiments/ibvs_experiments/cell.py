@@ -56,7 +56,8 @@ from ibvs_bringup import domains, graph_params, scenario
 from ibvs_bringup.graph import GRAPH
 from ibvs_common import contract
 
-#: The nodes of a cell, in start order (docs/real_cell.md "By hand"): no simulator.
+#: The nodes of a cell, in start order (docs/real_cell.md "By hand"): the paper's, no
+#: simulator and no viewers' node.
 CELL_NODES = tuple(n.name for n in GRAPH.cell_nodes() if n.paper)
 #: The parameter file of a cell, in ibvs_bringup's config (installed with the scenarios).
 CELL_CONFIG = 'cell.yaml'

@@ -15,7 +15,8 @@ Two ways through the tasks, the same success rule (:data:`.convergence.SUCCESS`)
 - the model loop (:func:`ibvs_control.closed_loop.simulate`, no ROS, seconds per run) for
   every task and law, in a process pool (:func:`screen`): the calibration error as the
   model's camera against the true one, the detector's measured feature noise
-  (:data:`FEATURE_NOISE_PX`, on every frame and on the taught target) and the lost frames;
+  (:data:`FEATURE_NOISE_PX`, on every frame; on the taught target divided by the square
+  root of ``teach_frames``) and the lost frames;
 - the node graph (``ibvs run``, HD720, lockstep: deterministic) for the first
   ``--graph-tasks`` tasks and every law as a study on Ray (:func:`graph_spec`; resumable:
   the study cache keeps finished runs).
@@ -53,10 +54,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
-from . import analysis
+from . import analysis, study
 from .convergence import SUCCESS
 from .laws_report import CASES
-from .study import reason_category
+from .study import default_parallel, reason_category
 
 #: The benchmark's name and version: change the version with anything that changes the file.
 NAME = 'vsbench'
@@ -220,7 +221,8 @@ def model_run(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any] =
     Run one task with one law through the model loop; return :func:`run_metrics`' row.
 
     The true camera makes the features, the calibrated one is the controllers' model; the
-    feature noise on every frame and on the taught target, the lost frames and their seed
+    feature noise on every frame and on the taught target (divided by the square root of
+    ``teach_frames`` there), the lost frames and their seed
     (``camera_seed``) as the task gives them. ``feature_noise_px``: default
     :data:`FEATURE_NOISE_PX` of ``resolution`` (the camera's image size).
     """
@@ -536,7 +538,6 @@ def run_graph(bench: Mapping[str, Any], n_tasks: int, out_dir: Path,
               duration_s: float | None = None, out=sys.stdout,
               resolution: str | None = None) -> list[dict[str, Any]]:
     """Run :func:`graph_spec` on Ray (study machinery, cached) and return its rows."""
-    from . import study
     laws = tuple(laws)
     resolution = resolution or bench['graph']['resolution']
     spec = graph_spec(bench, n_tasks, laws, duration_s,
@@ -722,6 +723,14 @@ def write_figures(rows: Sequence[Mapping[str, Any]], out_dir: Path) -> list[Path
     return paths
 
 
+def _teach_noise(conditions: Mapping[str, Any]) -> str:
+    """Return the report's words for the noise of the taught target under ``conditions``."""
+    frames = int(conditions.get('teach_frames', 1))
+    if frames <= 1:
+        return 'the taught target'
+    return f'the taught target divided by sqrt({frames}), the mean of its {frames} frames'
+
+
 def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
                   meta: Mapping[str, Any]) -> Path:
     """Write ``vsbench.md``, ``vsbench_runs.csv``, ``vsbench.json`` and the figures."""
@@ -744,7 +753,8 @@ def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
              f"time. Conditions (every run): `{json.dumps(meta.get('conditions'))}`; per task "
              'its drawn calibration error and camera seed (the benchmark file). Model loop: '
              f"feature noise {meta.get('feature_noise_px')} px per value (measured, every "
-             'frame and the taught target), lost frames held. Graph: '
+             f'frame and {_teach_noise(meta.get("conditions") or {})}), lost frames held. '
+             'Graph: '
              f"lockstep, `{SCENARIO}`'s rates and gains. Both at {meta.get('resolution')}.",
              '',
              '## Success per law', ''] + summary_table(summary)
@@ -813,7 +823,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--duration', type=float, default=None,
                         help=f"sim time per run (default the benchmark's, {DURATION_S} s)")
     parser.add_argument('--resolution', choices=tuple(FEATURE_NOISE_PX), default=None,
-                        help="image size of both loops (default the benchmark's, VGA)")
+                        help="image size of both loops (default the benchmark's, "
+                        f'{GRAPH_RESOLUTION})')
     parser.add_argument('--only', type=int, metavar='K', default=None,
                         help='run task K alone through the model loop, print its rows, exit')
     parser.add_argument('--measure-noise', action='store_true',
@@ -854,7 +865,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                   resolution=resolution)
     walls = {'model': time.monotonic() - start}
     if args.graph_tasks:
-        from .study import default_parallel
         start = time.monotonic()
         rows += run_graph(bench, args.graph_tasks, Path(args.studies), laws, args.parallel,
                           duration, resolution=resolution)

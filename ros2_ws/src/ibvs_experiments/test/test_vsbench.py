@@ -163,3 +163,15 @@ def test_the_model_loops_acceleration_limits_are_the_first_targets_rounded_down(
     assert np.all(limits[:5] <= computed[:5])
     # rounded down to two significant figures, not further
     assert np.all(limits[:5] >= 0.9 * computed[:5])
+
+
+def test_the_sampler_margins_are_those_of_their_sources():
+    # ibvs_model cannot import ibvs_control or ibvs_experiments: its two measured margins
+    # are copies, tied here to what they stand for (task_sampler's module docstring).
+    from ibvs_control.envelope import LOWER_SINGULARITY_THRESHOLD
+    from ibvs_experiments.convergence import SUCCESS
+    from ibvs_model.task_sampler import Margins
+    margins = Margins()
+    assert margins.max_condition_number == LOWER_SINGULARITY_THRESHOLD
+    bound = 3 * vsbench.FEATURE_NOISE_PX['HD720'] / math.radians(SUCCESS.axis_deg)
+    assert margins.min_observability_px_rad == pytest.approx(bound, abs=0.05)
