@@ -41,6 +41,58 @@ INPUTS = {'feedforward': f'the feedforward trajectory on {contract.FEEDFORWARD_T
           'camera': 'a camera frame ({})', 'feedback': f'a {contract.Q_FEEDBACK}'}
 
 
+class ForwardCommand:
+    """
+    ros2_controllers' forward_command_controller: the reference alone, a Float64MultiArray.
+
+    On /forward_position_controller/commands, the values in the controller's joint order
+    (``joints``). ``send`` takes what :meth:`PositionController._command` computed.
+    """
+
+    def __init__(self, node: 'Node', ctrl: 'PositionController') -> None:
+        """Open the command topic."""
+        self._ctrl = ctrl
+        self.pub = publisher(node, Float64MultiArray, contract.POSITION_COMMANDS,
+                             contract.RELIABLE)
+
+    def send(self, now_ns, q_command, target, q_feedback):
+        """Publish ``q_command`` (contract order) in the controller's order."""
+        self.pub.publish(Float64MultiArray(data=[float(v) for v in
+                                                 q_command[self._ctrl.order]]))
+
+
+class TrajectoryWindow:
+    """
+    ros2_controllers' joint_trajectory_controller: a window of the course ahead.
+
+    On /joint_trajectory_controller/joint_trajectory: now (``q_command``) and
+    ``trajectory_window_points`` - 1 points one command period apart, the references the
+    shaper would send toward q_feedforward(t) + q_feedback (or the held target while
+    holding), in the controller's joint order.
+    """
+
+    def __init__(self, node: 'Node', ctrl: 'PositionController') -> None:
+        """Open the command topic; the window's times ahead are fixed at start."""
+        self._ctrl = ctrl
+        self._ahead = (np.arange(1, ctrl.config.trajectory_window_points)
+                       * ctrl.command_period_ns)
+        self.pub = publisher(node, JointTrajectory, contract.TRAJECTORY_COMMANDS,
+                             contract.RELIABLE)
+
+    def send(self, now_ns, q_command, target, q_feedback):
+        """Publish the window from ``q_command`` (module docstring)."""
+        ctrl = self._ctrl
+        targets = (np.tile(target, (len(self._ahead), 1)) if q_feedback is None
+                   else [ctrl.q_feedforward(now_ns + t) + q_feedback for t in self._ahead])
+        window = np.vstack([q_command, ctrl.shaper.preview(targets)])
+        self.pub.publish(joint_trajectory(now_ns, ctrl.command_period_ns,
+                                          window[:, ctrl.order], ctrl.joints))
+
+
+#: One sender a ``position_command_type``, as ros2_control has a controller a interface.
+COMMAND_TYPES = {'forward_command': ForwardCommand, 'joint_trajectory': TrajectoryWindow}
+
+
 class PositionController(JointControllerMode):
     """Position references for the arm's drive, free-running (module docstring)."""
 
@@ -48,7 +100,8 @@ class PositionController(JointControllerMode):
         """Check the joints, build the shaper and the input watch, open the topics."""
         super().__init__(node, config)
         try:
-            self._order = joint_permutation(config.joints, contract.JOINT_NAMES)
+            #: Contract order -> the controller's ``joints`` order.
+            self.order = joint_permutation(config.joints, contract.JOINT_NAMES)
         except ValueError as exc:
             raise ParameterError(f"parameter 'joints' = {list(config.joints)!r} is invalid: "
                                  f'{exc}') from None
@@ -70,12 +123,7 @@ class PositionController(JointControllerMode):
         self.last_command_ns = None
         self.diagnostics.update(command_interface='position', commands=0,
                                 position_command_type=config.position_command_type)
-        if config.position_command_type == 'forward_command':
-            self._pub = publisher(node, Float64MultiArray, contract.POSITION_COMMANDS,
-                                  contract.RELIABLE)
-        else:
-            self._pub = publisher(node, JointTrajectory, contract.TRAJECTORY_COMMANDS,
-                                  contract.RELIABLE)
+        self._sender = COMMAND_TYPES[config.position_command_type](node, self)
         self._pub_latency = publisher(node, TimeReference, contract.FRAME_LATENCY,
                                       contract.RELIABLE)
         self._pub_status = publisher(node, Int8, contract.SERVO_STATUS, contract.LATCHED)
@@ -89,7 +137,8 @@ class PositionController(JointControllerMode):
         self.diagnostics.log_progress(self._progress_line)
         node.get_logger().info(
             f'position references at {config.command_rate_hz:g} Hz on '
-            f'{self._pub.topic_name} ({config.position_command_type}), joints {self.joints}')
+            f'{self._sender.pub.topic_name} ({config.position_command_type}), joints '
+            f'{self.joints}')
 
     @staticmethod
     def _warn_ignored(node, config):
@@ -176,15 +225,7 @@ class PositionController(JointControllerMode):
             target = self.q_feedforward(now_ns) + q_feedback
         q_command = self.shaper.step(target, ns_to_seconds(now_ns - self.last_command_ns))
         self.last_command_ns = now_ns
-        if self._pub.msg_type is Float64MultiArray:
-            self._pub.publish(Float64MultiArray(data=[float(v) for v in q_command[self._order]]))
-        else:  # the window: now and its course ahead (module docstring)
-            ahead = np.arange(1, self.config.trajectory_window_points) * self.command_period_ns
-            targets = (np.tile(target, (len(ahead), 1)) if q_feedback is None
-                       else [self.q_feedforward(now_ns + t) + q_feedback for t in ahead])
-            window = np.vstack([q_command, self.shaper.preview(targets)])
-            self._pub.publish(joint_trajectory(now_ns, self.command_period_ns,
-                                               window[:, self._order], self.joints))
+        self._sender.send(now_ns, q_command, target, q_feedback)
         if first_frame_ns is not None:
             self._pub_latency.publish(TimeReference(
                 header=Header(stamp=ns_stamp(now_ns)), time_ref=ns_stamp(first_frame_ns),
