@@ -6,7 +6,7 @@ every node started with ``--ros-args --params-file`` sees the same values; each 
 declares only those it uses (undeclared overrides are ignored by rclpy).
 """
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 import math
 from typing import Any
 
@@ -207,3 +207,35 @@ def start_joints(values: Any) -> NDArray[np.float64] | None:
             f'{math.degrees(q[j]):.1f} deg is outside its range [{math.degrees(low[j]):.1f}, '
             f'{math.degrees(high[j]):.1f}] deg', START_JOINTS.name)
     return q
+
+
+def joint_permutation(joints: Iterable[str], names: Iterable[str]) -> NDArray[np.int_]:
+    """
+    Return the indices that reorder values given in ``names`` order into ``joints`` order.
+
+    ``values[joint_permutation(joints, names)]`` lists them as ``joints`` does. ``joints``
+    is the ros2_control controller's ``joints`` parameter: forward_command_controller takes
+    Float64MultiArray data in exactly that order. Raises ValueError unless ``joints`` names
+    each of ``names`` once.
+    """
+    joints, names = list(joints), list(names)
+    if sorted(joints) != sorted(names) or len(set(joints)) != len(joints):
+        raise ValueError(f'{joints} must name each of {names} exactly once')
+    return np.array([names.index(j) for j in joints])
+
+
+def joint_order(joints: Iterable[str]) -> NDArray[np.int_]:
+    """
+    Return :func:`joint_permutation` of ``joints`` (a ros2_control controller's) from ours.
+
+    ``values[joint_order(joints)]`` lists contract-order values (``contract.JOINT_NAMES``)
+    as ``joints`` does. Raises ParameterError naming ``joints`` unless it names each of
+    them once: the joint controller's and the free-running simulator's configurations
+    check it, so that ``ibvs run`` refuses it before any node starts.
+    """
+    from . import contract  # here: it imports rclpy, which the model-only loop does without
+    try:
+        return joint_permutation(joints, contract.JOINT_NAMES)
+    except ValueError as exc:
+        raise ParameterError(f"parameter 'joints' = {list(joints)!r} is invalid: {exc}",
+                             'joints') from None

@@ -63,9 +63,11 @@ class JointControllerConfig(ParamConfig):
     trajectory_window_points: int = param_field(own.TRAJECTORY_WINDOW_POINTS)
 
     def __post_init__(self):
-        """Check each value, then the command interface against the time mode."""
+        """Check each value, the command interface against the time mode, the joints."""
         super().__post_init__()
         shared.check_command_interface(vars(self))
+        if self.command_interface == 'position':
+            shared.joint_order(self.joints)  # the ros2_control controller's joint order
 
 
 class JointControllerMode:

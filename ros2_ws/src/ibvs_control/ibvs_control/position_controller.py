@@ -16,7 +16,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract
 from ibvs_common.conversions import joint_trajectory, ns_stamp
 from ibvs_common.kit import publisher, subscription, WaitReporter
-from ibvs_common.params import ParameterError
+from ibvs_common.shared_params import joint_order
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 import numpy as np
@@ -25,7 +25,7 @@ from std_msgs.msg import Float64MultiArray, Header, Int8
 from trajectory_msgs.msg import JointTrajectory
 
 from .joint_controller_mode import JointControllerMode
-from .position_interface import FeedbackHold, joint_permutation, PositionShaper
+from .position_interface import FeedbackHold, PositionShaper
 from .servo_status import InputWatch, ServoStatus
 
 if TYPE_CHECKING:
@@ -99,12 +99,8 @@ class PositionController(JointControllerMode):
     def __init__(self, node: 'Node', config: 'JointControllerConfig') -> None:
         """Check the joints, build the shaper and the input watch, open the topics."""
         super().__init__(node, config)
-        try:
-            #: Contract order -> the controller's ``joints`` order.
-            self.order = joint_permutation(config.joints, contract.JOINT_NAMES)
-        except ValueError as exc:
-            raise ParameterError(f"parameter 'joints' = {list(config.joints)!r} is invalid: "
-                                 f'{exc}') from None
+        #: Contract order -> the controller's ``joints`` order (checked by the config).
+        self.order = joint_order(config.joints)
         self._warn_ignored(node, config)
         self.joints = list(config.joints)
         self.command_period_ns = period_ns(config.command_rate_hz)

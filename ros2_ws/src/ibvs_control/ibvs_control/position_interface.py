@@ -10,30 +10,15 @@ which command is the first to use a frame (the latency measurement), is
 :class:`FeedbackHold`.
 """
 
-from collections.abc import Iterable
 import math
 
+from ibvs_common.shared_params import joint_permutation  # noqa: F401 (this module's too)
 from ibvs_model import IRB4600
 from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, SPEED_LIMITS
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .governor import ReferenceGovernor
-
-
-def joint_permutation(joints: Iterable[str], names: Iterable[str]) -> NDArray[np.int_]:
-    """
-    Return the indices that reorder values given in ``names`` order into ``joints`` order.
-
-    ``values[joint_permutation(joints, names)]`` lists them as ``joints`` does. ``joints``
-    is the ros2_control controller's ``joints`` parameter: forward_command_controller takes
-    Float64MultiArray data in exactly that order. Raises ValueError unless ``joints`` names
-    each of ``names`` once.
-    """
-    joints, names = list(joints), list(names)
-    if sorted(joints) != sorted(names) or len(set(joints)) != len(joints):
-        raise ValueError(f'{joints} must name each of {names} exactly once')
-    return np.array([names.index(j) for j in joints])
 
 
 class PositionShaper:

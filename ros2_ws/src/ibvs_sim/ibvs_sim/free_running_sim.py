@@ -20,6 +20,7 @@ from ibvs_common import contract
 from ibvs_common.conversions import duration_ns, InputError, read_command_trajectory, stamp_ns
 from ibvs_common.kit import subscription
 from ibvs_common.params import ParameterError
+from ibvs_common.shared_params import joint_permutation
 from ibvs_common.timing import period_ns, seconds_to_ns
 from ibvs_model import IRB4600
 from ibvs_model.drive import SPEED_LIMITS
@@ -78,13 +79,9 @@ class FreeRunningSim:
         start_s, span_s = config.camera_outage_s
         self._outage = (seconds_to_ns(start_s), seconds_to_ns(start_s + span_s)) \
             if span_s > 0.0 else None
-        self._joints = list(config.joints)
-        if sorted(self._joints) != sorted(contract.JOINT_NAMES) or \
-                len(set(self._joints)) != 6:
-            raise ParameterError(f"parameter 'joints' = {self._joints!r} is invalid: it must "
-                                 f'name each of {list(contract.JOINT_NAMES)} exactly once')
+        self._joints = list(config.joints)  # each joint once: SimNodeConfig checked it
         # Command value i is joint self._joints[i]; _to_contract reorders to joint_1..6.
-        self._to_contract = np.array([self._joints.index(n) for n in contract.JOINT_NAMES])
+        self._to_contract = joint_permutation(contract.JOINT_NAMES, self._joints)
         try:
             # EGM's speed setting (the RAPID's \MaxSpeedDeviation) caps the drive as the
             # joint controller's shaper is capped: max_joint_speed_deg_s, both.

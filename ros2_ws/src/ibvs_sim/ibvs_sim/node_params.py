@@ -161,6 +161,8 @@ class SimNodeConfig(SimConfig):
         super().__post_init__()
         shared.check_command_interface(vars(self))
         shared.start_joints(self.start_joints)  # 6 angles within the joints' ranges, or none
+        if not self.lockstep:  # the free-running drive's joint order
+            shared.joint_order(self.joints)
         if self.target_features_source == 'taught' and not self.publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')

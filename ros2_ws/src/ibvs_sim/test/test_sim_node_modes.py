@@ -32,7 +32,9 @@ def test_config_checks_the_rules_across_parameters():
              "'camera_outage_s' = \\[1.0, 0.5\\] is invalid in lockstep"),
             ({'extra_joints': ['track', 'track']}, "'extra_joints'"),
             ({'extra_joints': ['joint_2']}, "'extra_joints'"),
-            ({'clock_rate_hz': 0.0}, "'clock_rate_hz'")):
+            ({'clock_rate_hz': 0.0}, "'clock_rate_hz'"),
+            # Free-running only, checked before any node starts (ibvs run's configs):
+            ({**FREE, 'joints': ['joint_1'] * 6}, "'joints'")):
         with pytest.raises(ParameterError, match=match):
             SimNodeConfig(**params)
     assert SimNodeConfig(camera_outage_s=[1.0, 0.5], **FREE).camera_outage_s == (1.0, 0.5)
