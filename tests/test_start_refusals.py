@@ -180,3 +180,11 @@ def test_ibvs_run_builds_every_node_config_before_any_node(capsys, monkeypatch, 
     assert code == 2 and "'camera_outage_s'" in err and 'lockstep' in err, err
     assert 'Traceback' not in err
     assert not (tmp_path / 'out').exists()
+
+
+def test_ibvs_run_refuses_a_bad_joint_order_before_any_node(capsys, monkeypatch, tmp_path):
+    # The ros2_control controller's joints (free-running): each joint once, or no run.
+    code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'command_interface:=position',
+                        '-p', 'lockstep:=false', '-p', f"joints:=[{', '.join(['joint_1'] * 6)}]")
+    assert code == 2 and "parameter 'joints'" in err and 'exactly once' in err, err
+    assert not (tmp_path / 'out' / 'logs').exists()  # refused before any node started
