@@ -276,6 +276,12 @@ class ParamConfig:
         """Return the Param fields by name: the mapping the shared rules and readers take."""
         return {spec.name: getattr(self, spec.name) for spec in self.params()}
 
+    def off_default(self, names: tuple[str, ...]) -> list[tuple[str, Any]]:
+        """Return (name, value) of each of ``names`` whose value is not its default."""
+        defaults = type(self)()
+        return [(name, getattr(self, name)) for name in names
+                if getattr(self, name) != getattr(defaults, name)]
+
     @classmethod
     def from_values(cls, values: Mapping[str, Any], **others: Any) -> Self:
         """

@@ -139,9 +139,7 @@ class PositionController(JointControllerMode):
     @staticmethod
     def _warn_ignored(node, config):
         """Log one warning naming the effort-only parameters set off their defaults."""
-        defaults = type(config)()
-        ignored = [f'{name} = {getattr(config, name)!r}' for name in EFFORT_ONLY
-                   if getattr(config, name) != getattr(defaults, name)]
+        ignored = [f'{name} = {value!r}' for name, value in config.off_default(EFFORT_ONLY)]
         if ignored:
             node.get_logger().warn(
                 "ignored with command_interface 'position' (the arm's drive limits it, not "

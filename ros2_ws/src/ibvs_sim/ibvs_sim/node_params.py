@@ -177,12 +177,6 @@ class SimNodeConfig(SimConfig):
                 'lockstep: the joint controller waits for every frame, so the run would stop; '
                 'allowed: a duration of 0 (or lockstep false)')
 
-    def off_default(self, names: tuple[str, ...]) -> list[tuple[str, Any]]:
-        """Return (name, value) of each of ``names`` whose value is not its default."""
-        defaults = SimNodeConfig()
-        return [(name, getattr(self, name)) for name in names
-                if getattr(self, name) != getattr(defaults, name)]
-
 
 @dataclass(frozen=True)
 class RobotStateConfig(ParamConfig):
