@@ -41,18 +41,18 @@ class FrameStats:
             kept[key].append(value)
         return {'detection_ms_last': wall_ms,
                 'detection_ms_mean': float(np.mean(kept['wall'])),
-                'detection_ms_max': float(np.max(kept['wall'])),
+                'detection_ms_max': float(max(kept['wall'])),
                 'detection_cpu_ms_mean': float(np.mean(kept['cpu'])),
-                'detection_cpu_ms_max': float(np.max(kept['cpu'])),
-                'detection_cost_ms_max': float(np.max(kept['cost'])),
-                'detection_within_budget': bool(np.max(kept['cpu']) <= self.budget_ms)}
+                'detection_cpu_ms_max': float(max(kept['cpu'])),
+                'detection_cost_ms_max': float(max(kept['cost'])),
+                'detection_within_budget': bool(max(kept['cpu']) <= self.budget_ms)}
 
     def processing(self, elapsed_ms: float) -> dict[str, float]:
         """Keep one frame's processing time; return the last, the median and the max."""
         self._processing.append(elapsed_ms)
         return {'processing_ms_last': elapsed_ms,
                 'processing_ms_median': float(np.median(self._processing)),
-                'processing_ms_max': float(np.max(self._processing))}
+                'processing_ms_max': float(max(self._processing))}
 
     def estimated(self, reason: str | None = None) -> dict[str, int]:
         """Count a frame estimated for ``reason`` (None: measured); return every count."""
