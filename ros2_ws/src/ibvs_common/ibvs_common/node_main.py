@@ -51,16 +51,18 @@ class StopRequest:
     ``RuntimeError`` or ``RCLError`` ("context is not valid") and the node exits 1 instead
     of 0. Here the first signal only sets a flag; the node finishes its callback, leaves the
     spin loop, destroys itself and shuts rclpy down. A second signal raises
-    ``KeyboardInterrupt`` at once, for a node stuck in a callback.
+    ``KeyboardInterrupt`` at once, for a node stuck in a callback. ``signals``: those it
+    handles (the runner's: SIGINT alone, :func:`ibvs_experiments.runner.interruptible`).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, signals: tuple[int, ...] = STOP_SIGNALS) -> None:
+        self._signals = tuple(signals)
         self._event = threading.Event()
         self._previous = {}
 
     def install(self) -> None:
         """Install the handlers (main thread only), remembering the previous ones."""
-        for signum in STOP_SIGNALS:
+        for signum in self._signals:
             self._previous[signum] = signal.signal(signum, self._handle)
 
     def restore(self) -> None:
