@@ -68,6 +68,20 @@ def is_frame_stamp(t_ns: int, camera_period_ns: int, step_ns: int) -> bool:
     return t_ns >= 0 and frame_stamp_ns(n, camera_period_ns, step_ns) == t_ns
 
 
+def feedback_action_ns(stamp_ns: int, latency_ns: int, step_ns: int) -> int:
+    """
+    Return the sim time (ns) from which the q_feedback of the frame stamped ``stamp_ns`` acts.
+
+    The first physics step at or after stamp + latency: the inverse of
+    :func:`feedback_frame_ns` (the frame it names at that step is this one, and at the step
+    before an earlier one). With no latency it is the frame's own stamp. The feedback node
+    predicts the frame's features to this time (ibvs_control.prediction).
+    """
+    if latency_ns < 0 or step_ns <= 0:
+        raise ValueError('step_ns must be > 0 and latency_ns >= 0')
+    return -(-(stamp_ns + latency_ns) // step_ns) * step_ns
+
+
 def feedback_frame_ns(t_ns: int, camera_period_ns: int, latency_ns: int,
                       step_ns: int) -> Optional[int]:
     """

@@ -25,7 +25,7 @@ from ibvs_common.kit import (config, Inputs, publisher, StereoCameraInput, subsc
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
-from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
+from ibvs_common.timing import feedback_action_ns, ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
 from rclpy.node import Node
@@ -33,6 +33,7 @@ from sensor_msgs.msg import JointState
 
 from .frame_lockstep import FrameLockstep
 from .node_params import AdaptiveFeedbackConfig, check_servo_law, target_from
+from .prediction import predicted_features
 from .servo_laws import law_class
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
@@ -64,6 +65,9 @@ class AdaptiveFeedbackNode(Node):
         self.needs_status = self.law.needs_measured(values)
         self.pose = target_from(values)
         self.camera_ns = period_ns(c.camera_rate_hz)
+        self.predict = c.latency_compensation == 'encoders'
+        latency_ns, step_ns = seconds_to_ns(c.feedback_latency_s), period_ns(c.physics_rate_hz)
+        self._model = None
         self.stale_timeout_ns = seconds_to_ns(c.stale_timeout_s)
         self.feedback = None
         self._camera = None
@@ -88,7 +92,9 @@ class AdaptiveFeedbackNode(Node):
         self._lockstep = FrameLockstep(HISTORY, self.needs_status,
                                        joints_name=joints.topic_name,
                                        status_name=contract.FEATURE_STATUS,
-                                       full_note='waiting for the camera model')
+                                       full_note='waiting for the camera model',
+                                       action_ns=(lambda t: feedback_action_ns(
+                                           t, latency_ns, step_ns)) if self.predict else None)
         subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
                      contract.RELIABLE)
         if self._taught:
@@ -158,8 +164,9 @@ class AdaptiveFeedbackNode(Node):
             self.diagnostics.update(state=f'waiting for the taught {contract.TARGET_FEATURES}')
             return
         try:
+            self._model = CameraRobotModel(self._camera, IRB4600)
             self.feedback = self.law.create(
-                CameraRobotModel(self._camera, IRB4600), self.pose,
+                self._model, self.pose,
                 ns_to_seconds(self.camera_ns), gain=self.gain, p_target=self._p_target,
                 **self.config.law_settings())
         except ModelError as exc:
@@ -251,10 +258,16 @@ class AdaptiveFeedbackNode(Node):
                                     f'(> {self.stale_timeout_ns * 1e-9:g} s): integrator frozen, '
                                     'q_feedback held')
         else:
+            q, qd = joints
+            if self.predict:
+                with self.diagnostics.timing.section('prediction'):
+                    q_action, qd_action = self._lockstep.action_joints()[1]
+                    features = predicted_features(self._model, features, q, q_action)
+                    q, qd = q_action, qd_action
             try:
                 with self.diagnostics.timing.section('feedback_update'):
-                    update = self.feedback.update(features, joints[0], joints[1],
-                                                  measured=measured, t=ns_to_seconds(t_ns))
+                    update = self.feedback.update(features, q, qd, measured=measured,
+                                                  t=ns_to_seconds(t_ns))
             except ModelError as exc:
                 self.diagnostics.reject(source, type(exc).__name__,
                                         f'{exc}; q_feedback held')

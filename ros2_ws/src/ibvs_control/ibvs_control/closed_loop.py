@@ -16,12 +16,13 @@ joint controller's own lockstep, :class:`.feedback_lockstep.FeedbackLockstep`.
 This is the reference the node graph (PyBullet, rendering, Hough) is compared against.
 """
 
+from collections import deque
 from dataclasses import asdict, dataclass, field
 from typing import Any, TYPE_CHECKING
 
 from ibvs_common import shared_params
 from ibvs_common.params import param_field, ParamConfig
-from ibvs_common.timing import period_ns
+from ibvs_common.timing import feedback_action_ns, period_ns
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import node_params
 from .controllers import Feedforward, JointLoop
 from .feedback_lockstep import FeedbackLockstep
+from .prediction import predicted_features
 from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
 
 if TYPE_CHECKING:
@@ -75,6 +77,7 @@ class LoopConfig(ParamConfig):
     max_correction_rad: float = param_field(node_params.MAX_CORRECTION_RAD)
     hold_speed_fraction: float = param_field(node_params.HOLD_SPEED_FRACTION)
     linearise_at: str = param_field(node_params.LINEARISE_AT)
+    latency_compensation: str = param_field(node_params.LATENCY_COMPENSATION)
     switch_settle_s: float = param_field(node_params.SWITCH_SETTLE_S)
     feature_fallback: str = param_field(node_params.FEATURE_FALLBACK)
     windup_horizon_s: float = param_field(node_params.WINDUP_HORIZON_S)
@@ -137,6 +140,33 @@ class LoopResult:
         return float(np.linalg.norm(self.model.features(self.q_true[-1]) - self.p_target))
 
 
+def _answer(fb, frame, q, qd, predict, model, lockstep, counts):
+    """
+    Answer one pending frame at its action time, with the encoders ``q``, ``qd`` of then.
+
+    As the feedback node answers it: a lost frame with the held q_feedback (the joint
+    controller holds it on the simulator's notice), a frame F^-1 cannot use likewise
+    (counted as rejected); else the law's update on the frame's features, predicted to the
+    action time (:func:`.prediction.predicted_features`) unless ``predict`` is False, when
+    the frame's own encoder angles are used (the paper's law as published).
+    """
+    t_ns, _, p_hat, q_e, qd_e, measured, lost = frame
+    if lost:
+        q_feedback = fb.q_feedback
+        counts['dropped'] += 1
+    else:
+        if predict:
+            p_hat, q_e, qd_e = predicted_features(model, p_hat, q_e, q), q, qd
+        try:
+            q_feedback = fb.update(p_hat, q_e, qd_e, measured=measured,
+                                   t=t_ns * 1e-9).q_feedback
+        except ModelError:
+            q_feedback = fb.q_feedback
+            counts['rejected'] += 1
+    # as the simulator stamps it: the frame's exposure step
+    _accepted(lockstep.offer_feedback(t_ns, q_feedback))
+
+
 def _accepted(rejection):
     """Raise if the lockstep refused an input: the loop feeds it every one in order."""
     if rejection is not None:
@@ -149,7 +179,7 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
              target: ArrayLike | None = None, integration: str = 'exact',
              estimate_out_of_view: bool = True, feature_noise_px: float = 0.0,
              seed: int = 0, frame_drop_probability: float = 0.0,
-             target_noise_px: float = 0.0) -> LoopResult:
+             target_noise_px: float = 0.0, stamp_error_s: float = 0.0) -> LoopResult:
     """
     Run the model-only loop of a paper scenario and return a :class:`LoopResult`.
 
@@ -191,6 +221,11 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
         With a taught target: standard deviation of Gaussian noise on the taught p_bar (px),
         the detector's error on the one teach pair; drawn once from
         ``numpy.random.default_rng([seed, 2])`` (nothing drawn when 0).
+    stamp_error_s : float
+        How much later than its exposure a frame is stamped (s, either sign: a camera whose
+        stamps are off by a constant, or a latency the prediction gets wrong): the frame's
+        encoder angles are those of its stamp, rounded to a step (and at most the step it
+        is answered at); when it acts does not change.
 
     Notes
     -----
@@ -248,14 +283,19 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
                     **node_params.law_settings(asdict(config)))
 
     steps = int(round(duration_s * 1e9 / dt_ns)) + 1
-    rec = {k: np.empty((steps, 6)) for k in ('q', 'q_ff', 'q_fb')}
+    rec = {k: np.empty((steps, 6)) for k in ('q', 'qd', 'q_ff', 'q_fb')}
+    error_steps = int(round(stamp_error_s * 1e9 / dt_ns))
     frames_t, frames_p, frames_measured = [], [], []
     # The joint controller's rule: q_feedback = 0 until the first frame acts.
     lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
     rng = np.random.default_rng(seed)
     drops = np.random.default_rng([seed, 1]) if frame_drop_probability > 0.0 else None
+    predict = config.latency_compensation == 'encoders'
     next_frame = 0
-    rejected = dropped = 0
+    # Frames taken and not yet answered: (stamp, action time, p_hat, q, qd, measured, lost),
+    # answered at their action time (feedback_action_ns), when their q_feedback starts to act.
+    pending = deque()
+    counts = {'rejected': 0, 'dropped': 0}
     for k in range(steps):
         t_ns = k * dt_ns
         while next_frame * cam_ns <= t_ns:
@@ -265,29 +305,25 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
                 else model.features(q)
             if measured and feature_noise_px > 0.0:
                 p_hat = p_hat + rng.normal(0.0, feature_noise_px, 6)
-            if drops is not None and drops.random() < frame_drop_probability:
-                q_feedback = fb.q_feedback  # lost: the controller holds the last one
-                dropped += 1
-                _accepted(lockstep.offer_feedback(t_ns, q_feedback))
-                next_frame += 1
-                continue
-            try:
-                q_feedback = fb.update(p_hat, q, qd, measured=measured,
-                                       t=t_ns * 1e-9).q_feedback
-            except ModelError:
-                # As the node: a frame F^-1 cannot use is rejected, q_feedback held.
-                q_feedback = fb.q_feedback
-                rejected += 1
-            # as the simulator stamps it: the time of this step
-            _accepted(lockstep.offer_feedback(t_ns, q_feedback))
-            frames_t.append(t_ns * 1e-9)
-            frames_p.append(p_hat)
-            frames_measured.append(measured)
+            lost = drops is not None and drops.random() < frame_drop_probability
+            pending.append((t_ns, feedback_action_ns(t_ns, latency_ns, dt_ns), p_hat, q, qd,
+                            measured, lost))
+            if not lost:
+                frames_t.append(t_ns * 1e-9)
+                frames_p.append(p_hat)
+                frames_measured.append(measured)
             next_frame += 1
+        while pending and pending[0][1] <= t_ns:
+            frame = pending.popleft()
+            if error_steps:
+                i = min(max(frame[0] // dt_ns + error_steps, 0), k)
+                frame = frame[:3] + ((rec['q'][i], rec['qd'][i]) if i < k else (q, qd)) \
+                    + frame[5:]
+            _answer(fb, frame, q, qd, predict, model, lockstep, counts)
         _accepted(lockstep.offer_state(t_ns, None))
         _, _, q_fb = lockstep.pop_ready()  # every frame has its q_feedback: never waits
         q_ff = ff.step()
-        rec['q'][k], rec['q_ff'][k], rec['q_fb'][k] = q, q_ff, q_fb
+        rec['q'][k], rec['qd'][k], rec['q_ff'][k], rec['q_fb'][k] = q, qd, q_ff, q_fb
         acc = joint.step(q_ff + q_fb, q, qd)
         if semi_implicit:
             qd = qd + acc * dt
@@ -299,6 +335,6 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
         t=np.arange(steps) * dt, q=rec['q'], q_true=rec['q'] + d_q,
         q_feedforward=rec['q_ff'], q_feedback=rec['q_fb'], frame_t=np.array(frames_t),
         features=np.array(frames_p), measured=np.array(frames_measured),
-        p_target=fb.p_target, q_target=q_target, model=plant, rejected_frames=rejected,
-        dropped_frames=dropped,
+        p_target=fb.p_target, q_target=q_target, model=plant,
+        rejected_frames=counts['rejected'], dropped_frames=counts['dropped'],
         interventions={int(code): int(n) for code, n in getattr(fb, 'counts', {}).items()})

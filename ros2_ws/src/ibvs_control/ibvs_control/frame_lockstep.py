@@ -7,7 +7,7 @@ a law that needs it, the frame's feature status (was it measured?). Used by
 :mod:`.adaptive_feedback_node`.
 """
 
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from ibvs_common.sync import JointTrack, PendingQueue, Rejection
 
@@ -38,12 +38,18 @@ class FrameLockstep:
         How :meth:`waiting_for` names the joint-state and the status inputs.
     full_note : str
         Said when a frame is rejected for a full buffer (why frames pile up).
+    action_ns : callable, optional
+        The time (ns) from which a frame's answer acts, from its stamp
+        (:func:`ibvs_common.timing.feedback_action_ns`): a frame then also waits for a joint
+        state stamped at or after it, the state its features are predicted to
+        (:mod:`.prediction`, :meth:`action_joints`). None: the frame's own stamp.
 
     """
 
     def __init__(self, history: int = 2000, needs_status: bool = False, *,
                  joints_name: str = 'joint_states', status_name: str = 'feature_status',
-                 full_note: str = '') -> None:
+                 full_note: str = '', action_ns: Optional[Callable[[int], int]] = None
+                 ) -> None:
         """Create the lockstep with nothing received (see the class docstring)."""
         self.history = history
         self.needs_status = needs_status
@@ -52,6 +58,7 @@ class FrameLockstep:
         self.joints: JointTrack[Any] = JointTrack(max_len=history, strict=True)
         self.frames: PendingQueue[Any] = PendingQueue(history, full_note)
         self._measured: Dict[int, bool] = {}
+        self._action_ns = action_ns
 
     @property
     def last_answered_ns(self) -> Optional[int]:
@@ -96,6 +103,12 @@ class FrameLockstep:
         missing = []
         if no_joints_yet:
             missing.append(f'{self.joints_name} at or after {t_ns} ns')
+        elif self._action_ns is not None:
+            action = self._action_ns(t_ns)
+            newest = self.joints.newest
+            if newest is None or newest < action:
+                missing.append(f'{self.joints_name} at or after {action} ns (when its '
+                               'q_feedback acts)')
         if self.needs_status and t_ns not in self._measured:
             missing.append(f'{self.status_name} of frame {t_ns} ns')
         return missing
@@ -126,3 +139,17 @@ class FrameLockstep:
         for old in [s for s in self._measured if s < t_ns]:
             del self._measured[old]
         return t_ns, item, joints, measured
+
+    def action_joints(self) -> Tuple[Optional[int], Any]:
+        """
+        Return (stamp, state) of the newest joint state: the one a frame is predicted to.
+
+        When :meth:`pop_ready` answers a frame this is the state at the frame's action time
+        in lockstep (the simulator cannot pass it before the answer), and the newest the
+        encoders gave on a free-running cell: the delay each frame really carries.
+        (None, None) before any state.
+        """
+        newest = self.joints.newest
+        if newest is None:
+            return None, None
+        return newest, self.joints.at(newest)[0]

@@ -21,7 +21,7 @@ from ibvs_model import IRB4600, ModelError
 import numpy as np
 from numpy.typing import NDArray
 
-from . import controllers, servo_laws, youla
+from . import controllers, prediction, servo_laws, youla
 
 if TYPE_CHECKING:
     from ibvs_model.robot import RobotParams
@@ -113,6 +113,13 @@ LINEARISE_AT = Param('linearise_at', controllers.LINEARISE_AT,
                      "where C1 (eq. 31) is evaluated: 'encoders' (the encoder angles q_T) or "
                      "'features' (q~ = F^-1(p_hat), the paper's eq. 42; less robust to a wrong "
                      'robot model)', '-', choices=controllers.LINEARISATION_POINTS)
+LATENCY_COMPENSATION = Param(
+    'latency_compensation', prediction.LATENCY_COMPENSATIONS[0],
+    "how the feedback designs for the camera's latency: 'encoders' (the Youla design on "
+    'the delayed plant, the Smith predictor: each frame predicted to the time its '
+    'q_feedback acts, s(t_e) + F(q(t_a)) - F(q(t_e)), with the encoders of both times; '
+    "without latency the paper's law exactly) or 'none' (the paper's law as published, "
+    "the frame's own encoder angles)", '-', choices=prediction.LATENCY_COMPENSATIONS)
 HOLD_SPEED_FRACTION = Param('hold_speed_fraction', controllers.HOLD_SPEED_FRACTION,
                             'the feedback holds (does not integrate) while an encoder joint '
                             'moves faster than this fraction of its speed limit', '-',
@@ -228,6 +235,9 @@ class AdaptiveFeedbackConfig(ParamConfig):
     RULES = (check_gains, check_servo_law, target_from, shared.camera_pose_from)
 
     camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
+    physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
+    feedback_latency_s: float = param_field(shared.FEEDBACK_LATENCY_S)
+    latency_compensation: str = param_field(LATENCY_COMPENSATION)
     target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
     target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)

@@ -2,7 +2,8 @@
 The lockstep simulator: one physics step per effort command, nobody runs ahead.
 
 After step k's outputs (:meth:`.sim_node.SimNode.publish_step`: /joint_states every step,
-and on a camera frame's step the same state on /stereo/joint_states before the frame) it
+and on a camera frame's step the same state on /stereo/joint_states before the frame, as on
+the step its q_feedback starts to act) it
 waits for /joint_effort_commands stamped t_k; that message, and only that one, applies its
 torques for one step and moves to k + 1, inside the subscription callback: nothing spins
 or sleeps, so any number of nodes can share one executor. A frame goes out at its own
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING
 from ibvs_common import contract
 from ibvs_common.conversions import InputError, read_joints, read_stamp, stamp_ns
 from ibvs_common.kit import subscription
+from ibvs_common.timing import feedback_frame_ns, period_ns, seconds_to_ns
 from ibvs_model.mass_model import joint_efforts
 import numpy as np
 from sensor_msgs.msg import JointState
@@ -66,6 +68,9 @@ class LockstepSim:
         self.held_steps = 0
         self._frame_step = False
         self._published_at = None
+        self._camera_ns = period_ns(config.camera_rate_hz)
+        self._step_ns = period_ns(config.physics_rate_hz)
+        self._latency_ns = seconds_to_ns(config.feedback_latency_s)
         self.command_sub = subscription(node, JointState, contract.EFFORT_COMMANDS,
                                         self._on_command, contract.RELIABLE)
 
@@ -73,12 +78,30 @@ class LockstepSim:
         """Return whether the camera takes the frame due at ``t_ns``: always."""
         return True
 
+    def action_step(self, t_ns: int) -> bool:
+        """
+        Return whether a frame's q_feedback starts to act at ``t_ns`` (with latency only).
+
+        The step :func:`ibvs_common.timing.feedback_action_ns` gives: the feedback node
+        predicts that frame's features to this step's joint state, so it has it on
+        /stereo/joint_states as well (ibvs_control.prediction).
+        """
+        if self._latency_ns == 0:
+            return False
+        frame = feedback_frame_ns(t_ns, self._camera_ns, self._latency_ns, self._step_ns)
+        return frame is not None and frame != feedback_frame_ns(
+            t_ns - self._step_ns, self._camera_ns, self._latency_ns, self._step_ns)
+
     def publish_joints(self, t_ns: int, joints: JointState, frame_step: bool) -> None:
-        """Publish /joint_states every step, and /stereo/joint_states on a frame's step."""
+        """
+        Publish /joint_states every step, and /stereo/joint_states on a frame's step.
+
+        And on the step a frame's q_feedback starts to act (:meth:`action_step`).
+        """
         self._frame_step = frame_step
         self.node.pub_joints.publish(self.node.with_extra_joints(joints))
         self._published_at = time.perf_counter()
-        if frame_step:
+        if frame_step or self.action_step(t_ns):
             self.node.pub_frame_joints.publish(joints)
 
     def start(self) -> None:
