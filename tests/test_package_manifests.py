@@ -11,14 +11,24 @@ found in the ament index). The rosdep key of a workspace or ROS package is its n
   one that only files under ``test/`` import may be a ``<test_depend>`` instead.
 - A ROS interface named in a string constant (``'sensor_msgs/msg/Image'``) counts as an import
   of its package: the recorder imports message classes by such names.
-- An import inside ``try: ... except ImportError`` is optional (a feature that is off without
-  it) and need not be declared.
+- An import inside ``try: ... except ImportError`` is declared as any other: the handler words
+  the failure (the renderer's ``moderngl``), the code still needs the module.
+- A Python package with no rosdep key in ros/rosdistro (PyPI only) is declared by an XML
+  comment ``<!-- pip: NAME -->`` in place of a key, NAME a line of
+  ``ros2_ws/src/requirements-pip.txt`` (what a Jazzy workspace pip-installs after
+  ``rosdep install``).
 - A runtime dependency that no runtime module imports, or a test dependency that no file
   imports, is reported: it installs something that nothing uses.
 
 ``setup.py`` is left out: it imports setuptools, which the ament_python build type brings.
 
-The Docker image (docker/Dockerfile, issue 37) installs what the code imports: every
+Every key of every package.xml (ament_cmake's tf2_msgs too) is a workspace package or a key
+of ROS 2 Jazzy's rosdep database, as ``tests/data/rosdep_keys.txt`` vendors it from
+ros/rosdistro (``jazzy/distribution.yaml``, ``rosdep/python.yaml``), so that
+``rosdep install --from-paths src`` resolves them all; each Python key and pip name is a
+requirements.in name, the pip names at requirements.txt's pins.
+
+The Docker image (docker/Dockerfile) installs what the code imports: every
 third-party module imported anywhere in the workspace, optional imports included, is a
 requirements.in name (:data:`MODULE_REQUIREMENT`), and every requirements.in name is either
 installed by the Dockerfile (apt, or pip at requirements.txt's pin), in the ``ros:jazzy``
@@ -27,6 +37,7 @@ base image, or said not needed there (:data:`DOCKER`).
 
 import ast
 import importlib.metadata
+import itertools
 from pathlib import Path
 import re
 import sys
@@ -35,21 +46,27 @@ import xml.etree.ElementTree as ET
 import pytest
 
 SRC = Path(__file__).resolve().parent.parent / 'ros2_ws' / 'src'
+#: The PyPI packages that rosdep cannot install, pinned.
+PIP_REQUIREMENTS = SRC / 'requirements-pip.txt'
+#: The rosdep keys of ROS 2 Jazzy that the manifests may name (vendored from ros/rosdistro).
+ROSDEP_KEYS_FILE = Path(__file__).resolve().parent / 'data' / 'rosdep_keys.txt'
 
 #: Python modules that are not ROS packages, and their rosdep keys as
 #: ros/rosdistro rosdep/python.yaml names them (``python3-<name>-pip`` where it has only a
-#: pip rule). A dotted name (ruamel.yaml) is matched before its first component.
+#: pip rule), or ``pip:NAME`` where it has none (NAME in requirements-pip.txt). A dotted name
+#: (ruamel.yaml) is matched before its first component.
 PYTHON_KEYS = {
-    'av': 'python3-av',  # PyAV
+    'av': 'pip:av',  # PyAV
     'cv2': 'python3-opencv',
     'matplotlib': 'python3-matplotlib',
+    'moderngl': 'pip:moderngl',
     'numpy': 'python3-numpy',
     'pybullet': 'python3-pybullet-pip',  # PyPI only
     'pytest': 'python3-pytest',
-    # No rosdep key (2026-08): pip install ray; rosdep install --skip-keys python3-ray-pip.
-    'ray': 'python3-ray-pip',
+    'ray': 'pip:ray',
     'rosbags': 'python3-rosbags-pip',  # PyPI only
     'ruamel.yaml': 'python3-ruamel.yaml',
+    'ruckig': 'pip:ruckig',  # the position interface's time-optimal references
     'scipy': 'python3-scipy',
     'yaml': 'python3-yaml',
 }
@@ -62,14 +79,34 @@ INTERFACE_TYPE = re.compile(r'([a-z][a-z0-9_]*)/(?:msg|srv|action)/[A-Z][A-Za-z0
 
 RUNTIME_TAGS = ('depend', 'exec_depend')
 TEST_TAGS = ('test_depend',)
+BUILD_TAGS = ('buildtool_depend', 'build_depend', 'build_export_depend')
+#: How a package.xml declares a run dependency that only pip installs.
+PIP_COMMENT = re.compile(r'<!--\s*pip:\s*([A-Za-z0-9_.-]+)')
 
 
 def manifest(path):
-    """Return the package.xml at ``path`` as (name, build type, {tag: set of keys})."""
-    root = ET.parse(path).getroot()
+    """
+    Return the package.xml at ``path`` as (name, build type, {tag: set of keys}).
+
+    The ``pip: NAME`` comments count as ``exec_depend`` keys ``pip:NAME``.
+    """
+    text = Path(path).read_text()
+    root = ET.fromstring(text)
     build_type = root.findtext('export/build_type')
-    tags = {tag: {e.text.strip() for e in root.findall(tag)} for tag in RUNTIME_TAGS + TEST_TAGS}
+    tags = {tag: {e.text.strip() for e in root.findall(tag)}
+            for tag in RUNTIME_TAGS + TEST_TAGS + BUILD_TAGS}
+    tags['exec_depend'] |= {f'pip:{name}' for name in PIP_COMMENT.findall(text)}
     return root.findtext('name'), build_type, tags
+
+
+def rosdep_keys(path=ROSDEP_KEYS_FILE):
+    """Return {key: the ros/rosdistro file that defines it} of the vendored key list."""
+    keys = {}
+    for line in Path(path).read_text().splitlines():
+        words = line.split('#', 1)[0].split()
+        if words:
+            keys[words[0]] = words[1]
+    return keys
 
 
 WORKSPACE = {manifest(p)[0]: p.parent for p in sorted(SRC.glob('*/package.xml'))}
@@ -180,9 +217,9 @@ def used_keys(package):
         relative = path.relative_to(root)
         if relative == Path('setup.py'):
             continue
-        required, _ = imported_modules(path.read_text(encoding='utf-8'))
+        required, optional = imported_modules(path.read_text(encoding='utf-8'))
         uses = tests if relative.parts[0] == 'test' else runtime
-        for module in required:
+        for module in required | optional:
             key = rosdep_key(module, package)
             if key is not None:
                 uses.setdefault(key, set()).add(str(relative))
@@ -242,13 +279,70 @@ def test_module_names_map_to_rosdep_keys():
     assert rosdep_key('ibvs_sim.world', 'ibvs_sim') is None
     assert rosdep_key('os.path', 'ibvs_sim') is None
     assert rosdep_key('std_msgs.msg', 'ibvs_sim') == 'std_msgs'
+    assert rosdep_key('moderngl', 'ibvs_sim') == 'pip:moderngl'
     with pytest.raises(KeyError, match='PYTHON_KEYS'):
         rosdep_key('not_a_known_module', 'ibvs_sim')
 
 
-# --- The Docker image installs what the code imports (issue 37) -----------------------------
+# --- Every key resolves in a Jazzy workspace ------------------------------------------------
 
 ROOT = SRC.parents[1]
+
+
+def test_the_vendored_key_list_is_read_as_written():
+    keys = rosdep_keys()
+    assert keys['rclpy'] == 'jazzy/distribution.yaml'
+    assert keys['python3-rosbags-pip'] == 'rosdep/python.yaml'
+    assert set(keys.values()) == {'jazzy/distribution.yaml', 'rosdep/python.yaml'}
+    # What rosdistro lacks is not in it: those go through requirements-pip.txt.
+    assert not {'python3-av', 'python3-ray-pip', 'python3-moderngl'} & set(keys)
+
+
+@pytest.mark.parametrize('path', sorted(SRC.glob('*/package.xml')),
+                         ids=lambda path: path.parent.name)
+def test_every_package_xml_key_is_a_jazzy_rosdep_key_or_a_pip_requirement(path):
+    keys = rosdep_keys()
+    pip = pins(PIP_REQUIREMENTS)
+    requirements = set(requirement_names(ROOT / 'requirements.in'))
+    module_of_key = {key: module for module, key in PYTHON_KEYS.items()}
+    text = path.read_text()
+    # The schema hint that editors and linters validate the manifest against.
+    assert re.search(r'<\?xml-model href="http://download\.ros\.org/schema/package_format3'
+                     r'\.xsd" schematypens="http://www\.w3\.org/2001/XMLSchema"\?>', text)
+    _, _, tags = manifest(path)
+    problems = []
+    for key in sorted(set(itertools.chain.from_iterable(tags.values()))):
+        if key.startswith('pip:'):
+            name = key[len('pip:'):]
+            if name not in pip:
+                problems.append(f'{key}: not in ros2_ws/src/requirements-pip.txt')
+            elif name not in requirements:
+                problems.append(f'{key}: not a requirements.in name')
+        elif key in WORKSPACE:
+            continue
+        elif key not in keys:
+            problems.append(f'{key}: not a rosdep key of Jazzy (tests/data/rosdep_keys.txt; '
+                            'where rosdistro has none: a "pip: NAME" comment)')
+        elif key.startswith('python3-') and \
+                MODULE_REQUIREMENT.get(module_of_key.get(key)) not in requirements:
+            problems.append(f'{key}: its module is not installed by a requirements.in name')
+    assert not problems, f'{path.relative_to(ROOT)}:\n  ' + '\n  '.join(problems)
+
+
+def test_requirements_pip_is_what_the_manifests_declare_at_requirements_pins():
+    declared = set()
+    for path in SRC.glob('*/package.xml'):
+        declared |= {key[len('pip:'):] for key in manifest(path)[2]['exec_depend']
+                     if key.startswith('pip:')}
+    listed = pins(PIP_REQUIREMENTS)
+    assert set(requirement_names(PIP_REQUIREMENTS)) == set(listed), 'pin every line'
+    assert set(listed) == declared
+    pinned = pins(ROOT / 'requirements.txt')
+    assert {name: pinned.get(name) for name in listed} == listed
+
+
+# --- The Docker image installs what the code imports ----------------------------------------
+
 DOCKERFILE = ROOT / 'docker' / 'Dockerfile'
 
 #: Each third-party module that the workspace's code imports, optional imports included
@@ -264,6 +358,7 @@ MODULE_REQUIREMENT = {
     'ray': 'ray',
     'rosbags': 'rosbags',
     'ruamel.yaml': 'ruamel.yaml',
+    'ruckig': 'ruckig',
     'scipy': 'scipy',
     'yaml': 'pyyaml',
 }
@@ -289,6 +384,7 @@ DOCKER = {
     'ray': ('pip', 'ray'),
     'rosbags': ('pip', 'rosbags'),
     'ruamel.yaml': ('with', 'rosbags'),
+    'ruckig': ('pip', 'ruckig'),
     'pytest': ('apt', 'python3-pytest'),
     'pytest-timeout': ('none', "pytest.ini's timeout: the image runs colcon test, without it"),
     'pytest-xdist': ('none', 'make test runs two workers; colcon test runs one pytest a package'),
@@ -305,7 +401,8 @@ for _name in ('flake8', 'flake8-quotes', 'flake8-docstrings', 'flake8-import-ord
 for _name in ('ament-cmake', 'ament-cmake-include-directories', 'ament-cmake-gmock',
               'ament-cmake-gtest', 'ament-cmake-pytest', 'ament-cmake-ros', 'ament-package',
               'python-cmake-module', 'rosidl-default-generators', 'rosidl-core-generators'):
-    DOCKER[f'ros-jazzy-{_name}'] = ('none', 'builds our tf2_msgs, which the image skips')
+    DOCKER[f'ros-jazzy-{_name}'] = (
+        'none', "builds our tf2_msgs, which finds the image's and builds nothing")
 
 #: What the Dockerfile installs beyond requirements.in, and why.
 DOCKER_EXTRA = {
