@@ -13,7 +13,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*.json')),
+        ('share/' + package_name + '/config',
+         sorted(glob('config/*.json') + glob('config/*.rviz'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
