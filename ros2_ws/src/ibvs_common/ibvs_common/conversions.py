@@ -108,15 +108,22 @@ def read_stamp(stamp: Time, now_ns: Optional[int] = None, lead_ns: Optional[int]
     return t_ns
 
 
+#: How far (ns) a node's clock may lag the stamps it reads, beyond one input period: the
+#: period of a lockstep graph's /clock (``clock_rate_hz``, 10 Hz) or a real cell's clock
+#: offset between hosts. A stamp that leads by more is refused ('stamp in the future') and
+#: moves no order: taken, it would refuse every later input stamped before it.
+STAMP_LEAD_MARGIN_NS = 100_000_000
+
+
 def stamp_lead_ns(stale_timeout_s: float, input_period_ns: int) -> int:
     """
     Return how far (ns) an input's stamp may lead the newest time its node knows.
 
-    ``stale_timeout_s`` (the parameter that also ages inputs out) and one period of the
-    input (the next input of a stream is one period after the last): the ``lead_ns`` of
-    :func:`read_stamp`.
+    One period of the input (the next input of a stream is one period after the last) and
+    the clock's lag, :data:`STAMP_LEAD_MARGIN_NS`, or ``stale_timeout_s`` (the parameter
+    that ages inputs out) where that is shorter: the ``lead_ns`` of :func:`read_stamp`.
     """
-    return seconds_to_ns(stale_timeout_s) + int(input_period_ns)
+    return min(seconds_to_ns(stale_timeout_s), STAMP_LEAD_MARGIN_NS) + int(input_period_ns)
 
 
 class StampOrder:
@@ -151,6 +158,10 @@ class StampOrder:
     def newest(self, source: str) -> Optional[int]:
         """Return the newest stamp taken from ``source`` (ns), or None."""
         return self._newest.get(source)
+
+    def forget(self) -> None:
+        """Forget every stamp taken (the clock jumped back: a new time line starts)."""
+        self._newest.clear()
 
 
 def ns_stamp(ns: int) -> Time:

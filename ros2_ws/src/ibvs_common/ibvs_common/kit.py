@@ -13,6 +13,8 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
   progress, naming what is missing.
 - :class:`Inputs`: a node's stamped inputs: the one stamp rule, the stamp order per topic,
   each message read, a rejection counted on /diagnostics under the topic.
+- :func:`forget_on_back`: the stamp orders and buffers a node keeps, forgotten when its
+  clock jumps back, so that fresh inputs are taken again.
 - :class:`StereoCameraInput`: both CameraInfo and the camera pose (the ``camera_pose``
   parameter or /stereo/pose), checked, rejected with a reason counted on /diagnostics, and
   a :class:`ibvs_model.StereoCamera` once they describe one.
@@ -34,6 +36,7 @@ from .conversions import (camera_from_msgs, check_camera_info, InputError, pose_
                           read_camera_pose, read_stamp, StampOrder)
 from .params import declare, ParamConfig
 from .shared_params import camera_pose_from
+from .sim_time import clock_watch
 
 if TYPE_CHECKING:
     from ibvs_model import StereoCamera
@@ -221,6 +224,29 @@ class Inputs:
     def reject(self, topic: str, exc: InputError, note: str = '') -> None:
         """Count ``exc`` under ``topic`` (``note`` appended to its detail)."""
         self._diag.reject(topic, exc.reason, exc.detail + note)
+
+    def forget(self) -> None:
+        """Forget every topic's stamp order (the clock jumped back: :func:`forget_on_back`)."""
+        self.order.forget()
+
+
+class Forgets(Protocol):
+    """What keeps stamps of the node's time line (an order, a buffer) and can drop them."""
+
+    def forget(self) -> None:
+        """Forget every stamp kept."""
+
+
+def forget_on_back(node: 'Node', *holders: Forgets) -> None:
+    """
+    Make each of ``holders`` forget its stamps whenever ``node``'s clock jumps back.
+
+    The one way a node keeps its stamp orders through a time jump: a restarted simulator
+    (its /clock at 0 again) or an NTP step would otherwise leave every fresh input refused
+    as older than the old time line's newest ('stamp went back', 'stale stamp') for as long
+    as the jump (:class:`.sim_time.ClockWatch`, which also logs the jump).
+    """
+    clock_watch(node).on_back(*(lambda _from, _to, h=h: h.forget() for h in holders))
 
 
 class StereoCameraInput:

@@ -19,7 +19,9 @@ these), and reports the :class:`Rejection` it gets back
   order, bounded; stale and overflowing inputs are rejected with a reason.
 
 Every buffer is bounded, and every input that is refused comes back as a reason, so that a
-missing input is named rather than waited on in silence.
+missing input is named rather than waited on in silence. Each can ``forget()`` all it holds:
+after the node's clock jumped back (:class:`ibvs_common.sim_time.ClockWatch`) the stamps of
+the old time line would otherwise refuse every fresh input as older.
 """
 
 import bisect
@@ -113,6 +115,11 @@ class StampHistory(Generic[V]):
         if self.max_len is not None and len(stamps) > self.max_len:
             del stamps[0], self._values[0]
         return None
+
+    def forget(self) -> None:
+        """Forget every value (the clock jumped back: a new time line starts)."""
+        self._stamps.clear()
+        self._values.clear()
 
     def prune(self, now_ns: int) -> None:
         """Forget the values stamped before ``now_ns - horizon_ns`` (no horizon: none)."""
@@ -223,6 +230,11 @@ class JointTrack(Generic[V]):
         """Note that the state stamped ``t_ns`` was rejected for ``reason``."""
         self.bad.add(t_ns, reason)
 
+    def forget(self) -> None:
+        """Forget every state, good and bad (the clock jumped back)."""
+        self.good.forget()
+        self.bad.forget()
+
     def prune(self, now_ns: int) -> None:
         """Forget the states older than the horizon before ``now_ns``."""
         self.good.prune(now_ns)
@@ -320,6 +332,11 @@ class PendingQueue(Generic[V]):
     def newest_ns(self) -> Optional[int]:
         """Return the newest stamp pending, else the last one popped, else None."""
         return self._items[-1][0] if self._items else self.last_popped_ns
+
+    def forget(self) -> None:
+        """Drop every input pending and the last answered (the clock jumped back)."""
+        self._items.clear()
+        self.last_popped_ns = None
 
     def check_order(self, t_ns: int) -> Optional[Rejection]:
         """Return 'stale stamp' unless ``t_ns`` is after :attr:`newest_ns`, else None."""

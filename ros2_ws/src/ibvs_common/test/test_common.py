@@ -201,15 +201,19 @@ def test_read_stamp_is_stamp_ns_on_good_stamps():
 
 def test_the_one_stamp_rule_refuses_future_and_off_grid_stamps():
     ms, cam = 1_000_000, 33_333_333
+    # one input period and the clock's lag margin (a stale timeout shorter than it: that)
     lead = conversions.stamp_lead_ns(0.5, cam)
-    assert lead == 500 * ms + cam
+    assert lead == conversions.STAMP_LEAD_MARGIN_NS + cam
+    assert conversions.stamp_lead_ns(0.05, cam) == 50 * ms + cam
     # Time unknown (None) counts as 0, the start of sim time: 2^31 s is in the future.
     with pytest.raises(InputError, match='stamp in the future'):
         conversions.read_stamp(Time(sec=2 ** 31 - 1), None, lead)
-    assert conversions.read_stamp(Time(sec=0, nanosec=533 * ms), None, lead) == 533 * ms
+    assert conversions.read_stamp(Time(sec=0, nanosec=lead), None, lead) == lead
     with pytest.raises(InputError, match='stamp in the future'):
-        conversions.read_stamp(Time(sec=0, nanosec=534 * ms), None, lead)
-    assert conversions.read_stamp(Time(sec=10), 9_600 * ms, lead) == 10_000 * ms
+        conversions.read_stamp(Time(sec=0, nanosec=lead + 1), None, lead)
+    assert conversions.read_stamp(Time(sec=10), 9_900 * ms, lead) == 10_000 * ms
+    with pytest.raises(InputError, match='stamp in the future'):  # 0.4 s ahead: refused
+        conversions.read_stamp(Time(sec=10), 9_600 * ms, lead)
     frames = (cam, ms)
     assert conversions.read_stamp(Time(sec=0, nanosec=34 * ms), 0, lead, frames) == 34 * ms
     for off_grid in (33 * ms, 33_333_333, 35 * ms):

@@ -173,3 +173,22 @@ def test_pending_queue_keeps_stamp_order_and_answers_each_once():
     assert [queue.pop() for _ in range(3)] == [(10, 'a'), (20, 'b'), (30, 'c')]
     # once answered, a stamp cannot come back
     assert queue.offer(30, 'again').reason == 'stale stamp' and len(queue) == 0
+
+
+# -- after the clock jumped back -------------------------------------------------------------
+
+def test_every_buffer_takes_the_new_time_line_after_forget():
+    """A jump back of the clock: what each buffer held would refuse every fresh stamp."""
+    history, track, queue = StampHistory(), JointTrack(), PendingQueue(4)
+    for t in (5_000 * MS, 5_001 * MS):
+        assert history.add(t, 'x') is None and track.add(t, np.zeros(6)) is None
+    assert queue.offer(5_001 * MS, 'y') is None
+    queue.pop()
+    assert history.add(0, 'x').reason == 'stale stamp'
+    assert queue.offer(0, 'y').reason == 'stale stamp'
+    for buffer in (history, track, queue):
+        buffer.forget()
+    assert len(history) == len(track) == len(queue) == 0 and queue.newest_ns is None
+    assert history.add(0, 'x') is None and queue.offer(0, 'y') is None
+    assert track.add(0, np.zeros(6)) is None and track.add(DT, np.ones(6)) is None
+    np.testing.assert_allclose(track.at(DT // 2)[0], 0.5)

@@ -8,7 +8,11 @@ when its commands are older than ``incoming_command_timeout`` and says why on ``
 The joint controller does the same with :class:`InputWatch`: every input it needs has an
 age (the node's clock less the input's newest stamp) and a timeout; while one is older than
 its timeout the controller holds the arm where it is, and the status (:class:`ServoStatus`,
-published as one ``std_msgs/Int8`` code) says which input is stale.
+published as one ``std_msgs/Int8`` code) says which input is stale. The ages need a clock
+that runs forward: after a jump back every age would be negative and nothing could go
+stale until the clock passed the old newest stamp again, so :meth:`InputWatch.forget` drops
+them and holds until each input came again (HOLD_CLOCK_JUMPED_BACK); with sim time, a
+/clock that stopped (a simulator that died) holds too (:func:`clock_stopped`).
 
 The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``, moveit2 jazzy
 4d84106 ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp`` L51-61), so
@@ -41,12 +45,25 @@ class ServoStatus(IntEnum):
     HOLD_STALE_CAMERA = 12
     #: Holding: frames come but no q_feedback for them within its timeout.
     HOLD_STALE_FEEDBACK = 13
+    #: Holding: the node's clock jumped back (a restarted simulator's /clock, an NTP step):
+    #: every input's age and stamp order start again, and the arm holds until each input
+    #: came again on the new time line.
+    HOLD_CLOCK_JUMPED_BACK = 14
+    #: Holding: sim time stopped (``use_sim_time``: /clock has not moved for the wall-time
+    #: bound of :meth:`ibvs_common.sim_time.ClockWatch.stall_bound_s`): no input can age, and
+    #: the simulator is not running.
+    HOLD_CLOCK_STOPPED = 15
 
 
 #: Each stale input's holding code.
 HOLD_CODES = {'joint_states': ServoStatus.HOLD_STALE_JOINT_STATES,
               'camera': ServoStatus.HOLD_STALE_CAMERA,
               'feedback': ServoStatus.HOLD_STALE_FEEDBACK}
+
+
+#: Every holding code: a stale input's, and the clock's own.
+HOLDING = frozenset(HOLD_CODES.values()) | {
+    ServoStatus.HOLD_CLOCK_JUMPED_BACK, ServoStatus.HOLD_CLOCK_STOPPED}
 
 
 class Verdict(NamedTuple):
@@ -57,8 +74,8 @@ class Verdict(NamedTuple):
 
     @property
     def holding(self) -> bool:
-        """Return whether the arm is to be held (an input is stale)."""
-        return self.status in HOLD_CODES.values()
+        """Return whether the arm is to be held (an input is stale, or the clock failed)."""
+        return self.status in HOLDING
 
 
 class InputWatch:
@@ -88,29 +105,52 @@ class InputWatch:
         self.required = list(required)
         self.newest_ns: dict[str, int] = {}
         self._present: set[str] = set()
+        #: The last jump back (from ns, to ns) until every input came again, else None.
+        self.jump: tuple[int, int] | None = None
 
     def heard(self, name: str, t_ns: int) -> None:
         """Note an input ``name`` stamped ``t_ns`` (an older stamp than the newest is kept out)."""
+        self._present.add(name)
         if name in self.timeouts_ns:
             self.newest_ns[name] = max(t_ns, self.newest_ns.get(name, t_ns))
-        else:
-            self._present.add(name)
+
+    def forget(self, from_ns: int, to_ns: int) -> None:
+        """
+        Take a jump back of the clock from ``from_ns`` to ``to_ns``: every age is unknown.
+
+        The newest stamps are of the old time line (their ages would be negative: nothing
+        would go stale for as long as the jump); they are dropped, and :meth:`verdict` holds
+        with HOLD_CLOCK_JUMPED_BACK until each input with a timeout came again. Inputs
+        without one (the latched feedforward) stay heard.
+        """
+        self.newest_ns.clear()
+        self.jump = (int(from_ns), int(to_ns))
 
     def missing(self) -> list[str]:
         """Return the inputs that never came, required ones first."""
         return ([n for n in self.required if n not in self._present]
-                + [n for n in self.timeouts_ns if n not in self.newest_ns])
+                + [n for n in self.timeouts_ns if n not in self._present])
 
     def verdict(self, now_ns: int) -> Verdict:
         """
         Return the status at ``now_ns`` and why.
 
-        WAITING until every input came once; then the hold code of the first input (in
-        the order of ``timeouts_ns``) older than its timeout; else NO_WARNING.
+        WAITING until every input came once; after a jump back (:meth:`forget`)
+        HOLD_CLOCK_JUMPED_BACK until each came again; then the hold code of the first input
+        (in the order of ``timeouts_ns``) older than its timeout; else NO_WARNING.
         """
         missing = self.missing()
         if missing:
             return Verdict(ServoStatus.WAITING, 'waiting for ' + ', '.join(missing))
+        if self.jump is not None:
+            again = [n for n in self.timeouts_ns if n not in self.newest_ns]
+            if again:
+                from_ns, to_ns = self.jump
+                return Verdict(ServoStatus.HOLD_CLOCK_JUMPED_BACK,
+                               f'clock jumped back from {from_ns * 1e-9:.3f} s to '
+                               f'{to_ns * 1e-9:.3f} s: holding the arm until fresh '
+                               + ', '.join(again))
+            self.jump = None
         for name, timeout in self.timeouts_ns.items():
             age = now_ns - self.newest_ns[name]
             if age > timeout:
@@ -118,3 +158,17 @@ class InputWatch:
                                f'{name} stale: newest is {age * 1e-9:.3f} s old '
                                f'(timeout {timeout * 1e-9:g} s): holding the arm')
         return Verdict(ServoStatus.NO_WARNING, 'ok')
+
+
+def clock_stopped(stalled_s: float | None, bound_s: float) -> Verdict | None:
+    """
+    Return HOLD_CLOCK_STOPPED when sim time stood still ``stalled_s`` > ``bound_s``, else None.
+
+    ``stalled_s``: the wall time since /clock last moved
+    (:meth:`ibvs_common.sim_time.ClockWatch.stalled_s`), None before it first did.
+    """
+    if stalled_s is None or not stalled_s > bound_s:
+        return None
+    return Verdict(ServoStatus.HOLD_CLOCK_STOPPED,
+                   f'clock stopped: /clock has not moved for {stalled_s:.1f} s of wall time '
+                   f'(bound {bound_s:.1f} s): the simulator is not running; holding the arm')

@@ -1,6 +1,6 @@
 """The joint controller's input watch and status codes (ibvs_control.servo_status), pure."""
 
-from ibvs_control.servo_status import HOLD_CODES, InputWatch, ServoStatus
+from ibvs_control.servo_status import clock_stopped, HOLD_CODES, InputWatch, ServoStatus
 import pytest
 
 MS = 1_000_000
@@ -69,3 +69,51 @@ def test_bad_configurations_are_refused():
         InputWatch({'lidar': MS})
     with pytest.raises(ValueError, match='must be > 0'):
         InputWatch({'camera': 0})
+
+
+def started(t_ns=0):
+    w = watch()
+    w.heard('feedforward', 0)
+    for name in HOLD_CODES:
+        w.heard(name, t_ns)
+    return w
+
+
+def test_a_clock_jumped_back_holds_at_once_until_each_input_came_again():
+    w = started(5_000 * MS)
+    assert w.verdict(5_050 * MS).status == ServoStatus.NO_WARNING
+    w.forget(5_050 * MS, 50 * MS)  # 5 s back: the old ages would be negative
+    verdict = w.verdict(50 * MS)
+    assert verdict.status == ServoStatus.HOLD_CLOCK_JUMPED_BACK and verdict.holding
+    assert verdict.detail == ('clock jumped back from 5.050 s to 0.050 s: holding the arm '
+                              'until fresh joint_states, camera, feedback')
+    assert ServoStatus.HOLD_CLOCK_JUMPED_BACK >= 10
+    # inputs stopped: the hold stays, whatever the clock does next
+    assert w.verdict(5_000 * MS).status == ServoStatus.HOLD_CLOCK_JUMPED_BACK
+    w.heard('joint_states', 60 * MS)
+    w.heard('camera', 60 * MS)
+    assert w.verdict(60 * MS).detail.endswith('until fresh feedback')
+    w.heard('feedback', 60 * MS)
+    assert w.verdict(60 * MS).status == ServoStatus.NO_WARNING
+    # ages count on the new time line: the joint states go stale 100 ms after 60 ms
+    assert w.verdict(161 * MS).status == ServoStatus.HOLD_STALE_JOINT_STATES
+
+
+def test_a_jump_before_every_input_came_still_waits_and_names_them():
+    w = watch()
+    w.heard('feedforward', 0)
+    w.heard('joint_states', 5_000 * MS)
+    w.forget(5_000 * MS, 0)
+    assert w.verdict(0).detail == 'waiting for camera, feedback'
+    w.heard('camera', 0)
+    w.heard('feedback', 0)
+    assert w.verdict(0).detail.endswith('until fresh joint_states')  # the old one is not
+
+
+def test_a_stopped_clock_holds_once_past_its_wall_bound():
+    assert clock_stopped(None, 2.0) is None  # /clock never moved: nothing to hold yet
+    assert clock_stopped(2.0, 2.0) is None
+    verdict = clock_stopped(2.5, 2.0)
+    assert verdict.status == ServoStatus.HOLD_CLOCK_STOPPED and verdict.holding
+    assert verdict.detail.startswith('clock stopped: /clock has not moved for 2.5 s')
+    assert ServoStatus.HOLD_CLOCK_STOPPED >= 10
