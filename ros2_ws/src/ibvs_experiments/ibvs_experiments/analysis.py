@@ -26,8 +26,9 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   (or blended them) instead of measurements; ``final_feature_mode``: the mode of the last
   feature status ('measured', 'blending', 'estimated'; None without any);
 - ``success``: the run ends within :data:`.convergence.SUCCESS` (1 mm and 0.5 deg), the
-  project's one success criterion; ``miss_reason``: why not (timed out, stalled, features
-  lost, with the final errors: :func:`.convergence.miss_reason`), None on success;
+  project's one success criterion, never for a run that SIGINT stopped
+  (:func:`interrupted_outcome`); ``miss_reason``: why not (interrupted, timed out, stalled,
+  features lost, with the final errors: :func:`.convergence.miss_reason`), None on success;
   ``time_to_success_s``: first time after which both errors stay within it;
 - ``peak_joint_speed_ratio``, ``peak_joint_torque_ratio`` (:func:`joint_metrics`; from the
   bag's joint states and torques, :func:`analyse_bag`): the largest |qdot_i| / qd_max_i
@@ -68,7 +69,7 @@ What drew the images (runs that rendered them; the simulator's /diagnostics):
 and ``render_hardware``, true on a GPU, false on a software rasteriser (ibvs_sim.gl_renderer).
 """
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TYPE_CHECKING
@@ -531,4 +532,22 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
     metrics.update(free_running_metrics(run.latency, run.rtf_held, int(run.frame_stamps.size),
                                         run.servo_rtf))
     metrics.update(run.render)
-    return run, metrics
+    return run, interrupted_outcome(metrics, run.run_info)
+
+
+def interrupted_outcome(metrics: dict[str, Any], run_info: Mapping[str, Any]
+                        ) -> dict[str, Any]:
+    """
+    Return ``metrics`` with a run that SIGINT stopped (``run_info['interrupted']``) missed.
+
+    Such a run did not run its time: whatever its last errors, ``success`` is False and
+    ``miss_reason`` says it was interrupted, then gives the errors. Other runs unchanged.
+    """
+    if not run_info.get('interrupted'):
+        return metrics
+    position, axis = metrics['final_position_error_m'], metrics['final_tool_axis_error_deg']
+    metrics['success'] = False
+    metrics['miss_reason'] = (
+        f"interrupted (SIGINT) at {metrics['sim_duration_s']:.3g} s of sim time: final "
+        f'{position * 1e3:.3g} mm, {axis:.3g} deg')
+    return metrics
