@@ -37,6 +37,7 @@ import argparse
 from collections.abc import Sequence
 import hashlib
 import math
+import os
 from pathlib import Path
 import re
 import sys
@@ -191,7 +192,18 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_cell(args: argparse.Namespace) -> int:
     """Start the controller side of a real cell (no simulator); Ctrl-C stops it."""
-    domains.domain_id()
+    # The cell's domain is ROS_DOMAIN_ID, unset ROS's default 0 (cell.run_cell), never a free
+    # one of the pool: the refusals say so (domains' own hints are an ibvs run's).
+    cell_domain = ("ibvs cell runs on the cell's ROS domain, ROS_DOMAIN_ID (unset: ROS's "
+                   'default 0), never a free one')
+    try:
+        domains.domain_id()
+    except domains.DomainError:
+        low, high = domains.SAFE_RANGE
+        print(f'error: ROS_DOMAIN_ID={os.environ.get(domains.DOMAIN_ENV)!r} is not a ROS '
+              f"domain: set it to the cell's, a decimal number from {low} to {high}; "
+              + cell_domain, file=sys.stderr)
+        return 2
     overrides = dict(scenario.parse_override(p) for p in args.param)
     try:
         params = cell.cell_parameters(args.params_file, overrides, args.controller)
@@ -205,8 +217,10 @@ def cmd_cell(args: argparse.Namespace) -> int:
         return cell.run_cell(params, out, args.controller, args.camera_name,
                              args.controller_name, args.check_timeout,
                              live=sys.stdout.isatty())
-    except domains.DomainBusy as exc:
-        print(f'cell not started: {exc}', file=sys.stderr)
+    except domains.DomainBusy:
+        print(f'cell not started: ROS domain {domains.domain_id()} is used by another run on '
+              f'this machine; {cell_domain}: stop that run, or set ROS_DOMAIN_ID to the '
+              "cell's", file=sys.stderr)
         return 2
 
 
@@ -321,8 +335,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, func in (('run', cmd_run), ('demo', cmd_demo)):
         p = sub.add_parser(name, help=func.__doc__)
         if name == 'run':
-            p.add_argument('scenario', help='scenario1, scenario2, scenario3, real_cell (the '
-                           'real arm and camera: docs/real_cell.md) or a parameter file')
+            p.add_argument('scenario', help='scenario1, scenario2, scenario3, real_cell (a '
+                           'real cell simulated: the arm and the camera driven as a real '
+                           'IRB 4600 and ZED 2 are, docs/real_cell.md) or a parameter file')
         p.add_argument('--no-figures', dest='figures', action='store_false',
                        help='write the bag and metrics.json only (ibvs analyse draws the '
                        'figures from the bag later)')
