@@ -93,12 +93,14 @@ def pose_vs_time(run: 'RunData', path: str | Path) -> None:
                 inset.axvspan(0.0, window, color='0.85')
                 inset.set_title(f'whole run, 0-{t[-1]:.2g} s', fontsize=7)
                 inset.tick_params(labelsize=6)
-    axes[0, 0].legend(loc='lower left')
+    # One legend for the six panels, below them: inside a panel it covers a curve.
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc='lower center', ncol=2,
+               frameon=False)
     what = ('tool pose against time' if whole else
             f'tool pose against time, the first {window:.3g} s (the transient; inset: the '
             'whole run)')
     fig.suptitle(_title(run, what))
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.05, 1.0, 1.0))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
