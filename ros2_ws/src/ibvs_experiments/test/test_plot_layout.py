@@ -30,4 +30,5 @@ def test_pose_vs_time_legend_lies_outside_every_panel(tmp_path, monkeypatch):
     for ax in panels:
         assert ax.get_legend() is None
         assert not box.overlaps(ax.get_window_extent(renderer)), ax.get_ylabel()
+    monkeypatch.undo()
     plt.close(fig)
