@@ -234,7 +234,7 @@ def cmd_video(args: argparse.Namespace) -> int:
     except (video.NoImages, ValueError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    print(f'wrote {path} ({frames} frames, {frames / video.FPS:.1f} s: '
+    print(f'wrote {path} ({frames} film frames, {frames / video.FPS:.1f} s: '
           f'{time_map.describe()})')
     return 0
 

@@ -604,19 +604,34 @@ def write_video(run_dir: str | Path, out_path: str | Path | None = None,
                 stream.options = dict(CODEC_OPTIONS)
             previous = image
             if n % 10 == 0 or n == total:
-                elapsed = time.monotonic() - start
-                progress(f'  video: frame {n}/{total}  {100.0 * n / max(total, 1):5.1f} %'
-                         f'  elapsed {elapsed:5.1f} s'
-                         f'  ETA {elapsed / n * max(total - n, 0):5.1f} s')
+                progress(progress_line(n, total, time.monotonic() - start))
         if previous is None:
             raise NoImages(f'{bag}: no frame with both images and /tf')
         written += _emit(container, stream, previous,
                          _shown_for(time_map, stamps[-1], None, film.end_s, fps))
+        progress(summary_line(len(stamps), written, fps))
         for packet in stream.encode():
             container.mux(packet)
     finally:
         container.close()
     return out_path, written
+
+
+def progress_line(n: int, total: int, elapsed_s: float) -> str:
+    """Return the progress of the ``n``-th camera frame of (at most) ``total``."""
+    return (f'  video: camera frame {n}/{total}  {100.0 * n / max(total, 1):5.1f} %'
+            f'  elapsed {elapsed_s:5.1f} s  ETA {elapsed_s / n * max(total - n, 0):5.1f} s')
+
+
+def summary_line(camera_frames: int, film_frames: int, fps: int = FPS) -> str:
+    """
+    Return what the film is made of: its camera frames, each shown for film frames.
+
+    The progress counts camera frames; the film has as many film frames as its length
+    times ``fps`` (:func:`film_frames`), more than camera frames where it plays slowed.
+    """
+    return (f'  video: {camera_frames} camera frames, shown as {film_frames} film frames '
+            f'({film_frames / fps:.1f} s at {fps} fps)')
 
 
 def _emit(container, stream, image, count):
