@@ -41,8 +41,9 @@ if TYPE_CHECKING:
     from rclpy.node import Node
     from rosgraph_msgs.msg import Clock
 
-#: The least wall time (s) without a /clock that moved time, for :meth:`ClockWatch.stalled`.
-CLOCK_STALL_MIN_S = 2.0
+#: The least wall time (s) without a /clock that moved time, for :meth:`ClockWatch.stalled`
+#: (a simulator process that a loaded machine stalls for a second or two is not stopped).
+CLOCK_STALL_MIN_S = 5.0
 #: ... and the bound in wall intervals between two /clock messages (their median, measured).
 CLOCK_STALL_INTERVALS = 20
 #: How many of the newest wall intervals between /clock messages the median is taken of.

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state
 from ibvs_common.kit import publisher, subscription, WaitReporter
-from ibvs_common.sim_time import node_time_ns
+from ibvs_common.sim_time import clock_watch, node_time_ns
 from ibvs_common.timing import ns_to_seconds, seconds_to_ns
 from ibvs_model import IRB4600
 import numpy as np
@@ -53,11 +53,8 @@ class EffortController(JointControllerMode):
                               IRB4600.qd_max, self.torque_limits,
                               speed_margin=config.speed_margin,
                               acceleration_margin=config.acceleration_margin)
-        # Before the first frame acts, q_feedback = 0; a lost frame holds the last one.
-        self._lockstep = FeedbackLockstep(
-            self.camera_ns, self.latency_ns, self.dt_ns, max_buffer=MAX_BUFFER,
-            initial=np.zeros(6), feedback_name=contract.Q_FEEDBACK,
-            lost_name=contract.FRAME_LOST)
+        self._lockstep = self._new_lockstep()
+        clock_watch(node).on_back(self._clock_back)
         self.frames_lost = 0
         self.saturated_joints = 0
         self.last_answered_ns = None
@@ -77,6 +74,19 @@ class EffortController(JointControllerMode):
     def close(self) -> None:
         """Release the PyBullet client."""
         self.dynamics.close()
+
+    def _new_lockstep(self):
+        """Return the lockstep rule with nothing buffered or answered."""
+        # Before the first frame acts, q_feedback = 0; a lost frame holds the last one.
+        return FeedbackLockstep(
+            self.camera_ns, self.latency_ns, self.dt_ns, max_buffer=MAX_BUFFER,
+            initial=np.zeros(6), feedback_name=contract.Q_FEEDBACK,
+            lost_name=contract.FRAME_LOST)
+
+    def _clock_back(self, from_ns, to_ns):
+        """Answer a restarted simulator's steps from the start (the clock jumped back)."""
+        self._lockstep = self._new_lockstep()
+        self.last_answered_ns = None
 
     def now_ns(self) -> int:
         """Return the newest time the node knows: its clock and its last answered stamp."""

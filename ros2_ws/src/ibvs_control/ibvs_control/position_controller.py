@@ -6,8 +6,9 @@ q_feedback (the newest: :class:`.position_interface.FeedbackHold`), shaped to th
 limits (:class:`.position_interface.PositionShaper`), on
 /forward_position_controller/commands or as a JointTrajectory window on
 /joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
-command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input stops and
-holds the arm (:mod:`.servo_status`, on /ibvs/servo_status). In full: docs/nodes.md.
+command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input, a clock
+that jumped back or a sim time that stopped stops and holds the arm (:mod:`.servo_status`,
+on /ibvs/servo_status). In full: docs/nodes.md.
 """
 
 from typing import TYPE_CHECKING
@@ -17,16 +18,17 @@ from ibvs_common import contract
 from ibvs_common.conversions import joint_trajectory, ns_stamp
 from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.shared_params import joint_order
-from ibvs_common.sim_time import node_time_ns
+from ibvs_common.sim_time import clock_watch, node_time_ns, read_clock_ns
 from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
 import numpy as np
+from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import CameraInfo, JointState, TimeReference
 from std_msgs.msg import Float64MultiArray, Header, Int8
 from trajectory_msgs.msg import JointTrajectory
 
 from .joint_controller_mode import JointControllerMode
 from .position_interface import FeedbackHold, PositionShaper
-from .servo_status import InputWatch, ServoStatus
+from .servo_status import clock_stopped, InputWatch, ServoStatus
 
 if TYPE_CHECKING:
     from rclpy.node import Node
@@ -35,6 +37,9 @@ if TYPE_CHECKING:
 
 #: The parameters only the effort interface uses: a warning names those set off default.
 EFFORT_ONLY = ('actuators', 'torque_limits', 'acceleration_margin')
+#: Wall seconds between two looks at whether sim time stopped (free-running only: the
+#: lockstep's effort interface waits for its simulator and never looks).
+CLOCK_CHECK_S = 0.25
 #: What each input the first command waits for is, in the wait reporter's words.
 INPUTS = {'feedforward': f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}',
           'joint_states': f'a {contract.JOINT_STATES} (the shaper starts from it)',
@@ -129,6 +134,10 @@ class PositionController(JointControllerMode):
                                           contract.CAMERA_INFO).topic_name
         self.subscribe_inputs()
         node.create_timer(ns_to_seconds(self.command_period_ns), self._command)
+        self._clock = clock_watch(node)
+        self._clock.on_back(self._clock_back)
+        node.create_timer(CLOCK_CHECK_S, self._check_clock,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.waiting = WaitReporter(node, self._waiting)
         self.diagnostics.log_progress(self._progress_line)
         node.get_logger().info(
@@ -154,7 +163,8 @@ class PositionController(JointControllerMode):
         if state is None:
             return
         t_ns, q, _ = state
-        if self._measured is not None and t_ns <= self._measured[0]:
+        if self._measured is not None and self._measured[0] is not None \
+                and t_ns <= self._measured[0]:
             self.diagnostics.reject(contract.JOINT_STATES, 'out of order',
                                     f'{t_ns} ns, not newer than {self._measured[0]} ns')
             return
@@ -199,9 +209,26 @@ class PositionController(JointControllerMode):
         if verdict is not None:
             self._pub_status.publish(Int8(data=int(verdict.status)))
 
+    def _clock_back(self, from_ns, to_ns):
+        """Hold at once on a jump back of the clock; ages and stamp orders start again."""
+        self._watch.forget(from_ns, to_ns)
+        if self._measured is not None:  # the pose is still known; its stamp is not newer
+            self._measured = (None, self._measured[1])
+        self._hold.stamp_ns = None  # the held q_feedback's frame is of the old time line
+        self.diagnostics.update(clock_jumps_back=self._clock.jumps_back)
+        self._report(to_ns, self._watch.verdict(to_ns))
+
+    def _check_clock(self):
+        """With sim time, hold (the status) when /clock has not moved for the wall bound."""
+        if not self.node.get_clock().ros_time_is_active:
+            return
+        verdict = clock_stopped(self._clock.stalled_s(), self._clock.stall_bound_s())
+        if verdict is not None:
+            self._report(self.node.get_clock().now().nanoseconds, verdict)
+
     def _command(self):
         """Send one position reference (module docstring)."""
-        now_ns = self.node.get_clock().now().nanoseconds
+        now_ns = read_clock_ns(self.node)
         verdict = self._watch.verdict(now_ns)
         self._report(now_ns, verdict)
         if verdict.status == ServoStatus.WAITING:
