@@ -68,6 +68,10 @@ DEFAULT_CAMERA = 'zed'
 ZED_NODE = 'zed_node'
 #: The default wall time (s) the cell's topics have to appear in the graph.
 CHECK_TIMEOUT_S = 10.0
+#: What the status line says of a clock's holding code until /diagnostics says more (in
+#: the sim-time rehearsal a stopped /clock ages nothing: only the code tells it).
+CLOCK_WORDS = {'HOLD_CLOCK_STOPPED': 'clock stopped',
+               'HOLD_CLOCK_JUMPED_BACK': 'clock jumped back'}
 #: Wall time (s) between two status lines.
 STATUS_PERIOD_S = 1.0
 #: ``ibvs cell``'s exit code when a topic of the cell is missing or does not match.
@@ -456,10 +460,14 @@ class StatusBoard:
             servo = 'servo: no status yet'
         else:
             try:
-                servo = f'servo {self.code} {ServoStatus(self.code).name}'
+                name = ServoStatus(self.code).name
+                servo = f'servo {self.code} {name}'
             except ValueError:
-                servo = f'servo {self.code} (unknown code)'
-            if self.detail and self.detail != 'ok':
+                name, servo = None, f'servo {self.code} (unknown code)'
+            words = CLOCK_WORDS.get(name)
+            if words is not None and not self.detail.startswith(words):
+                servo += f' ({words})'  # the code comes at once, /diagnostics once a second
+            elif self.detail and self.detail != 'ok':
                 servo += f' ({self.detail})'
         error = (f'{self.last_error} ({now - self.last_error_at:.0f} s ago)'
                  if self.last_error_at is not None else 'none')

@@ -187,6 +187,22 @@ def test_status_board_says_the_servo_status_frames_and_last_error():
     assert 'servo 99 (unknown code)' in board.line()
 
 
+def test_status_board_says_clock_stopped_from_the_code_alone():
+    """A dead simulator in the sim-time rehearsal: /clock stops, the code says so at once."""
+    board = cell.StatusBoard(clock=lambda: 0.0)
+    board.servo(0)
+    board.diagnostics('joint_controller_node: joint loop', 0, 'ok',
+                      {'servo_status': 'NO_WARNING'})
+    board.servo(15)  # HOLD_CLOCK_STOPPED, before the next /diagnostics
+    assert 'servo 15 HOLD_CLOCK_STOPPED (clock stopped)' in board.line()
+    detail = 'clock stopped: /clock has not moved for 5.2 s of wall time (bound 5.0 s)'
+    board.diagnostics('joint_controller_node: joint loop', 1, detail,
+                      {'servo_status': 'HOLD_CLOCK_STOPPED'})
+    assert f'servo 15 HOLD_CLOCK_STOPPED ({detail})' in board.line()
+    board.servo(14)
+    assert 'servo 14 HOLD_CLOCK_JUMPED_BACK (clock jumped back)' in board.line()
+
+
 def test_ibvs_run_refuses_the_cells_file(capsys):
     assert cli.main(['run', 'cell']) == 2
     assert 'ibvs cell' in capsys.readouterr().err
