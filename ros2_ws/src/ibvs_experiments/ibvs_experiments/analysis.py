@@ -24,8 +24,8 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   noise); the whole run when it is shorter;
 - ``time_estimated_s``: sim time during which the features were not measured: the feature
   node's modes 'estimated' (from the model, eq. 46) and 'blending' (the switch from one
-  source to the other, section 2.3); ``final_feature_mode``: the mode of the last feature status ('measured',
-  'blending', 'estimated'; None without any);
+  source to the other, section 2.3); ``final_feature_mode``: the mode of the last feature
+  status ('measured', 'blending', 'estimated'; None without any);
 - ``success``: the run ends within :data:`.convergence.SUCCESS` (1 mm and 0.5 deg), the
   project's one success criterion, never for a run that SIGINT stopped
   (:func:`interrupted_outcome`); ``miss_reason``: why not (interrupted, timed out, stalled,
