@@ -21,7 +21,8 @@ from ibvs_common.conversions import (feature_status_msg, features_msg, FeatureSt
                                      ignored_joints, image_msg, InputError, ns_stamp,
                                      position_bounds, read_joints, stamp_lead_ns)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import config, Inputs, publisher, StereoCameraInput, subscription
+from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
+                             subscription)
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
@@ -89,6 +90,7 @@ class FeatureNode(Node):
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._inputs = Inputs(self._diag, self.now_ns,
                               stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
+        forget_on_back(self, self._inputs, self._stereo)
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, frames_over_budget=0,
                           detection_budget_ms=self._budget_ms, last_switch_time_s='none',

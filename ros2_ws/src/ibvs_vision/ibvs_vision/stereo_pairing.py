@@ -89,6 +89,13 @@ class StereoPairer:
         #: The stamp of the last frame published (:meth:`published`).
         self.last_published_ns = -1
 
+    def forget(self) -> None:
+        """Forget every frame, state and stamp (the clock jumped back: a new time line)."""
+        self._frames.clear()
+        self.joints.forget()
+        self._newest_image = {side: -1 for side in self.sides}
+        self.newest_ns = self.last_published_ns = -1
+
     def __len__(self) -> int:
         """Return the number of frames pending (incomplete or refused, not yet forgotten)."""
         return len(self._frames)

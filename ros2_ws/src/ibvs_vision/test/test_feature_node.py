@@ -409,3 +409,37 @@ def test_debug_overlays_draw_what_was_published_only_when_asked(rig, vga_model, 
         image = np.frombuffer(msg.data, np.uint8).reshape(msg.height, msg.width, 3)
         found = overlay.find_drawn_features(image, side, published)
         np.testing.assert_allclose(found, overlay.side_points(published, side), atol=1.0)
+
+
+def test_an_image_stamped_ahead_is_refused_and_loses_its_frame_only(rig, q_target):
+    """Acceptance: one left image 0.4 s ahead costs at most its own frame, not the next."""
+    node, driver, executor = rig()
+    images = driver.render(q_target + D_Q)
+    ahead_ns = 400 * DT_NS
+    for n in range(8):
+        t = n * T_CAM_NS
+        left = image_msg(images[0], t + ahead_ns, 'rgb8') if n == 2 else None
+        driver.send(t, q_target, images=images, left=left)
+        if n != 2:
+            spin_until(executor, lambda t=t: driver.stamps() and driver.stamps()[-1] == t,
+                       what=f'the features of frame {n}')
+    assert driver.stamps() == [n * T_CAM_NS for n in range(8) if n != 2]
+    assert node._diag.rejections[f'{contract.LEFT_IMAGE}: stamp in the future'] == 1
+    assert not any('stamp went back' in key for key in node._diag.rejections)
+
+
+def test_frames_on_a_new_time_line_are_taken_after_the_clock_jumped_back(rig, q_target):
+    """A simulator restarted under the node: its /clock and stamps start again at 0."""
+    node, driver, executor = rig()
+    images = driver.render(q_target + D_Q)
+    start = 30 * T_CAM_NS
+    for n in range(3):
+        driver.send(start + n * T_CAM_NS, q_target, images=images)
+        spin_until(executor, lambda n=n: len(driver.features) == n + 1, what=f'frame {n}')
+    for n in range(3):  # send() publishes /clock first: the jump back comes with frame 0
+        driver.send(n * T_CAM_NS, q_target, images=images)
+        spin_until(executor, lambda n=n: len(driver.features) == n + 4,
+                   what=f'frame {n} of the new time line')
+    assert driver.stamps()[3:] == [0, T_CAM_NS, 2 * T_CAM_NS]
+    assert not any('stamp went back' in key or 'stale' in key
+                   for key in node._diag.rejections)
