@@ -38,7 +38,7 @@ from ibvs_common import contract
 from ibvs_common.conversions import (position_bounds, read_joints, stamp_lead_ns,
                                      transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import config, Inputs, publisher, subscription
+from ibvs_common.kit import config, forget_on_back, Inputs, publisher, subscription
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
@@ -71,6 +71,7 @@ class RobotStateNode(Node):
         self._diag = Diagnostics(self, 'robot description and link frames')
         self._inputs = Inputs(self._diag, lambda: node_time_ns(self, self._last_joint_ns),
                               stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
+        forget_on_back(self, self._inputs)
         self._diag.update(tf_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (
             f"/tf of {self._diag.values['tf_published']} joint states (last at "

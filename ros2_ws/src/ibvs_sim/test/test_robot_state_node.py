@@ -8,7 +8,7 @@ composed as a tf listener does and checked against ibvs_model.abb_urdf and eq. (
 from diagnostic_msgs.msg import DiagnosticArray
 from ibvs_common import contract
 from ibvs_common.contract import ROBOT_DESCRIPTION, TF, TF_STATIC
-from ibvs_common.conversions import joint_state, pose_matrix
+from ibvs_common.conversions import joint_state, ns_stamp, pose_matrix, stamp_ns
 from ibvs_common.params import ParameterError
 from ibvs_model import abb_urdf, forward_kinematics, IRB4600
 from ibvs_sim.robot_state_node import RobotStateNode
@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
@@ -112,3 +113,23 @@ def test_bad_parameter_is_refused_with_its_name(context):
     with pytest.raises(ParameterError, match='l4_scale'):
         RobotStateNode(context=context,
                        parameter_overrides=[Parameter('l4_scale', value=-1.0)])
+
+
+def test_joint_states_of_a_new_time_line_are_taken_after_the_clock_jumped_back(
+        context, executor_of):
+    """A simulator restarted under the node: /clock and stamps start again near 0."""
+    node = RobotStateNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    driver = Driver(context)
+    clock = driver.create_publisher(Clock, contract.CLOCK, contract.RELIABLE)
+    executor = executor_of(node, driver)
+    spin_until(executor, lambda: driver.count_subscribers(contract.JOINT_STATES) == 1
+               and clock.get_subscription_count() == 1, what='discovery')
+    for k, t in enumerate((10_000_000_000, 500_000_000)):  # the second: 9.5 s back
+        clock.publish(Clock(clock=ns_stamp(t)))
+        spin_until(executor, lambda t=t: node.get_clock().now().nanoseconds == t,
+                   what='/clock')
+        driver.joints.publish(joint_state(t, Q))
+        spin_until(executor, lambda k=k: len(driver.got[TF]) == k + 1, what='/tf')
+    assert stamp_ns(driver.got[TF][-1].transforms[0].header.stamp) == 500_000_000
+    assert not node._diag.rejections

@@ -21,8 +21,8 @@ from ibvs_common.conversions import (check_features_in_image, ignored_joints, In
                                      matrix_poses, position_bounds, read_feature_status,
                                      read_features, read_joints, stamp_lead_ns, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import (config, Inputs, publisher, StereoCameraInput, subscription,
-                             WaitReporter)
+from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
+                             subscription, WaitReporter)
 from ibvs_common.node_main import run
 from ibvs_common.params import Param, param_field, ParamConfig
 from ibvs_common.sim_time import node_time_ns
@@ -122,6 +122,7 @@ class VizNode(Node):
         self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
         self._inputs = Inputs(self._diag, self.now_ns,
                               stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
+        forget_on_back(self, self._inputs)
         self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['joint_states_taken']
