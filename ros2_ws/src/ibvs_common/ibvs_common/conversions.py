@@ -317,20 +317,30 @@ def duration_ns(duration: Duration) -> int:
 
 
 def joint_trajectory(start_ns: int, period_ns: int, positions: ArrayLike,
-                     names: Iterable[str] = contract.JOINT_NAMES) -> JointTrajectory:
+                     names: Iterable[str] = contract.JOINT_NAMES,
+                     velocities: ArrayLike | None = None,
+                     accelerations: ArrayLike | None = None) -> JointTrajectory:
     """
     Return positions sampled every ``period_ns`` from ``start_ns`` as a JointTrajectory.
 
     ``positions``: (N, 6). Point k has time_from_start = k * period_ns; the header stamp is
-    the time of point 0 (the trajectory_msgs convention). Only positions are filled.
+    the time of point 0 (the trajectory_msgs convention). ``velocities`` and
+    ``accelerations`` (N, 6), when given, fill the points' own (joint_trajectory_controller
+    then sends each point's velocity to the hardware, not the segments' slopes).
     """
     msg = JointTrajectory()
     msg.header.stamp = ns_stamp(start_ns)
     msg.header.frame_id = contract.BASE_FRAME
     msg.joint_names = list(names)
     points = []
+    velocities = None if velocities is None else np.asarray(velocities, dtype=float)
+    accelerations = None if accelerations is None else np.asarray(accelerations, dtype=float)
     for k, row in enumerate(np.asarray(positions, dtype=float)):
         point = JointTrajectoryPoint(positions=row.tolist())
+        if velocities is not None:
+            point.velocities = velocities[k].tolist()
+        if accelerations is not None:
+            point.accelerations = accelerations[k].tolist()
         t = k * int(period_ns)
         point.time_from_start.sec, point.time_from_start.nanosec = divmod(t, NS_PER_S)
         points.append(point)

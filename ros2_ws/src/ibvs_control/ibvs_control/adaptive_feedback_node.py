@@ -33,7 +33,7 @@ from sensor_msgs.msg import JointState
 
 from .frame_lockstep import FrameLockstep
 from .node_params import AdaptiveFeedbackConfig, check_servo_law, target_from
-from .prediction import predicted_features
+from .prediction import Predictor
 from .servo_laws import law_class
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
@@ -65,9 +65,8 @@ class AdaptiveFeedbackNode(Node):
         self.needs_status = self.law.needs_measured(values)
         self.pose = target_from(values)
         self.camera_ns = period_ns(c.camera_rate_hz)
-        self.predict = c.latency_compensation == 'encoders'
         latency_ns, step_ns = seconds_to_ns(c.feedback_latency_s), period_ns(c.physics_rate_hz)
-        self._model = None
+        self._predictor = None
         self.stale_timeout_ns = seconds_to_ns(c.stale_timeout_s)
         self.feedback = None
         self._camera = None
@@ -94,7 +93,8 @@ class AdaptiveFeedbackNode(Node):
                                        status_name=contract.FEATURE_STATUS,
                                        full_note='waiting for the camera model',
                                        action_ns=(lambda t: feedback_action_ns(
-                                           t, latency_ns, step_ns)) if self.predict else None)
+                                           t, latency_ns, step_ns))
+                                       if c.latency_compensation == 'encoders' else None)
         subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
                      contract.RELIABLE)
         if self._taught:
@@ -164,9 +164,10 @@ class AdaptiveFeedbackNode(Node):
             self.diagnostics.update(state=f'waiting for the taught {contract.TARGET_FEATURES}')
             return
         try:
-            self._model = CameraRobotModel(self._camera, IRB4600)
+            model = CameraRobotModel(self._camera, IRB4600)
+            self._predictor = Predictor(self.config.latency_compensation, model, self.pose)
             self.feedback = self.law.create(
-                self._model, self.pose,
+                model, self.pose,
                 ns_to_seconds(self.camera_ns), gain=self.gain, p_target=self._p_target,
                 **self.config.law_settings())
         except ModelError as exc:
@@ -258,13 +259,12 @@ class AdaptiveFeedbackNode(Node):
                                     f'(> {self.stale_timeout_ns * 1e-9:g} s): integrator frozen, '
                                     'q_feedback held')
         else:
-            q, qd = joints
-            if self.predict:
+            try:
                 with self.diagnostics.timing.section('prediction'):
                     q_action, qd_action = self._lockstep.action_joints()[1]
-                    features = predicted_features(self._model, features, q, q_action)
-                    q, qd = q_action, qd_action
-            try:
+                    features, q, qd = self._predictor.inputs(
+                        self.feedback.q_feedback, features, joints[0], joints[1], q_action,
+                        qd_action)
                 with self.diagnostics.timing.section('feedback_update'):
                     update = self.feedback.update(features, q, qd, measured=measured,
                                                   t=ns_to_seconds(t_ns))

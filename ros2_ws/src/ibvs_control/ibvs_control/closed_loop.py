@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import node_params
 from .controllers import Feedforward, JointLoop
 from .feedback_lockstep import FeedbackLockstep
-from .prediction import predicted_features
+from .prediction import Predictor
 from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
 
 if TYPE_CHECKING:
@@ -140,24 +140,22 @@ class LoopResult:
         return float(np.linalg.norm(self.model.features(self.q_true[-1]) - self.p_target))
 
 
-def _answer(fb, frame, q, qd, predict, model, lockstep, counts):
+def _answer(fb, frame, q, qd, predictor, lockstep, counts):
     """
     Answer one pending frame at its action time, with the encoders ``q``, ``qd`` of then.
 
     As the feedback node answers it: a lost frame with the held q_feedback (the joint
     controller holds it on the simulator's notice), a frame F^-1 cannot use likewise
-    (counted as rejected); else the law's update on the frame's features, predicted to the
-    action time (:func:`.prediction.predicted_features`) unless ``predict`` is False, when
-    the frame's own encoder angles are used (the paper's law as published).
+    (counted as rejected); else the law's update on what the ``predictor``
+    (:class:`.prediction.Predictor`) makes of the frame and the encoders of then.
     """
     t_ns, _, p_hat, q_e, qd_e, measured, lost = frame
     if lost:
         q_feedback = fb.q_feedback
         counts['dropped'] += 1
     else:
-        if predict:
-            p_hat, q_e, qd_e = predicted_features(model, p_hat, q_e, q), q, qd
         try:
+            p_hat, q_e, qd_e = predictor.inputs(fb.q_feedback, p_hat, q_e, qd_e, q, qd)
             q_feedback = fb.update(p_hat, q_e, qd_e, measured=measured,
                                    t=t_ns * 1e-9).q_feedback
         except ModelError:
@@ -290,7 +288,7 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
     rng = np.random.default_rng(seed)
     drops = np.random.default_rng([seed, 1]) if frame_drop_probability > 0.0 else None
-    predict = config.latency_compensation == 'encoders'
+    predictor = Predictor(config.latency_compensation, model, pose)
     next_frame = 0
     # Frames taken and not yet answered: (stamp, action time, p_hat, q, qd, measured, lost),
     # answered at their action time (feedback_action_ns), when their q_feedback starts to act.
@@ -319,7 +317,7 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
                 i = min(max(frame[0] // dt_ns + error_steps, 0), k)
                 frame = frame[:3] + ((rec['q'][i], rec['qd'][i]) if i < k else (q, qd)) \
                     + frame[5:]
-            _answer(fb, frame, q, qd, predict, model, lockstep, counts)
+            _answer(fb, frame, q, qd, predictor, lockstep, counts)
         _accepted(lockstep.offer_state(t_ns, None))
         _, _, q_fb = lockstep.pop_ready()  # every frame has its q_feedback: never waits
         q_ff = ff.step()

@@ -363,7 +363,8 @@ class AdaptiveFeedback:
       channel (sigma_5 ~ 2 px/rad, the tool's tilt) throttle all the others, and the
       Figure 13 sweep creeps (table above).
     - conditional integration (anti-windup): while any encoder joint moves faster than
-      ``hold_speed_fraction`` times its speed limit, the arm is still slewing under the
+      ``hold_speed_fraction`` times the speed it is allowed (``speed_limits``: the rated
+      speed, or the position interface's cap), the arm is still slewing under the
       feedforward and the image error says nothing the feedback should integrate; the
       frame is then not integrated and q_feedback is held. With limited actuators the
       slew takes ~1 s; integrating it overshoots by 0.2 m (model-only loop).
@@ -374,12 +375,16 @@ class AdaptiveFeedback:
                  svd_damping: float = SVD_DAMPING, feedback_design: str = FEEDBACK_DESIGNS[0],
                  max_correction_rad: float = MAX_CORRECTION_RAD,
                  hold_speed_fraction: float = HOLD_SPEED_FRACTION,
-                 linearise_at: str = LINEARISE_AT, p_target: ArrayLike | None = None) -> None:
+                 linearise_at: str = LINEARISE_AT, p_target: ArrayLike | None = None,
+                 speed_limits: ArrayLike | None = None) -> None:
         """
         Set p_bar and design k.
 
         p_bar is ``p_target`` (6,) when given (a taught target: features measured with the
         tool at the target pose), else F(q_target), the target markers projected (eq. 30).
+        ``speed_limits`` (6,) rad/s: the speeds the arm is allowed, which the hold rule
+        takes its fraction of (:func:`.node_params.allowed_joint_speeds`); default the
+        model robot's rated qd_max.
         """
         youla.check_bandwidth_rule(tau_in, omega_n)
         if linearise_at not in LINEARISATION_POINTS:
@@ -407,6 +412,10 @@ class AdaptiveFeedback:
         self.svd_damping = svd_damping
         self.max_correction_rad = float(max_correction_rad)
         self.hold_speed_fraction = float(hold_speed_fraction)
+        self.speed_limits = np.asarray(model.params.qd_max if speed_limits is None
+                                       else speed_limits, dtype=float)
+        if self.speed_limits.shape != (6,) or not np.all(self.speed_limits > 0.0):
+            raise ValueError(f'speed_limits must be 6 values > 0, got {speed_limits}')
         self.last = None
 
     @property
@@ -437,8 +446,7 @@ class AdaptiveFeedback:
             channels = np.clip(channels, -self.max_correction_rad, self.max_correction_rad)
         correction = dec.joints(channels)
         held = qdot_encoder is not None and bool(np.any(
-            np.abs(qdot_encoder) > self.hold_speed_fraction
-            * np.asarray(self.model.params.qd_max)))
+            np.abs(qdot_encoder) > self.hold_speed_fraction * self.speed_limits))
         q_fb = self.filter.last_output.copy() if held else self.filter.step(correction)
         self.last = FeedbackUpdate(q_fb.copy(), q_est, dec.s, dec.rank, dec.condition,
                                    float(np.linalg.norm(error)), correction, clipped, held)

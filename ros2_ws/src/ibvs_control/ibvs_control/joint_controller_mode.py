@@ -164,6 +164,10 @@ class JointControllerMode:
         k = (t_ns - start_ns) // self.dt_ns
         return positions[min(max(k, 0), len(positions) - 1)]
 
+    def feedforward_target(self) -> NDArray[np.float64]:
+        """Return where the feedforward goes: its trajectory's last point (IK, eq. 43)."""
+        return self._trajectory[1][-1]
+
     def now_ns(self) -> int:
         """Return the newest time the node knows (its clock and the stamps it accepted)."""
         raise NotImplementedError

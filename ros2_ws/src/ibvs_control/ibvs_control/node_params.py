@@ -122,7 +122,9 @@ LATENCY_COMPENSATION = Param(
     "the frame's own encoder angles)", '-', choices=prediction.LATENCY_COMPENSATIONS)
 HOLD_SPEED_FRACTION = Param('hold_speed_fraction', controllers.HOLD_SPEED_FRACTION,
                             'the feedback holds (does not integrate) while an encoder joint '
-                            'moves faster than this fraction of its speed limit', '-',
+                            'moves faster than this fraction of the speed it is allowed (its '
+                            "rated speed; with command_interface 'position' at most "
+                            'max_joint_speed_deg_s)', '-',
                             low=0.0, high=10.0, low_open=True)
 TORQUE_LIMITS = Param('torque_limits', [0.0] * 6,
                       "'limited' actuators: torque limit per joint; 0 takes the URDF's "
@@ -149,9 +151,30 @@ LAW_PARAMS = (TAU_IN, OMEGA_N, ZETA, FEEDBACK_DESIGN, SVD_RCOND, SVD_DAMPING, MA
               ENVELOPE_SINGULARITY_SCALING)
 
 
+def allowed_joint_speeds(values: Mapping[str, Any], params: 'RobotParams' = IRB4600
+                         ) -> NDArray[np.float64]:
+    """
+    Return the joint speeds (6,) rad/s the arm is allowed with ``values`` (by name).
+
+    The rated qd_max; with ``command_interface`` 'position', at most
+    ``max_joint_speed_deg_s`` as well (the cap the joint controller's shaper and the EGM
+    session share). The feedback's hold rule takes its fraction of these.
+    """
+    rated = np.asarray(params.qd_max, dtype=float)
+    if values.get('command_interface') != 'position':
+        return rated
+    return np.minimum(rated, np.radians(values['max_joint_speed_deg_s']))
+
+
 def law_settings(values: Mapping[str, Any]) -> dict[str, Any]:
-    """Return the values of :data:`LAW_PARAMS` in ``values`` (a mapping by name), by name."""
-    return {spec.name: values[spec.name] for spec in LAW_PARAMS}
+    """
+    Return the values of :data:`LAW_PARAMS` in ``values`` (a mapping by name), by name.
+
+    With ``speed_limits``, the speeds the arm is allowed (:func:`allowed_joint_speeds`).
+    """
+    settings = {spec.name: values[spec.name] for spec in LAW_PARAMS}
+    settings['speed_limits'] = allowed_joint_speeds(values)
+    return settings
 
 
 def check_gains(values: Mapping[str, Any]) -> None:
@@ -220,6 +243,7 @@ class FeedforwardConfig(ParamConfig):
     feedforward_method: str = param_field(FEEDFORWARD_METHOD)
     feedforward_ratio: float = param_field(FEEDFORWARD_RATIO)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
+    command_interface: str = param_field(shared.COMMAND_INTERFACE)
 
 
 @dataclass(frozen=True)
@@ -248,6 +272,8 @@ class AdaptiveFeedbackConfig(ParamConfig):
     lambda_inf: float = param_field(LAMBDA_INF)
     lambda_slope: float = param_field(LAMBDA_SLOPE)
     camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
+    command_interface: str = param_field(shared.COMMAND_INTERFACE)
+    max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
     tau_in: float = param_field(TAU_IN)
     omega_n: float = param_field(OMEGA_N)
     zeta: float = param_field(ZETA)

@@ -1,9 +1,10 @@
 """
 The position joint controller: joint references for the arm's own drive, free-running.
 
-Every 1 / ``command_rate_hz`` of the node's clock it sends q_ref = q_feedforward(t) +
-q_feedback (the newest: :class:`.position_interface.FeedbackHold`), shaped to the arm's
-limits (:class:`.position_interface.PositionShaper`), on
+Every 1 / ``command_rate_hz`` of the node's clock it sends the reference of the
+time-optimal, jerk-limited move toward the feedforward's target plus q_feedback (the
+newest: :class:`.position_interface.FeedbackHold`), re-planned from its own last state
+within the arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), on
 /forward_position_controller/commands or as a JointTrajectory window on
 /joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
 command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input, a clock
@@ -71,27 +72,30 @@ class TrajectoryWindow:
     ros2_controllers' joint_trajectory_controller: a window of the course ahead.
 
     On /joint_trajectory_controller/joint_trajectory: now (``q_command``) and
-    ``trajectory_window_points`` - 1 points one command period apart, the references the
-    shaper would send toward q_feedforward(t) + q_feedback (or the held target while
-    holding), in the controller's joint order.
+    ``trajectory_window_points`` - 1 points one command period apart along the shaper's
+    current plan, each with its velocity and acceleration (joint_trajectory_controller sends
+    a point's velocity to the hardware: EGM gets its speed reference), in the controller's
+    joint order.
     """
 
     def __init__(self, node: 'Node', ctrl: 'PositionController') -> None:
-        """Open the command topic; the window's times ahead are fixed at start."""
+        """Open the command topic."""
         self._ctrl = ctrl
-        self._ahead = (np.arange(1, ctrl.config.trajectory_window_points)
-                       * ctrl.command_period_ns)
+        self._ahead = ctrl.config.trajectory_window_points - 1
         self.pub = publisher(node, JointTrajectory, contract.TRAJECTORY_COMMANDS,
                              contract.RELIABLE)
 
     def send(self, now_ns, q_command, target, q_feedback):
         """Publish the window from ``q_command`` (module docstring)."""
         ctrl = self._ctrl
-        targets = (np.tile(target, (len(self._ahead), 1)) if q_feedback is None
-                   else [ctrl.q_feedforward(now_ns + t) + q_feedback for t in self._ahead])
-        window = np.vstack([q_command, ctrl.shaper.preview(targets)])
+        _, velocity, acceleration = ctrl.shaper.state
+        ahead = ctrl.shaper.preview(self._ahead)
+        window = [np.vstack([now, later]) for now, later
+                  in zip((q_command, velocity, acceleration), ahead)]
         self.pub.publish(joint_trajectory(now_ns, ctrl.command_period_ns,
-                                          window[:, ctrl.order], ctrl.joints))
+                                          window[0][:, ctrl.order], ctrl.joints,
+                                          velocities=window[1][:, ctrl.order],
+                                          accelerations=window[2][:, ctrl.order]))
 
 
 #: One sender a ``position_command_type``, as ros2_control has a controller a interface.
@@ -243,7 +247,7 @@ class PositionController(JointControllerMode):
         else:
             self._hold_target = None
             q_feedback, first_frame_ns = self._hold.use()
-            target = self.q_feedforward(now_ns) + q_feedback
+            target = self.feedforward_target() + q_feedback
         q_command = self.shaper.step(target, ns_to_seconds(now_ns - self.last_command_ns))
         self.last_command_ns = now_ns
         self._sender.send(now_ns, q_command, target, q_feedback)

@@ -3,10 +3,10 @@ The joint controller's position interface, without ROS (docs/design.md §4, free
 
 With ``command_interface: position`` the arm's own drive closes the joint loop (a real
 IRB 4600 through ros2_control and ABB's EGM), and the joint controller sends joint position
-references at its ``command_rate_hz``: q_ref = q_feedforward(t) + q_feedback, shaped so that
-the arm can follow it (:class:`PositionShaper`), in the joint order of the ros2_control
-controller (:func:`joint_permutation`). Which frame's q_feedback each command uses, and
-which command is the first to use a frame (the latency measurement), is
+references at its ``command_rate_hz``: the time-optimal, jerk-limited move toward the
+feedforward's target plus the q_feedback (:class:`PositionShaper`), in the joint order of
+the ros2_control controller (:func:`joint_permutation`). Which frame's q_feedback each
+command uses, and which command is the first to use a frame (the latency measurement), is
 :class:`FeedbackHold`.
 """
 
@@ -14,26 +14,26 @@ import math
 
 from ibvs_common.shared_params import joint_permutation  # noqa: F401 (this module's too)
 from ibvs_model import IRB4600
-from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, SPEED_LIMITS
+from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, JERK_LIMITS, SPEED_LIMITS
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-from .governor import ReferenceGovernor
+import ruckig
 
 
 class PositionShaper:
     """
-    Turn q_ref into a position reference within the arm's speed and acceleration limits.
+    Turn a joint target into a time-optimal, jerk-limited position reference (Ruckig).
 
-    The 'limited' actuators' reference governor (:class:`.governor.ReferenceGovernor`, a
-    bang-bang law on the braking curve) at the command period, with the IRB 4600's speed
-    limits times ``speed_margin``, each at most ``max_speed`` (rad/s: a first run's cap,
-    e.g. the EGM session's MaxSpeedDeviation), and the acceleration limits of
-    :mod:`ibvs_model.drive`:
-    a reference the drive can follow without saturating, so that its own loop stays
-    linear. A small correction (the feedback's) passes almost unchanged. The target is
-    first clipped to the joint ranges less ``range_margin`` (the drive refuses a reference
-    beyond a joint's range; the margin covers the encoders' offset d_q).
+    Every command period the reference is re-planned from its own last state (position,
+    velocity, acceleration: no jump at a hand-over, whatever the target did) toward the
+    target at rest, with Ruckig (PyPI ``ruckig``: time-optimal, jerk-limited, synchronised
+    so that every joint arrives at once on a straight joint-space line when it starts at
+    rest), under the IRB 4600's speed limits times ``speed_margin``, each at most
+    ``max_speed`` (rad/s: the EGM session's MaxSpeedDeviation), and the acceleration and
+    jerk limits of :mod:`ibvs_model.drive`: a reference the drive can follow without
+    saturating, its own loop linear. The target is first clipped to the joint ranges less
+    ``range_margin`` (the drive refuses a reference beyond a joint's range; the margin
+    covers the encoders' offset d_q). Every reference obeys the limits by construction.
 
     Each :meth:`step` advances by the time since the last one (``dt``), not by a nominal
     period: free-running, a command timer on sim time can skip a tick when /clock jumps,
@@ -44,8 +44,9 @@ class PositionShaper:
                  acceleration_limits: ArrayLike = ACCELERATION_LIMITS,
                  speed_margin: float = 1.0,
                  position_limits: tuple[ArrayLike, ArrayLike] = (IRB4600.q_min, IRB4600.q_max),
-                 range_margin: float = 0.02, max_speed: float = math.inf) -> None:
-        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2 and rad; cap rad/s."""
+                 range_margin: float = 0.02, max_speed: float = math.inf,
+                 jerk_limits: ArrayLike = JERK_LIMITS) -> None:
+        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2, rad/s^3 and rad."""
         if not (np.isfinite(command_rate_hz) and command_rate_hz > 0.0):
             raise ValueError(f'command_rate_hz must be > 0, got {command_rate_hz}')
         if not (0.0 < speed_margin <= 1.0):
@@ -53,72 +54,140 @@ class PositionShaper:
         if not max_speed > 0.0:
             raise ValueError(f'max_speed must be > 0, got {max_speed}')
         v_max, a_max = check_limits(speed_limits, acceleration_limits)
+        j_max = np.asarray(jerk_limits, dtype=float)
+        if j_max.shape != (6,) or not np.all(np.isfinite(j_max)) or np.any(j_max <= 0.0):
+            raise ValueError(f'jerk limits must be 6 finite values > 0, got {jerk_limits}')
         self.period = 1.0 / command_rate_hz
         #: The speed limit of each joint's reference (rad/s): per joint the smaller of the
         #: arm's (times ``speed_margin``) and the cap ``max_speed``.
         self.speed_limits = np.minimum(speed_margin * v_max, float(max_speed))
-        self.governor = ReferenceGovernor(self.period, self.speed_limits, a_max)
+        self.acceleration_limits = a_max
+        self.jerk_limits = j_max
         self.low = np.asarray(position_limits[0], dtype=float) + range_margin
         self.high = np.asarray(position_limits[1], dtype=float) - range_margin
+        self._otg = ruckig.Ruckig(6)
+        self._input = ruckig.InputParameter(6)
+        self._input.max_velocity = self.speed_limits.tolist()
+        self._input.max_acceleration = a_max.tolist()
+        self._input.max_jerk = j_max.tolist()
+        self._trajectory = ruckig.Trajectory(6)
+        #: The reference's state: position, velocity, acceleration (6,) each; None before
+        #: :meth:`start`.
+        self.state = None
+        self._target = None
+        self._planned = None
+        self._elapsed = 0.0
 
     @property
     def started(self) -> bool:
         """Return whether :meth:`start` was called."""
-        return self.governor.r is not None
+        return self.state is not None
 
     def start(self, q: ArrayLike) -> None:
         """Start from the measured joints ``q`` (6,), at rest."""
-        self.governor.reset(q)
+        q = np.asarray(q, dtype=float).copy()
+        self.state = (q, np.zeros(6), np.zeros(6))
+        self._target, self._planned, self._elapsed = None, None, 0.0
+
+    def _plan(self, target: NDArray[np.float64] | None) -> ruckig.Trajectory:
+        """Plan from the reference's state to ``target`` at rest (None: brake to rest)."""
+        position, velocity, acceleration = self.state
+        inp = self._input
+        inp.current_position = position.tolist()
+        inp.current_velocity = velocity.tolist()
+        inp.current_acceleration = acceleration.tolist()
+        if target is None:
+            inp.control_interface = ruckig.ControlInterface.Velocity
+            inp.target_velocity = [0.0] * 6
+        else:
+            inp.control_interface = ruckig.ControlInterface.Position
+            inp.target_position = target.tolist()
+            inp.target_velocity = [0.0] * 6
+        inp.target_acceleration = [0.0] * 6
+        # Time-synchronised (every joint arrives at once, none faster than the slowest
+        # needs); in the rare states where Ruckig's synchronisation finds no profile, each
+        # joint on its own time-optimal profile (still within every limit).
+        for sync in (ruckig.Synchronization.Time, ruckig.Synchronization.No):
+            inp.synchronization = sync
+            try:
+                result = self._otg.calculate(inp, self._trajectory)
+            except ruckig.RuckigError as exc:
+                result = exc
+            if result in (ruckig.Result.Working, ruckig.Result.Finished):
+                return self._trajectory
+        raise ArithmeticError(f'Ruckig could not plan the reference: {result}')
+
+    def _sample(self, trajectory: ruckig.Trajectory, t: float):
+        """Return (position, velocity, acceleration) of ``trajectory`` at ``t`` (s)."""
+        position, velocity, acceleration = trajectory.at_time(min(t, trajectory.duration))
+        return np.array(position), np.array(velocity), np.array(acceleration)
+
+    def target(self, q_ref: ArrayLike) -> NDArray[np.float64]:
+        """Return ``q_ref`` (6,) clipped to the joint ranges less ``range_margin``."""
+        return np.clip(np.asarray(q_ref, dtype=float), self.low, self.high)
 
     def step(self, q_ref: ArrayLike, dt: float | None = None) -> NDArray[np.float64]:
         """
-        Advance ``dt`` seconds (default one nominal period) toward ``q_ref`` (6,).
+        Advance ``dt`` seconds (default one nominal period) toward ``q_ref`` (6,) at rest.
 
-        Returns the reference to send. ``dt`` is clipped to [0, 25 periods]: a long pause
-        (the command timer starved) does not turn into one jump.
+        Returns the reference to send (its velocity and acceleration: :attr:`state`).
+        ``dt`` is clipped to [0, 25 periods]: a long pause (the command timer starved) does
+        not turn into one jump.
         """
         if not self.started:
             raise RuntimeError('start() the shaper from the measured joints first')
         dt = self.period if dt is None else min(max(float(dt), 0.0), 25.0 * self.period)
-        if dt == 0.0:
-            return self.governor.r.copy()
-        self.governor.dt = dt
-        return self.governor.step(np.clip(q_ref, self.low, self.high))
+        target = self.target(q_ref)
+        if self._target is None or not np.array_equal(target, self._target):
+            # a new target: re-planned from where the reference is, as it is moving
+            self._target, self._planned, self._elapsed = target, self._plan(target), 0.0
+            self._trajectory = ruckig.Trajectory(6)
+        # the same target: on along the plan made for it (replanning from a sampled state
+        # would give the same course but for rounding)
+        self._elapsed += dt
+        self.state = self._sample(self._planned, self._elapsed)
+        return self.state[0].copy()
 
-    def preview(self, targets: ArrayLike) -> NDArray[np.float64]:
+    def preview(self, points: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                            NDArray[np.float64]]:
         """
-        Return the references of the next len(``targets``) nominal periods, state untouched.
+        Return the next ``points`` nominal periods of the current plan, state untouched.
 
-        Row k is where the reference will be k + 1 periods after the last :meth:`step`,
-        heading for ``targets[k]`` (the target of that time: the feedforward moves on): the
-        future points of a trajectory window (``trajectory_window_points``,
-        :mod:`ibvs_control.joint_controller_node`). The shaper itself does not advance.
+        Positions, velocities and accelerations (``points``, 6) each: row k is the plan k +
+        1 periods after the last :meth:`step`, heading for that step's target at rest (the
+        future points of a trajectory window, ``trajectory_window_points``, whose velocities
+        give the arm's drive its speed reference).
         """
         if not self.started:
             raise RuntimeError('start() the shaper from the measured joints first')
-        governor = self.governor
-        saved = governor.r, governor.rd, governor.dt
-        governor.dt = self.period
-        try:
-            return np.array([governor.step(np.clip(t, self.low, self.high))
-                             for t in np.asarray(targets, dtype=float).reshape(-1, 6)]
-                            ).reshape(-1, 6)
-        finally:
-            governor.r, governor.rd, governor.dt = saved
+        rows = np.zeros((3, int(points), 6))
+        for k in range(int(points)):
+            if self._planned is None:  # not moved yet: at rest where it started
+                rows[0, k] = self.state[0]
+                continue
+            for i, value in enumerate(self._sample(self._planned,
+                                                   self._elapsed + (k + 1) * self.period)):
+                rows[i, k] = value
+        return rows[0], rows[1], rows[2]
+
+    def duration(self, q_ref: ArrayLike) -> float:
+        """Return the time (s) the reference takes from its state to ``q_ref`` at rest."""
+        if not self.started:
+            raise RuntimeError('start() the shaper from the measured joints first')
+        return float(self._plan(self.target(q_ref)).duration)
 
     def stopping_point(self) -> NDArray[np.float64]:
         """
-        Return where the reference comes to rest if braked now at the acceleration limits.
+        Return where the reference comes to rest if braked now at the limits.
 
-        r + rd |rd| / (2 a_max) per joint, within the joint ranges: the target of a
-        controlled stop (the reference decelerates to it on its braking curve and stays, it
-        does not turn back to where the stop was asked).
+        The end of Ruckig's jerk-limited stop from the reference's state, within the joint
+        ranges: the target of a controlled stop (the reference decelerates to it and stays;
+        it does not turn back to where the stop was asked).
         """
-        governor = self.governor
-        if governor.a_max is None:
-            return governor.r.copy()
-        stop = governor.r + governor.rd * np.abs(governor.rd) / (2.0 * governor.a_max)
-        return np.clip(stop, self.low, self.high)
+        if not self.started:
+            raise RuntimeError('start() the shaper from the measured joints first')
+        trajectory = self._plan(None)
+        return self.target(self._sample(trajectory, trajectory.duration)[0])
 
 
 class FeedbackHold:

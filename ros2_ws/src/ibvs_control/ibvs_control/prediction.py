@@ -34,20 +34,33 @@ no delay left, and the model-mismatch term [s - F(q)] changes only as fast as th
 changes with the pose (slowly near the target), so an error of the assumed delay of
 delta seconds leaves a perturbation of about J_err qdot delta, with J_err the
 Jacobian's error, not J qdot d as without the predictor (docs/design.md §5).
+
+The internal-model form predicts to the end of the move instead of its present: to the rest
+pose q_rest = q_target + q_feedback the joint references are heading for (the feedforward's
+target, IK eq. 43, plus the correction held), s_hat = s(t_e) + F(q_rest) - F(q(t_e)). The
+feedback then integrates only what the feedforward does not explain (the image's
+disagreement with the model, whatever the arm is doing), and its loop runs through the
+model's static map at q_rest alone: no delay and no arm dynamics in it at all, so it can
+integrate through the slew (no hold rule) and converges while the arm still moves. Its cost:
+the mismatch it integrates on the way is that of poses other than the target's, which the
+later frames correct. It is not the identity without latency.
 """
 
-from typing import TYPE_CHECKING
+from typing import Optional, TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from .controllers import target_branch
 
 if TYPE_CHECKING:
     from ibvs_model.combined import CameraRobotModel
 
 #: ``latency_compensation``'s choices, the first the default: 'encoders', the prediction
-#: (P) fed by the encoders at the action time; 'none', the paper's law exactly as published
-#: (the frame's own encoder angles, the delay unknown to the design).
-LATENCY_COMPENSATIONS = ('encoders', 'none')
+#: (P) fed by the encoders at the action time; 'internal_model', (P) to the rest pose the
+#: joint references are heading for (:class:`Predictor`); 'none', the paper's law exactly as
+#: published (the frame's own encoder angles, the delay unknown to the design).
+LATENCY_COMPENSATIONS = ('encoders', 'internal_model', 'none')
 
 
 def predicted_features(model: 'CameraRobotModel', p_hat: ArrayLike, q_exposure: ArrayLike,
@@ -79,3 +92,56 @@ def predicted_features(model: 'CameraRobotModel', p_hat: ArrayLike, q_exposure: 
     if np.array_equal(q_exposure, q_action):
         return p_hat
     return p_hat + (model.features(q_action) - model.features(q_exposure))
+
+
+class Predictor:
+    """
+    What a servo law is given for one frame under ``latency_compensation`` (module docstring).
+
+    Parameters
+    ----------
+    mode : str
+        One of :data:`LATENCY_COMPENSATIONS`.
+    model : CameraRobotModel
+        The controllers' F.
+    pose : array_like, shape (4, 4)
+        The target flange pose (for the internal model's q_target, the feedforward's IK
+        branch from the first frame's encoders, :func:`.controllers.target_branch`).
+
+    """
+
+    def __init__(self, mode: str, model: 'CameraRobotModel', pose: ArrayLike) -> None:
+        """Check ``mode``; nothing is known of the move yet."""
+        if mode not in LATENCY_COMPENSATIONS:
+            raise ValueError(f'latency_compensation must be one of {LATENCY_COMPENSATIONS}, '
+                             f'got {mode!r}')
+        self.mode = mode
+        self.model = model
+        self.pose = np.asarray(pose, dtype=float)
+        self.q_target: Optional[NDArray[np.float64]] = None
+
+    @property
+    def needs_action_state(self) -> bool:
+        """Return whether a frame needs the encoders of its action time ('encoders')."""
+        return self.mode == 'encoders'
+
+    def inputs(self, q_feedback: ArrayLike, p_hat: ArrayLike, q_exposure: ArrayLike,
+               qd_exposure: ArrayLike | None, q_action: ArrayLike | None = None,
+               qd_action: ArrayLike | None = None) -> tuple:
+        """
+        Return (features, joints, joint speeds) for the law's update of one frame.
+
+        ``q_feedback``: the law's output before this frame; the exposure's encoders and, for
+        'encoders', those of the action time. 'none': the frame as it is; 'encoders': (P)
+        to the action time, its encoders and speeds; 'internal_model': (P) to q_rest, q_rest
+        and no speeds (nothing to hold for).
+        """
+        if self.mode == 'none':
+            return p_hat, q_exposure, qd_exposure
+        if self.mode == 'encoders':
+            return (predicted_features(self.model, p_hat, q_exposure, q_action), q_action,
+                    qd_action)
+        if self.q_target is None:
+            self.q_target = target_branch(self.pose, q_exposure, self.model.params)
+        q_rest = self.q_target + np.asarray(q_feedback, dtype=float)
+        return predicted_features(self.model, p_hat, q_exposure, q_rest), q_rest, None

@@ -3,6 +3,8 @@
 from ibvs_common.params import ParameterError
 from ibvs_control import node_params
 from ibvs_control.node_params import AdaptiveFeedbackConfig, FeedforwardConfig, LAW_PARAMS
+from ibvs_model import IRB4600
+import numpy as np
 import pytest
 
 
@@ -11,7 +13,13 @@ def test_the_feedback_config_holds_every_setting_of_the_servo_law():
     assert all(any(spec is p for p in params) for spec in LAW_PARAMS)
     c = AdaptiveFeedbackConfig(omega_n=2, svd_damping=0.5)
     settings = c.law_settings()
-    assert list(settings) == [spec.name for spec in LAW_PARAMS]
+    assert list(settings) == [spec.name for spec in LAW_PARAMS] + ['speed_limits']
+    # the speeds the arm is allowed: rated with the effort interface, capped with position
+    np.testing.assert_allclose(settings['speed_limits'], IRB4600.qd_max)
+    capped = AdaptiveFeedbackConfig(command_interface='position',
+                                    max_joint_speed_deg_s=20.0).law_settings()
+    np.testing.assert_allclose(capped['speed_limits'],
+                               np.minimum(IRB4600.qd_max, np.radians(20.0)))
     assert settings['omega_n'] == 2.0 and isinstance(settings['omega_n'], float)
     assert settings['svd_damping'] == 0.5
 

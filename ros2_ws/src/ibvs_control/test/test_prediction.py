@@ -141,3 +141,36 @@ def test_without_latency_the_compensation_changes_nothing_to_the_bit():
                               latency_compensation='none'), 1.0)
     assert on.q.tobytes() == off.q.tobytes()
     assert on.q_feedback.tobytes() == off.q_feedback.tobytes()
+
+
+def test_the_internal_model_integrates_through_the_slew_at_any_latency():
+    # predicted to the rest pose, the feedback never holds (nothing of the planned motion is
+    # in its error) and its response does not depend on the latency
+    base = {'actuators': 'limited', 'torque_limits': ACCELERATIONS,
+            'latency_compensation': 'internal_model'}
+    times = []
+    for latency in (0.0, 0.2):
+        law = LoopConfig.for_law('paper', feedback_latency_s=latency, **base)
+        r = simulate(law, 4.0)
+        times.append(_time_to_1mm(r))
+        assert _ripple_last_half_second(r) < 1e-5
+        # integrating from the first frame on: q_feedback moves while the arm slews
+        slewing = r.t < 0.5
+        assert np.abs(r.q_feedback[slewing]).max() > 1e-4
+    assert times[1] <= times[0] + 0.25
+
+
+def test_the_internal_model_predicts_to_the_rest_pose_the_references_head_for():
+    from ibvs_control.controllers import target_branch
+    from ibvs_control.prediction import Predictor
+    model = default_model()
+    pose = paper.target_pose()
+    q_e = _q_start()
+    predictor = Predictor('internal_model', model, pose)
+    q_fb = np.radians([0.1, -0.2, 0.05, 0.0, 0.1, 0.0])
+    p_hat = model.features(q_e) + 0.5  # a mismatch the model does not explain
+    features, q, qd = predictor.inputs(q_fb, p_hat, q_e, np.ones(6))
+    q_rest = target_branch(pose, q_e) + q_fb
+    np.testing.assert_allclose(q, q_rest)
+    np.testing.assert_allclose(features, model.features(q_rest) + 0.5, atol=1e-9)
+    assert qd is None  # nothing to hold for

@@ -24,6 +24,12 @@ PositionShaper`) and the simulator's drive model tracks the reference with them
   123 rad/s^2 for joint 1, 2, 3; the wrists' inertia is small), rounded down and made
   uniform: 10 rad/s^2 for joints 1-3, 20 rad/s^2 for the wrist. Half, as the effort mode's
   ``acceleration_margin``: what the drive can do at any pose, not at the best one.
+- ``JERK_LIMITS`` (rad/s^3): nor its jerk. Each is its joint's acceleration limit over
+  ``JERK_RISE_S`` = 0.1 s, the time the reference takes to reach full acceleration: five
+  time constants of the 20 Hz position loop (8 ms each) and five times EGM's 20 ms dead
+  time, so the drive follows a reference whose acceleration ramps that slowly without
+  lagging into saturation; MoveIt Servo's Ruckig smoother (``ruckig_filter.cpp``) needs
+  the same three limits per joint. Assumptions to measure on the cell, as the others.
 """
 
 import numpy as np
@@ -35,6 +41,8 @@ EGM_RATE_HZ = 250.0
 EGM_DELAY_S = 0.02
 EGM_BANDWIDTH_HZ = 20.0
 ACCELERATION_LIMITS = (10.0, 10.0, 10.0, 20.0, 20.0, 20.0)
+JERK_RISE_S = 0.1
+JERK_LIMITS = tuple(a / JERK_RISE_S for a in ACCELERATION_LIMITS)
 SPEED_LIMITS = tuple(float(v) for v in IRB4600.qd_max)
 
 

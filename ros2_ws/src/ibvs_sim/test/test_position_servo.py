@@ -112,7 +112,7 @@ def run_cell(update_rate_hz, window_points, old_single_point=False, duration_ns=
             if old_single_point:
                 message = (0, [COMMAND_NS], q[None])
             else:
-                ahead = shaper.preview(np.tile(target, (window_points - 1, 1)))
+                ahead = shaper.preview(window_points - 1)[0]
                 message = (t, np.arange(window_points) * COMMAND_NS, np.vstack([q, ahead]))
             late = 1_300_000 + (700_000 if (t // COMMAND_NS) % 2 else 0)
             inbox.append((t + late, message))

@@ -92,7 +92,7 @@ class Switching(ServoLaw):
         """Return True when the frame at ``t`` (s) may switch the feedback on."""
         if not measured or t - self.t0 < self.switch_settle_s:
             return False
-        limit = self.feedback.hold_speed_fraction * np.asarray(self.feedback.model.params.qd_max)
+        limit = self.feedback.hold_speed_fraction * self.feedback.speed_limits
         return qdot_encoder is None or bool(np.all(np.abs(qdot_encoder) <= limit))
 
     def update(self, p_hat: ArrayLike, q_encoder: ArrayLike,
