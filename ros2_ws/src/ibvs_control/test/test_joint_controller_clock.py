@@ -198,6 +198,49 @@ def test_a_stopped_clock_holds_after_its_wall_bound_and_resumes_when_it_moves(
         cell.close()
 
 
+def test_the_effort_interface_answers_a_restarted_simulators_steps_from_the_start(context):
+    """Lockstep: /clock back to 0 with the simulator's restart; its steps are answered."""
+    node = JointControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    test = Node('simulator', context=context)
+    efforts = []
+    test.create_subscription(JointState, contract.EFFORT_COMMANDS, efforts.append,
+                             contract.RELIABLE)
+    pubs = {topic: test.create_publisher(kind, topic, qos) for topic, kind, qos in (
+        (contract.CLOCK, Clock, contract.RELIABLE),
+        (contract.JOINT_STATES, JointState, contract.RELIABLE),
+        (contract.Q_FEEDBACK, JointState, contract.RELIABLE),
+        (contract.FEEDFORWARD_TRAJECTORY, JointTrajectory, contract.LATCHED))}
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(test)
+    try:
+        spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()),
+                   what='discovery')
+        pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, [Q0] * 10))
+
+        def run_from_zero(count):
+            pubs[contract.Q_FEEDBACK].publish(joint_state(0, np.zeros(6)))
+            for k in range(3):
+                pubs[contract.JOINT_STATES].publish(joint_state(k * MS, Q0, np.zeros(6)))
+                spin_until(executor, lambda k=k: len(efforts) == count + k + 1,
+                           what=f'the answer to step {k}')
+
+        for t in (0, MS, 2 * MS):
+            pubs[contract.CLOCK].publish(Clock(clock=ns_stamp(t)))
+        run_from_zero(0)
+        pubs[contract.CLOCK].publish(Clock(clock=ns_stamp(0)))  # the simulator restarts
+        spin_until(executor, lambda: sim_time.clock_watch(node).jumps_back == 1,
+                   what='the jump back')
+        run_from_zero(3)
+        assert [e.header.stamp.nanosec for e in efforts] == [0, MS, 2 * MS] * 2
+        assert not node.diagnostics.rejections
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        test.destroy_node()
+
+
 def test_the_lockstep_effort_interface_never_looks_at_a_stopped_clock(context):
     """The lockstep's simulator waits for the controllers: its /clock may stand still."""
     node = JointControllerNode(context=context, parameter_overrides=[
