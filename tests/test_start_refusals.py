@@ -9,15 +9,16 @@ domains, a broken ``IBVS_ROS_DOMAINS``, an output directory it cannot write and 
 cross-parameter rule of the nodes, before any node starts.
 """
 
+import importlib
 import os
 from pathlib import Path
 import subprocess
 import sys
 
-from ibvs_bringup import domains
+from ibvs_bringup import domains, scenario
 from ibvs_common import dds
 from ibvs_common.node_main import file_parameter_names, ros_parameter_args
-from ibvs_common.params import ParameterError
+from ibvs_common.params import Param, ParameterError
 from ibvs_experiments import cli
 import pytest
 
@@ -91,6 +92,38 @@ def test_an_executable_refuses_an_undeclared_parameter_at_start(installed_worksp
     assert "'stale_timeout_ss'" in out and 'declares it' in out
     if name != 'sim_node':  # the simulator does not declare it: its nearest differs
         assert "'stale_timeout_s'" in out
+    assert 'Traceback' not in out, out
+
+
+#: How the wrong-typed value of a double the scenario file sets comes, per executable: a
+#: ``-p`` after the file (a string, an array, a boolean), or a file after it.
+WRONG_TYPES = ('abc', '[1.0]', 'true', 'file', 'abc', '[1.0]', 'file')
+
+
+@pytest.mark.parametrize('index', range(len(EXECUTABLES)))
+def test_an_executable_refuses_a_wrong_type_over_its_parameter_file(installed_workspace,
+                                                                    tmp_path, index):
+    # rcl's merge keeps the file's double and drops a later value of another type: the
+    # executable reads the arguments itself and refuses before rclpy does so.
+    package, name = EXECUTABLES[index]
+    node = executable(installed_workspace, package, name)
+    scenario1 = scenario.scenario_path('scenario1')
+    given = scenario.load_parameters(scenario1)
+    declared = {p.name: p for p in importlib.import_module(f'{package}.{name}').PARAMS}
+    param = next(n for n, v in given.items()
+                 if isinstance(v, float) and isinstance(declared.get(n, Param(n, '', '')
+                                                                     ).default, float))
+    how = WRONG_TYPES[index]
+    if how == 'file':
+        mine = tmp_path / 'mine.yaml'
+        mine.write_text(f'{name}:\n  ros__parameters: {{{param}: fast}}\n')
+        extra, value = ['--params-file', str(mine)], 'fast'
+    else:
+        extra, value = ['-p', f'{param}:={how}'], how
+    code, out = start([node, '--ros-args', '--params-file', str(scenario1), *extra])
+    assert code == 2, out
+    assert f"parameter '{param}' = " in out and 'it must be a double' in out, out
+    assert (str(mine) if how == 'file' else f'-p {param}:={value}') in out, out
     assert 'Traceback' not in out, out
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
-from ibvs_common import contract
+from ibvs_common import contract, ros_args
 import yaml
 
 SCENARIOS = ('scenario1', 'scenario2', 'scenario3')
@@ -50,18 +50,54 @@ def scenario_path(name_or_path: str | Path) -> Path:
     return candidate
 
 
-def load_parameters(name_or_path: str | Path) -> dict[str, Any]:
-    """Return the ``/**`` parameters of a scenario file as a dict."""
+def load_parameters(name_or_path: str | Path, what: str = 'scenario file') -> dict[str, Any]:
+    """
+    Return the ``/**`` parameters of a scenario file as a dict, each value as rcl reads it.
+
+    The values are typed as a node's rcl types them (:func:`ibvs_common.ros_args.scalar`:
+    ``1e-300`` a double, ``1:2`` a string), not as PyYAML would. ``what`` names the file in
+    a refusal (``parameter file`` for ``ibvs cell --params-file``).
+    """
+    path = Path(name_or_path)
+    if what != 'scenario file' and not path.is_file():
+        raise ScenarioError(f'{what} {path} does not exist')
     path = scenario_path(name_or_path)
     try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f'{path}: not valid YAML: {exc}') from None
-    try:
-        params = dict(data['/**']['ros__parameters'])
-    except (KeyError, TypeError):
-        raise ScenarioError(f"{path}: expected '/**: ros__parameters: {{...}}'") from None
+        sections = dict(ros_args.file_sections(path))
+    except ros_args.ArgumentsError as exc:
+        text = str(exc).replace('parameter file', what, 1)
+        raise ScenarioError(text if 'expected' not in text else
+                            f"{path}: expected '/**: ros__parameters: {{...}}'") from None
+    if '/**' not in sections:
+        raise ScenarioError(f"{path}: expected '/**: ros__parameters: {{...}}'")
+    params = {}
+    for name, value in sections['/**']:
+        if value is ros_args.UNTYPED:
+            raise ScenarioError(f"{path}: parameter '{name}': rcl takes a scalar or an array "
+                                'of scalars of one type')
+        params[name] = value
     return params
+
+
+def check_clock(params: Mapping[str, Any], simulated: bool) -> None:
+    """
+    Refuse a ``use_sim_time`` that contradicts where time comes from.
+
+    ``simulated``: a graph with the simulator (``ibvs run``), which owns time and publishes
+    /clock: every node must run on it (``use_sim_time: true``), or the lockstep's stamps and
+    the nodes' clocks disagree from the first step. Without it (``ibvs cell``) nothing
+    publishes /clock, and a node on sim time would wait for it forever.
+    """
+    if 'use_sim_time' not in params:
+        return
+    value = params['use_sim_time']
+    if value is not simulated:
+        why = ('the simulator owns time and publishes /clock: every node runs on it'
+               if simulated else
+               'a real cell has no simulator and no /clock: a node on sim time would wait '
+               'for it forever')
+        raise ScenarioError(f"parameter 'use_sim_time' = {value!r} is invalid: it must be "
+                            f'{str(simulated).lower()} here ({why})')
 
 
 def check_progress(params: Mapping[str, Any]) -> None:
@@ -83,14 +119,27 @@ def check_progress(params: Mapping[str, Any]) -> None:
 
 
 def parse_override(text: str) -> tuple[str, Any]:
-    """Parse 'name:=value' (value in YAML syntax, as ``ros2 run ... -p`` takes it)."""
+    """
+    Parse 'name:=value', the value typed as rcl types a ``ros2 run ... -p`` value.
+
+    :func:`ibvs_common.ros_args.parse_rule`: ``1e-300`` is a double, ``1:2`` and ``~``
+    strings, ``0x10`` 16, as a node started with that ``-p`` would read them; an array
+    may mix integers and doubles (all doubles then, as the run's parameter file needs).
+    """
     if ':=' not in text:
         raise ScenarioError(f'override {text!r} is not of the form name:=value')
-    name, value = text.split(':=', 1)
-    try:
-        return name.strip(), yaml.safe_load(value)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f'override {text!r}: the value is not valid YAML: {exc}') from None
+    rule = ros_args.parse_rule(text, mixed=True)
+    if rule is None or rule[0] != '/**':
+        raise ScenarioError(f'override {text!r}: rcl would refuse it (no value, a value '
+                            'that is not YAML, or a node name before the parameter)')
+    name, value = rule[1].strip(), rule[2]
+    if isinstance(value, list) and any(isinstance(v, float) for v in value) and \
+            all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        value = [float(v) for v in value]  # [0.1, 0]: doubles, as rcl needs them in a file
+    if value is ros_args.UNTYPED:
+        raise ScenarioError(f'override {text!r}: rcl takes a scalar or an array of scalars '
+                            'of one type')
+    return name, value
 
 
 def write_parameters(params: Mapping[str, Any], path: str | Path) -> Path:

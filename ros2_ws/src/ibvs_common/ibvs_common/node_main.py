@@ -10,7 +10,6 @@ with it every heartbeat of the process, waits for that callback.
 from collections.abc import Callable, Iterable, Sequence
 import inspect
 import os
-from pathlib import Path
 import signal
 import sys
 import threading
@@ -23,12 +22,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.signals import SignalHandlerOptions
-import yaml
 
-from . import contract, dds, process
+from . import contract, dds, process, ros_args
 from .diagnostics import publish_last, publisher_of
 from .intra_process import bus_of
-from .params import check_declared, ParameterError
+from .params import check_declared, Param, ParameterError, plain_value
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -241,18 +239,12 @@ def spin_until_stopped(nodes: 'Node | Sequence[Node]', stop: StopRequest,
         executor.shutdown(timeout_sec=0.0)
 
 
-#: The ``--ros-args`` flags that take a value (rcl's arguments.h), besides -p and
-#: --params-file: skipped with their value when the parameters are read.
-_VALUED_FLAGS = ('-r', '--remap', '-e', '--enclave', '--log-level', '--log-file-name',
-                 '--log-config-file')
-
-
 def ros_parameter_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
     """
     Return the names set by ``-p``/``--param`` and the ``--params-file`` paths of ``argv``.
 
     Only what lies in a ``--ros-args`` section (up to ``--``) counts, as rcl reads it; a
-    ``-p node:name:=value`` gives ``name``.
+    ``-p node:name:=value`` gives ``name``. The files are not read here.
     """
     names, files = [], []
     inside, i = False, 0
@@ -268,7 +260,7 @@ def ros_parameter_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
         elif inside and arg == '--params-file' and i + 1 < len(argv):
             i += 1
             files.append(argv[i])
-        elif inside and arg in _VALUED_FLAGS:
+        elif inside and arg in ('-r', '--remap') + ros_args.VALUED_FLAGS:
             i += 1
         i += 1
     return names, files
@@ -284,20 +276,62 @@ def file_parameter_names(path: str) -> list[str]:
     and ``ibvs run`` checks those against the whole graph.
     """
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise ParameterError(f'parameter file {path}: cannot read it: {exc.strerror}') \
-            from None
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ParameterError(f'parameter file {path}: not valid YAML: {exc}') from None
-    if not isinstance(data, dict) or not all(
-            isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)
-            for v in data.values()):
-        raise ParameterError(f"parameter file {path}: expected 'NODE: ros__parameters: "
-                             "{...}' sections (NODE /** for every node)")
-    return [name for key, section in data.items()
-            if str(key).rstrip('/').split('/')[-1] not in ('*', '**')
-            for name in section['ros__parameters']]
+        sections = ros_args.file_sections(path)
+    except ros_args.ArgumentsError as exc:
+        raise ParameterError(str(exc)) from None
+    return [name for key, params in sections
+            if key.rstrip('/').split('/')[-1] not in ('*', '**') for name, _ in params]
+
+
+#: rclpy's own parameter that every node declares, checked as a node's own are.
+USE_SIM_TIME = Param('use_sim_time', False, 'run on the time of /clock')
+
+
+def node_name_of(cls: type) -> str:
+    """Return the name a node class gives its node: its module's (``feature_node``)."""
+    return getattr(cls, 'NODE_NAME', cls.__module__.rsplit('.', 1)[-1])
+
+
+def check_types(classes: Iterable[type], parsed: 'ros_args.RosArguments') -> None:
+    """
+    Refuse a value of the wrong type or range for a parameter a node of ``classes`` declares.
+
+    Each value a node would get from ``-p`` and the parameter files (the sections that
+    match its name, merged as rclpy merges them: :mod:`.ros_args`) is checked against the
+    node's declared :class:`Param` (its module's ``PARAMS``; ``use_sim_time`` too) before
+    any node declares: the value given last in a section, the one meant. rclpy would keep
+    another one where a section gives the parameter values of two types (a wrong-typed
+    ``-p`` after the file's value; an integer before a double): that is refused too, naming
+    both. Raises :class:`ParameterError` naming the parameter, the type it must have and
+    where the value came from.
+    """
+    for params in parsed.sections.values():
+        for name, given in params.items():
+            for value, origin in given.values:
+                if value is ros_args.UNTYPED:
+                    raise ParameterError(
+                        f"parameter '{name}' (from {origin}): rcl takes a scalar or an array "
+                        'of scalars of one type (write 0.0, not 0, among doubles)', name)
+    for cls in classes:
+        specs = list(getattr(sys.modules.get(cls.__module__), 'PARAMS', None) or ())
+        specs.append(USE_SIM_TIME)
+        given = parsed.for_node(parsed.node_name(node_name_of(cls)))
+        for spec in specs:
+            if spec.name not in given:
+                continue
+            value, origin = given[spec.name].last()
+            try:
+                spec.check(plain_value(value, spec.default))
+            except ParameterError as exc:
+                raise ParameterError(f'{exc} (from {origin})', spec.name) from None
+            kept, kept_origin = given[spec.name].kept()
+            if kept_origin != origin or type(kept) is not type(value):
+                raise ParameterError(
+                    f"parameter '{spec.name}': {kept_origin} gives it as the "
+                    f'{ros_args.type_name(kept)} {kept!r} and then {origin} as the '
+                    f'{ros_args.type_name(value)} {value!r}; rcl keeps the '
+                    f'{ros_args.type_name(kept)} and would drop the later value: give each '
+                    f'as {spec.kind()}', spec.name)
 
 
 def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
@@ -307,8 +341,9 @@ def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
     A node class's module lists what the node declares as ``PARAMS`` (the list the runner
     checks a run against, :func:`ibvs_bringup.graph_params.declared`). Raises
     :class:`ParameterError` naming the closest declared names (:func:`check_declared`,
-    the words of ``ibvs run``), or for a parameter file that cannot be read or parsed.
-    Classes whose module has no ``PARAMS`` disable the name check.
+    the words of ``ibvs run``), for a parameter file that cannot be read or parsed, and for
+    a value of the wrong type or range (:func:`check_types`). Classes whose module has no
+    ``PARAMS`` disable the name check.
     """
     classes = list(classes)
     known = []
@@ -318,12 +353,17 @@ def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
             known = None
             break
         known += [p.name for p in params]
-    names, files = ros_parameter_args(argv)
-    for path in files:
+    try:
+        parsed = ros_args.parse(argv)
+    except ros_args.ArgumentsError as exc:
+        raise ParameterError(str(exc)) from None
+    names = list(parsed.rule_names)
+    for path in parsed.files:
         names += file_parameter_names(path)
     if known is not None:
         owner = ', '.join(cls.__name__ for cls in classes)
         check_declared(names, known, owner=f'no node of this process ({owner})')
+    check_types(classes, parsed)
 
 
 def run(node_class: 'type[Node] | Sequence[type[Node]]', args: list[str] | None = None,

@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, fields
 import difflib
 import math
+import re
 from typing import Any, Self, TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -85,6 +86,26 @@ class Param:
         return isinstance(self.default, (list, tuple)) and bool(self.default) and \
             isinstance(self.default[0], str)
 
+    def kind(self) -> str:
+        """Return the ROS type a value must have, in words (``a double``, ``an array of...``)."""
+        if isinstance(self.default, (list, tuple)):
+            element = 'string' if self._strings() else 'integer' if self._integer() \
+                else 'double'
+            count = '' if self.length is None else f'{self.length} '
+            return f'an array of {count}{element}s'
+        if isinstance(self.default, bool):
+            return 'a boolean'
+        if isinstance(self.default, str):
+            return 'a string'
+        return 'an integer' if self._integer() else 'a double'
+
+    def _integer(self):
+        """Return whether the parameter is an integer or an array of integers."""
+        if isinstance(self.default, (list, tuple)):
+            return bool(self.default) and isinstance(self.default[0], int) and \
+                not isinstance(self.default[0], bool)
+        return isinstance(self.default, int) and not isinstance(self.default, bool)
+
     def descriptor(self) -> 'ParameterDescriptor':
         """Return the ParameterDescriptor shown by ``ros2 param describe``."""
         # Imported here: a Param (and its check) is pure Python, usable without ROS.
@@ -109,39 +130,41 @@ class Param:
                 f"parameter '{self.name}' = {value!r} is invalid: {why};"
                 f' allowed: {self.allowed()}', self.name)
 
+        def wrong_type(why):
+            must = '' if why == f'not {self.kind()}' else f': it must be {self.kind()}'
+            fail(f'{why}{must}{number_hint(value)}')
+
         if self.choices is not None:
             if value not in self.choices:
                 fail('not an allowed choice')
             return value
         if isinstance(self.default, str):
             if not isinstance(value, str):
-                fail('not a string')
+                wrong_type('not a string')
             return value
         if isinstance(self.default, bool):
             if not isinstance(value, bool):
-                fail('not a boolean')
+                wrong_type('not a boolean')
             return value
+        array = isinstance(self.default, (list, tuple))
+        if array != isinstance(value, (list, tuple)):
+            wrong_type('an array' if not array else
+                       'not an array of strings' if self._strings() else 'not an array')
         if self._strings():
-            if not isinstance(value, (list, tuple)) or \
-                    not all(isinstance(v, str) for v in value):
-                fail('not an array of strings')
+            if not all(isinstance(v, str) for v in value):
+                wrong_type('not an array of strings')
             if self.length is not None and len(value) != self.length:
                 fail(f'has {len(value)} values')
             return list(value)
-        values = list(value) if isinstance(value, (list, tuple)) else [value]
-        if self.length is not None:
-            if not isinstance(value, (list, tuple)):
-                fail('not an array')
-            if len(values) != self.length:
-                fail(f'has {len(values)} values')
-        integer = isinstance(self.default, int) or (
-            isinstance(self.default, (list, tuple)) and self.default
-            and isinstance(self.default[0], int))
+        values = list(value) if array else [value]
+        if self.length is not None and len(values) != self.length:
+            fail(f'has {len(values)} values')
+        integer = self._integer()
         for v in values:
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                fail('not a number')
+                wrong_type('not a number')
             if integer and not isinstance(v, int):
-                fail('not an integer')
+                wrong_type('not an integer')
             if not math.isfinite(v):
                 fail('not finite')
             if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
@@ -149,6 +172,39 @@ class Param:
             if self.high is not None and (v > self.high or (self.high_open and v == self.high)):
                 fail('out of range')
         return value
+
+
+def number_hint(value: Any) -> str:
+    """
+    Say why a text that reads as a number is a string here, or '' if it does not.
+
+    rcl types a value by C's ``strtoll``/``strtod`` (:func:`ibvs_common.ros_args.scalar`),
+    so a ``-p`` or a node's parameter file reads ``1e-300`` as a double; a YAML 1.1 reader
+    (PyYAML: a study spec, a value written through ``yaml.safe_load``) reads a number with
+    an exponent but no dot as a string. Out of a double's normal range (``1e400``,
+    ``1e-310``), with ``_`` or ``:`` or in quotes, a number stays a string to rcl too.
+    """
+    from .ros_args import scalar
+    texts = value if isinstance(value, (list, tuple)) else [value]
+    for text in texts:
+        if not isinstance(text, str):
+            continue
+        try:
+            float(text.replace(':', '').strip())
+        except ValueError:
+            continue
+        plain = re.fullmatch(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*', text)
+        if isinstance(scalar(text), (int, float)) and not isinstance(scalar(text), bool):
+            why = 'YAML 1.1 reads a number with an exponent as a number only with a dot'
+        elif '_' in text or ':' in text:
+            why = "rcl reads no '_' or ':' in a number"
+        elif plain:
+            why = "it is out of a double's normal range, about 2.2e-308 to 1.8e308"
+        else:
+            why = 'a quoted number is a string'
+        return (f'; {text!r} is read as a string ({why}): write a number with a dot, '
+                'unquoted, e.g. 1.0e-300')
+    return ''
 
 
 #: Parameters that rclpy declares on every node itself, never refused as undeclared

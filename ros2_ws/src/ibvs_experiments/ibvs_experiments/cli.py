@@ -149,6 +149,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             'simulator (ibvs cell starts it against the real arm and camera)')
     overrides = dict(scenario.parse_override(p) for p in args.param)
     graph_params.check(overrides, '-p')
+    # The simulator owns time: the scenario file's and the -p's use_sim_time must agree.
+    scenario.check_clock({**scenario.load_parameters(args.scenario), **overrides},
+                         simulated=True)
     overrides = with_servo_law(overrides)
     # Every check before any node (runner.resolve): a refused run leaves no output directory.
     runner.resolve(args.scenario, overrides, args.duration)
@@ -206,7 +209,10 @@ def cmd_cell(args: argparse.Namespace) -> int:
         return 2
     overrides = dict(scenario.parse_override(p) for p in args.param)
     try:
+        if args.params_file:  # named as what it is: the cell's parameter file
+            scenario.load_parameters(args.params_file, what='parameter file')
         params = cell.cell_parameters(args.params_file, overrides, args.controller)
+        scenario.check_clock(params, simulated=False)
         # The names first: a bad camera or controller name is refused before anything.
         cell.remaps(args.controller, args.camera_name, args.controller_name)
     except cell.CellError as exc:
