@@ -70,6 +70,12 @@ def joint_states(topic, next_ns, position, fields=('position',), scale=1.0, last
         absurd = np.full(6, 1e6 * scale)
         cases.append((f'absurd finite {field} ({scale:g} x 1e6)',
                       lambda f=field, a=absurd: [msg(next_ns(), **{f: a})]))
+    for other in ('position', 'velocity', 'effort'):
+        if other not in fields:  # a field it does not read: a NaN is refused all the same
+            bad = np.zeros(6)
+            bad[4] = np.nan
+            cases.append((f'NaN {other} (not read)',
+                          lambda o=other, b=bad: [msg(next_ns(), **{o: b})]))
     nan = {fields[0]: np.full(6, np.nan)}
     cases += [
         ('no names', lambda: [msg(next_ns(), names=[])]),
@@ -108,10 +114,18 @@ def headers(topic, next_ns, off_grid=True):
     return [(name, topic, make) for name, make in cases]
 
 
+def zero_camera_info(good):
+    """Return an all-zero CameraInfo stamped as ``good``: no camera's frame."""
+    msg = CameraInfo()
+    msg.header = copy.deepcopy(good.header)
+    return msg
+
+
 def camera_info_stamps(topic, good):
     """Bad CameraInfo stamps, for a reader that takes only a frame's time from it."""
     return [(name, topic, lambda s=s: [_stamped(copy.deepcopy(good), s)])
-            for name, s in bad_stamps(0)]
+            for name, s in bad_stamps(0)] + [
+        ('all-zero CameraInfo, fresh stamp', topic, lambda: [zero_camera_info(good)])]
 
 
 def clocks(topic=contract.CLOCK):
@@ -298,7 +312,9 @@ def camera_infos(topic, good):
     :func:`ibvs_common.conversions.check_camera_info` and ``intrinsics_from_infos``: a
     field of view of 179 deg, a principal point off the image, a lens of another size than
     its pair, and for the right lens baselines of 1 mm and 10 m and a positive P[3], for the
-    left one a P[3] (the right's CameraInfo on the left topic).
+    left one a P[3] (the right's CameraInfo on the left topic); an all-zero CameraInfo, a
+    P with a skew or another third row than a rectified pinhole's, and a right lens whose
+    c_u is far from its pair's.
     """
     def info(**changes):
         msg = CameraInfo()
@@ -335,7 +351,13 @@ def camera_infos(topic, good):
              ('field of view 179 deg', lambda: [info(p=p_with(p0=wide))]),
              ('principal point 1e6 px', lambda: [info(p=p_with(p2=1e6))]),
              ('principal point -50 px', lambda: [info(p=p_with(p6=-50.0))]),
-             ('another size than its pair', lambda: [info(width=good.width + 2)])]
+             ('another size than its pair', lambda: [info(width=good.width + 2)]),
+             ('all-zero CameraInfo, fresh stamp', lambda: [zero_camera_info(good)]),
+             ('skew in P', lambda: [info(p=p_with(p1=5.0))]),
+             ('third row of P not 0 0 1 0', lambda: [info(p=p_with(p8=0.1, p10=2.0))])]
+    if right:
+        cases += [('c_u 20 % of the width off its pair',
+                   lambda: [info(p=p_with(p2=good.p[2] - 0.2 * good.width))])]
     if right:
         cases += [('baseline 1 mm', lambda: [info(p=p_with(p3=-f * 0.001))]),
                   ('baseline 10 m', lambda: [info(p=p_with(p3=-f * 10.0))]),

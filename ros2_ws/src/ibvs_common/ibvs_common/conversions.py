@@ -237,6 +237,10 @@ def ignored_joints(msg: JointState, names: Sequence[str] = contract.JOINT_NAMES
         return ()
 
 
+#: The per-joint fields of a JointState.
+JOINT_FIELDS = ('position', 'velocity', 'effort')
+
+
 def read_joints(msg: JointState, field: str = 'position',
                 names: Sequence[str] = contract.JOINT_NAMES,
                 bound: tuple[ArrayLike, ArrayLike] | None = None) -> NDArray[np.float64]:
@@ -247,7 +251,9 @@ def read_joints(msg: JointState, field: str = 'position',
     ``names`` once, in any order, and may name other joints too (a track, a gripper: what
     joint_state_broadcaster publishes), whose values are ignored, not checked. Raises
     :class:`InputError` for the names :func:`joint_order` refuses, a field whose length is
-    not the number of names given, a non-finite value of one of ``names`` or, with
+    not the number of names given, a non-finite value of one of ``names`` (in ``field``, or
+    in another of :data:`JOINT_FIELDS`, which may be empty: a NaN there is a broken
+    publisher, and the whole message is refused rather than half used) or, with
     ``bound`` = (low, high) (arrays in the order of ``names``), a value outside [low, high]
     ('out of range': :func:`position_bounds`, :func:`velocity_bounds`).
     """
@@ -260,6 +266,14 @@ def read_joints(msg: JointState, field: str = 'position',
         values = values[order]
     if not np.isfinite(values).all():
         raise InputError(f'non-finite {field}', f'{values.tolist()}')
+    for other in JOINT_FIELDS:
+        if other == field:
+            continue
+        extra = np.asarray(getattr(msg, other), dtype=float)
+        if extra.shape == (len(msg.name),) and order is not None:
+            extra = extra[order]
+        if not np.isfinite(extra).all():
+            raise InputError(f'non-finite {other}', f'{extra.tolist()}')
     if bound is not None and not ((values >= bound[0]) & (values <= bound[1])).all():
         raise InputError(f'{field} out of range',
                          f'{values.tolist()}, allowed {np.round(bound[0], 3).tolist()} to '
@@ -696,6 +710,16 @@ BASELINE_RANGE_M = (0.005, 5.0)
 ROW_TOLERANCE_PX = 0.5
 
 
+#: Largest share of f_u that P's skew and vertical-baseline entries may have, and largest
+#: difference of its third row from 0 0 1 0: rounding only (a rectified pinhole has 0).
+PINHOLE_TOLERANCE = 1e-9
+#: Largest difference between the c_u of the left and the right lens, as a share of the
+#: width: a rectification that does not align the principal points (OpenCV's stereoRectify
+#: without CALIB_ZERO_DISPARITY) moves them by a few per cent; a ZED 2 differs by 4.6 px
+#: at HD720 (0.4 %). Beyond it the disparity, hence the depth, is the pair's offset.
+CU_TOLERANCE = 0.05
+
+
 def focal_range_px(side_px: int) -> tuple[float, float]:
     """Return (low, high) of a focal length (px) along an image side of ``side_px``."""
     narrow, wide = FOV_RANGE_DEG
@@ -715,6 +739,9 @@ def check_camera_info(info: CameraInfo) -> None:
     - 'bad camera_info': P not 12 finite values;
     - 'focal length out of range': f_u or f_v outside :func:`focal_range_px` of its side
       (a field of view outside :data:`FOV_RANGE_DEG`; f_u <= 0 included);
+    - 'camera_info not a rectified pinhole': a skew P[1], P[4], a vertical baseline P[7]
+      or a third row other than 0 0 1 0 (beyond :data:`PINHOLE_TOLERANCE`), which the
+      model, reading f_u, f_v, c_u, c_v and P[3] only, would ignore;
     - 'principal point off the image': c_u outside [0, width] or c_v outside [0, height];
     - 'baseline out of range': |P[3] / P[0]| beyond the longest of
       :data:`BASELINE_RANGE_M` (0 on the left lens; the right's range is checked by
@@ -736,6 +763,11 @@ def check_camera_info(info: CameraInfo) -> None:
                              f'{name} = {f:.6g} px, {low:.4g} to {high:.4g} px for a side of '
                              f'{side} px (a field of view of {FOV_RANGE_DEG[0]:g} to '
                              f'{FOV_RANGE_DEG[1]:g} deg)')
+    skew = (p[1], p[4], p[7], p[8], p[9], p[11])
+    if max(map(abs, skew)) > PINHOLE_TOLERANCE * p[0] or abs(p[10] - 1.0) > PINHOLE_TOLERANCE:
+        raise InputError('camera_info not a rectified pinhole',
+                         f'P = {p.tolist()}: P[1], P[4], P[7] (skew, vertical baseline) '
+                         'must be 0 and the third row 0 0 1 0')
     if not (0.0 <= p[2] <= info.width and 0.0 <= p[6] <= info.height):
         raise InputError('principal point off the image',
                          f'({p[2]:.6g}, {p[6]:.6g}) px in a {info.width} x {info.height} '
@@ -757,8 +789,8 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
     with a baseline': e.g. a right CameraInfo on the left topic). Each lens keeps its own
     f_u and c_u (older ZED SDKs: 701.40 and 696.83 px); raises :class:`InputError` when the
     two disagree on size ('camera_info size mismatch') or their rows are not those of a
-    rectified pair, f_v and c_v beyond :data:`ROW_TOLERANCE_PX` ('camera_info not
-    rectified').
+    rectified pair, f_v and c_v beyond :data:`ROW_TOLERANCE_PX`, or their c_u differ by
+    more than :data:`CU_TOLERANCE` of the width ('camera_info not rectified').
     """
     check_camera_info(left)
     check_camera_info(right)
@@ -773,6 +805,10 @@ def intrinsics_from_infos(left: CameraInfo, right: CameraInfo) -> StereoIntrinsi
                          f'rows differ by up to {rows:.3g} px (f_v {pl[5]:.6g} and '
                          f'{pr[5]:.6g}, c_v {pl[6]:.6g} and {pr[6]:.6g} px), at most '
                          f'{ROW_TOLERANCE_PX:g}')
+    if not abs(pl[2] - pr[2]) <= CU_TOLERANCE * left.width:
+        raise InputError('camera_info not rectified',
+                         f'c_u {pl[2]:.6g} and {pr[2]:.6g} px differ by more than '
+                         f'{CU_TOLERANCE:.0%} of the width ({CU_TOLERANCE * left.width:g} px)')
     if pl[3] != 0.0:
         raise InputError('left lens with a baseline', f'left P[3] = {pl[3]:.6g}, must be 0')
     baseline = float(-pr[3] / pr[0])

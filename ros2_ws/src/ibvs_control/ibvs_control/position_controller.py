@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract
-from ibvs_common.conversions import joint_trajectory, ns_stamp
+from ibvs_common.conversions import check_camera_info, InputError, joint_trajectory, ns_stamp
 from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.shared_params import joint_order
 from ibvs_common.sim_time import clock_watch, node_time_ns, read_clock_ns
@@ -177,6 +177,11 @@ class PositionController(JointControllerMode):
 
     def _on_camera(self, msg):
         """Note a camera frame (its camera_info, stamped with the exposure): its age only."""
+        try:  # an all-zero or impossible CameraInfo is no camera's frame
+            check_camera_info(msg)
+        except InputError as exc:
+            self.diagnostics.reject(self._camera_topic, exc.reason, exc.detail)
+            return
         t_ns = self.read_frame_stamp(self._camera_topic, msg.header.stamp)
         if t_ns is not None:
             self._watch.heard('camera', t_ns)
