@@ -4,7 +4,13 @@ Benchmarks of the controllers' hot paths (``make bench`` calls :func:`run`).
 - one feedback update: q~ = F^-1(p_hat) (eq. 42), C1 = J(q~) (eq. 31), SVD (eq. 34) and one
   step of k (eq. 38-41), on frames of a model-only scenario 1 run (target: <= 1 ms);
 - one joint-loop update: M(q) and h(q, qdot) from PyBullet and one step of G_c with
-  u = M v + h (eq. 26), along the same run (target: <= 0.3 ms), ideal and limited.
+  u = M v + h (eq. 26), along the same run (target: <= 0.3 ms), ideal and limited;
+- one prediction of a frame to its action time (:func:`.prediction.predicted_features`,
+  two F), what the latency costs the feedback per frame;
+- one position reference: the shaper re-planning Ruckig's move to a new target (the
+  q_feedback of a new frame) and sampling it, every command period at 250 Hz (4 ms);
+- the feedforward's start-up through the position interface (IK branch and the two-point
+  trajectory) and, for comparison, T_forward's trajectory at the paper's ``tau_in``.
 
 No assertion on time: numbers to read. ``python -m ibvs_control.bench`` prints median/p95.
 """
@@ -17,8 +23,10 @@ from ibvs_model import default_model, IRB4600, paper
 import numpy as np
 
 from .closed_loop import LoopConfig, simulate
-from .controllers import AdaptiveFeedback, JointLoop
+from .controllers import AdaptiveFeedback, Feedforward, JointLoop
 from .dynamics import RobotDynamics
+from .position_interface import PositionShaper
+from .prediction import predicted_features
 
 
 def _timed(fn, args_list):
@@ -44,6 +52,32 @@ def run(report: Callable[[str, list[float]], None]) -> None:
         feedback.reset()
         seconds += _timed(feedback.update, frames)
     report('ibvs_control: feedback update (F^-1, C1, SVD, k)', seconds)
+    pairs = [(model, p, run_.q[max(int(round(t * 1000)) - 100, 0)],
+              run_.q[int(round(t * 1000))]) for p, t in zip(run_.features, run_.frame_t)]
+    _timed(predicted_features, pairs[:5])
+    report('ibvs_control: prediction of a frame to its action time (2 F)',
+           _timed(predicted_features, pairs * 5))
+
+    shaper = PositionShaper(250.0, max_speed=np.radians(60.0))
+    shaper.start(run_.q[0])
+    rng = np.random.default_rng(0)
+    targets = [(run_.q_target + rng.normal(0.0, 1e-3, 6), 0.004) for _ in range(2000)]
+    report('ibvs_control: position reference, Ruckig re-planned to a new target (6 joints)',
+           _timed(shaper.step, targets))
+
+    def start_position_interface():
+        ff = Feedforward(paper.target_pose(), 0.05, 1e-3)
+        q_target = ff.start(run_.q[0])
+        return np.array([run_.q[0], q_target])
+
+    def start_t_forward():
+        ff = Feedforward(paper.target_pose(), paper.TAU_IN, 1e-3)
+        ff.start(run_.q[0])
+        return ff.trajectory()
+    report('ibvs_control: feedforward start-up, position interface (IK, two points)',
+           _timed(start_position_interface, [()] * 20))
+    report("ibvs_control: feedforward start-up, T_forward trajectory (the paper's tau_in)",
+           _timed(start_t_forward, [()] * 3))
 
     dynamics = RobotDynamics(IRB4600, with_tool=True)
     try:
