@@ -85,8 +85,10 @@ def check_clock(params: Mapping[str, Any], simulated: bool) -> None:
 
     ``simulated``: a graph with the simulator (``ibvs run``), which owns time and publishes
     /clock: every node must run on it (``use_sim_time: true``), or the lockstep's stamps and
-    the nodes' clocks disagree from the first step. Without it (``ibvs cell``) nothing
-    publishes /clock, and a node on sim time would wait for it forever.
+    the nodes' clocks disagree from the first step. ``ibvs cell`` does not call it: on a cell
+    its nodes run on the wall clock (``cell.yaml``), and ``-p use_sim_time:=true`` is the
+    rehearsal against a ``sim_node`` started by hand (docs/real_cell.md), whose /clock a
+    stopped-clock hold watches (ibvs_control.servo_status).
     """
     if 'use_sim_time' not in params:
         return

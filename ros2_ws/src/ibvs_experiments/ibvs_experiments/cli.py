@@ -212,7 +212,6 @@ def cmd_cell(args: argparse.Namespace) -> int:
         if args.params_file:  # named as what it is: the cell's parameter file
             scenario.load_parameters(args.params_file, what='parameter file')
         params = cell.cell_parameters(args.params_file, overrides, args.controller)
-        scenario.check_clock(params, simulated=False)
         # The names first: a bad camera or controller name is refused before anything.
         cell.remaps(args.controller, args.camera_name, args.controller_name)
     except cell.CellError as exc:
