@@ -20,8 +20,8 @@ from ibvs_common.conversions import (ignored_joints, InputError, joint_state, po
                                      read_feature_status, read_features, read_joints,
                                      stamp_lead_ns, velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
-from ibvs_common.kit import (config, Inputs, publisher, StereoCameraInput, subscription,
-                             WaitReporter)
+from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
+                             subscription, WaitReporter)
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
@@ -97,6 +97,9 @@ class AdaptiveFeedbackNode(Node):
                                        if c.latency_compensation == 'encoders' else None)
         subscription(self, PolygonStamped, contract.FEATURES, self._on_features,
                      contract.RELIABLE)
+        # A restarted simulator or an NTP step: the new time line's inputs are taken (the
+        # law keeps its integrator: q_feedback is held until fresh frames come)
+        forget_on_back(self, self._inputs, self._lockstep)
         if self._taught:
             subscription(self, PolygonStamped, contract.TARGET_FEATURES, self._on_target,
                          contract.LATCHED)

@@ -65,6 +65,12 @@ class FrameLockstep:
         """Return the stamp of the last frame answered, None before the first."""
         return self.frames.last_popped_ns
 
+    def forget(self) -> None:
+        """Forget every joint state, frame and status (the clock jumped back)."""
+        self.joints.forget()
+        self.frames.forget()
+        self._measured.clear()
+
     def offer_joints(self, t_ns: int, joints: Any) -> Optional[Rejection]:
         """Keep the joint state at ``t_ns``; 'stale stamp' unless after the newest one."""
         return self.joints.add(t_ns, joints)

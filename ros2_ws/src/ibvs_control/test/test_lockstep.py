@@ -240,3 +240,31 @@ def test_frames_reject_stale_inputs_and_stay_bounded():
     assert reasons == {None, 'buffer full'}
     assert lockstep.offer_frame(9999, 'p') == Rejection(
         'buffer full', '9999 ns dropped: waiting for the camera')
+
+
+def test_the_feedback_lockstep_takes_a_new_time_line_after_forget():
+    # the clock jumped back (a restarted simulator): frames and joint states stamped before
+    # the old newest are answered, not refused as stale
+    lockstep = FrameLockstep(100)
+    for t in (10_000_000, 20_000_000):
+        assert lockstep.offer_joints(t, ('q', t)) is None
+        assert lockstep.offer_frame(t, 'frame') is None
+        assert lockstep.pop_ready()[0] == t
+    assert lockstep.offer_frame(1_000_000, 'frame') is not None  # the old time line
+    lockstep.forget()
+    assert lockstep.offer_joints(1_000_000, ('q', 1)) is None
+    assert lockstep.offer_frame(1_000_000, 'frame') is None
+    assert lockstep.pop_ready()[:3] == (1_000_000, 'frame', ('q', 1))
+
+
+def test_a_frame_waits_for_the_joint_state_of_its_action_time():
+    # with latency and the encoders' prediction: the frame at 0 acts from 100 ms and is
+    # answered once a state stamped then has come; the newest state is the one predicted to
+    lockstep = FrameLockstep(100, action_ns=lambda t: t + 100_000_000)
+    assert lockstep.offer_joints(0, 'q0') is None
+    assert lockstep.offer_frame(0, 'frame') is None
+    assert lockstep.pop_ready() is None
+    assert 'at or after 100000000 ns' in lockstep.waiting_for()[0]
+    assert lockstep.offer_joints(100_000_000, 'q100') is None
+    assert lockstep.pop_ready()[:3] == (0, 'frame', 'q0')
+    assert lockstep.action_joints() == (100_000_000, 'q100')
