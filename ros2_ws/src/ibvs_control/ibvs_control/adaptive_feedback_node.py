@@ -23,16 +23,18 @@ from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
                              subscription, WaitReporter)
 from ibvs_common.node_main import run
+from ibvs_common.params import ParameterError
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
 from ibvs_common.timing import feedback_action_ns, ns_to_seconds, period_ns, seconds_to_ns
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from .frame_lockstep import FrameLockstep
-from .node_params import AdaptiveFeedbackConfig, check_servo_law, target_from
+from .node_params import AdaptiveFeedbackConfig, check_servo_law, LIVE_PARAMS, target_from
 from .prediction import Predictor
 from .servo_laws import law_class
 
@@ -107,6 +109,7 @@ class AdaptiveFeedbackNode(Node):
             subscription(self, DiagnosticArray, contract.FEATURE_STATUS, self._on_status,
                          contract.RELIABLE)
         self.waiting = WaitReporter(self, self._waiting)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(f"servo law '{self.law.name}'")
 
     def _missing(self):
@@ -138,6 +141,43 @@ class AdaptiveFeedbackNode(Node):
         missing = self._missing()
         self.diagnostics.update(waiting_for='; '.join(missing) or 'nothing')
         return 'waiting: ' + '; '.join(missing) if missing else None
+
+    def _on_set_parameters(self, parameters):
+        """
+        Take the live gains of ``ros2 param set`` (:data:`.node_params.LIVE_PARAMS`).
+
+        Each value is checked as at start (its range, then lambda_inf <= lambda_0 with the
+        others' current values); a refusal names the parameter and the allowed values. The
+        law's gain is rebuilt at once (the velocity laws'; the paper's law has none, and
+        says so). rclpy refuses the read-only parameters before this is called.
+        """
+        live = {spec.name: spec for spec in LIVE_PARAMS}
+        values = {name: self.get_parameter(name).value for name in live}
+        for parameter in parameters:
+            if parameter.name not in live:
+                continue  # use_sim_time and the like: rclpy's own
+            try:
+                values[parameter.name] = live[parameter.name].check(parameter.value)
+            except ParameterError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        try:
+            gain = check_servo_law({**self.config.values(), **values})
+        except ParameterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        changed = [p.name for p in parameters if p.name in live]
+        if changed:
+            self.gain = gain
+            law = self.feedback
+            while law is not None and 'law' in vars(law):  # inside the safety envelope
+                law = law.law
+            uses = law is not None and hasattr(law, 'gain')
+            if uses:
+                law.gain = gain
+            self.get_logger().info(
+                f"{', '.join(changed)} set: {gain}" + ('' if uses or self.feedback is None
+                                                      else f" (servo law '{self.law.name}' "
+                                                      'has no such gain)'))
+        return SetParametersResult(successful=True)
 
     # -- inputs ----------------------------------------------------------------------------
     def _on_camera(self, camera, source):

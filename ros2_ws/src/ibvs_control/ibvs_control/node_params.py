@@ -80,16 +80,17 @@ FRAME_TIMEOUT_S = Param(
     high=10.0, low_open=True)
 LAMBDA_0 = Param('lambda_0', servo_laws.LAMBDA_0,
                  "servo_law 'ibvs' / 'pbvs': gain lambda at zero error (ViSP's lambda(0); "
-                 "'pbvs' uses it as its constant gain)", '1/s', low=0.0, high=1000.0,
-                 low_open=True)
+                 "'pbvs' uses it as its constant gain); settable at run time", '1/s', low=0.0,
+                 high=1000.0, low_open=True, read_only=False)
 LAMBDA_INF = Param('lambda_inf', servo_laws.LAMBDA_INF,
                    "servo_law 'ibvs': gain lambda at a very large image error (ViSP's "
-                   'lambda(inf)); used only when lambda_slope > 0, then <= lambda_0', '1/s',
-                   low=0.0, high=1000.0, low_open=True)
+                   'lambda(inf)); used only when lambda_slope > 0, then <= lambda_0; settable '
+                   'at run time', '1/s', low=0.0, high=1000.0, low_open=True, read_only=False)
 LAMBDA_SLOPE = Param('lambda_slope', servo_laws.LAMBDA_SLOPE,
                      "servo_law 'ibvs': ViSP's lambda'(0), how fast the gain falls from "
                      'lambda_0 towards lambda_inf as |p_hat - p_bar| grows; 0: constant '
-                     'gain lambda_0', '1/(s px)', low=0.0, high=1000.0)
+                     'gain lambda_0; settable at run time', '1/(s px)', low=0.0, high=1000.0,
+                     read_only=False)
 SWITCH_SETTLE_S = Param('switch_settle_s', servo_laws.SWITCH_SETTLE_S,
                         "servo_law 'switching': the feedback switches on no earlier than "
                         'this after the first frame (the feedforward transient), and only on '
@@ -164,6 +165,12 @@ def allowed_joint_speeds(values: Mapping[str, Any], params: 'RobotParams' = IRB4
     if values.get('command_interface') != 'position':
         return rated
     return np.minimum(rated, np.radians(values['max_joint_speed_deg_s']))
+
+
+#: The parameters a running feedback node takes from ``ros2 param set`` (checked as at start,
+#: the gain rebuilt): the velocity laws' gain. Every other parameter is structural and
+#: read-only (its descriptor says so; rclpy refuses a set).
+LIVE_PARAMS = (LAMBDA_0, LAMBDA_INF, LAMBDA_SLOPE)
 
 
 def law_settings(values: Mapping[str, Any]) -> dict[str, Any]:
