@@ -173,10 +173,9 @@ class AdaptiveFeedbackNode(Node):
             uses = law is not None and hasattr(law, 'gain')
             if uses:
                 law.gain = gain
-            self.get_logger().info(
-                f"{', '.join(changed)} set: {gain}" + ('' if uses or self.feedback is None
-                                                      else f" (servo law '{self.law.name}' "
-                                                      'has no such gain)'))
+            unused = '' if uses or self.feedback is None else \
+                f" (servo law '{self.law.name}' has no such gain)"
+            self.get_logger().info(f"{', '.join(changed)} set: {gain}{unused}")
         return SetParametersResult(successful=True)
 
     # -- inputs ----------------------------------------------------------------------------
