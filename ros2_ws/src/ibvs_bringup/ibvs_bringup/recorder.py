@@ -216,6 +216,10 @@ def write_metadata(bag_path: str | Path, connections: list = (),
     writer.close()
 
 
+class BagUnreadable(ValueError):
+    """A bag's MCAP file that holds no record to recover (named, with the reason)."""
+
+
 def _end_mcap(path):
     """
     End the MCAP file ``path`` after its last whole record, with a footer without summary.
@@ -231,7 +235,10 @@ def _end_mcap(path):
                 return False
         f.seek(0)
         if f.read(8) != MCAP_MAGIC:
-            raise ValueError(f'{path}: not an MCAP file')
+            raise BagUnreadable(
+                f'{path}: no MCAP record in it ({size} bytes): its recorder was killed '
+                'before it wrote one' if size < len(MCAP_MAGIC) else
+                f'{path}: not an MCAP file')
         end = 8
         while end + 9 <= size:
             f.seek(end)

@@ -9,7 +9,8 @@ segment ``fastrtps_<16 characters>`` and each port ``fastrtps_port<N>`` has a lo
 (``_el`` or ``_sl`` appended) that its owner holds with ``flock`` while it is alive; a lock
 file that can be locked belongs to a dead owner, and its segment can go. Unlike that tool
 this module leaves alone files younger than :data:`MIN_AGE_S` that a live process has open
-(or, when it cannot see every process's descriptors, any such file), so that it cannot
+(or, when it cannot see the descriptors of every process of the file's owner, any such
+file: another user's, unless run as root), so that it cannot
 race a participant that has created its lock file but not yet locked it, and it removes
 participants' segments only, not ports: a segment has a name of its own, drawn at random by
 its one owner, and holds the memory (about 68 MB per killed lockstep process); a port
@@ -54,13 +55,14 @@ def names(shm_dir: str | Path = SHM_DIR) -> set[str]:
         return set()
 
 
-def open_files(shm_dir: str | Path = SHM_DIR, proc: str | Path = '/proc'
-               ) -> tuple[set[str], bool]:
+def open_files(shm_dir: str | Path = SHM_DIR, proc: str | Path = '/proc',
+               uid: int | None = None) -> tuple[set[str], bool]:
     """
     Return the files of ``shm_dir`` a live process has open, and whether all were seen.
 
     The second value says whether every process's descriptors could be read (as root: yes;
-    else only one's own).
+    else only one's own), or with ``uid`` every process of that user's (one's own user:
+    yes), the only ones that can be creating a file that user owns.
 
     A participant holds its lock file open from the moment it creates it (``flock`` needs an
     open file): a lock file nobody has open belongs to a dead owner, however young it is.
@@ -76,7 +78,11 @@ def open_files(shm_dir: str | Path = SHM_DIR, proc: str | Path = '/proc'
         except FileNotFoundError:  # ended meanwhile
             continue
         except PermissionError:
-            complete = False
+            try:
+                theirs = uid is None or os.stat(os.path.join(proc, pid)).st_uid == uid
+            except OSError:  # ended meanwhile
+                continue
+            complete = complete and not theirs
             continue
         for fd in fds:
             try:
@@ -98,24 +104,27 @@ def zombies(shm_dir: str | Path = SHM_DIR, min_age_s: float = MIN_AGE_S,
     in either case: another graph (a study's parallel run, a test) may be starting on this
     machine, and a lock file its participant has created but not yet locked looks dead
     (removing it made that participant fail with "open_and_lock_file failed"), unless no
-    live process has it open (:func:`open_files`, which sees every process's descriptors
-    when run as root): then even a young one is a dead owner's, so that what a run killed
-    in its first seconds left goes at the next run's start too.
+    live process has it open (:func:`open_files`, which sees the descriptors of every
+    process of the file's owner: as root any file's, else one's own files'): then even a
+    young one is a dead owner's, so that what a run killed in its first seconds left goes
+    at the next run's start too; another user's young files are left to that user.
     """
     now = time.time() if now is None else now
-    held = None  # open_files(), read once and only for a young lock file
+    held = {}  # open_files() by owner, read once and only for a young lock file
     found = []
     for name in sorted(names(shm_dir)):
         if not LOCK_FILE.match(name) or (new_since is not None and name in new_since):
             continue
         lock = Path(shm_dir) / name
         try:
-            young = now - lock.stat().st_mtime < min_age_s
+            stat = lock.stat()
         except FileNotFoundError:
             continue
-        if young:
-            held = held or open_files(shm_dir)
-            if not held[1] or name in held[0]:
+        if now - stat.st_mtime < min_age_s:
+            if stat.st_uid not in held:
+                held[stat.st_uid] = open_files(shm_dir, uid=stat.st_uid)
+            seen, complete = held[stat.st_uid]
+            if not complete or name in seen:
                 continue
         if _locked(lock):
             continue

@@ -101,6 +101,10 @@ SERVO_RTF_KEYS = ('real_time_factor_servo_mean', 'real_time_factor_servo_min_1s'
 LAST_WINDOW_S = 0.5
 
 
+class NotAnalysable(ValueError):
+    """A bag that holds too little of a run to analyse (``ibvs analyse``: exit code 2)."""
+
+
 @dataclass
 class RunData:
     """Time series of one run, as arrays (seconds of sim time, metres, pixels)."""
@@ -364,7 +368,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
         latency = [pair for pair in latency if pair[0] < end_ns]
         frame_stamps = [stamp for stamp in frame_stamps if stamp < end_ns]
     if len(t) < 2:
-        raise ValueError(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH}')
+        raise NotAnalysable(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH}: '
+                            'the run ended (or was killed) before sim time advanced')
     order = np.argsort(t, kind='stable')
     poses = np.array(poses)[order]
     camera = None

@@ -41,7 +41,8 @@ a simulator there.
 """
 
 import argparse
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 import importlib
 import math
@@ -480,6 +481,26 @@ def session_dir(root: Path = CELL_DIR) -> Path:
     return root / time.strftime('%Y%m%d-%H%M%S')
 
 
+@contextmanager
+def _session_folder(out_dir: Path, procs: Sequence[Any]) -> Iterator[Path]:
+    """
+    Hold a session's folder (:func:`.output_dir.claim`); yield the path of its params.yaml.
+
+    Claimed once the cell's domain is held, so that a refused start (its domain busy, the
+    folder refused) makes no folder; one this start made is removed again, with the
+    ``params.yaml``, the empty ``logs/`` and the marker it wrote there, when no node
+    started (``procs``, the list the nodes' processes are appended to, still empty: the
+    check failed, or SIGINT came during it).
+    """
+    from . import output_dir
+    claimed = output_dir.claim(out_dir)
+    try:
+        (out_dir / 'logs').mkdir(exist_ok=True)
+        yield out_dir / 'params.yaml'
+    finally:
+        claimed.release(None if procs else ('params.yaml', 'logs'))
+
+
 def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = 'forward_command',
              camera_name: str = DEFAULT_CAMERA, controller_name: str | None = None,
              check_timeout_s: float = CHECK_TIMEOUT_S,
@@ -508,14 +529,14 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
 
     out_dir = Path(out_dir)
     log_dir = out_dir / 'logs'
-    log_dir.mkdir(parents=True, exist_ok=True)
-    params_file = scenario.write_parameters(dict(params), out_dir / 'params.yaml')
     node_remaps = remaps(controller, camera_name, controller_name)
     expected = expectations(params, controller, camera_name, controller_name)
     if domains.domain_id() is None:
         os.environ[domains.DOMAIN_ENV] = '0'  # ROS's default: the cell's, not a free one
     procs = []
-    with runner.interruptible(), domains.held() as (domain, _):
+    with runner.interruptible(), domains.held() as (domain, _), \
+            _session_folder(out_dir, procs) as params_file:
+        params_file = scenario.write_parameters(dict(params), params_file)
         dds.configure()
         context = rclpy.context.Context()
         rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)

@@ -13,7 +13,8 @@ Commands:
   ``--images`` records the camera images, ``--overlays`` the feature node's overlay images,
   ``--video`` writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`: its
   camera images rendered again from the recorded joint states unless recorded);
-- ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag;
+- ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag (exit code 2
+  when there is none or it holds too little to analyse, 1 when the analysis fails);
 - ``video <run dir> [-o FILE] [--time-map 0.25@1,1]``: the film (H.264 MP4) of a run;
 - ``demo``: the paper's scenario 1 with ideal actuators into ``results/scenario1``, with
   its film ``results/scenario1/video.mp4``;
@@ -46,9 +47,10 @@ import time
 from typing import Any
 
 from ibvs_bringup import domains, graph_params, scenario
-from ibvs_bringup.recorder import recover
+from ibvs_bringup.recorder import BagUnreadable, recover
+from rosbags.rosbag2 import ReaderError
 
-from . import cell, runner, study_spec
+from . import analysis, cell, output_dir, runner, study_spec
 
 #: Where ``ibvs run`` writes without ``-o``: a folder per command line (:func:`run_folder`),
 #: apart from ``make demo``'s ``results/scenario1`` and the studies' ``results/studies``.
@@ -175,7 +177,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                                      record_images=args.images,
                                      stall_s=args.stall_s, record_overlays=args.overlays,
                                      figures=args.figures, on_metrics=metrics_ready)
-    except domains.DomainBusy as exc:
+    except (domains.DomainBusy, output_dir.OutputRefused) as exc:
         print(f'run not started: {exc}', file=sys.stderr)
         return 2
     except runner.NodeDied as exc:
@@ -222,6 +224,9 @@ def cmd_cell(args: argparse.Namespace) -> int:
         return cell.run_cell(params, out, args.controller, args.camera_name,
                              args.controller_name, args.check_timeout,
                              live=sys.stdout.isatty())
+    except output_dir.OutputRefused as exc:
+        print(f'cell not started: {exc}', file=sys.stderr)
+        return 2
     except domains.DomainBusy:
         print(f'cell not started: ROS domain {domains.domain_id()} is used by another run on '
               f'this machine; {cell_domain}: stop that run, or set ROS_DOMAIN_ID to the '
@@ -252,9 +257,17 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else bag.parent
     out.mkdir(parents=True, exist_ok=True)
     runner.clean_shm(print, 'earlier processes (e.g. a runner killed with SIGKILL)')
-    if recover(bag):
-        print(f'{bag} was not closed (its recorder was killed): recovered what it holds')
-    metrics = runner.write_results(bag, out)
+    try:
+        if recover(bag):
+            print(f'{bag} was not closed (its recorder was killed): recovered what it holds')
+        metrics = runner.write_results(bag, out)
+    except (BagUnreadable, analysis.NotAnalysable, ReaderError) as exc:
+        print(f'error: nothing to analyse: {exc}', file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: B902 (a message, no traceback: exit code 1)
+        print(f'error: the analysis of {bag} failed: {type(exc).__name__}: {exc}',
+              file=sys.stderr)
+        return 1
     print(f'wrote {out}/metrics.json and figures from {bag}')
     _print_summary(metrics)
     return 0

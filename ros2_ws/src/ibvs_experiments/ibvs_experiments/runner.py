@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 import json
 from pathlib import Path
 import re
-import shutil
 import signal
 import threading
 import time
@@ -55,7 +54,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 import yaml
 
-from . import analysis, convergence
+from . import analysis, convergence, output_dir
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
@@ -84,6 +83,11 @@ HEARTBEAT_S = 3.0
 #: A node's log line saying what it waits for: ``[LEVEL] [<epoch s>] [<node>]: waiting ...``.
 _WAITING_LINE = re.compile(r'^\[\w+\] \[(\d+(?:\.\d+)?)\] \[([^\]]+)\]: (waiting .*)$')
 
+
+#: What a run into a previous run's folder removes of it first (:func:`prepare`): the
+#: entries it writes anew whole; the rest it writes (params.yaml, logs/<process>.log, the
+#: figures) it overwrites.
+REPLACED = ('bag', 'metrics.json')
 
 #: ``ibvs run``'s exit code when a node process died during the run (:class:`NodeDied`);
 #: 2 is a refused configuration, 4 a stall (cli.cmd_run).
@@ -212,6 +216,18 @@ class Monitor:
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
             self.heard[node] = self._clock()
 
+    def restart_clocks(self) -> None:
+        """
+        Count every node heard now: the runner itself could not listen for a while.
+
+        A runner stopped (Ctrl-Z, SIGSTOP, a debugger) or starved longer than
+        :data:`HEARTBEAT_S` heard nobody meanwhile, also nodes that went on publishing:
+        their silence is the runner's (:func:`watch` calls this then), not theirs.
+        """
+        now = self._clock()
+        for node in self.heard:
+            self.heard[node] = now
+
     def busy_now(self) -> dict[str, str]:
         """Return what the watchdogs said of busy nodes in the last :data:`HEARTBEAT_S`."""
         now = self._clock()
@@ -301,6 +317,8 @@ class Prepared:
     bag_path: Path
     #: The target pose (4x4), from the parameters.
     target: np.ndarray
+    #: The output folder, held while the run lives (:func:`.output_dir.claim`).
+    claim: output_dir.Claim = None
 
 
 @dataclass
@@ -316,6 +334,9 @@ class Outcome:
     interrupted: bool = False
     #: Optional processes (the viewers' node) that exited during the run: name -> exit code.
     lost: dict = field(default_factory=dict)
+    #: Wall time (s) the runner itself did not run (stopped, or starved for more than
+    #: :data:`HEARTBEAT_S` at once): said, and not held against the graph.
+    paused_s: float = 0.0
 
 
 def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None = None,
@@ -347,7 +368,9 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
     simulator has not taken its first step ``start_timeout_s`` after it was launched).
     A ``ROS_DOMAIN_ID`` or ``IBVS_ROS_DOMAINS`` that cannot be used raises
-    :class:`domains.DomainError` before anything is written. The death of an optional
+    :class:`domains.DomainError` before anything is written, and an output folder that
+    is not an empty, new, study's or previous run's one, or that a live run holds,
+    :class:`.output_dir.OutputRefused` before anything in it is touched. The death of an optional
     process (the viewers', :func:`optional`) once the simulator runs is said and the run
     goes on. SIGINT (also to a runner started with it ignored, :func:`interruptible`) stops
     the run as its end does, and the metrics of what was recorded are written
@@ -363,10 +386,13 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     domains.domain_id()
     domains.pool()
     run = prepare(name, out_dir, overrides, duration_s)
-    with interruptible(deferred=True) as interrupt:
-        return _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
-                             stall_s, start_timeout_s, record_overlays, figures, on_metrics,
-                             graph, interrupt)
+    try:
+        with interruptible(deferred=True) as interrupt:
+            return _run_prepared(run, record_images, wall_timeout_s, converge_hold_s,
+                                 progress, stall_s, start_timeout_s, record_overlays, figures,
+                                 on_metrics, graph, interrupt)
+    finally:
+        run.claim.release()
 
 
 @contextmanager
@@ -459,7 +485,8 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
             recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump({
                 'duration_s': run.duration_s, 'wall_duration_s': outcome.wall_duration_s,
                 'exit_codes': codes, 'commands': {p.name: p.command for p in procs},
-                'interrupted': outcome.interrupted, 'lost_processes': outcome.lost}))
+                'interrupted': outcome.interrupted, 'lost_processes': outcome.lost,
+                'runner_paused_s': outcome.paused_s}))
             recorder.close()
             executor.shutdown()
             recorder.destroy_node()
@@ -512,23 +539,30 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
     """
     Check the parameters of scenario ``name`` with ``overrides``; write its parameters file.
 
-    Return the :class:`Prepared` run. Nothing is started: the checks of
+    Return the :class:`Prepared` run, its output folder held (:func:`.output_dir.claim`:
+    an empty, new, study's or previous run's folder that no live run holds, else
+    :class:`.output_dir.OutputRefused`) until ``Prepared.claim.release()``; of a previous
+    run's files only :data:`REPLACED` are removed. Nothing is started: the checks of
     :func:`run_scenario` that come before any node (:func:`graph_params.check`,
-    :func:`scenario.check_progress`) raise here.
+    :func:`scenario.check_progress`) raise here, before the folder is touched.
     """
     params, duration_s = resolve(name, overrides, duration_s)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    log_dir = out_dir / 'logs'
-    log_dir.mkdir(exist_ok=True)
-    # duration_s: the runner stops the graph at the run's sim time limit itself (watch).
-    node_params = {k: v for k, v in params.items() if k not in scenario.RUNNER_ONLY}
-    params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
+    # The folder's rule (.output_dir): empty, a study's or a previous run's, and not in use.
+    claimed = output_dir.claim(out_dir, output_dir.STUDY_COMPANIONS)
+    try:
+        claimed.remove(REPLACED)
+        log_dir = out_dir / 'logs'
+        log_dir.mkdir(exist_ok=True)
+        # duration_s: the runner stops the graph at the run's sim time limit itself (watch).
+        node_params = {k: v for k, v in params.items() if k not in scenario.RUNNER_ONLY}
+        params_file = scenario.write_parameters(node_params, out_dir / 'params.yaml')
+    except BaseException:
+        claimed.release()
+        raise
     bag_path = out_dir / 'bag'
-    if bag_path.exists():
-        shutil.rmtree(bag_path)
     return Prepared(params, duration_s, out_dir, log_dir, params_file, bag_path,
-                    target_from_parameters(params))
+                    target_from_parameters(params), claimed)
 
 
 def start(run: Prepared, executor: 'Executor', procs: list[NodeProcess],
@@ -580,17 +614,40 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     ``wall_start``, or sim time has not advanced for ``stall_s`` (``start_timeout_s``
     before step 0: ``stalled``). Progress is printed every :data:`PROGRESS_S` of wall time
     when sim time has moved since the last line; before step 0, once, that the nodes start.
+
+    The runner's own stop is not the graph's: when more than :data:`HEARTBEAT_S` of wall
+    time passed between two of its looks (Ctrl-Z and ``fg``, SIGSTOP and SIGCONT, a
+    debugger, a starved CPU) it heard no heartbeat and saw no step meanwhile, so it says so
+    and starts its stall and heartbeat clocks again (:meth:`Monitor.restart_clocks`); the
+    time is added to ``Outcome.paused_s``. The graph runs on meanwhile (after step 0 nothing
+    of the lockstep waits for the runner), and the bag lacks what a node's publisher could
+    not keep for the stopped recorder (its queue: ``contract.RELIABLE``'s depth); the metrics
+    take the steps before ``run.duration_s`` as always.
     """
     outcome = Outcome()
     procs = list(procs)
     last_print, printed_ns = 0.0, None
     last_sim_ns, last_advance = -1, time.monotonic()
+    looked = last_advance  # the runner's own last look at the run
     never = Future()
     while True:
         # Every callback due in the next POLL_S, then one look at the run.
         executor.spin_until_future_complete(never, timeout_sec=POLL_S)
         if interrupt is not None and interrupt.is_set():
             raise KeyboardInterrupt
+        gap = time.monotonic() - looked
+        if gap > HEARTBEAT_S:
+            # The runner itself did not run (its own stop: Ctrl-Z, SIGSTOP, a debugger; or
+            # starved of CPU): it heard no heartbeat and saw no step meanwhile, whatever the
+            # graph did. Its stall and heartbeat clocks start again from now.
+            progress(f'  the runner itself did not run for {gap:.1f} s of wall time (stopped: '
+                     'Ctrl-Z, SIGSTOP, a debugger; or starved of CPU): its stall and '
+                     'heartbeat clocks start again; the bag may lack messages the graph '
+                     'sent meanwhile')
+            monitor.restart_clocks()
+            last_advance = time.monotonic()
+            outcome.paused_s += gap
+        looked = time.monotonic()
         monitor.poll()
         for p in procs:
             code = p.poll()
