@@ -4,8 +4,8 @@ The camera's latency inside the Youla design: the encoder-fed Smith predictor (n
 The outer loop of section 4.2 is designed for the plant P_d = ZOH{T_in} (eq. 29, 35) at
 the camera period. A real camera delivers a frame d after its exposure (a ZED 2 at 30 fps:
 67-100 ms), and the q_feedback computed from it acts from then on: the loop's plant is
-P_d z^-d, which the design does not know (its damping falls from 0.71 at 0 to 0.22 at
-100 ms; unstable from about 190 ms with the paper's gains).
+P_d z^-d, which the design does not know: its damping falls with the delay until the loop
+goes unstable (docs/design.md §4.2).
 
 For a stable plant with delay, Youla's parameterisation (eq. 38-41) gives every stabilising
 controller as C = Q / (1 - P0 Q) with Q stable, P0 = P_d z^-d the nominal plant. Choosing
@@ -33,7 +33,7 @@ A wrong delay or model costs only through the delayed part: the loop through the
 no delay left, and the model-mismatch term [s - F(q)] changes only as fast as the mismatch
 changes with the pose (slowly near the target), so an error of the assumed delay of
 delta seconds leaves a perturbation of about J_err qdot delta, with J_err the
-Jacobian's error, not J qdot d as without the predictor (docs/design.md §5).
+Jacobian's error, not J qdot d as without the predictor (docs/design.md §4.2).
 
 The internal-model form predicts to the end of the move instead of its present: to the rest
 pose q_rest = q_target + q_feedback the joint references are heading for (the feedforward's
@@ -119,11 +119,6 @@ class Predictor:
         self.model = model
         self.pose = np.asarray(pose, dtype=float)
         self.q_target: Optional[NDArray[np.float64]] = None
-
-    @property
-    def needs_action_state(self) -> bool:
-        """Return whether a frame needs the encoders of its action time ('encoders')."""
-        return self.mode == 'encoders'
 
     def inputs(self, q_feedback: ArrayLike, p_hat: ArrayLike, q_exposure: ArrayLike,
                qd_exposure: ArrayLike | None, q_action: ArrayLike | None = None,

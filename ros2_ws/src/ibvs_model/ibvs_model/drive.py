@@ -28,8 +28,9 @@ PositionShaper`) and the simulator's drive model tracks the reference with them
   ``JERK_RISE_S`` = 0.1 s, the time the reference takes to reach full acceleration: five
   time constants of the 20 Hz position loop (8 ms each) and five times EGM's 20 ms dead
   time, so the drive follows a reference whose acceleration ramps that slowly without
-  lagging into saturation; MoveIt Servo's Ruckig smoother (``ruckig_filter.cpp``) needs
-  the same three limits per joint. Assumptions to measure on the cell, as the others.
+  lagging into saturation; MoveIt Servo's Ruckig smoother needs the same three limits per
+  joint (moveit2 53de800, ``moveit_core/online_signal_smoothing/src/ruckig_filter.cpp``,
+  ``getVelAccelJerkBounds``). Assumptions to measure on the cell, as the others.
 """
 
 import numpy as np
