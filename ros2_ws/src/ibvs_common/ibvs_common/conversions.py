@@ -17,13 +17,14 @@ from ibvs_model import IRB4600, StereoCamera, StereoIntrinsics
 from nav_msgs.msg import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from rclpy.serialization import deserialize_message
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from . import contract
+from . import cdr, contract
 from .sim_time import clock_problem
 from .timing import is_frame_stamp, NS_PER_S, seconds_to_ns
 
@@ -362,7 +363,38 @@ def joint_trajectory(start_ns: int, period_ns: int, positions: ArrayLike,
     return msg
 
 
-def read_trajectory(msg: JointTrajectory, period_ns: int,
+def trajectory_arrays(msg: 'JointTrajectory | bytes | cdr.TrajectoryArrays'
+                      ) -> cdr.TrajectoryArrays:
+    """
+    Return what :func:`read_trajectory` checks of a JointTrajectory, as arrays.
+
+    ``msg``: the message, or its serialized bytes (a subscription made with ``raw=True``:
+    read with numpy, :mod:`.cdr`, where its points are all of one shape, else deserialized
+    as rclpy does), or arrays already read (returned as they are). Raises
+    :class:`InputError` ('malformed message') for bytes that are no JointTrajectory.
+    """
+    if isinstance(msg, cdr.TrajectoryArrays):
+        return msg
+    if isinstance(msg, (bytes, bytearray, memoryview)):
+        arrays = cdr.trajectory_arrays(msg)
+        if arrays is not None:
+            return arrays
+        try:
+            msg = deserialize_message(bytes(msg), JointTrajectory)
+        except Exception as exc:  # rclpy raises what rmw says, of no one class
+            raise InputError('malformed message', f'not a JointTrajectory: {exc}') from None
+    try:
+        positions = np.array([p.positions for p in msg.points], dtype=float)
+    except ValueError:
+        positions = None  # ragged
+    return cdr.TrajectoryArrays(
+        msg.header.stamp, list(msg.joint_names),
+        np.array([duration_ns(p.time_from_start) for p in msg.points], dtype=np.int64),
+        positions, {field: all(np.all(np.isfinite(np.asarray(getattr(p, field), dtype=float)))
+                               for p in msg.points) for field in cdr.POINT_ARRAYS[1:]})
+
+
+def read_trajectory(msg: 'JointTrajectory | bytes | cdr.TrajectoryArrays', period_ns: int,
                     names: Sequence[str] = contract.JOINT_NAMES
                     ) -> tuple[int, NDArray[np.float64]]:
     """
@@ -373,19 +405,21 @@ def read_trajectory(msg: JointTrajectory, period_ns: int,
     and efforts are not read: they may be empty, but a non-finite value there rejects the
     trajectory (as :func:`check_finite` does for a JointState), and so does a position beyond
     :data:`POSITION_BOUND_RAD`. The stamp is returned as it is: the caller applies
-    :func:`read_stamp` with its own time. Raises :class:`InputError`.
+    :func:`read_stamp` with its own time. ``msg`` may also be the message's serialized bytes
+    or its arrays (:func:`trajectory_arrays`). Raises :class:`InputError`.
     """
-    if len(msg.joint_names) != len(names) or set(msg.joint_names) != set(names):
-        raise InputError('wrong joint names', f'{list(msg.joint_names)}')
-    if not msg.points:
+    arrays = trajectory_arrays(msg)
+    joint_names = arrays.joint_names
+    if len(joint_names) != len(names) or set(joint_names) != set(names):
+        raise InputError('wrong joint names', f'{joint_names}')
+    times = arrays.times_ns
+    if not len(times):
         raise InputError('empty trajectory')
-    times = np.array([duration_ns(p.time_from_start) for p in msg.points])
     if not np.array_equal(times, np.arange(len(times)) * int(period_ns)):
         raise InputError('wrong sample times', f'points must be {period_ns} ns apart from 0')
-    try:
-        positions = np.array([p.positions for p in msg.points], dtype=float)
-    except ValueError:
-        raise InputError('wrong positions length', 'ragged points') from None
+    positions = arrays.positions
+    if positions is None:
+        raise InputError('wrong positions length', 'ragged points')
     if positions.shape != (len(times), len(names)):
         raise InputError('wrong positions length',
                          f'{positions.shape[1:]} values per point, expected {len(names)}')
@@ -394,12 +428,11 @@ def read_trajectory(msg: JointTrajectory, period_ns: int,
     if np.any(np.abs(positions) > POSITION_BOUND_RAD):
         raise InputError('positions out of range',
                          f'beyond +-{POSITION_BOUND_RAD:g} rad (POSITION_BOUND_RAD)')
-    positions = positions[:, [list(msg.joint_names).index(n) for n in names]]
-    for field in ('velocities', 'accelerations', 'effort'):
-        if not all(np.all(np.isfinite(np.asarray(getattr(p, field), dtype=float)))
-                   for p in msg.points):
+    positions = positions[:, [joint_names.index(n) for n in names]]
+    for field in cdr.POINT_ARRAYS[1:]:
+        if not arrays.finite[field]:
             raise InputError(f'non-finite {field}')
-    return stamp_ns(msg.header.stamp), positions
+    return stamp_ns(arrays.stamp), positions
 
 
 def read_command_trajectory(msg: JointTrajectory, now_ns: int, timeout_ns: int,

@@ -129,12 +129,19 @@ def publisher(node: 'Node', msg_type: type, topic: str, qos: QoSProfile | int) -
 
 
 def subscription(node: 'Node', msg_type: type, topic: str, callback: Callable[[Any], None],
-                 qos: QoSProfile | int) -> Any:
-    """Return an rclpy subscription of ``topic`` on ``node``, direct where allowed."""
+                 qos: QoSProfile | int, raw: bool = False) -> Any:
+    """
+    Return an rclpy subscription of ``topic`` on ``node``, direct where allowed.
+
+    ``raw``: the callback gets the serialized bytes (rclpy's ``raw=True``), DDS only (a
+    transient-local ``qos``; a direct message is an object): :mod:`.cdr`.
+    """
+    if raw and direct(qos):
+        raise ValueError(f'{topic}: a raw subscription needs a topic that goes through DDS')
     if direct(qos):
         sub = intra_process.subscription(node, msg_type, topic, callback, qos)
     else:
-        sub = node.create_subscription(msg_type, topic, callback, qos)
+        sub = node.create_subscription(msg_type, topic, callback, qos, raw=raw)
     _record(node, sub.topic_name, msg_type, SUBSCRIBES, qos)
     return sub
 

@@ -16,7 +16,7 @@ from ibvs_common import contract
 from ibvs_common import shared_params as shared
 from ibvs_common.conversions import (check_finite, ignored_joints, InputError,
                                      position_bounds, read_joints, read_stamp, read_trajectory,
-                                     stamp_lead_ns, velocity_bounds)
+                                     stamp_lead_ns, trajectory_arrays, velocity_bounds)
 from ibvs_common.kit import subscription
 from ibvs_common.params import param_field, ParamConfig
 from ibvs_common.timing import period_ns
@@ -74,7 +74,10 @@ class JointControllerMode:
     """
     The inputs both command interfaces read; a subclass answers them.
 
-    Reads /ibvs/feedforward_trajectory (latched; the last one received is used) and
+    Reads /ibvs/feedforward_trajectory (latched; the last one received is used; taken as
+    its serialized bytes and read as arrays, :mod:`ibvs_common.cdr`, so that a trajectory of
+    thousands of points holds the executor, and the command timer with it, for
+    milliseconds, not the time rclpy takes to build a Python object of each point) and
     /ibvs/q_feedback (six finite positions mapped by joint name, each within
     :data:`FEEDBACK_BOUND_RAD`; velocity and effort may be empty, a non-finite value there
     rejects it), every stamp through :func:`ibvs_common.conversions.read_stamp`. A subclass
@@ -100,17 +103,19 @@ class JointControllerMode:
     def subscribe_inputs(self) -> None:
         """Subscribe to the feedforward trajectory and the q_feedback."""
         subscription(self.node, JointTrajectory, contract.FEEDFORWARD_TRAJECTORY,
-                     self._on_trajectory, contract.LATCHED)
+                     self._on_trajectory, contract.LATCHED, raw=True)
         subscription(self.node, JointState, contract.Q_FEEDBACK, self._on_feedback,
                      contract.RELIABLE)
 
     def close(self) -> None:
         """Release what the mode holds (nothing here)."""
 
-    def _on_trajectory(self, msg):
+    def _on_trajectory(self, raw):
+        """Take a feedforward trajectory, read from its bytes as arrays (class docstring)."""
         try:
-            read_stamp(msg.header.stamp, self.now_ns(), self.state_lead_ns)
-            trajectory = read_trajectory(msg, self.dt_ns)
+            arrays = trajectory_arrays(raw)
+            read_stamp(arrays.stamp, self.now_ns(), self.state_lead_ns)
+            trajectory = read_trajectory(arrays, self.dt_ns)
         except InputError as exc:
             self.diagnostics.reject(contract.FEEDFORWARD_TRAJECTORY, exc.reason, exc.detail)
             return

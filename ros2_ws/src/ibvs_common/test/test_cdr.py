@@ -1,0 +1,91 @@
+"""A JointTrajectory read from its serialized bytes: what rclpy reads, as arrays."""
+
+from ibvs_common import cdr, conversions
+from ibvs_common.conversions import InputError
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+MS = 1_000_000
+
+
+def random_trajectory(rng, ragged):
+    """Return a JointTrajectory of random names, stamps, values and array lengths."""
+    msg = JointTrajectory(joint_names=['j' * int(rng.integers(1, 8))
+                                       for _ in range(int(rng.integers(0, 7)))])
+    msg.header.frame_id = 'x' * int(rng.integers(0, 9))
+    msg.header.stamp.sec = int(rng.integers(-2 ** 31, 2 ** 31))
+    msg.header.stamp.nanosec = int(rng.integers(0, 2 ** 32))
+    shape = [int(rng.choice([0, 1, 2, 3, 6, 7])) for _ in cdr.POINT_ARRAYS]
+    points = []
+    for _ in range(int(rng.integers(0, 7))):
+        lengths = [int(rng.choice([0, 1, 6])) for _ in shape] if ragged else shape
+        point = JointTrajectoryPoint(**{
+            name: rng.normal(size=n).tolist() for name, n in zip(cdr.POINT_ARRAYS, lengths)})
+        if rng.random() < 0.1:
+            point.velocities = [float('nan')] * max(1, lengths[1])
+        point.time_from_start.sec = int(rng.integers(-2 ** 31, 2 ** 31))
+        point.time_from_start.nanosec = int(rng.integers(0, 2 ** 32))
+        points.append(point)
+    msg.points = points
+    return msg
+
+
+def as_read_by_rclpy(msg):
+    """Return the arrays of ``msg`` read from its Python objects (the fallback)."""
+    return conversions.trajectory_arrays(msg)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_the_bytes_give_what_rclpy_reads_and_points_of_one_shape_are_read_as_arrays(seed):
+    rng = np.random.default_rng(seed)
+    for _ in range(300):
+        ragged = rng.random() < 0.3
+        raw = serialize_message(random_trajectory(rng, ragged))
+        msg = deserialize_message(raw, JointTrajectory)
+        shapes = {tuple(len(getattr(p, name)) for name in cdr.POINT_ARRAYS)
+                  for p in msg.points}
+        fast = cdr.trajectory_arrays(raw)
+        assert (fast is None) == (len(shapes) > 1)  # one shape (or none): read as arrays
+        got, want = conversions.trajectory_arrays(raw), as_read_by_rclpy(msg)
+        assert got.stamp == want.stamp and got.joint_names == want.joint_names
+        np.testing.assert_array_equal(got.times_ns, want.times_ns)
+        assert got.finite == want.finite
+        if want.positions is None:
+            assert got.positions is None
+        elif msg.points:
+            np.testing.assert_array_equal(got.positions, want.positions)  # bit for bit
+
+
+def test_a_trajectory_from_bytes_is_read_and_refused_as_the_message_is():
+    rows = np.random.default_rng(5).normal(size=(6000, 6))
+    msg = conversions.joint_trajectory(5_000_000_123, MS, rows,
+                                       velocities=np.zeros((6000, 6)))
+    msg.joint_names = list(reversed(msg.joint_names))
+    raw = serialize_message(msg)
+    assert cdr.trajectory_arrays(raw) is not None
+    start, back = conversions.read_trajectory(raw, MS)
+    assert start == 5_000_000_123
+    np.testing.assert_array_equal(back, rows[:, ::-1])
+    for field in ('positions', 'velocities', 'accelerations', 'effort'):
+        bad = conversions.joint_trajectory(0, MS, rows[:3])
+        setattr(bad.points[1], field, [0.0] * 5 + [float('inf')])
+        with pytest.raises(InputError, match=f'non-finite {field}'):
+            conversions.read_trajectory(serialize_message(bad), MS)
+    with pytest.raises(InputError, match='wrong sample times'):
+        conversions.read_trajectory(raw, 2 * MS)
+    with pytest.raises(InputError, match='empty trajectory'):
+        conversions.read_trajectory(serialize_message(JointTrajectory(
+            joint_names=msg.joint_names)), MS)
+    ragged = conversions.joint_trajectory(0, MS, rows[:3])
+    ragged.points[2].positions = [0.0] * 5
+    with pytest.raises(InputError, match='wrong positions length'):
+        conversions.read_trajectory(serialize_message(ragged), MS)
+
+
+def test_bytes_that_are_no_trajectory_are_refused_as_malformed():
+    raw = serialize_message(conversions.joint_trajectory(0, MS, np.zeros((3, 6))))
+    for broken in (raw[:40], b'\x00\x01\x00\x00', b'', raw[:2] + b'\xff' * 60):
+        with pytest.raises(InputError, match='malformed message'):
+            conversions.read_trajectory(broken, MS)
