@@ -27,6 +27,13 @@ Commands:
   that the camera's and the arm's topics are there, starts the feature, feedback,
   feedforward and joint controller nodes with ``config/cell.yaml`` (no simulator), prints
   their status once a second; Ctrl-C stops them all (:mod:`ibvs_experiments.cell`);
+- ``calibrate [--bag DIR] [-n N] [--seed S] [--poses FILE] [--draw-poses FILE]
+  [-p name:=value ...] [-o FILE] [--force]``: the hand-eye calibration, the camera pose {C}
+  in ``base_link`` from the tool's own spheres at N poses, by least squares on the
+  reprojection error, written as the ``camera_pose`` parameter with its residual and
+  uncertainty: in the offline simulator (the default, ``-p`` its parameters, e.g. a camera
+  error to recover), from a cell's recording (``--bag``), or only the poses to visit
+  (``--draw-poses``) (:mod:`ibvs_experiments.calibrate`, docs/real_cell.md);
 - ``report [--quick] [--no-laws] [--retry-failed]``: scenarios 1-3, the L2/L4 robustness
   sweep and each servo law on scenarios 1-3 with ideal and with limited actuators
   (:mod:`ibvs_experiments.laws_report`), as studies on Ray, into ``results/report.md``;
@@ -234,6 +241,12 @@ def cmd_cell(args: argparse.Namespace) -> int:
         return 2
 
 
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Hand-eye calibration: the camera pose {C} in base_link from the tool's spheres."""
+    from . import calibrate
+    return calibrate.main(args)
+
+
 def cmd_video(args: argparse.Namespace) -> int:
     """Write the film of a run: both cameras (recorded or rendered again) beside a 3D view."""
     from . import video
@@ -399,6 +412,32 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="wall seconds the cell's topics have to appear before the nodes "
                    'start (default %(default)s; exit code 5 if they do not)')
     p.set_defaults(func=cmd_cell)
+    from . import calibrate, handeye  # their defaults (no ROS, no seconds of start-up)
+    p = sub.add_parser('calibrate', help=cmd_calibrate.__doc__)
+    p.add_argument('--bag', help='a recording of the arm held still at each pose while the '
+                   'feature node ran (/joint_states, /ibvs/features, /ibvs/feature_status, '
+                   'camera_info); default: the offline simulator')
+    p.add_argument('-n', '--count', type=int, default=handeye.DEFAULT_POSES,
+                   help='poses to draw in view of the nominal camera (default %(default)s)')
+    p.add_argument('--seed', type=int, default=0, help='seed of the drawn poses (default '
+                   '%(default)s)')
+    p.add_argument('--poses', help='a poses file (joints_deg: six joint angles in degrees '
+                   'a pose) instead of drawn poses')
+    p.add_argument('--draw-poses', metavar='FILE', help='only write the drawn poses to FILE '
+                   '(to jog a cell through, or for --poses)')
+    p.add_argument('-p', '--param', action='append', default=[],
+                   help="the simulator's parameters (name:=value, repeatable; e.g. "
+                   'camera_pose_error_xyz_m:=[0.006,-0.008,0]); camera_pose: the nominal camera '
+                   '(default: the /stereo/pose the simulator, or the bag, has)')
+    p.add_argument('--still-tol-deg', type=float,
+                   default=math.degrees(handeye.STILL_TOL_RAD),
+                   help='with --bag: how far a joint may move while the arm counts as still '
+                   '(default %(default).2g deg)')
+    p.add_argument('-o', '--out', default=str(calibrate.DEFAULT_OUT),
+                   help='the parameter file of the result (default %(default)s)')
+    p.add_argument('--force', action='store_true',
+                   help='replace an output file that ibvs calibrate did not write')
+    p.set_defaults(func=cmd_calibrate)
     p = sub.add_parser('video', help=cmd_video.__doc__)
     p.add_argument('run_dir', help='a run directory (with bag/)')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
