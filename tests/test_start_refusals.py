@@ -221,3 +221,20 @@ def test_ibvs_run_refuses_a_bad_joint_order_before_any_node(capsys, monkeypatch,
                         '-p', 'lockstep:=false', '-p', f"joints:=[{', '.join(['joint_1'] * 6)}]")
     assert code == 2 and "parameter 'joints'" in err and 'exactly once' in err, err
     assert not (tmp_path / 'out' / 'logs').exists()  # refused before any node started
+
+
+def test_a_rate_near_zero_is_refused_by_its_range_not_by_a_crash(
+        capsys, monkeypatch, tmp_path, installed_workspace):
+    # A rate's period must be whole nanoseconds a timer holds: 1e-300 Hz has none.
+    for text in ('1e-300', '1.0e-300', '0.5'):
+        code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', f'camera_rate_hz:={text}')
+        assert code == 2 and "'camera_rate_hz' =" in err and 'allowed: [1, 100]' in err, err
+        assert 'Traceback' not in err
+    for name in ('marker_rate_hz', 'clock_rate_hz', 'joint_state_rate_hz', 'command_rate_hz'):
+        code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', f'{name}:=1e-300')
+        assert code == 2 and f"'{name}' = 1e-300 is invalid: out of range" in err, err
+    assert not (tmp_path / 'out').exists()
+    node = executable(installed_workspace, 'ibvs_control', 'joint_controller_node')
+    code, out = start([node, '--ros-args', '-p', 'camera_rate_hz:=1e-300'])
+    assert code == 2 and "'camera_rate_hz' = 1e-300 is invalid: out of range" in out, out
+    assert 'Traceback' not in out

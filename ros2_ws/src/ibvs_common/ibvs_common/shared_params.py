@@ -38,8 +38,12 @@ TARGET_FEATURES_SOURCE = Param(
     "target markers projected with the calibrated camera, F(q_target)) or 'taught' "
     '(measured by the feature node on a stereo pair of the tool placed at the target pose '
     'before the run)', '-', choices=('model', 'taught'))
+#: The slowest rate a rate parameter takes (Hz): a period of a second at most. A timer and a
+#: stamp hold a period as whole nanoseconds; a rate near 0 (``1e-300``) has none that they
+#: hold, and no loop of this graph waits seconds between two of its frames or commands.
+MIN_RATE_HZ = 1.0
 CAMERA_RATE_HZ = Param('camera_rate_hz', 30.0, 'stereo frame rate (ZED 2 HD720: 15/30/60)',
-                       'Hz', low=0.0, high=100.0, low_open=True)
+                       'Hz', low=MIN_RATE_HZ, high=100.0)
 FEEDBACK_LATENCY_S = Param(
     'feedback_latency_s', 0.0,
     'camera-to-command latency in sim time: q_feedback of a frame acts this long after it '
@@ -110,7 +114,7 @@ POSITION_COMMAND_TYPE = Param(
 COMMAND_RATE_HZ = Param(
     'command_rate_hz', 250.0, "with command_interface 'position': the rate of the position "
     "references (ABB EGM: 250 Hz); free-running, the simulator's /clock runs at least this "
-    'fast, so that sim-time timers fire at it', 'Hz', low=1.0, high=1000.0)
+    'fast, so that sim-time timers fire at it', 'Hz', low=MIN_RATE_HZ, high=1000.0)
 JOINTS = Param(
     'joints', ['joint_1', 'joint_2', 'joint_3', 'joint_4', 'joint_5', 'joint_6'],
     "the position controller's joints parameter: the order of the values in each command "

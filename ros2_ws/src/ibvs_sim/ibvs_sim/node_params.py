@@ -29,7 +29,7 @@ CLOCK_RATE_HZ = Param(
     'every step); the true tool poses and joint states go out in one /ibvs/tool_path and one '
     '/ibvs/joint_path just before each. The lockstep goes by message stamps, not by /clock, '
     'so the rate changes no result, only the cost: each /clock wakes every node',
-    'Hz', low=0.0, high=10000.0, low_open=True)
+    'Hz', low=shared.MIN_RATE_HZ, high=10000.0)
 
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
@@ -94,7 +94,7 @@ JOINT_STATE_RATE_HZ = Param(
     "update rate (abb_ros2: 250 Hz), each stamped with its update's time: published at the "
     'first physics step at or after each joint_state_phase_s + m / rate, at most once a '
     'step; lockstep publishes every physics step (this is then ignored, with a warning when '
-    'set)', 'Hz', low=0.0, high=10000.0, low_open=True)
+    'set)', 'Hz', low=shared.MIN_RATE_HZ, high=10000.0)
 JOINT_STATE_PHASE_S = Param(
     'joint_state_phase_s', 0.001, "free-running: sim time of the controller manager's first "
     "update (its cycle runs on its own, not aligned with the camera's frames, which start "

@@ -59,7 +59,7 @@ class VizConfig(ParamConfig):
     stale_timeout_s: float = param_field(shared_params.STALE_TIMEOUT_S)
     marker_rate_hz: float = param_field(Param(
         'marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time (/tf '
-        'goes out with every joint state)', 'Hz', low=0.0, high=1000.0, low_open=True))
+        'goes out with every joint state)', 'Hz', low=shared_params.MIN_RATE_HZ, high=1000.0))
     frustum_depth_m: float = param_field(Param(
         'frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
         low=0.0, high=100.0, low_open=True))
