@@ -35,6 +35,10 @@ TEACH_RIGHT_IMAGE = '/stereo/teach/right/image_raw'
 #: The target features p_bar the feature node measured on the teach pair (PolygonStamped,
 #: as /ibvs/features); latched.
 TARGET_FEATURES = '/ibvs/target_features'
+#: The feature node's /diagnostics value when it could not measure p_bar on the teach pair
+#: (why, in words): no target features will come, and no frame is answered without them.
+#: ``ibvs run`` ends the run on it (ibvs_experiments.runner.TeachFailed).
+TEACH_FAILED = 'teach_failed'
 FEATURES = '/ibvs/features'
 #: The feedforward's joint reference, one trajectory_msgs/JointTrajectory for the whole run,
 #: sampled at the physics rate; latched, so a node that joins late still gets it.

@@ -190,6 +190,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     except runner.NodeDied as exc:
         print(f'run failed: {exc}', file=sys.stderr)
         return runner.EXIT_NODE_DIED
+    except runner.TeachFailed as exc:
+        print(f'run failed: {exc}', file=sys.stderr)
+        return runner.EXIT_TEACH_FAILED
     except runner.RunStalled as exc:
         print(f'run stalled: {exc}', file=sys.stderr)
         return 4

@@ -92,6 +92,32 @@ REPLACED = ('bag', 'metrics.json')
 #: ``ibvs run``'s exit code when a node process died during the run (:class:`NodeDied`);
 #: 2 is a refused configuration, 4 a stall (cli.cmd_run).
 EXIT_NODE_DIED = 3
+#: ``ibvs run``'s exit code when the taught target could not be measured (:class:`TeachFailed`;
+#: 5 is ``ibvs cell``'s, its topics missing).
+EXIT_TEACH_FAILED = 6
+
+
+class TeachFailed(RuntimeError):
+    """
+    The feature node measured no target features on the teach pair: no frame can be answered.
+
+    With ``target_features_source: taught`` the simulator renders the tool at the target
+    once, before the run, and the feature node measures p_bar on that pair; when it cannot
+    (a marker hidden or cut at the target) it says so on /diagnostics
+    (``contract.TEACH_FAILED``), and :func:`watch` ends the run at once instead of waiting
+    for the stall bound. ``node``: who said it; ``why``: its words.
+    """
+
+    def __init__(self, node: str, why: str, sim_s: float) -> None:
+        """Keep who said it and why; the message says what to change."""
+        super().__init__(
+            f'teach failed at sim time {sim_s:.3f} s: {node} measured no target features on '
+            f'the teach pair ({why}), and every frame would wait for them. The markers must '
+            'be seen whole at the target: another target or camera pose, or '
+            'target_features_source:=model')
+        self.node = node
+        self.why = why
+        self.sim_s = sim_s
 
 
 class RunStalled(RuntimeError):
@@ -216,6 +242,13 @@ class Monitor:
             self.diagnostics[node] = {kv.key: kv.value for kv in status.values}
             self.heard[node] = self._clock()
 
+    def teach_failed(self) -> tuple[str, str] | None:
+        """Return (node, why) of a node whose /diagnostics says its teach failed, or None."""
+        for node, values in self.diagnostics.items():
+            if values.get(contract.TEACH_FAILED):
+                return node, values[contract.TEACH_FAILED]
+        return None
+
     def restart_clocks(self) -> None:
         """
         Count every node heard now: the runner itself could not listen for a while.
@@ -323,11 +356,12 @@ class Prepared:
 
 @dataclass
 class Outcome:
-    """How :func:`watch` saw a run end: converged, a node's death, a stall, or the time."""
+    """How :func:`watch` saw a run end: converged, a node's death, a failed teach, a stall..."""
 
     converged: bool = False
     died: NodeDied = None
     stalled: RunStalled = None
+    teach_failed: TeachFailed = None
     #: Wall time from step 0 to the end (s); None if the run never got to :func:`watch`'s end.
     wall_duration_s: float = None
     #: SIGINT (KeyboardInterrupt) ended the run: what was recorded is analysed.
@@ -364,7 +398,8 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     :class:`scenario.ScenarioError` for a parameter no node declares or out of its range
     (:func:`graph_params.check`) or a configuration that cannot make progress (before
     starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
-    (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, and
+    (:mod:`ibvs_bringup.domains`), :class:`NodeDied` if a node exits, :class:`TeachFailed`
+    if the feature node measured no taught target, and
     :class:`RunStalled` if sim time does not advance for ``stall_s`` of wall time (or the
     simulator has not taken its first step ``start_timeout_s`` after it was launched).
     A ``ROS_DOMAIN_ID`` or ``IBVS_ROS_DOMAINS`` that cannot be used raises
@@ -495,6 +530,8 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
             clean_shm(progress, 'node processes of this run that died', shm_before)
     if outcome.died:
         raise outcome.died
+    if outcome.teach_failed:
+        raise outcome.teach_failed
     if outcome.stalled:
         raise outcome.stalled
     if outcome.interrupted and monitor.sim_ns == 0:
@@ -609,7 +646,9 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     Raises KeyboardInterrupt between two spins once ``interrupt`` is set (SIGINT,
     :func:`interruptible` deferred).
 
-    It ends when a process exits (``died``), the tool has converged (``converge_hold_s``),
+    It ends when a process exits (``died``), the feature node says it measured no taught
+    target (``teach_failed``: :class:`TeachFailed`), the tool has converged
+    (``converge_hold_s``),
     sim time reaches ``run.duration_s``, ``wall_timeout_s`` has passed since
     ``wall_start``, or sim time has not advanced for ``stall_s`` (``start_timeout_s``
     before step 0: ``stalled``). Progress is printed every :data:`PROGRESS_S` of wall time
@@ -663,6 +702,10 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
                 outcome.died = NodeDied(p.name, code, p.log_path, p.nodes)
                 break
         if outcome.died:
+            break
+        failed = monitor.teach_failed()
+        if failed is not None:
+            outcome.teach_failed = TeachFailed(*failed, monitor.stalled_sim_s())
             break
         sim_s = ns_to_seconds(monitor.sim_ns)
         now = time.monotonic()

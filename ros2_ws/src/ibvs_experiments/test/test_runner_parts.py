@@ -49,6 +49,9 @@ class _Monitor:
     def busy_now(self):
         return {}
 
+    def teach_failed(self):
+        return None
+
 
 class _Executor:
 
@@ -93,6 +96,14 @@ def test_watch_names_a_node_that_died_and_a_stall():
     stalled = _watch(_Monitor(0.0, 0), stall_s=0.0).stalled
     assert isinstance(stalled, runner.RunStalled)
     assert stalled.waits == {'sim_node': 'waiting for /joint_effort_commands'}
+
+
+def test_watch_ends_at_once_on_a_failed_teach():
+    monitor = _Monitor(0.0, 0)  # sim time stands: the frames wait for the target features
+    monitor.teach_failed = lambda: ('feature_node', 'marker missing: marker 1 (P1)')
+    done = _watch(monitor, stall_s=3600.0)
+    assert done.stalled is None and isinstance(done.teach_failed, runner.TeachFailed)
+    assert done.teach_failed.node == 'feature_node' and 'marker 1 (P1)' in str(done.teach_failed)
 
 
 def test_watch_goes_on_without_an_optional_viewer_once_the_simulator_runs():

@@ -173,22 +173,35 @@ class FeatureNode(Node):
             right = right[:, :, ::-1].copy()
         k = self._detector.intrinsics
         if any(image.shape[:2] != (k.height, k.width) for image in (left, right)):
+            size = (f'{left.shape[1]} x {left.shape[0]}, camera_info says '
+                    f'{k.width} x {k.height}')
             self._diag.reject(self._topics['left teach'], 'size disagrees with camera_info',
-                              f'{left.shape[1]} x {left.shape[0]}, camera_info says '
-                              f'{k.width} x {k.height}')
+                              size)
+            self._teach_failed(f'its images are {size}')
             return
         detection = self._detector.detect(left, right, encoding, None, TEACH_BUDGET_MS)
         if not detection.ok:
-            message = (f'taught target: markers not measured on the teach pair '
-                       f'({detection.reason.value}: {detection.detail}); no target features')
-            self.get_logger().error(message)
-            self._diag.set_level(DiagnosticStatus.ERROR, message)
+            self._teach_failed(f'{detection.reason.value}: {detection.detail}')
             return
         self._target_pub.publish(features_msg(detection.features, ns_stamp(0)))
         self._target_features = detection.features
         self._diag.update(taught_target_px=detection.features)
         self.get_logger().info(f'taught target features p_bar = '
                                f'{np.round(detection.features, 3).tolist()} px')
+
+    def _teach_failed(self, why):
+        """
+        Say at once that no target features will come: ERROR, and ``contract.TEACH_FAILED``.
+
+        The teach pair is published once, latched: no other comes, and without p_bar no
+        frame is answered. ``ibvs run`` ends the run on the value (its own exit code).
+        """
+        message = (f'taught target: markers not measured on the teach pair ({why}); no target '
+                   'features')
+        self.get_logger().error(message)
+        self._diag.set_level(DiagnosticStatus.ERROR, message)
+        self._diag.update(**{contract.TEACH_FAILED: why})
+        self._diag.publish()
 
     def _on_joints(self, msg):
         topic = self._topics['joints']
