@@ -11,7 +11,7 @@ def test_a_tiny_benchmark_writes_its_report(installed_workspace, tmp_path, monke
     monkeypatch.setenv('IBVS_ROS_DOMAINS', '-'.join(map(str, study.DOMAIN_IDS)))
     out = tmp_path / 'results'
     code = cli.main(['vsbench', '--tasks', '2', '--graph-tasks', '1', '--laws', 'paper',
-                     '--duration', '0.3', '--workers', '2', '--parallel', '1',
+                     '--duration', '0.1', '--workers', '2', '--parallel', '1',
                      '-o', str(out), '--studies', str(tmp_path / 'studies')])
     assert code == 0
     with open(out / 'vsbench_runs.csv') as f:
@@ -19,7 +19,7 @@ def test_a_tiny_benchmark_writes_its_report(installed_workspace, tmp_path, monke
     assert [(r['source'], r['task']) for r in rows] == [
         ('model', 'workspace-2/1/0'), ('model', 'workspace-2/1/1'),
         ('graph', 'workspace-2/1/0')]
-    # 0.3 s from a start up to 20 deg per joint away: no run succeeds, each says why
+    # 0.1 s from a start up to 20 deg per joint away: no run succeeds, each says why
     assert all(r['success'] == 'False' and r['miss_reason'] for r in rows)
     assert all(r['limit_violations'] == '0' and r['collisions'] == '0' for r in rows)
     report = (out / 'vsbench.md').read_text()

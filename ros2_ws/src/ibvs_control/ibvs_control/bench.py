@@ -9,8 +9,9 @@ Benchmarks of the controllers' hot paths (``make bench`` calls :func:`run`).
   two F), what the latency costs the feedback per frame;
 - one position reference: the shaper re-planning Ruckig's move to a new target (the
   q_feedback of a new frame) and sampling it, every command period at 250 Hz (4 ms);
-- the feedforward's start-up through the position interface (IK branch and the two-point
-  trajectory) and, for comparison, T_forward's trajectory at the paper's ``tau_in``.
+- the feedforward node's start-up, from a joint state to its message: the two-point
+  trajectory of the joint controller's own move (position interface, limited actuators)
+  and T_forward's trajectory (ideal actuators) at the paper's ``tau_in`` and at 0.05 s.
 
 No assertion on time: numbers to read. ``python -m ibvs_control.bench`` prints median/p95.
 """
@@ -19,6 +20,7 @@ from collections.abc import Callable
 import time
 
 from ibvs_common.bench import print_timing
+from ibvs_common.conversions import joint_trajectory
 from ibvs_model import default_model, IRB4600, paper
 import numpy as np
 
@@ -65,26 +67,26 @@ def run(report: Callable[[str, list[float]], None]) -> None:
     report('ibvs_control: position reference, Ruckig re-planned to a new target (6 joints)',
            _timed(shaper.step, targets))
 
-    def start_position_interface():
-        ff = Feedforward(paper.target_pose(), 0.05, 1e-3)
-        q_target = ff.start(run_.q[0])
-        return np.array([run_.q[0], q_target])
-
-    def start_t_forward():
-        ff = Feedforward(paper.target_pose(), paper.TAU_IN, 1e-3)
+    def start_up(tau_in, two_points):
+        """Do the feedforward node's work from a joint state to its message (IK, filter)."""
+        ff = Feedforward(paper.target_pose(), tau_in, 1e-3)
         ff.start(run_.q[0])
-        return ff.trajectory()
-    report('ibvs_control: feedforward start-up, position interface (IK, two points)',
-           _timed(start_position_interface, [()] * 20))
-    report("ibvs_control: feedforward start-up, T_forward trajectory (the paper's tau_in)",
-           _timed(start_t_forward, [()] * 3))
+        positions = np.array([run_.q[0], ff.goal]) if two_points else ff.trajectory()
+        return joint_trajectory(0, 1_000_000, positions)
+    report('ibvs_control: feedforward start-up, own move (IK, two points, message)',
+           _timed(start_up, [(paper.TAU_IN, True)] * 20))
+    for tau_in in (paper.TAU_IN, 0.05):
+        report(f'ibvs_control: feedforward start-up, T_forward at tau_in {tau_in:g} '
+               '(IK, trajectory, message)', _timed(start_up, [(tau_in, False)] * 3))
 
     dynamics = RobotDynamics(IRB4600, with_tool=True)
     try:
         qd = np.gradient(run_.q, run_.t, axis=0)
-        steps = [(run_.q_feedforward[k] + run_.q_feedback[k], run_.q[k], qd[k])
-                 for k in range(0, len(run_.t), 2)]
         for mode in ('ideal', 'limited'):
+            # limited: the loop makes its own move to the goal (controllers.makes_own_move)
+            steps = [((run_.q_target if mode == 'limited' else run_.q_feedforward[k])
+                      + run_.q_feedback[k], run_.q[k], qd[k])
+                     for k in range(0, len(run_.t), 2)]
             loop = JointLoop(paper.TAU_IN, 1e-3, mode, IRB4600.qd_max,
                              dynamics.torque_limits)
 

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import node_params
-from .controllers import Feedforward, JointLoop
+from .controllers import Feedforward, JointLoop, makes_own_move
 from .feedback_lockstep import FeedbackLockstep
 from .prediction import Predictor
 from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
@@ -270,6 +270,8 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
                      feedforward_ratio=config.feedforward_ratio,
                      feedforward_method=law.feedforward_method(config.feedforward_method))
     q_target = ff.start(q)
+    # Limited actuators: the joint loop makes the time-optimal move to the goal itself.
+    goal = ff.goal if makes_own_move('effort', config.actuators) else None
     taught = config.target_features_source == 'taught'
     p_taught = None
     if taught:
@@ -322,7 +324,7 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
         _, _, q_fb = lockstep.pop_ready()  # every frame has its q_feedback: never waits
         q_ff = ff.step()
         rec['q'][k], rec['qd'][k], rec['q_ff'][k], rec['q_fb'][k] = q, qd, q_ff, q_fb
-        acc = joint.step(q_ff + q_fb, q, qd)
+        acc = joint.step((q_ff if goal is None else goal) + q_fb, q, qd)
         if semi_implicit:
             qd = qd + acc * dt
             q = q + qd * dt

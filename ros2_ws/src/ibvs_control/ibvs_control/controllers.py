@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import youla
 from .decoupling import decouple, SVD_RCOND
 from .filters import StateSpaceFilter
-from .governor import ReferenceGovernor
+from .governor import JERK_RISE_S, ReferenceGovernor
 from .youla import FEEDFORWARD_RATIO
 
 if TYPE_CHECKING:
@@ -88,14 +88,20 @@ class JointLoop:
 
     'limited' actuators (the IRB 4600 speed limits ``qd_max`` and ``torque_limits``):
 
-    1. q_ref is shaped by a :class:`.governor.ReferenceGovernor` so that the linear loop
-       stays out of saturation: speed ``speed_margin`` * qd_max, acceleration
-       ``acceleration_margin`` * max(torque_limits - |h|, 0.1 torque_limits) / diag(M), i.e. a
-       share of what the torque left after gravity and Coriolis buys on each joint now;
-    2. v is clipped so that the joint speed after the step stays within qd_max
+    1. q_ref, the feedforward's goal plus q_feedback (:func:`makes_own_move`), is
+       shaped by a :class:`.governor.ReferenceGovernor` into the time-optimal,
+       jerk-limited, synchronised move r toward it, so that the linear loop stays out of
+       saturation: speed ``speed_margin`` * qd_max, acceleration ``acceleration_margin`` *
+       max(torque_limits - |h|, 0.1 torque_limits) / diag(M), i.e. a share of what the
+       torque left after gravity and Coriolis buys on each joint now;
+    2. v = r'' + G_c,d(r - q): the move's own acceleration is fed forward (the inverse of
+       the double integrator of eq. 27, the part of T_forward a shaped move needs), so the
+       loop tracks r without the lag a reference of nonzero acceleration leaves behind a
+       G_c alone, and G_c corrects what remains;
+    3. v is clipped so that the joint speed after the step stays within qd_max
        (|qdot + v dt| <= qd_max), and u is clipped to +-torque_limits;
-    3. anti-windup: the acceleration actually achieved, v_a = M^-1 (u_sat - h), conditions
-       the controller state (Hanus, :class:`.filters.StateSpaceFilter`).
+    4. anti-windup: the acceleration actually achieved, v_a = M^-1 (u_sat - h), less r'',
+       conditions the controller state (Hanus, :class:`.filters.StateSpaceFilter`).
     """
 
     def __init__(self, tau_in: float, dt: float, actuators: str = ACTUATORS[0],
@@ -118,7 +124,8 @@ class JointLoop:
                 raise ValueError('limited actuators need 6 positive torque limits')
             if not (0.0 < speed_margin <= 1.0 and 0.0 < acceleration_margin <= 1.0):
                 raise ValueError('speed and acceleration margins must be in (0, 1]')
-            self.governor = ReferenceGovernor(dt, speed_margin * self.qd_max)
+            self.governor = ReferenceGovernor(dt, speed_margin * self.qd_max,
+                                              jerk_rise_s=JERK_RISE_S)
         self.filter = StateSpaceFilter(youla.inner_controller_discrete(tau_in, dt), 6)
         self.saturated = np.zeros(6, dtype=bool)
         self.reference = None
@@ -129,7 +136,7 @@ class JointLoop:
         self.saturated[:] = False
         self.reference = None
         if self.governor is not None:
-            self.governor.r = None
+            self.governor.state = None
 
     def step(self, q_ref: ArrayLike, q: ArrayLike, qdot: ArrayLike,
              mass: ArrayLike | None = None, bias: ArrayLike | None = None
@@ -154,15 +161,30 @@ class JointLoop:
         self.reference = self.governor.step(
             q_ref, self.acceleration_margin * spare / np.abs(np.diag(mass)))
         error = self.reference - np.asarray(q, dtype=float)
-        v = self.filter.output(error)
+        r_acc = self.governor.state[2]
+        v = r_acc + self.filter.output(error)
         v_lim = np.clip(v, (-self.qd_max - qdot) / self.dt, (self.qd_max - qdot) / self.dt)
         u = mass @ v_lim + bias
         u_sat = np.clip(u, -self.torque_limits, self.torque_limits)
         torque_hit = u_sat != u
         applied = np.linalg.solve(mass, u_sat - bias) if np.any(torque_hit) else v_lim
         self.saturated = torque_hit | (v_lim != v)
-        self.filter.step(error, applied=applied)
+        self.filter.step(error, applied=applied - r_acc)
         return u_sat
+
+
+def makes_own_move(command_interface: str, actuators: str) -> bool:
+    """
+    Return whether the joint controller makes the time-optimal move to the goal itself.
+
+    Through the position interface (:class:`.position_interface.PositionShaper`) and with
+    'limited' actuators (:class:`JointLoop`) the joint reference is the governor's move
+    toward the feedforward's goal (:attr:`Feedforward.goal`) plus q_feedback: the
+    feedforward is then its start and goal only (T_forward inverts the ideal inner loop;
+    through the governor its reference would only be clipped). With 'ideal' actuators (the
+    paper) the reference is T_forward's trajectory.
+    """
+    return command_interface == 'position' or actuators == 'limited'
 
 
 #: Longest feedforward trajectory (samples): 60 s at 1 kHz. With the paper's values the
@@ -172,6 +194,10 @@ MAX_FEEDFORWARD_SAMPLES = 60_000
 #: much (rad): far below what the encoders or the physics resolve.
 SETTLED_RAD = 1e-15
 SETTLED_SAMPLES = 10
+#: ... or once FLOOR_SAMPLES samples in a row have each moved by at most FLOOR_RAD (rad): the
+#: filter's rounding floor (:meth:`Feedforward.trajectory`).
+FLOOR_RAD = 1e-9
+FLOOR_SAMPLES = 2000
 
 
 class Feedforward:
@@ -222,6 +248,13 @@ class Feedforward:
         """Return True once :meth:`start` has fixed the IK branch."""
         return self.q_target is not None
 
+    @property
+    def goal(self) -> NDArray[np.float64]:
+        """Return where the feedforward comes to rest: q_target, or q0 for 'hold'."""
+        if not self.started:
+            raise RuntimeError('Feedforward.start(q0) first')
+        return (self.q_start if self.hold else self.q_target).copy()
+
     def start(self, q0: ArrayLike) -> NDArray[np.float64]:
         """Choose the IK branch of the target (:func:`target_branch`), rest the filter at q0."""
         self.q_start = np.asarray(q0, dtype=float).copy()
@@ -247,18 +280,24 @@ class Feedforward:
         docstring). The filter is stable, linear and time-invariant with a constant input
         after t = 0, so its output converges to its DC gain times q_target; the trajectory
         ends once ``settled_samples`` consecutive samples have each moved by at most
-        ``atol`` (rad) on every joint. Holding its last row from then on departs from the
-        filter by at most a few ``atol`` (measured with the paper's values: the trajectory
-        ends after 1021 to 1028 samples in scenarios 1-3, and the filter then stays within
-        2e-16 rad of its last row). ``max_samples`` bounds the length in any case.
+        ``atol`` (rad) on every joint (measured with the paper's values: after 1021 to 1028
+        samples in scenarios 1-3, and the filter then stays within 2e-16 rad of its last
+        row), or once :data:`FLOOR_SAMPLES` samples in a row have each moved by at most
+        :data:`FLOOR_RAD`: with a slower inner loop (tau_in 0.02 and above) rounding in the
+        filter's states keeps the samples moving by about 1e-11 rad for ever, and what the
+        tail has left to travel by then is far below what the encoders resolve (the
+        paper's values end by the first rule, about 500 samples after their moves fell
+        below FLOOR_RAD). ``max_samples`` bounds the length in any case.
         """
         if max_samples < 2:
             raise ValueError(f'max_samples must be >= 2, got {max_samples}')
         rows = [self.step()]
-        still = 0
-        while len(rows) < max_samples and still < settled_samples:
+        still = floor = 0
+        while len(rows) < max_samples and still < settled_samples and floor < FLOOR_SAMPLES:
             rows.append(self.step())
-            still = still + 1 if np.max(np.abs(rows[-1] - rows[-2])) <= atol else 0
+            moved = float(np.max(np.abs(rows[-1] - rows[-2])))
+            still = still + 1 if moved <= atol else 0
+            floor = floor + 1 if moved <= FLOOR_RAD else 0
         return np.array(rows)
 
     def pose_error(self) -> tuple[float, float]:

@@ -2,7 +2,8 @@
 The effort joint controller: computed torque with the sampled Youla G_c, in lockstep.
 
 On each /joint_states (encoder q, qdot; stamp t_k) it answers with one effort command
-stamped t_k on /joint_effort_commands: with q_ref = q_feedforward(t_k) + q_feedback,
+stamped t_k on /joint_effort_commands: with q_ref = q_feedforward(t_k) + q_feedback ('limited'
+actuators: the feedforward's target + q_feedback, the governor making the move),
 v = G_c(q_ref - q) (the sampled eq. 28 at the physics rate) and u = M(q) v + h(q, qdot)
 (eq. 23-27; M and h of the nominal robot, :class:`.dynamics.RobotDynamics`), 'ideal' or
 'limited' actuators (:class:`.controllers.JointLoop`). Which frame's q_feedback answers
@@ -24,7 +25,7 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from .controllers import JointLoop
+from .controllers import JointLoop, makes_own_move
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
 from .joint_controller_mode import JointControllerMode
@@ -53,6 +54,7 @@ class EffortController(JointControllerMode):
                               IRB4600.qd_max, self.torque_limits,
                               speed_margin=config.speed_margin,
                               acceleration_margin=config.acceleration_margin)
+        self.own_move = makes_own_move('effort', config.actuators)
         self._lockstep = self._new_lockstep()
         clock_watch(node).on_back(self._clock_back)
         self.frames_lost = 0
@@ -61,6 +63,7 @@ class EffortController(JointControllerMode):
         self.diagnostics.update(actuators=config.actuators, commands=0,
                                 torque_limits=self.torque_limits)
         self._pub = publisher(node, JointState, contract.EFFORT_COMMANDS, contract.RELIABLE)
+        self.diagnostics.publishers.command(self._pub.topic_name)  # reported, never held on
         subscription(node, JointState, contract.JOINT_STATES, self._on_joint_state,
                      contract.RELIABLE)
         self.subscribe_inputs()
@@ -140,7 +143,9 @@ class EffortController(JointControllerMode):
             if ready is None:
                 return
             t_ns, (q, qd), q_feedback = ready
-            self._answer(t_ns, q, qd, self.q_feedforward(t_ns) + q_feedback)
+            # limited actuators: the joint loop's governor makes the move to the target
+            q_ff = self.feedforward_target() if self.own_move else self.q_feedforward(t_ns)
+            self._answer(t_ns, q, qd, q_ff + q_feedback)
 
     def _answer(self, t_ns, q, qd, q_ref):
         with self.diagnostics.timing.section('joint_loop'):

@@ -4,9 +4,10 @@ feedforward_node: the feedforward of section 4.3, published once as a joint traj
 q_target = IK of the target pose (eq. 43) near the first good /joint_states, filtered by
 T_forward(z) (eq. 44-45, :class:`.controllers.Feedforward`) from that state's stamp until
 settled; then the node leaves the lockstep (it unsubscribes). With ``command_interface``
-'position' the trajectory is that state and q_target only: the joint controller makes the
-time-optimal move to it itself (T_forward is the inverse of a computed-torque inner loop the
-arm's drive does not have).
+'position' or 'limited' ``actuators`` the trajectory is that state and the goal only
+(:func:`.controllers.makes_own_move`): the joint controller makes the time-optimal move to it
+itself (T_forward is the inverse of an ideal computed-torque inner loop, which neither the
+arm's drive nor a torque-limited one is).
 
 Subscribes: /joint_states (until it has published). Publishes:
 /ibvs/feedforward_trajectory (trajectory_msgs/JointTrajectory, latched), /diagnostics.
@@ -30,7 +31,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from .controllers import Feedforward
+from .controllers import Feedforward, makes_own_move
 from .node_params import FeedforwardConfig, target_from
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
@@ -86,10 +87,11 @@ class FeedforwardNode(Node):
         self.diagnostics.note_ignored(contract.JOINT_STATES, ignored_joints(msg))
         try:
             q_target = self.ff.start(q)
-            # Through the position interface the joint controller plans the move itself
-            # (time-optimal, jerk-limited: position_interface.PositionShaper) toward the
-            # last point: the start and the target are all it needs.
-            positions = (np.array([q, q_target]) if self.config.command_interface == 'position'
+            # The joint controller plans the move itself (time-optimal, jerk-limited:
+            # governor.ReferenceGovernor) toward the last point: the start and the goal
+            # are all it needs.
+            positions = (np.array([q, self.ff.goal])
+                         if makes_own_move(self.config.command_interface, self.config.actuators)
                          else self.ff.trajectory())
         except ModelError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, type(exc).__name__, str(exc))

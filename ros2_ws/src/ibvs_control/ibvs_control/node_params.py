@@ -251,6 +251,7 @@ class FeedforwardConfig(ParamConfig):
     feedforward_ratio: float = param_field(FEEDFORWARD_RATIO)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
     command_interface: str = param_field(shared.COMMAND_INTERFACE)
+    actuators: str = param_field(shared.ACTUATORS)
 
 
 @dataclass(frozen=True)

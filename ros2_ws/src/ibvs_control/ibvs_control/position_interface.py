@@ -17,7 +17,8 @@ from ibvs_model import IRB4600
 from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, JERK_LIMITS, SPEED_LIMITS
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-import ruckig
+
+from .governor import ReferenceGovernor
 
 
 class PositionShaper:
@@ -65,18 +66,14 @@ class PositionShaper:
         self.jerk_limits = j_max
         self.low = np.asarray(position_limits[0], dtype=float) + range_margin
         self.high = np.asarray(position_limits[1], dtype=float) - range_margin
-        self._otg = ruckig.Ruckig(6)
-        self._input = ruckig.InputParameter(6)
-        self._input.max_velocity = self.speed_limits.tolist()
-        self._input.max_acceleration = a_max.tolist()
-        self._input.max_jerk = j_max.tolist()
-        self._trajectory = ruckig.Trajectory(6)
-        #: The reference's state: position, velocity, acceleration (6,) each; None before
-        #: :meth:`start`.
-        self.state = None
-        self._target = None
-        self._planned = None
-        self._elapsed = 0.0
+        self._governor = ReferenceGovernor(self.period, self.speed_limits, a_max,
+                                           jerk_limits=j_max)
+
+    @property
+    def state(self) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                             NDArray[np.float64]] | None:
+        """Return the reference's position, velocity, acceleration (6,) each; None before."""
+        return self._governor.state
 
     @property
     def started(self) -> bool:
@@ -85,42 +82,7 @@ class PositionShaper:
 
     def start(self, q: ArrayLike) -> None:
         """Start from the measured joints ``q`` (6,), at rest."""
-        q = np.asarray(q, dtype=float).copy()
-        self.state = (q, np.zeros(6), np.zeros(6))
-        self._target, self._planned, self._elapsed = None, None, 0.0
-
-    def _plan(self, target: NDArray[np.float64] | None) -> ruckig.Trajectory:
-        """Plan from the reference's state to ``target`` at rest (None: brake to rest)."""
-        position, velocity, acceleration = self.state
-        inp = self._input
-        inp.current_position = position.tolist()
-        inp.current_velocity = velocity.tolist()
-        inp.current_acceleration = acceleration.tolist()
-        if target is None:
-            inp.control_interface = ruckig.ControlInterface.Velocity
-            inp.target_velocity = [0.0] * 6
-        else:
-            inp.control_interface = ruckig.ControlInterface.Position
-            inp.target_position = target.tolist()
-            inp.target_velocity = [0.0] * 6
-        inp.target_acceleration = [0.0] * 6
-        # Time-synchronised (every joint arrives at once, none faster than the slowest
-        # needs); in the rare states where Ruckig's synchronisation finds no profile, each
-        # joint on its own time-optimal profile (still within every limit).
-        for sync in (ruckig.Synchronization.Time, ruckig.Synchronization.No):
-            inp.synchronization = sync
-            try:
-                result = self._otg.calculate(inp, self._trajectory)
-            except ruckig.RuckigError as exc:
-                result = exc
-            if result in (ruckig.Result.Working, ruckig.Result.Finished):
-                return self._trajectory
-        raise ArithmeticError(f'Ruckig could not plan the reference: {result}')
-
-    def _sample(self, trajectory: ruckig.Trajectory, t: float):
-        """Return (position, velocity, acceleration) of ``trajectory`` at ``t`` (s)."""
-        position, velocity, acceleration = trajectory.at_time(min(t, trajectory.duration))
-        return np.array(position), np.array(velocity), np.array(acceleration)
+        self._governor.reset(q)
 
     def target(self, q_ref: ArrayLike) -> NDArray[np.float64]:
         """Return ``q_ref`` (6,) clipped to the joint ranges less ``range_margin``."""
@@ -137,16 +99,7 @@ class PositionShaper:
         if not self.started:
             raise RuntimeError('start() the shaper from the measured joints first')
         dt = self.period if dt is None else min(max(float(dt), 0.0), 25.0 * self.period)
-        target = self.target(q_ref)
-        if self._target is None or not np.array_equal(target, self._target):
-            # a new target: re-planned from where the reference is, as it is moving
-            self._target, self._planned, self._elapsed = target, self._plan(target), 0.0
-            self._trajectory = ruckig.Trajectory(6)
-        # the same target: on along the plan made for it (replanning from a sampled state
-        # would give the same course but for rounding)
-        self._elapsed += dt
-        self.state = self._sample(self._planned, self._elapsed)
-        return self.state[0].copy()
+        return self._governor.step(self.target(q_ref), dt=dt)
 
     def preview(self, points: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                             NDArray[np.float64]]:
@@ -162,11 +115,7 @@ class PositionShaper:
             raise RuntimeError('start() the shaper from the measured joints first')
         rows = np.zeros((3, int(points), 6))
         for k in range(int(points)):
-            if self._planned is None:  # not moved yet: at rest where it started
-                rows[0, k] = self.state[0]
-                continue
-            for i, value in enumerate(self._sample(self._planned,
-                                                   self._elapsed + (k + 1) * self.period)):
+            for i, value in enumerate(self._governor.ahead((k + 1) * self.period)):
                 rows[i, k] = value
         return rows[0], rows[1], rows[2]
 
@@ -174,7 +123,7 @@ class PositionShaper:
         """Return the time (s) the reference takes from its state to ``q_ref`` at rest."""
         if not self.started:
             raise RuntimeError('start() the shaper from the measured joints first')
-        return float(self._plan(self.target(q_ref)).duration)
+        return float(self._governor.plan(self.target(q_ref)).duration)
 
     def stopping_point(self) -> NDArray[np.float64]:
         """
@@ -186,8 +135,8 @@ class PositionShaper:
         """
         if not self.started:
             raise RuntimeError('start() the shaper from the measured joints first')
-        trajectory = self._plan(None)
-        return self.target(self._sample(trajectory, trajectory.duration)[0])
+        trajectory = self._governor.plan(None)
+        return self.target(self._governor.sample(trajectory, trajectory.duration)[0])
 
 
 class FeedbackHold:

@@ -67,18 +67,48 @@ def test_filter_rejects_wrong_shapes():
 
 def test_governor_respects_limits_and_stops_on_target():
     v_max, a_max = np.full(6, 3.0), np.array([5.0, 10.0, 20.0, 40.0, 80.0, 160.0])
-    gov = ReferenceGovernor(DT, v_max, a_max)
+    j_max = a_max / 0.05
+    gov = ReferenceGovernor(DT, v_max, a_max, jerk_limits=j_max)
     gov.reset(np.zeros(6))
     target = np.array([2.0, -1.0, 0.5, 0.01, -3.0, 1e-4])
+    states = []
+    for _ in range(3000):
+        gov.step(target)
+        states.append(np.array(gov.state))
+    states = np.array(states)  # (steps, 3, 6): position, velocity, acceleration
+    assert np.all(np.abs(states[:, 1]) <= v_max + 1e-9)
+    assert np.all(np.abs(states[:, 2]) <= a_max + 1e-9)
+    jerk = np.diff(states[:, 2], axis=0) / DT
+    assert np.all(np.abs(jerk) <= j_max * (1 + 1e-6))
+    np.testing.assert_allclose(states[-1, 0], target, atol=1e-12)
+    # a move from rest to rest passes no joint's target
+    overshoot = np.max((states[:, 0] - target) * np.sign(target), axis=0)
+    assert np.all(overshoot <= 1e-12)
+
+
+def test_governor_moves_every_joint_along_the_straight_line_from_rest():
+    """Time-synchronised: every joint arrives at once, on the line from start to target."""
+    gov = ReferenceGovernor(DT, np.full(6, 2.0), np.full(6, 10.0), jerk_rise_s=0.05)
+    start, target = np.zeros(6), np.array([1.0, -0.5, 0.25, 0.1, -2.0, 0.05])
+    gov.reset(start)
     rs = np.array([gov.step(target) for _ in range(3000)])
-    vel = np.diff(np.vstack([np.zeros(6), rs]), axis=0) / DT
-    acc = np.diff(np.vstack([np.zeros(6), vel]), axis=0) / DT
-    assert np.all(np.abs(vel) <= v_max + 1e-9)
-    assert np.all(np.abs(acc) <= a_max + 1e-6)
-    np.testing.assert_allclose(rs[-1], target, atol=1e-12)
-    # the braking curve is exact up to the last, partial step: overshoot below a dt^2
-    overshoot = np.max((rs - target) * np.sign(target), axis=0)
-    assert np.all(overshoot <= a_max * DT * DT)
+    share = (rs - start) / (target - start)
+    np.testing.assert_allclose(share, share[:, :1] * np.ones((1, 6)), atol=1e-9)
+
+
+def test_governor_follows_limits_that_change_each_step():
+    """'limited' actuators: the acceleration limit is what the torque buys now."""
+    gov = ReferenceGovernor(DT, np.full(6, 3.0), jerk_rise_s=0.02)
+    gov.reset(np.zeros(6))
+    target = np.full(6, 0.5)
+    for k in range(2000):
+        limits = np.full(6, 20.0 + 10.0 * np.sin(k * DT * 7.0))
+        gov.step(target, limits)
+    np.testing.assert_allclose(gov.r, target, atol=1e-9)
+    with pytest.raises(ValueError):
+        gov.step(target)  # no limits given at construction nor now
+    with pytest.raises(ValueError):
+        ReferenceGovernor(DT, np.full(6, 3.0))  # neither jerk limits nor a rise time
 
 
 # -- joint loop -------------------------------------------------------------------------------

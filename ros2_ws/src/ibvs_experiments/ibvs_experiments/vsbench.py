@@ -75,18 +75,18 @@ LAWS = ('paper', 'switching', 'ibvs')
 POSITION_ERROR_M = 0.003
 ROTATION_ERROR_DEG = 0.3
 FOCAL_ERROR = 0.005
-#: The conditions of every run (node parameters): real-cell conditions of issue 38 item 3
-#: on the law study's limited case (:data:`.laws_report.CASES`), no joint disturbance d_q
-#: (a real encoder reads the joint: the calibration error is the cell's imperfection), the
-#: safety envelope on, the target taught on the mean of 10 frames (a third of a second of
-#: the tool held still: one frame's noise left 1-1.6 mm of depth error on 8 of vsbench-2's
-#: 500 targets in the model loop, docs/vsbench.md), and the laws as published: their
-#: feedback without the camera's latency in its design (``latency_compensation: none``), as
-#: vsbench-2's published figures were measured; the compensated laws are another condition
-#: of the same tasks (docs/vsbench.md).
+#: The conditions of every run (node parameters): real-cell conditions (image noise, lost
+#: frames, a taught target) on the law study's limited case (:data:`.laws_report.CASES`:
+#: limited actuators, 67 ms of latency), no joint disturbance d_q (a real encoder reads the
+#: joint: the calibration error is the cell's imperfection), the safety envelope on, the
+#: target taught on the mean of 10 frames (a third of a second of the tool held still: one
+#: frame's noise left 1-1.6 mm of depth error on 8 of the 500 targets in the model loop),
+#: and the feedback designed for the camera's latency as the nodes default to it
+#: (``latency_compensation: encoders``; ``--latency-compensation none`` runs the laws as
+#: published).
 CONDITIONS = {**CASES['limited'], 'image_noise_stddev': 0.01, 'frame_drop_probability': 0.05,
               'target_features_source': 'taught', 'teach_frames': 10, 'safety_envelope': True,
-              'disturbance_deg': [0.0] * 6, 'latency_compensation': 'none'}
+              'disturbance_deg': [0.0] * 6, 'latency_compensation': 'encoders'}
 #: Sim time of a run (s): the law study's limited runs need up to 3 s from the paper's
 #: starts; the tasks start up to 20 deg per joint away.
 DURATION_S = 6.0
@@ -845,7 +845,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "benchmark's condition)")
     parser.add_argument('--latency-compensation', choices=LATENCY_COMPENSATIONS, default=None,
                         help="the feedback's design for the latency (default the benchmark's "
-                        'condition: none, the laws as published)')
+                        'condition: encoders; none: the laws as published)')
     args = parser.parse_args(argv)
     if args.write_definition:
         data = write_definition(args.write_definition)
