@@ -10,14 +10,19 @@ command uses, and which command is the first to use a frame (the latency measure
 :class:`FeedbackHold`.
 """
 
+from collections.abc import Mapping
 import math
+from typing import Any
 
+from ibvs_common import shared_params as shared
 from ibvs_common.shared_params import joint_permutation  # noqa: F401 (this module's too)
 from ibvs_model import IRB4600
-from ibvs_model.drive import ACCELERATION_LIMITS, check_limits, JERK_LIMITS, SPEED_LIMITS
+from ibvs_model.drive import (ACCELERATION_LIMITS, check_limits, EGM_DELAY_S, JERK_LIMITS,
+                              SPEED_LIMITS)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import node_params
 from .governor import ReferenceGovernor
 
 
@@ -137,6 +142,36 @@ class PositionShaper:
             raise RuntimeError('start() the shaper from the measured joints first')
         trajectory = self._governor.plan(None)
         return self.target(self._governor.sample(trajectory, trajectory.duration)[0])
+
+
+def shaper_for(values: Mapping[str, Any]) -> PositionShaper:
+    """
+    Return the joint controller's shaper for its parameters ``values`` (by name).
+
+    ``command_rate_hz``, ``speed_margin`` and ``max_joint_speed_deg_s``, each its
+    parameter's default where ``values`` does not set it: the one place the position
+    interface's limits are put together, for the controller and for the bound
+    (:func:`time_optimal_s`).
+    """
+    def value(param):
+        return values.get(param.name, param.default)
+    return PositionShaper(value(shared.COMMAND_RATE_HZ),
+                          speed_margin=value(node_params.SPEED_MARGIN),
+                          max_speed=math.radians(value(shared.MAX_JOINT_SPEED_DEG_S)))
+
+
+def time_optimal_s(q_start: ArrayLike, goal: ArrayLike, values: Mapping[str, Any]) -> float:
+    """
+    Return the time-optimal bound (s) of a move through the position interface.
+
+    The duration of Ruckig's move from ``q_start`` at rest to ``goal`` at rest (6,) under
+    the limits the joint controller's shaper has with ``values`` (:func:`shaper_for`), plus
+    the drive's dead time (:data:`ibvs_model.drive.EGM_DELAY_S`): no move of the arm from
+    there, with these limits, reaches the goal sooner.
+    """
+    shaper = shaper_for(values)
+    shaper.start(q_start)
+    return shaper.duration(goal) + EGM_DELAY_S
 
 
 class FeedbackHold:

@@ -63,7 +63,11 @@ metrics stay as they were):
   /diagnostics. Wall-time windows because the factor is a rate of the wall clock and the
   stepping is paced by it: a stall of the machine is a wall-time event, which a window of
   1 s of sim time (20 s of wall time at 0.05) would average away. None when the run had
-  no complete window.
+  no complete window;
+- ``time_optimal_s`` (the position interface's runs): the bound, the arm's time-optimal
+  move from its first joint angles to the feedforward's goal under the joint controller's
+  limits plus the drive's dead time (:func:`optimal_metrics`), and
+  ``time_to_1mm_over_optimal_s``, the time to 1 mm less it.
 
 What drew the images (runs that rendered them; the simulator's /diagnostics):
 ``render_device``, the OpenGL GL_RENDERER string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)'),
@@ -537,8 +541,32 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
     metrics.update(joint_metrics(run.joints, robot.qd_max, run.joint_limits[3]))
     metrics.update(free_running_metrics(run.latency, run.rtf_held, int(run.frame_stamps.size),
                                         run.servo_rtf))
+    metrics.update(optimal_metrics(run, metrics))
     metrics.update(run.render)
     return run, interrupted_outcome(metrics, run.run_info)
+
+
+def optimal_metrics(run: 'RunData', metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """
+    Return a position-interface run's bound: ``time_optimal_s`` and its excess.
+
+    The time-optimal move of the arm from the run's first joint angles to the target's IK
+    branch near them (the feedforward's goal), under the joint controller's limits with the
+    run's parameters, plus the drive's dead time
+    (:func:`ibvs_control.position_interface.time_optimal_s`); and
+    ``time_to_1mm_over_optimal_s``, the time to 1 mm less that bound (None without one).
+    Other runs (the paper's computed torque): empty.
+    """
+    from ibvs_control.controllers import target_branch
+    from ibvs_control.position_interface import time_optimal_s
+    if run.params.get('command_interface') != 'position' or run.joints is None \
+            or not len(run.joints[1]):
+        return {}
+    q_start = np.asarray(run.joints[1][0], dtype=float)
+    bound = time_optimal_s(q_start, target_branch(run.target, q_start), run.params)
+    reached = metrics.get('time_to_1mm_s')
+    return {'time_optimal_s': bound,
+            'time_to_1mm_over_optimal_s': None if reached is None else reached - bound}
 
 
 def interrupted_outcome(metrics: dict[str, Any], run_info: Mapping[str, Any]
