@@ -69,6 +69,9 @@ class Diagnostics:
     Rejections are counted per ``'<input>: <reason>'``. Publishing runs on a steady-clock
     timer so that it goes on while sim time is paused. A /clock message that rclpy could not
     convert (negative seconds, nanosec >= 1e9) is counted as a rejection of ``/clock``.
+    An alert (:meth:`alert`) is reported beside the node's own level and message, whatever
+    the node sets them to: :attr:`publishers` (:class:`.kit.PublisherWatch`) names a second
+    publisher on the node's inputs and commands so.
     """
 
     def __init__(self, node: 'Node', name: str, period_s: float = 1.0,
@@ -86,11 +89,15 @@ class Diagnostics:
         self.timing = Stopwatch()
         self.level = DiagnosticStatus.OK
         self.message = 'ok'
+        #: Conditions reported beside the node's own status (:meth:`alert`), by key.
+        self.alerts: dict[str, str] = {}
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_log = {}
         self._ignored = {}
         self._timer = node.create_timer(period_s, self.publish, clock=self._steady)
         guard_clock(node, self.reject)
+        #: Who publishes on the node's inputs and commands, looked at while it runs.
+        self.publishers = kit.PublisherWatch(node, self)
         _OF_NODE.setdefault(node, []).append(self)
 
     def reject(self, source: str, reason: str, detail: str = '') -> None:
@@ -161,14 +168,33 @@ class Diagnostics:
         """Set the overall level (DiagnosticStatus.OK/WARN/ERROR) and its message."""
         self.level, self.message = level, message
 
+    def alert(self, key: str, text: str | None) -> None:
+        """
+        Report ``text`` under ``key`` beside the node's own status (None: it is over).
+
+        While an alert is set the status is at least WARN, and its message the node's own
+        followed by each alert's text that it does not already say (just the alerts' while
+        the node's own level is OK).
+        """
+        if text is None:
+            self.alerts.pop(key, None)
+        else:
+            self.alerts[key] = text
+
     def status(self) -> DiagnosticStatus:
         """Return the current DiagnosticStatus."""
+        level, message = self.level, self.message
+        alerts = [text for text in self.alerts.values() if text not in message]
+        if self.alerts and level < DiagnosticStatus.WARN:
+            level, message = DiagnosticStatus.WARN, '; '.join(self.alerts.values())
+        elif alerts:
+            message = '; '.join([message, *alerts])
         kvs = [KeyValue(key=k, value=_fmt(v)) for k, v in self.values.items()]
         kvs.append(KeyValue(key='rejected_total', value=str(self.rejected_total)))
         kvs += [KeyValue(key=f'rejected[{k}]', value=str(n))
                 for k, n in sorted(self.rejections.items())]
         kvs += [KeyValue(key=k, value=v) for k, v in self.timing.values().items()]
-        return DiagnosticStatus(level=self.level, name=self._name, message=self.message,
+        return DiagnosticStatus(level=level, name=self._name, message=message,
                                 hardware_id=self._hardware_id, values=kvs)
 
     def publish(self) -> None:

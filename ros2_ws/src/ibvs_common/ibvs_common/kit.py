@@ -15,6 +15,8 @@ The node kit: what every node of the graph opens, waits for and assembles, writt
   each message read, a rejection counted on /diagnostics under the topic.
 - :func:`forget_on_back`: the stamp orders and buffers a node keeps, forgotten when its
   clock jumps back, so that fresh inputs are taken again.
+- :class:`PublisherWatch`: who publishes on the node's inputs and commands, looked at while
+  it runs; a second publisher named on /diagnostics (the rule: :mod:`.publishers`).
 - :class:`StereoCameraInput`: both CameraInfo and the camera pose (the ``camera_pose``
   parameter or /stereo/pose), checked, rejected with a reason counted on /diagnostics, and
   a :class:`ibvs_model.StereoCamera` once they describe one.
@@ -31,7 +33,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo
 
-from . import contract, intra_process
+from . import contract, intra_process, publishers
 from .conversions import (camera_from_msgs, check_camera_info, InputError, pose_stamped,
                           read_camera_pose, read_stamp, StampOrder)
 from .params import declare, ParamConfig
@@ -52,6 +54,9 @@ class Rejections(Protocol):
 
 #: Steady-clock period of the "waiting for" log (s).
 WAIT_LOG_S = 1.0
+#: Steady-clock period of a node's look at who publishes on its topics (s)
+#: (:class:`PublisherWatch`): a newcomer is named within it, once the graph has it.
+PUBLISHERS_CHECK_S = 0.25
 PUBLISHES, SUBSCRIBES = 'publishes', 'subscribes'
 
 
@@ -190,6 +195,100 @@ class WaitReporter:
         if line and not self._progress:
             self._node.get_logger().info(line)
         self._progress = False
+
+
+class PublisherWatch:
+    """
+    Who publishes on a node's inputs and commands, looked at while it runs.
+
+    Every node has one, made by its :class:`.diagnostics.Diagnostics`. Every ``period_s``
+    of the steady clock (it goes on while sim time stands still) the node reads the graph
+    (``get_publishers_info_by_topic``): each topic it subscribes through this kit
+    (:func:`opened`, looked up at each look, so that a topic opened later is watched too)
+    is to have one publisher, the first one seen
+    (:class:`.publishers.ExpectedPublishers` with a count: a cell's driver's or camera's
+    node name is not the graph's to know), and each topic it commands something on
+    (:meth:`command`) none but the node's own. It only reads: a lockstep's numbers
+    are the same with it. A newcomer is logged as it comes (WARN) and when it went (INFO),
+    counted (``second_publishers_seen`` on /diagnostics, one for each publisher that
+    came), named while it is there (``second_publishers``, and the node's status at least
+    WARN: :meth:`.diagnostics.Diagnostics.alert`); on each change each callback given to
+    :meth:`command` is called with {topic: newcomers} of the topics that have one, then
+    /diagnostics is published at once.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node whose topics are watched.
+    diagnostics : ibvs_common.diagnostics.Diagnostics
+        Its diagnostics.
+    period_s : float
+        Steady-clock seconds between two looks.
+
+    """
+
+    #: The key of the alert and of the value that names the newcomers.
+    KEY = 'second_publishers'
+
+    def __init__(self, node: 'Node', diagnostics: Any,
+                 period_s: float = PUBLISHERS_CHECK_S) -> None:
+        """Start the timer; nothing seen yet."""
+        self._node = node
+        self._diag = diagnostics
+        self._on_change: list[Callable[[dict], None]] = []
+        #: {topic: its expected publishers}: the commands, and the inputs seen so far.
+        self.expected: dict[str, publishers.ExpectedPublishers] = {}
+        #: {topic: newcomers} as of the last look.
+        self.found: dict[str, list[publishers.Publisher]] = {}
+        self.seen = 0
+        self.timer = node.create_timer(period_s, self.look,
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def command(self, topic: str, on_change: Callable[[dict], None] | None = None) -> None:
+        """
+        Expect the node's own publisher alone on ``topic`` (resolved: a ``topic_name``).
+
+        ``on_change(found)``: called on each change of the newcomers, of any topic.
+        """
+        self.expected[topic] = publishers.ExpectedPublishers(
+            0, own=self._node.get_fully_qualified_name())
+        if on_change is not None:
+            self._on_change.append(on_change)
+
+    def look(self) -> dict[str, list[publishers.Publisher]]:
+        """Look at the graph once; report a change; return {topic: newcomers}."""
+        for e in opened(self._node):
+            if e.direction == SUBSCRIBES and e.topic not in self.expected:
+                self.expected[e.topic] = publishers.ExpectedPublishers(1)
+        found = {}
+        for topic, expected in self.expected.items():
+            new = expected.look(publishers.from_infos(
+                self._node.get_publishers_info_by_topic(topic)))
+            if new:
+                found[topic] = new
+        if found != self.found:
+            self._report(found)
+        return found
+
+    def _report(self, found):
+        log = self._node.get_logger()
+        for topic, new in found.items():
+            came = [p for p in new if p not in self.found.get(topic, ())]
+            self.seen += len(came)
+            if came:
+                log.warn(f'{publishers.describe(topic, came)} (the graph expects '
+                         f"{self.expected[topic].count} besides this node's own; "
+                         f'known: {", ".join(self.expected[topic].known) or "none"})')
+        for topic in self.found:
+            if topic not in found:
+                log.info(f'{topic}: the second publisher is gone')
+        self.found = found
+        words = '; '.join(publishers.describe(t, new) for t, new in found.items())
+        self._diag.alert(self.KEY, words or None)
+        self._diag.update(second_publishers=words or 'none', second_publishers_seen=self.seen)
+        for callback in self._on_change:
+            callback(found)
+        self._diag.publish()
 
 
 class Inputs:
