@@ -63,6 +63,7 @@ class EffortController(JointControllerMode):
         self.diagnostics.update(actuators=config.actuators, commands=0,
                                 torque_limits=self.torque_limits)
         self._pub = publisher(node, JointState, contract.EFFORT_COMMANDS, contract.RELIABLE)
+        self.diagnostics.publishers.command(self._pub.topic_name)  # reported, never held on
         subscription(node, JointState, contract.JOINT_STATES, self._on_joint_state,
                      contract.RELIABLE)
         self.subscribe_inputs()

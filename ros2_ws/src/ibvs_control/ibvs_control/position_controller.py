@@ -8,8 +8,9 @@ within the arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), o
 /forward_position_controller/commands or as a JointTrajectory window on
 /joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
 command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input, a clock
-that jumped back or a sim time that stopped stops and holds the arm (:mod:`.servo_status`,
-on /ibvs/servo_status). In full: docs/nodes.md.
+that jumped back, a sim time that stopped or a second publisher on /joint_states, the
+q_feedback, the feedforward or its own command topic stops and holds the arm (:mod:`.servo_status`, on
+/ibvs/servo_status). In full: docs/nodes.md.
 """
 
 from typing import TYPE_CHECKING
@@ -29,7 +30,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from .joint_controller_mode import JointControllerMode
 from .position_interface import FeedbackHold, PositionShaper
-from .servo_status import clock_stopped, InputWatch, ServoStatus
+from .servo_status import clock_stopped, InputWatch, second_publisher, ServoStatus
 
 if TYPE_CHECKING:
     from rclpy.node import Node
@@ -132,8 +133,8 @@ class PositionController(JointControllerMode):
         self._pub_latency = publisher(node, TimeReference, contract.FRAME_LATENCY,
                                       contract.RELIABLE)
         self._pub_status = publisher(node, Int8, contract.SERVO_STATUS, contract.LATCHED)
-        subscription(node, JointState, contract.JOINT_STATES, self._on_measured,
-                     contract.RELIABLE)
+        measured = subscription(node, JointState, contract.JOINT_STATES, self._on_measured,
+                                contract.RELIABLE).topic_name
         self._camera_topic = subscription(node, CameraInfo, contract.LEFT_INFO, self._on_camera,
                                           contract.CAMERA_INFO).topic_name
         self.subscribe_inputs()
@@ -142,6 +143,13 @@ class PositionController(JointControllerMode):
         self._clock.on_back(self._clock_back)
         node.create_timer(CLOCK_CHECK_S, self._check_clock,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
+        #: The topics whose second publisher holds the arm: what it follows, and its own.
+        self.hold_topics = (measured, node.resolve_topic_name(contract.Q_FEEDBACK),
+                            node.resolve_topic_name(contract.FEEDFORWARD_TRAJECTORY),
+                            self._sender.pub.topic_name)
+        self._second = None  # HOLD_SECOND_PUBLISHER's verdict while one is there
+        self.diagnostics.publishers.command(self._sender.pub.topic_name,
+                                            self._publishers_changed)
         self.waiting = WaitReporter(node, self._waiting)
         self.diagnostics.log_progress(self._progress_line)
         node.get_logger().info(
@@ -227,6 +235,19 @@ class PositionController(JointControllerMode):
         self.diagnostics.update(clock_jumps_back=self._clock.jumps_back)
         self._report(to_ns, self._watch.verdict(to_ns))
 
+    def _verdict_at(self, now_ns):
+        """Return the status at ``now_ns``: the input watch's, a second publisher first."""
+        verdict = self._watch.verdict(now_ns)
+        if self._second is not None and verdict.status != ServoStatus.WAITING:
+            return self._second
+        return verdict
+
+    def _publishers_changed(self, found):
+        """Hold while a second publisher is on a topic of ``hold_topics``; report at once."""
+        self._second = second_publisher({t: found[t] for t in self.hold_topics if t in found})
+        now_ns = self.node.get_clock().now().nanoseconds
+        self._report(now_ns, self._verdict_at(now_ns))
+
     def _check_clock(self):
         """With sim time, hold (the status) when /clock has not moved for the wall bound."""
         if not self.node.get_clock().ros_time_is_active:
@@ -238,7 +259,7 @@ class PositionController(JointControllerMode):
     def _command(self):
         """Send one position reference (module docstring)."""
         now_ns = read_clock_ns(self.node)
-        verdict = self._watch.verdict(now_ns)
+        verdict = self._verdict_at(now_ns)
         self._report(now_ns, verdict)
         if verdict.status == ServoStatus.WAITING:
             return

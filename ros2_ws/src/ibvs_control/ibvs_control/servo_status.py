@@ -12,7 +12,11 @@ published as one ``std_msgs/Int8`` code) says which input is stale. The ages nee
 that runs forward: after a jump back every age would be negative and nothing could go
 stale until the clock passed the old newest stamp again, so :meth:`InputWatch.forget` drops
 them and holds until each input came again (HOLD_CLOCK_JUMPED_BACK); with sim time, a
-/clock that stopped (a simulator that died) holds too (:func:`clock_stopped`).
+/clock that stopped (a simulator that died) holds too (:func:`clock_stopped`). So does a
+second publisher on an input the arm's motion follows, or a second commander on the
+controller's own command topic (:func:`second_publisher`; who is seen there:
+:class:`ibvs_common.kit.PublisherWatch`): each of its messages may be well formed, and the
+arm would follow whichever came last.
 
 The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``, moveit2 jazzy
 4d84106 ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp`` L51-61), so
@@ -21,9 +25,11 @@ default of ``joint_state_timeout_s`` is Servo's ``incoming_command_timeout``
 (``moveit_ros/moveit_servo/config/servo_parameters.yaml`` L102-104).
 """
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from enum import IntEnum
 from typing import NamedTuple
+
+from ibvs_common.publishers import describe
 
 
 class ServoStatus(IntEnum):
@@ -53,6 +59,10 @@ class ServoStatus(IntEnum):
     #: bound of :meth:`ibvs_common.sim_time.ClockWatch.stall_bound_s`): no input can age, and
     #: the simulator is not running.
     HOLD_CLOCK_STOPPED = 15
+    #: Holding: a second publisher on an input the arm follows (/joint_states,
+    #: /ibvs/q_feedback, the feedforward trajectory) or a second commander on the
+    #: controller's own command topic, until it is gone.
+    HOLD_SECOND_PUBLISHER = 16
 
 
 #: Each stale input's holding code.
@@ -61,9 +71,10 @@ HOLD_CODES = {'joint_states': ServoStatus.HOLD_STALE_JOINT_STATES,
               'feedback': ServoStatus.HOLD_STALE_FEEDBACK}
 
 
-#: Every holding code: a stale input's, and the clock's own.
+#: Every holding code: a stale input's, the clock's own, and a second publisher's.
 HOLDING = frozenset(HOLD_CODES.values()) | {
-    ServoStatus.HOLD_CLOCK_JUMPED_BACK, ServoStatus.HOLD_CLOCK_STOPPED}
+    ServoStatus.HOLD_CLOCK_JUMPED_BACK, ServoStatus.HOLD_CLOCK_STOPPED,
+    ServoStatus.HOLD_SECOND_PUBLISHER}
 
 
 class Verdict(NamedTuple):
@@ -172,3 +183,17 @@ def clock_stopped(stalled_s: float | None, bound_s: float) -> Verdict | None:
     return Verdict(ServoStatus.HOLD_CLOCK_STOPPED,
                    f'clock stopped: /clock has not moved for {stalled_s:.1f} s of wall time '
                    f'(bound {bound_s:.1f} s): the simulator is not running; holding the arm')
+
+
+def second_publisher(found: Mapping[str, Sequence[object]]) -> Verdict | None:
+    """
+    Return HOLD_SECOND_PUBLISHER naming each topic's newcomers in ``found``, else None.
+
+    ``found``: {topic: the newcomers on it} (:func:`ibvs_common.publishers.newcomers`), of
+    the topics the controller holds on; a topic without any may be left out.
+    """
+    words = '; '.join(describe(topic, new) for topic, new in found.items() if new)
+    if not words:
+        return None
+    return Verdict(ServoStatus.HOLD_SECOND_PUBLISHER,
+                   f'{words}: holding the arm until it is gone')

@@ -1,6 +1,8 @@
 """The joint controller's input watch and status codes (ibvs_control.servo_status), pure."""
 
-from ibvs_control.servo_status import clock_stopped, HOLD_CODES, InputWatch, ServoStatus
+from ibvs_common.publishers import Publisher
+from ibvs_control.servo_status import (clock_stopped, HOLD_CODES, HOLDING, InputWatch,
+                                       second_publisher, ServoStatus)
 import pytest
 
 MS = 1_000_000
@@ -117,3 +119,14 @@ def test_a_stopped_clock_holds_once_past_its_wall_bound():
     assert verdict.status == ServoStatus.HOLD_CLOCK_STOPPED and verdict.holding
     assert verdict.detail.startswith('clock stopped: /clock has not moved for 2.5 s')
     assert ServoStatus.HOLD_CLOCK_STOPPED >= 10
+
+
+def test_a_second_publisher_holds_naming_each_topic_and_node():
+    assert second_publisher({}) is None
+    assert second_publisher({'/joint_states': []}) is None
+    verdict = second_publisher({'/fwd/commands': [Publisher('/rogue')],
+                                '/joint_states': [Publisher('/a'), Publisher('/b')]})
+    assert verdict.status == ServoStatus.HOLD_SECOND_PUBLISHER == 16 and verdict.holding
+    assert ServoStatus.HOLD_SECOND_PUBLISHER in HOLDING
+    assert verdict.detail == ('second publisher on /fwd/commands: /rogue; second publisher on '
+                              '/joint_states: /a, /b: holding the arm until it is gone')
