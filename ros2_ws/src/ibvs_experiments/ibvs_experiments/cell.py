@@ -27,9 +27,12 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
 3. **Run**: the four processes start; a status line once a second (:class:`StatusBoard`):
    the joint controller's ``/ibvs/servo_status`` code and name
    (:class:`ibvs_control.servo_status.ServoStatus`), the frames used (its
-   ``/ibvs/frame_latency``, one per frame a command used) and the last error any node
-   reported on /diagnostics (a WARN or ERROR status, or a rejected input). A node that
-   exits ends the session (:data:`runner.EXIT_NODE_DIED`), the others stopped.
+   ``/ibvs/frame_latency``, one per frame a command used), the second publishers a node
+   names on /diagnostics (``second_publishers``: :class:`ibvs_common.kit.PublisherWatch`,
+   which every node runs) and the last error any node reported there (a WARN or ERROR
+   status, or a rejected input). A new servo status or second publisher prints a line at
+   once, without waiting for the second. A node that exits ends the session
+   (:data:`runner.EXIT_NODE_DIED`), the others stopped.
 4. **Stop**: one SIGINT (Ctrl-C) stops every process together
    (:func:`ibvs_bringup.supervision.stop_all`: SIGINT, then SIGTERM, then SIGKILL of each
    process group; each also dies with this process, PR_SET_PDEATHSIG), exit code 0.
@@ -69,10 +72,11 @@ DEFAULT_CAMERA = 'zed'
 ZED_NODE = 'zed_node'
 #: The default wall time (s) the cell's topics have to appear in the graph.
 CHECK_TIMEOUT_S = 10.0
-#: What the status line says of a clock's holding code until /diagnostics says more (in
-#: the sim-time rehearsal a stopped /clock ages nothing: only the code tells it).
-CLOCK_WORDS = {'HOLD_CLOCK_STOPPED': 'clock stopped',
-               'HOLD_CLOCK_JUMPED_BACK': 'clock jumped back'}
+#: What the status line says of a holding code until /diagnostics says more (in the
+#: sim-time rehearsal a stopped /clock ages nothing: only the code tells it).
+HOLD_WORDS = {'HOLD_CLOCK_STOPPED': 'clock stopped',
+              'HOLD_CLOCK_JUMPED_BACK': 'clock jumped back',
+              'HOLD_SECOND_PUBLISHER': 'second publisher'}
 #: Wall time (s) between two status lines.
 STATUS_PERIOD_S = 1.0
 #: ``ibvs cell``'s exit code when a topic of the cell is missing or does not match.
@@ -412,6 +416,11 @@ class StatusBoard:
     last_error_at: float | None = None
     #: The joint controller's /diagnostics message (why it waits or holds).
     detail: str = ''
+    #: Each node's second publishers, in its words (``second_publishers``), while any.
+    newcomers: dict = field(default_factory=dict)
+    #: Whether something the operator must see at once came since :meth:`take_news`: a
+    #: new servo status, a second publisher that came or went.
+    news: bool = False
     _rejected: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -420,7 +429,13 @@ class StatusBoard:
 
     def servo(self, code: int) -> None:
         """Take a /ibvs/servo_status code."""
+        self.news = self.news or int(code) != self.code
         self.code = int(code)
+
+    def take_news(self) -> bool:
+        """Return whether there is news (:attr:`news`), and clear it."""
+        news, self.news = self.news, False
+        return news
 
     def frame_used(self, frame_stamp_ns: int) -> None:
         """Take a /ibvs/frame_latency: the frame of that stamp was used by a command."""
@@ -437,6 +452,15 @@ class StatusBoard:
         node = name.partition(': ')[0]
         if node == 'joint_controller_node' and 'servo_status' in values:
             self.detail = message
+        if 'second_publishers' in values:
+            words = values['second_publishers']
+            words = '' if words == 'none' else words
+            if words != self.newcomers.get(node, ''):
+                self.news = True
+            if words:
+                self.newcomers[node] = words
+            else:
+                self.newcomers.pop(node, None)
         for key, count in values.items():
             if not key.startswith('rejected['):
                 continue
@@ -465,15 +489,23 @@ class StatusBoard:
                 servo = f'servo {self.code} {name}'
             except ValueError:
                 name, servo = None, f'servo {self.code} (unknown code)'
-            words = CLOCK_WORDS.get(name)
-            if words is not None and not self.detail.startswith(words):
+            words = HOLD_WORDS.get(name)
+            if name == 'HOLD_SECOND_PUBLISHER' and self.newcomers:
+                servo += f' ({words})'  # who: named next
+            elif words is not None and not self.detail.startswith(words):
                 servo += f' ({words})'  # the code comes at once, /diagnostics once a second
             elif self.detail and self.detail != 'ok':
                 servo += f' ({self.detail})'
         error = (f'{self.last_error} ({now - self.last_error_at:.0f} s ago)'
                  if self.last_error_at is not None else 'none')
-        return (f'[{now - self.started:6.0f} s] {servo} | frames used {len(self.frames)} | '
-                f'last error: {error}')
+        seen = {}  # each topic's words once, naming who saw them
+        for node, words in sorted(self.newcomers.items()):
+            for item in words.split('; '):
+                seen.setdefault(item, []).append(node)
+        second = ''.join(f' | {words} (seen by {", ".join(nodes)})'
+                         for words, nodes in seen.items())
+        return (f'[{now - self.started:6.0f} s] {servo}{second} | frames used '
+                f'{len(self.frames)} | last error: {error}')
 
 
 def session_dir(root: Path = CELL_DIR) -> Path:
@@ -589,8 +621,10 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                     print(f'error: {NodeDied(dead.name, dead.poll(), dead.log_path)}; '
                           'stopping the others', file=sys.stderr)
                     return runner.EXIT_NODE_DIED
-                if time.monotonic() >= next_line:
-                    next_line += STATUS_PERIOD_S
+                news = board.take_news()
+                if news or time.monotonic() >= next_line:
+                    if time.monotonic() >= next_line:
+                        next_line += STATUS_PERIOD_S
                     if live:
                         sys.stdout.write('\r\033[K' + board.line())
                         sys.stdout.flush()

@@ -203,6 +203,35 @@ def test_status_board_says_clock_stopped_from_the_code_alone():
     assert 'servo 14 HOLD_CLOCK_JUMPED_BACK (clock jumped back)' in board.line()
 
 
+def test_status_board_names_a_second_publisher_at_once_and_drops_it_when_gone():
+    """A rogue commander: the code and the newcomer are news (a line at once), then gone."""
+    board = cell.StatusBoard(clock=lambda: 0.0)
+    board.servo(0)
+    assert board.take_news() and not board.take_news()
+    command = '/forward_command_controller_position/commands'
+    words = f'second publisher on {command}: /rogue'
+    board.servo(16)  # HOLD_SECOND_PUBLISHER, maybe before /diagnostics
+    assert board.take_news()
+    assert 'servo 16 HOLD_SECOND_PUBLISHER (second publisher)' in board.line()
+    board.diagnostics('joint_controller_node: joint loop', 1,
+                      f'{words}: holding the arm until it is gone',
+                      {'servo_status': 'HOLD_SECOND_PUBLISHER', 'second_publishers': words})
+    board.diagnostics('sim_node: simulator', 1, 'second publisher on /x: /rogue',
+                      {'second_publishers': 'second publisher on /x: /rogue'})
+    assert board.take_news()
+    line = board.line()
+    assert (f'servo 16 HOLD_SECOND_PUBLISHER (second publisher) | {words} (seen by '
+            'joint_controller_node) | second publisher on /x: /rogue (seen by sim_node) | '
+            'frames used 0') in line
+    board.diagnostics('sim_node: simulator', 1, 'second publisher on /x: /rogue',
+                      {'second_publishers': 'second publisher on /x: /rogue'})
+    assert not board.take_news(), 'the same words again are no news'
+    board.diagnostics('joint_controller_node: joint loop', 0, 'ok',
+                      {'servo_status': 'NO_WARNING', 'second_publishers': 'none'})
+    board.servo(0)
+    assert board.take_news() and command not in board.line().partition(' | frames')[0]
+
+
 def test_ibvs_run_refuses_the_cells_file(capsys):
     assert cli.main(['run', 'cell']) == 2
     assert 'ibvs cell' in capsys.readouterr().err
