@@ -9,7 +9,10 @@ or encoding, and valid full-size images costly to search (noise, checkerboards, 
 circles: :func:`contents`); for CameraInfo an impossible size or projection and absurd but
 finite camera models (focal length, principal point, baseline); for poses a non-finite or
 non-unit quaternion, a camera looking away; for trajectory commands what
-joint_trajectory_controller refuses (:func:`command_trajectories`).
+joint_trajectory_controller refuses (:func:`command_trajectories`). And one class that is
+no message: a second publisher on a topic the node reads or commands on
+(:func:`second_publishers`), which the node must name on /diagnostics and clear when it
+went.
 """
 
 import copy
@@ -17,23 +20,31 @@ import math
 
 from builtin_interfaces.msg import Duration
 import cv2
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (feature_status_msg, FeatureStatus, image_msg, joint_state,
                                      joint_trajectory, ns_stamp)
 import numpy as np
+from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo
 from std_msgs.msg import Float64MultiArray, Header
 
-from .harness import stamp
+from .harness import Case, stamp
 
 NAMES = list(contract.JOINT_NAMES)
 #: A stamp 2^31 - 1 s on: as far in the future as a builtin_interfaces/Time goes.
 FAR_SEC = 2 ** 31 - 1
 #: Messages in a burst.
 BURST = 50
+#: The node of the second publisher (:func:`second_publishers`).
+ROGUE = 'fuzz_rogue'
+#: The topics whose second publisher an outside audit found unnoticed: every rig that
+#: reads one, or commands on one, gets the class on it.
+SECOND_PUBLISHER_TOPICS = (contract.JOINT_STATES, contract.FRAME_JOINT_STATES,
+                           contract.Q_FEEDBACK, contract.FEATURES, contract.EFFORT_COMMANDS,
+                           contract.POSITION_COMMANDS, contract.TRAJECTORY_COMMANDS)
 
 
 def bad_stamps(t_ns):
@@ -495,3 +506,64 @@ def contents(topic, frame, answered, width, height):
             return Case(label, topic, messages, counted=0, answered=answered(messages))
         cases.append((label, topic, case))
     return cases
+
+
+class Newcomer:
+    """
+    A second publisher on ``topic`` (node :data:`ROGUE`), and the check of what became of it.
+
+    Called (the case's ``answered``) until true: once the node has taken the topic's own
+    publishers as the expected ones (it learns them at its first looks), the second
+    publisher comes; it is true once the node named it on /diagnostics
+    (``second_publishers``, a WARN status, ``second_publishers_seen`` one more) and then,
+    after it left, said it is gone.
+    """
+
+    def __init__(self, rig, topic, msg_type):
+        """Take the rig; nothing comes yet."""
+        self.rig, self.topic, self.msg_type = rig, topic, msg_type
+        self.words = f'second publisher on {topic}: /{ROGUE}'
+        self.rogue = None
+        self.named = False
+
+    def __call__(self):
+        """Return whether it was named, and is gone and said so (class docstring)."""
+        diag = self.rig.diagnostics
+        said = diag.values.get('second_publishers', 'none')
+        if self.rogue is None:
+            expected = diag.publishers.expected.get(self.topic)
+            if expected is not None and expected.settled:
+                self.seen = diag.values.get('second_publishers_seen', 0)
+                self.rogue = Node(ROGUE, context=self.rig.driver.context)
+                self.rogue.create_publisher(self.msg_type, self.topic, contract.RELIABLE)
+            return False
+        if not self.named:
+            status = diag.status()
+            if (self.words in said and self.words in status.message
+                    and status.level >= DiagnosticStatus.WARN
+                    and diag.values['second_publishers_seen'] == self.seen + 1):
+                self.named = True
+                self.rogue.destroy_node()
+            return False
+        return self.topic not in said
+
+
+def second_publishers(rig):
+    """
+    Return a 'second publisher' case for each :data:`SECOND_PUBLISHER_TOPICS` of ``rig``.
+
+    The topics the node reads (its subscriptions) and those it commands on (the watch's
+    commands: none but its own publisher expected), each with its own message type.
+    """
+    types = {t: p.msg_type for t, p in rig.pubs.items()}
+    watch = rig.diagnostics.publishers
+    types.update((p.topic_name, p.msg_type) for p in rig.node.publishers
+                 if p.topic_name in watch.expected and watch.expected[p.topic_name].count == 0)
+    specs = []
+    for topic in SECOND_PUBLISHER_TOPICS:
+        if topic in types:
+            def make(topic=topic):
+                return Case('second publisher', topic, [], counted=0,
+                            answered=Newcomer(rig, topic, types[topic]))
+            specs.append(('second publisher', topic, make))
+    return specs

@@ -261,7 +261,7 @@ def table(name, rig, outcomes):
     crashes = [o for o in outcomes if o.crash]
     stuck = [o for o in outcomes if o.stuck]
     silent = [o for o in outcomes if o.silent]
-    covered = {o.case.topic for o in outcomes}
+    covered = {o.case.topic for o in outcomes} & set(rig.topics)  # a command's: not read
     lines = [f'{name:32s} {len(outcomes):5d} {len(crashes):7d} {len(stuck):5d} '
              f'{len(silent):17d} {len(rig.non_finite):18d}   '
              f'topics {len(covered)}/{len(rig.topics)}']

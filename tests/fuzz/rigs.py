@@ -36,13 +36,14 @@ def frame_ns(n):
 
 def build(rig, specs):
     """
-    Return a case maker per (name, topic, make) of ``specs``.
+    Return a case maker per (name, topic, make) of ``specs``, and the rig's second publishers.
 
     ``make()`` returns the messages (each a message of ``topic`` or (topic, msg)), or a
-    whole :class:`~.harness.Case`.
+    whole :class:`~.harness.Case`. Every rig gets the 'second publisher' class on the
+    topics of :data:`.cases.SECOND_PUBLISHER_TOPICS` it reads or commands on.
     """
     makers = []
-    for name, topic, make in specs:
+    for name, topic, make in list(specs) + bad.second_publishers(rig):
         def maker(name=name, topic=topic, make=make):
             made = make()
             if isinstance(made, Case):
