@@ -133,3 +133,35 @@ def test_a_node_that_dies_ends_the_session_and_the_others_stop(cell_under_way):
     assert 'node feature_node exited with code -9' in err, err
     leftovers = [p for p in seen if ProcTools.alive(p)]
     assert not leftovers, [ProcTools.cmdline(p) for p in leftovers]
+
+
+@pytest.mark.slow
+def test_a_second_commander_is_named_on_the_status_line_and_held_on_until_it_goes(
+        cell_under_way, context):
+    """Acceptance: a rogue publisher on the controller's command topic during the rehearsal."""
+    from ibvs_common import contract
+    from rclpy.node import Node
+    from std_msgs.msg import Float64MultiArray
+    cell, out_path, _ = cell_under_way
+    command = '/forward_command_controller_position/commands'
+    named = f'servo 16 HOLD_SECOND_PUBLISHER (second publisher) | second publisher on {command}'
+    rogue = Node('rogue', context=context)
+    try:
+        rogue.create_publisher(Float64MultiArray, command, contract.RELIABLE)  # sends nothing
+        start = len(out_path.read_text())
+        deadline = time.monotonic() + 120.0  # a hang guard only
+        while named not in out_path.read_text()[start:]:
+            assert time.monotonic() < deadline and cell.poll() is None, \
+                out_path.read_text()[start:]
+            time.sleep(0.1)
+        assert ': /rogue (seen by ' in out_path.read_text()[start:]
+    finally:
+        rogue.destroy_node()
+    start = len(out_path.read_text())
+    deadline = time.monotonic() + 120.0
+    while not any('] servo 0 NO_WARNING' in line and 'seen by' not in line
+                  for line in out_path.read_text()[start:].splitlines()):
+        assert time.monotonic() < deadline and cell.poll() is None, out_path.read_text()[start:]
+        time.sleep(0.1)
+    os.kill(cell.pid, signal.SIGINT)
+    assert cell.wait(60.0) == 0, out_path.read_text()

@@ -630,6 +630,7 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                         sys.stdout.flush()
                     else:
                         print_line(board.line())
+                        sys.stdout.flush()  # to a file or a pipe (tee) as soon as to a tty
         except KeyboardInterrupt:
             if live:
                 print_line('')
