@@ -64,7 +64,7 @@ def main(args: list[str] | None = None) -> None:
     # Every node is destroyed and rclpy shut down. Release the DDS participant now (its
     # peers hear that it left, and do not keep its nodes in their graph until its lease
     # ends), then skip the interpreter's teardown: with PyBullet, EGL, OpenCV and SciPy
-    # loaded it took 0.2 s more, which every run's stop waited for (issue 24).
+    # loaded it is slow, and every run's stop would wait for it.
     rclpy.utilities.get_default_context().destroy()
     exit_now(0)
 

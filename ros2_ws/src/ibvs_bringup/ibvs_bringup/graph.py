@@ -176,19 +176,18 @@ class Graph:
 #: messages per physics step and a frame's images, features and q_feedback then pass as
 #: objects (ibvs_common.intra_process; DDS still carries them to any reader in another
 #: process), and at the paper's latency of 0 the chain render -> detection -> feedback ->
-#: joint loop is serial anyway (issue 24: 2.45 -> 1.56 s per simulated second at HD720 with
-#: the 'opengl' renderer). Each node keeps its executable for ``ros2 run`` and a real cell,
-#: where the joint controller and the vision run without the simulator. ibvs_viz's viz_node
-#: is not one of the paper's nodes: it gives viewers (RViz, Foxglove) and the bag what a
-#: cell lacks (tool, camera and target frames on /tf_static, /ibvs/markers), from the frames'
-#: joint states, so nothing in the lockstep waits for it once it runs; it runs on its own,
-#: and the simulator's first step waits for its subscriptions like any reader of step 0, so
-#: that its markers start at t = 0 in the bag. ibvs_sim's robot_state_node is the simulated
-#: cell's robot_state_publisher (abb_ros2's bringup starts one on a cell): the only
-#: publisher of /robot_description and of the arm's link frames (ABB's, ibvs_model.abb_urdf),
-#: from the frames' joint states like the viewers' node (its step-0 wait: /tf from t = 0);
-#: it is the simulator's (``sim_side``), so it does not run beside a real cell, whose driver
-#: publishes those.
+#: joint loop is serial anyway, so the hops DDS would add are pure cost. Each node keeps its
+#: executable for ``ros2 run`` and a real cell, where the joint controller and the vision
+#: run without the simulator. ibvs_viz's viz_node is not one of the paper's nodes: it gives
+#: viewers (RViz, Foxglove) and the bag what a cell lacks (tool, camera and target frames on
+#: /tf_static, /ibvs/markers), from the frames' joint states, so nothing in the lockstep
+#: waits for it once it runs; it runs on its own, and the simulator's first step waits for
+#: its subscriptions like any reader of step 0, so that its markers start at t = 0 in the
+#: bag. ibvs_sim's robot_state_node is the simulated cell's robot_state_publisher
+#: (abb_ros2's bringup starts one on a cell): the only publisher of /robot_description and
+#: of the arm's link frames (ABB's, ibvs_model.abb_urdf), from the frames' joint states like
+#: the viewers' node (its step-0 wait: /tf from t = 0); it is the simulator's
+#: (``sim_side``), so it does not run beside a real cell, whose driver publishes those.
 GRAPH = Graph(
     nodes=(
         Node('viz_node', 'ibvs_viz', 'ibvs_viz.viz_node', 'VizNode',

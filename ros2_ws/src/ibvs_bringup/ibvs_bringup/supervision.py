@@ -190,14 +190,13 @@ def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
     Stop ``procs`` (:class:`NodeProcess`) together; return their exit codes by name.
 
     Each escalation step (SIGINT, then SIGTERM after ``timeout_s``, then SIGKILL after 3 s)
-    goes to every process still running at once, and the waits overlap: five nodes take
-    as long to stop as the slowest of them, not the sum (about a second a node at the end
-    of every run, issue 26). A stopped (SIGSTOP) process handles no signal until it is
-    continued, so each first gets SIGCONT. Whatever a node left in its process group
-    (``ros2 run``'s child) is killed last. ``executor`` (the caller's subscribers): spun
-    while waiting and :data:`SETTLE_SPINS` times after the last exit, so that what the
-    nodes publish as they stop (their last /diagnostics, the simulator's last batches)
-    reaches them.
+    goes to every process still running at once, and the waits overlap: five nodes take as
+    long to stop as the slowest of them, not the sum. A stopped (SIGSTOP) process handles no
+    signal until it is continued, so each first gets SIGCONT. Whatever a node left in its
+    process group (``ros2 run``'s child) is killed last. ``executor`` (the caller's
+    subscribers): spun while waiting and :data:`SETTLE_SPINS` times after the last exit, so
+    that what the nodes publish as they stop (their last /diagnostics, the simulator's last
+    batches) reaches them.
     """
     for p in procs:
         p._signal(signal.SIGCONT)
@@ -240,9 +239,8 @@ def expected_readers(local: Iterable['Node'], readers: Mapping[str, Sequence[str
     This is the start handshake: it is known before any process starts, so that a run
     starts all its processes at once, and the simulator's first step waits until that many
     readers are matched (its ``min_*_subscribers``; it says once a second which it still
-    waits for, and the runner's start timeout quotes it). Waiting here for each process to
-    be in the graph before starting the next cost a run half a second and more of its
-    start (issue 24).
+    waits for, and the runner's start timeout quotes it), rather than each process waiting
+    to be in the graph before the next one starts, which would serialise the start.
     """
     topic_of = topic_of or {}
     local = list(local)

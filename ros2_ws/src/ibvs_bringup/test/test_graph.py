@@ -11,8 +11,8 @@ from ibvs_bringup.supervision import ProcessSpec
 from ibvs_common import contract
 import pytest
 
-#: The paper's nodes, all in the simulator's process (issue 24: the frame's messages need
-#: no DDS there, ibvs_common.intra_process).
+#: The paper's nodes, all in the simulator's process (the frame's messages need no DDS
+#: there, ibvs_common.intra_process).
 LOCKSTEP = ('feature_node', 'adaptive_feedback_node', 'feedforward_node',
             'joint_controller_node', 'sim_node')
 FRAME = (f'{contract.JOINT_STATES}:={contract.FRAME_JOINT_STATES}',)
@@ -45,7 +45,7 @@ def test_the_process_plan_scopes_the_remaps_of_a_shared_process_to_their_node():
 
 
 def test_free_running_reads_joint_states_as_a_real_cell_does():
-    """Issue 34: no /stereo/joint_states free-running: no remapping, /joint_states' readers."""
+    """No /stereo/joint_states free-running: no remapping, /joint_states' readers."""
     info = (f'{contract.LEFT_INFO}:={contract.ZED_LEFT_INFO}',
             f'{contract.RIGHT_INFO}:={contract.ZED_RIGHT_INFO}')
     images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
@@ -99,8 +99,8 @@ def test_every_node_has_its_executable():
 
 
 def test_adding_a_node_is_one_entry_of_the_description():
-    # Issue 23's acceptance: a dummy node between the feedback and the lockstep, reading
-    # /joint_states at step 0 and a remapped camera_info, with no other edit.
+    # A dummy node between the feedback and the lockstep, reading /joint_states at step 0
+    # and a remapped camera_info, with no other edit.
     dummy = Node('dummy_node', 'ibvs_dummy', 'ibvs_dummy.dummy_node', 'DummyNode',
                  remaps={contract.LEFT_INFO: '/elsewhere/camera_info'},
                  step0_reads=(contract.JOINT_STATES,))
@@ -159,7 +159,7 @@ class _Local:
 
 
 def test_the_simulator_waits_for_each_reader_of_step0_and_the_runners_own():
-    # Known before any process starts (issue 24: every process of a run starts at once):
+    # Known before any process starts (every process of a run starts at once):
     # the graph's readers of step 0, one subscription each, and the runner's recorder and
     # monitor on the topic as this run names it; at least one on each topic.
     recorder = _Local(contract.JOINT_PATH, contract.TOOL_PATH, contract.ZED_LEFT_INFO,

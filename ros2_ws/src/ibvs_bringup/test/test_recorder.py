@@ -144,8 +144,8 @@ def test_the_lockstep_per_step_messages_are_recorded_when_asked(tmp_path):
         rclpy.try_shutdown(context=ctx)
 
 
-def test_finding13_messages_before_a_clock_are_on_disk_before_the_bag_is_closed(tmp_path):
-    """A runner killed before its first 1 MB chunk left a 0-byte bag (issue 26, finding 13)."""
+def test_messages_before_a_clock_are_on_disk_before_the_bag_is_closed(tmp_path):
+    """A runner killed before the first 1 MB chunk is written leaves its messages on disk."""
     from ibvs_bringup.recorder import JazzyWriter
     from rosbags.rosbag2 import StoragePlugin
     from rosbags.typesys import get_typestore, Stores
@@ -167,7 +167,7 @@ def test_finding13_messages_before_a_clock_are_on_disk_before_the_bag_is_closed(
 
 def test_a_bag_left_open_is_readable_once_recovered(bag, tmp_path):
     """
-    A runner killed with SIGKILL left a bag without metadata that no reader took (issue 39).
+    A bag that a runner killed with SIGKILL left without metadata is read once recovered.
 
     The recorder writes the metadata when the bag opens, marked as in progress; recover()
     ends the MCAP file after its last whole record (here: with half a record after it) and

@@ -1,4 +1,4 @@
-"""Finding 11 of issue 26: the shared memory of dead Fast DDS participants is reclaimed."""
+"""The shared memory of dead Fast DDS participants is reclaimed."""
 
 import fcntl
 import os
@@ -14,7 +14,7 @@ def _files(tmp_path, *names, age_s=60.0):
         os.utime(tmp_path / name, (old, old))
 
 
-def test_finding11_dead_segments_go_live_ones_and_ports_stay(tmp_path):
+def test_dead_segments_go_live_ones_and_ports_stay(tmp_path):
     dead, live = 'fastrtps_0123456789abcdef', 'fastrtps_fedcba9876543210'
     port = ['fastrtps_port7411', 'fastrtps_port7411_el', 'sem.fastrtps_port7411_mutex']
     _files(tmp_path, dead, f'{dead}_el', live, f'{live}_el', *port, 'unrelated')
@@ -27,7 +27,7 @@ def test_finding11_dead_segments_go_live_ones_and_ports_stay(tmp_path):
     assert left == sorted([live, f'{live}_el', *port, 'unrelated'])
 
 
-def test_finding11_young_files_are_left_and_new_since_keeps_what_was_there(tmp_path):
+def test_young_files_are_left_and_new_since_keeps_what_was_there(tmp_path):
     old = 'fastrtps_00000000000000aa'
     _files(tmp_path, old, f'{old}_el')
     before = shm.names(tmp_path)
@@ -43,7 +43,7 @@ def test_finding11_young_files_are_left_and_new_since_keeps_what_was_there(tmp_p
 
 
 def test_a_young_file_nobody_has_open_is_a_dead_owners(tmp_path):
-    """Issue 39: what a run killed in its first seconds left goes at the next run's start."""
+    """What a run killed in its first seconds left goes at the next run's start."""
     young = 'fastrtps_00000000000000dd'
     _files(tmp_path, young, f'{young}_el', age_s=0.0)
     held_open, complete = shm.open_files(tmp_path)
