@@ -5,18 +5,29 @@ rmw_fastrtps_cpp (Jazzy's default) reads its XML profiles from the file named by
 ``FASTRTPS_DEFAULT_PROFILES_FILE``; ours (``share/ibvs_common/config/fastdds_profiles.xml``)
 passes the stereo images through a large shared-memory segment and repairs a lost sample
 within 5 ms instead of the default 3 s heartbeat, which otherwise stalls the lockstep for
-seconds (the file says what was measured). A user who sets the variable keeps their own
+seconds (the file says why). A user who sets the variable keeps their own
 file; other middlewares ignore it.
+
+A process that may be stopped while the graph runs on (the runner: Ctrl-Z, SIGSTOP, a
+debugger) takes the same profile without shared memory (:func:`without_shared_memory`):
+Fast DDS's watchdog calls a shared-memory port whose listener stopped answering dead and
+replaces it, and the writers of the other processes may then go on into a replaced port
+that nobody reads, so that the stopped process, continued, never hears them again. Over
+UDP a stopped reader only misses what its socket could not hold, and reliable delivery
+catches up when it runs again.
 
 The ROS domain is checked here too (:func:`domain_id`), by every node's ``main`` and by the
 runner before anything starts: a value that rcl would read as another number, or one
 outside the safe range, is refused with the variable named.
 """
 
-from collections.abc import MutableMapping
+from collections.abc import Iterator, MutableMapping
+from contextlib import contextmanager
 import os
 from pathlib import Path
 import re
+import tempfile
+from xml.etree import ElementTree
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 
@@ -40,6 +51,65 @@ def configure(environ: MutableMapping[str, str] = os.environ) -> str | None:
         if path is not None:
             environ[PROFILES_ENV] = str(path)
     return environ.get(PROFILES_ENV)
+
+
+#: The XML namespace of Fast DDS profiles.
+_PROFILES_NS = 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'
+
+
+def profile_without_shared_memory(xml_text: str) -> str | None:
+    """
+    Return the profiles ``xml_text`` with no shared-memory transport among the user's, or None.
+
+    The transports of type SHM are left out of every participant's ``userTransports``
+    (the others, UDPv4, stay: discovery and data then go over them). None when the text
+    names no such transport (the builtin transports, another file's layout): it is left as
+    it is.
+    """
+    ElementTree.register_namespace('', _PROFILES_NS)
+    ns = {'p': _PROFILES_NS}
+    root = ElementTree.fromstring(xml_text)
+    shm = {d.findtext('p:transport_id', namespaces=ns)
+           for d in root.iterfind('.//p:transport_descriptor', ns)
+           if (d.findtext('p:type', namespaces=ns) or '').strip() == 'SHM'}
+    changed = False
+    for transports in root.iterfind('.//p:participant/p:rtps/p:userTransports', ns):
+        for tid in transports.findall('p:transport_id', ns):
+            if tid.text in shm:
+                transports.remove(tid)
+                changed = True
+        if not list(transports):
+            return None  # nothing would be left to talk over
+    return ElementTree.tostring(root, encoding='unicode') if changed else None
+
+
+@contextmanager
+def without_shared_memory(environ: MutableMapping[str, str] = os.environ) -> Iterator[bool]:
+    """
+    Within, point Fast DDS at the graph's profiles without shared memory; yield whether it did.
+
+    For the ``rclpy.init`` of a process that may be stopped while the graph runs on (module
+    docstring): rmw_fastrtps reads the profiles when the context's participant is made, once
+    a process, and the processes started afterwards inherit the variable as it was before
+    (restored on the way out, the derived file removed). A profiles file of the user's own
+    (:func:`configure` did not choose it) is used as it is.
+    """
+    ours = profiles_file()
+    path = environ.get(PROFILES_ENV)
+    text = None
+    if ours is not None and path == str(ours):
+        text = profile_without_shared_memory(ours.read_text())
+    if text is None:
+        yield False
+        return
+    with tempfile.NamedTemporaryFile('w', suffix='.xml', prefix='ibvs_fastdds_udp_') as f:
+        f.write(text)
+        f.flush()
+        environ[PROFILES_ENV] = f.name
+        try:
+            yield True
+        finally:
+            environ[PROFILES_ENV] = path
 
 
 #: The environment variable of the ROS domain (rcl's ``RCL_DOMAIN_ID_ENV_VAR``).

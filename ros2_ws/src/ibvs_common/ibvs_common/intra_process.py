@@ -5,7 +5,7 @@ What rclcpp's intra-process communication does for composed C++ nodes, for rclpy
 which have none. The lockstep passes two messages per physics step between the simulator
 and the joint controller (and a stereo pair per frame to the feature node); when they share
 a process (:mod:`ibvs_bringup.compose`), DDS still serialises each message, queues it,
-wakes the executor and deserialises it: most of the 0.39 ms a step cost (issue 24). Here a
+wakes the executor and deserialises it: most of what a step costs. Here a
 publisher made with :func:`publisher` hands its message to the callbacks of the
 subscriptions made with :func:`subscription` on the same topic in the same process, without
 DDS.

@@ -201,9 +201,10 @@ def make_executor(context: 'Context') -> EventsExecutor:
 
     The lockstep passes one message per physics step through several processes, so the
     executor's cost per callback bounds the simulation speed. ``SingleThreadedExecutor``
-    rebuilds its wait set in Python before every callback (measured: 0.53 ms per round trip
-    between two processes); the ``EventsExecutor`` (C++, shipped with Jazzy's rclpy) queues
-    middleware events instead (0.18 ms). Callbacks still run one at a time in arrival order.
+    rebuilds its wait set in Python before every callback; the ``EventsExecutor`` (C++,
+    shipped with Jazzy's rclpy) queues middleware events instead, about a third of the cost
+    per round trip between two processes. Callbacks still run one at a time in arrival
+    order.
     """
     return EventsExecutor(context=context)
 

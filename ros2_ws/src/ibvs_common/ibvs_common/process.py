@@ -46,9 +46,9 @@ def supervised_child() -> None:
     Child-side: own process group, no blocked signal, and SIGKILL when the runner dies.
 
     A blocked signal mask is inherited across ``exec``: a Ray worker blocks SIGINT, and the
-    nodes of a study's runs then never saw the runner's SIGINT; each stopped only at SIGTERM,
-    10 s later (measured: 60 s of a 0.3 s run's 64 s). The own process group lets the runner
-    signal a node and whatever it started (``ros2 run``'s child) at once.
+    nodes of a study's runs would never see the runner's SIGINT and stop only at its
+    SIGTERM, 10 s later. The own process group lets the runner signal a node and whatever it
+    started (``ros2 run``'s child) at once.
     """
     os.setpgid(0, 0)
     signal.pthread_sigmask(signal.SIG_SETMASK, [])

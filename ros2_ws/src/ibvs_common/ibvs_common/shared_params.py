@@ -194,7 +194,7 @@ def start_joints(values: Any) -> NDArray[np.float64] | None:
     Raises :class:`ParameterError` naming it unless it is empty or has 6 values, each
     within its joint's range (``IRB4600.q_min``, ``q_max``: a start the arm cannot be in
     would leave the feedforward nothing to plan from). The simulator, its config's check
-    before start and the model-only loop take it alike (issue 38: tasks as data).
+    before start and the model-only loop take it alike (a task's start is data).
     """
     values = START_JOINTS.check(list(values))
     if not values:

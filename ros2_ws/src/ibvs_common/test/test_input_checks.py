@@ -189,7 +189,7 @@ def _set(info, index, value):
 
 
 def test_lenses_with_their_own_f_u_and_c_u_are_read_each_from_its_p():
-    # older ZED SDKs: left f_x 701.40, right 696.83 (issue 34 item 5b); T_x = -f_x' b
+    # older ZED SDKs: left f_x 701.40, right 696.83; T_x = -f_x' b
     left, right = _infos()
     _set(left, 0, 701.40)
     _set(right, 0, 696.83)

@@ -17,7 +17,7 @@ DT = MS                 # 1 kHz physics
 
 
 def test_buffer_tests_run_without_rclpy():
-    """Acceptance (issue 12): sync.py and these tests load and pass with no rclpy imported."""
+    """These tests and sync.py load and pass with no rclpy imported."""
     assert run_without_rclpy(__file__, 'test_buffer_tests_run_without_rclpy') > 0
 
 
@@ -91,7 +91,7 @@ def test_a_state_at_the_stamp_is_the_state_itself():
 
 def test_250_hz_states_on_their_own_cycle_give_each_30_hz_frame_its_state():
     """
-    Give each 30 Hz frame its state from 250 Hz joint states on an unaligned cycle (issue 34).
+    Give each 30 Hz frame its state from 250 Hz joint states on an unaligned cycle.
 
     joint_state_broadcaster stamps on the controller manager's cycle (4 ms), offset from the
     camera's and jittered by +-0.5 ms: every frame after the first state gets the state at
