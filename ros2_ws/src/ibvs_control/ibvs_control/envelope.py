@@ -1,5 +1,5 @@
 """
-The safety envelope every servo law can run inside (issue 38, item 2; no ROS).
+The safety envelope every servo law can run inside (no ROS).
 
 A law turns a frame into q_feedback; :class:`EnvelopedLaw` takes that output and, per
 frame, shapes the step it makes (delta = the law's q_feedback less the one last sent):
@@ -11,7 +11,7 @@ frame, shapes the step it makes (delta = the law's q_feedback less the one last 
    lambda_tune = 0.7 in ``modules/vs/include/visp3/vs/vpServo.h`` L988-989), projected by
    ViSP's large projection operator (``vpServo::computeProjectionOperators``, L1048-1079:
    P = sig(|e|) P_|e| + (1 - sig) (I - W^+ W), Marey & Chaumette 2010 eq. 24) built from
-   the law's Jacobian C1 and error. Before lagadic/visp issue #1946 (fixed by 8cb03e3 and
+   the law's Jacobian C1 and error. Before lagadic/visp#1946 (fixed by 8cb03e3 and
    ad2ff38; the former code, e.g. 025247a, tested ``if (b < 1.)``) the task for joint i
    acted only when b = |qdot1_i| / |(P g_i)_i| < 1, so a joint driven hard towards its
    limit switched its own avoidance off. Here, as ViSP after the fix: past q_l1 (zone C1)
@@ -207,7 +207,7 @@ def joint_limit_avoidance(q: ArrayLike, qdot1: ArrayLike, projector: ArrayLike,
     """
     Return the joint-limit avoidance velocity qdot2 of Marey & Chaumette 2010 (ViSP's).
 
-    As ``vpServo::secondaryTaskJointLimitAvoidance`` after issue #1946's fix (module
+    As ``vpServo::secondaryTaskJointLimitAvoidance`` after lagadic/visp#1946's fix (module
     docstring): per joint i past q_l0 (rho of the range inside a limit), g_i = +-e_i,
     b = |qdot1_i| / |(P g_i)_i| (1 where that vanishes), qdot2 += -w (1 + lambda_tune) b
     P g_i with w = 1 and b unbounded past q_l1 (rho * rho1 of the range further), ViSP's

@@ -1,5 +1,5 @@
 """
-The joint controller's status and its watch on its inputs, without ROS (issue 34).
+The joint controller's status and its watch on its inputs, without ROS.
 
 On a cell nothing waits: if the camera, the vision or the feedback stops, a position
 controller that keeps following the feedforward with the last correction drives the arm on

@@ -9,7 +9,7 @@ continuous-time (Laplace, s) transfer function; ``dt > 0`` a discrete-time (z) o
 
 scipy.signal is imported by the conversions that use it, not with this module: it costs
 about a second of CPU, and the runner reads the control nodes' parameters (which import
-this module) before every run without designing anything (issue 24: start-up).
+this module) before every run without designing anything.
 """
 
 import numpy as np

@@ -5,7 +5,7 @@ The safety envelope by property (no ROS).
 - the singularity scale halts at the hard stop moving towards, is 1 below the lower
   threshold and falls monotonically between; the collision scale likewise;
 - ViSP's joint-limit avoidance opposes a joint driven hard into its critical zone, with
-  at least the primary speed (issue #1946: it must not switch itself off);
+  at least the primary speed (lagadic/visp#1946: it must not switch itself off);
 - a law inside the envelope that nothing stops sends the law's own q_feedback.
 """
 

@@ -23,7 +23,7 @@ CAM = 33_333_333        # 30 Hz camera: frames stamped 0, 34, 67, 100 ms, ...
 
 
 def test_lockstep_tests_run_without_rclpy():
-    """Acceptance (issue 12): the rules and these tests load and pass with no rclpy imported."""
+    """The rules and these tests load and pass with no rclpy imported."""
     assert run_without_rclpy(__file__, 'test_lockstep_tests_run_without_rclpy') > 0
 
 

@@ -499,7 +499,7 @@ def test_joint_controller_rejects_bad_input(context):
 
 
 def test_joint_controller_rejects_stamps_from_the_future_and_answers_the_good_ones(context):
-    """A far-future /joint_states used to sit in the buffer; every good one after was stale."""
+    """A far-future /joint_states is not buffered, where every good one after would be stale."""
     with controller_harness(context, use_sim_time=True) as (node, h, out):
         h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0]))
         h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
