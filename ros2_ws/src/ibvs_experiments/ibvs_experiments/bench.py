@@ -8,14 +8,14 @@ whole graph (every node its own process, as ``ibvs run`` starts them) for one si
 second, at HD720 and at VGA, and the bench prints the wall time per simulated second and
 where it goes: each node times its hot sections (:mod:`ibvs_common.profiling`) and
 publishes the totals on /diagnostics, which the run records; the recorder times itself.
-The graph runs ``--runs`` times per resolution (medians against issue 24's targets, the
+The graph runs ``--runs`` times per resolution (medians against the targets below, the
 load average printed before each run; the simulator's one renderer, ibvs_sim.gl_renderer,
 on the device it chose, which the run's metrics name). The accuracy of the features
 (:func:`ibvs_experiments.analysis.feature_errors`), and the wall time of a
 0.3 s ``ibvs run`` (start-up, run, stop, analysis, figures), are printed
 against their targets too (the short run's target is start to metrics: until
 ``metrics.json`` is written; start to exit, with the figures, is printed beside it). Last,
-the nodes alone against a real cell's clock (:mod:`.nodes_bench`, issue 35): a recorded
+the nodes alone against a real cell's clock (:mod:`.nodes_bench`): a recorded
 real-cell run replayed at 30 Hz on the wall clock into the feature, feedback, feedforward
 and joint-controller nodes, at HD720 and VGA: frame-to-command latency (mean, p95, max)
 against one frame period, and each node's CPU. Figures go to stdout and
@@ -51,22 +51,21 @@ BREAKDOWN = (
     ('sim_node', 'lockstep_round_trip', 'lockstep round trips (/joint_states out, command in)'),
     ('recorder', 'recording', 'recording (another process, off the lockstep)'),
 )
-#: The lockstep round trip per physics step (issue 11's target on this 2-core machine).
+#: The targets on the 2-core machine of docs/speed.md: the lockstep round trip per physics
+#: step (ms), the wall time per simulated second of scenario 1 by resolution (s), the
+#: median feature error against the true projection (px), and the wall time of a 0.3 s
+#: ``ibvs run`` from start to metrics (s).
 ROUND_TRIP_MS_TARGET = 0.5
-#: Issue 24's targets: wall time per simulated second of scenario 1 by resolution,
-#: the median feature error against the true projection, and the wall time of a 0.3 s
-#: ``ibvs run`` from start to metrics: half of the 9.5 s the issue measured before (9-10 s
-#: on an idle machine).
 WALL_PER_SIM_S_TARGET = {'HD720': 1.0, 'VGA': 0.6}
 FEATURE_ERROR_PX_TARGET = 0.05
 SHORT_RUN_S = 0.3
-SHORT_RUN_WALL_S_TARGET = 9.5 / 2.0
+SHORT_RUN_WALL_S_TARGET = 4.75
 #: Floors of the graph's parts (ms a pass): the lockstep round trip of this layout in one
-#: process (issue 24: 0.06-0.09 ms); rendering: the same pair rendered alone (ibvs_sim.bench,
-#: pinned to one core, so on two idle cores the graph's render can come in under it).
+#: process; rendering: the same pair rendered alone (ibvs_sim.bench, pinned to one core, so
+#: on two idle cores the graph's render can come in under it).
 ROUND_TRIP_FLOOR_MS = 0.09
-#: Issue 35's target of the nodes alone: frame-to-command latency p95 at most one frame
-#: period of the ZED 2 at 30 Hz, ms.
+#: The target of the nodes alone: frame-to-command latency p95 at most one frame period of
+#: the ZED 2 at 30 Hz, ms.
 NODES_ALONE_P95_MS_TARGET = 1e3 / 30.0
 
 
@@ -183,8 +182,8 @@ def short_run(runs: int) -> dict[str, Any]:
     """
     Time ``ibvs run scenario1 --duration 0.3``: start to metrics, and start to exit.
 
-    Start to metrics: until ``metrics.json`` exists (issue 24's measure: the run's start,
-    the run, its stop and its analysis); start to exit adds the figures.
+    Start to metrics: until ``metrics.json`` exists (the run's start, the run, its stop and
+    its analysis); start to exit adds the figures.
     """
     to_metrics, to_exit = [], []
     for _ in range(runs):

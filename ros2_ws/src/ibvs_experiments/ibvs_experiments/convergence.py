@@ -5,8 +5,7 @@ Success: the one criterion of the project, and why a run that misses it missed.
 within 1 mm of the target position and 0.5 deg of the target tool axis. A study run's
 success, the report's verdicts, the servo-law table's "converged", the run's ``success``
 metric (which ``ibvs run`` prints), the runner's ``RunResult.converged`` and the docs all
-read it from here (issue 37 item 4, issue 38 item 1; before, three definitions were in use,
-each with 1 mm: 0.1 deg, 0.5 deg and 0.2 deg of tool axis).
+read it from here.
 
 Why 1 mm: the paper's own milestone (its responses are read "within 1 mm"; the metric
 ``time_to_1mm_s``), and at the target (2.4 m from the ZED 2, f = 685 px at HD720) 1 mm of
@@ -18,7 +17,7 @@ Why 0.5 deg: the tool axis is the direction the six features see worst. The two 
 63.5 mm apart along it; at 2.4 m a tilt of 1 deg changes their vertical separation by only
 0.038 px (sigma5 = 2.2 px/rad, docs/results.md), so 0.1 deg is 0.004 px, the detector's own
 error: a criterion of 0.1 deg fails runs whose features sit on their targets as well as the
-camera can tell. At a target seen less well than the paper's (issue 38's T04, 2.2 m),
+camera can tell. At a target seen less well than the paper's (2.2 m from the camera),
 0.01 px of differential disparity is 0.4 deg, so a criterion of 0.2 deg fails runs on
 noise at the level the real cell's is modelled with; 0.5 deg is the smallest round bound
 above both. It is also what the millimetre asks of the

@@ -334,8 +334,8 @@ class ModelOnlySweeps:
 
     The model-only calibration and noise sweeps (:mod:`ibvs_experiments.calibration_sweep`)
     as one job per law and target source (1-2 s each), and each law run read back
-    (:func:`.laws_report.read_run`, about 0.3 s) as it finishes: before, both came after
-    the last run, on one core (issue 22: from the last run to report.md 26 s, now 7 s).
+    (:func:`.laws_report.read_run`, about 0.3 s) as it finishes, on the session's cores
+    beside the graph runs, not after the last run on one core.
     """
 
     def __init__(self) -> None:

@@ -74,7 +74,7 @@ TABLE_METRICS = ('final_position_error_m', 'final_tool_axis_error_deg', 'time_to
 #: Metrics of free-running runs only (analysis.free_running_metrics), in the table when a
 #: run of the study has them: the camera-to-command latency, the real-time factor the
 #: simulator held, the frames the controller used; and stale holds and interventions,
-#: should the metrics carry them (none does at issue 38).
+#: should the metrics carry them (none does yet).
 OPTIONAL_METRICS = ('frame_latency_mean_s', 'frame_latency_max_s', 'real_time_factor_held_min',
                     'real_time_factor_held_mean', 'frames_used', 'stale_holds',
                     'interventions')
@@ -172,9 +172,8 @@ def run_command(run_dir: str | Path, scenario_name: str, overrides: Mapping[str,
 
 #: Attempts of a run whose node process died. A run is deterministic, so a death of ours (an
 #: exception in a node) comes back the same on the second attempt, and costs one run more;
-#: a crash below us does not. Seen on 2026-11-26 (docs/studies.md): the simulator's lens
-#: worker (PyBullet's EGL plugin on llvmpipe) died of a segmentation fault inside libc's
-#: malloc in two reports, and the same run passed when run again.
+#: a crash below us (a segmentation fault in a native library the nodes load) need not,
+#: and the second attempt tells the two apart.
 NODE_DEATH_ATTEMPTS = 2
 
 
@@ -718,7 +717,7 @@ def write_figures(spec: study_spec.Spec, rows: Sequence[Mapping[str, Any]],
     distributions; ``success_rate.png``: successes, misses and failures. Returns the paths.
     """
     # Here, not at import: every `ibvs` command imports this module for its defaults, and
-    # pyplot costs about 1.4 s (issue 24: start-up).
+    # pyplot costs seconds of start-up.
     from .plots import plt
     paths = []
     for name in spec.swept_names():

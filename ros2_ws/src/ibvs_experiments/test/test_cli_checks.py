@@ -1,5 +1,5 @@
 """
-What a new user meets first (issue 26, findings 8-10 and 14-16): refusals before any node.
+What a new user meets first: refusals before any node.
 
 Each bad command ends with one ``error:`` line and exit code 2 within a second, not a
 traceback and not a graph started for nothing.
@@ -19,7 +19,7 @@ def run(capsys, *argv):
     return code, capsys.readouterr().err
 
 
-def test_finding8_a_misspelt_parameter_is_refused_with_the_nearest_names(capsys):
+def test_a_misspelt_parameter_is_refused_with_the_nearest_names(capsys):
     code, err = run(capsys, 'run', 'scenario1', '-p', 'camera_rate_hzz:=30', '-o', '/tmp/x')
     assert code == 2
     assert "'camera_rate_hzz': no node of the graph declares it" in err
@@ -28,7 +28,7 @@ def test_finding8_a_misspelt_parameter_is_refused_with_the_nearest_names(capsys)
         graph_params.check({'stale_timeout': 1.0})
 
 
-def test_finding9_bad_commands_end_with_an_error_line_and_code_2(capsys, tmp_path):
+def test_bad_commands_end_with_an_error_line_and_code_2(capsys, tmp_path):
     code, err = run(capsys, 'run', 'scenario1', '-p', 'servo_law:=bogus')
     assert code == 2 and err.startswith('error:') and 'servo_law' in err
     broken = tmp_path / 'broken.yaml'
@@ -48,7 +48,7 @@ def test_finding9_bad_commands_end_with_an_error_line_and_code_2(capsys, tmp_pat
         assert 'seconds > 0' in capsys.readouterr().err
 
 
-def test_finding10_the_pre_check_uses_the_nodes_parser(capsys):
+def test_the_pre_check_uses_the_nodes_parser(capsys):
     for value in ('0', '"false"', 'yes please'):
         code, err = run(capsys, 'run', 'scenario1', '-p', f'publish_images:={value}')
         assert code == 2 and "parameter 'publish_images'" in err and 'not a boolean' in err
@@ -73,7 +73,7 @@ def test_shipped_scenarios_pass_the_check():
         graph_params.check(scenario.load_parameters(name), name)
 
 
-def test_finding14_domains_stay_in_the_safe_range_set_by_one_variable():
+def test_domains_stay_in_the_safe_range_set_by_one_variable():
     assert domains.SAFE_RANGE == (0, 101)
     assert domains.pool({}) == (0, 101)
     assert domains.pool({domains.POOL_ENV: '40-60'}) == (40, 60)
@@ -87,7 +87,7 @@ def test_finding14_domains_stay_in_the_safe_range_set_by_one_variable():
         assert 'export IBVS_ROS_DOMAINS' in makefile.read_text()
 
 
-def test_finding15_a_study_spec_is_checked_against_the_declared_names(capsys, tmp_path):
+def test_a_study_spec_is_checked_against_the_declared_names(capsys, tmp_path):
     for grid, expected in (('{l2_scal: [0.5, 1.0]}', "'l2_scal'"),
                            ('{l2_scale: [0.5, 99.0]}', "'l2_scale' = 99.0")):
         spec = tmp_path / 'bad.yaml'
@@ -97,7 +97,7 @@ def test_finding15_a_study_spec_is_checked_against_the_declared_names(capsys, tm
         assert not (tmp_path / 'out').exists()
 
 
-def test_finding15_a_study_with_failed_runs_exits_non_zero(capsys, tmp_path, monkeypatch):
+def test_a_study_with_failed_runs_exits_non_zero(capsys, tmp_path, monkeypatch):
     spec = tmp_path / 'one.yaml'
     spec.write_text('scenario: scenario1\ngrid: {l2_scale: [1.0]}\n')
     monkeypatch.setattr(study, 'run_studies',
@@ -106,7 +106,7 @@ def test_finding15_a_study_with_failed_runs_exits_non_zero(capsys, tmp_path, mon
     assert code == 1 and '1 run(s) of one failed' in err
 
 
-def test_finding16_help_is_plain_text_and_setup_files_have_no_tests_require(capsys):
+def test_help_is_plain_text_and_setup_files_have_no_tests_require(capsys):
     with pytest.raises(SystemExit):
         cli.main(['--help'])
     out = capsys.readouterr().out
@@ -137,9 +137,9 @@ def test_demo_runs_scenario1_and_films_that_run(monkeypatch, capsys, tmp_path, e
                                                 filmed):
     # `make demo` once failed at once ('Namespace' object has no attribute 'figures'): the
     # demo's arguments must be all that `ibvs run` reads. The graph itself is not started.
-    # The film is the demo run's own (issue 37), written from that run's folder, not from a
-    # run of its own; its camera images are not recorded (issue 35: the film renders them
-    # again from the run's joint states, tests/test_viz_bag.py).
+    # The film is the demo run's own, written from that run's folder, not from a run of its
+    # own; its camera images are not recorded (the film renders them again from the run's
+    # joint states, tests/test_viz_bag.py).
     calls, films = [], []
 
     def run_scenario(name, out, overrides, duration_s, **options):
@@ -157,7 +157,7 @@ def test_demo_runs_scenario1_and_films_that_run(monkeypatch, capsys, tmp_path, e
     assert films == ([out] if filmed else [])
 
 
-def test_issue39_a_study_is_checked_against_the_rules_between_parameters(capsys, tmp_path):
+def test_a_study_is_checked_against_the_rules_between_parameters(capsys, tmp_path):
     spec = tmp_path / 'position.yaml'
     spec.write_text('scenario: scenario1\ngrid: {command_interface: [effort, position]}\n')
     code, err = run(capsys, 'study', str(spec), '-o', str(tmp_path / 'out'))

@@ -1,5 +1,5 @@
 """
-What a newcomer met (issue 37): a folder per run, help that names every option, no stray folder.
+What a newcomer meets: a folder per run, help that names every option, no stray folder.
 
 No graph is started: ``runner.run_scenario`` is replaced where a command would run one.
 """

@@ -50,7 +50,7 @@ def test_success_is_defined_once_in_the_sources():
 
 
 def test_docs_state_the_criterion_as_it_is():
-    # A page that names a success criterion names this one (issue 37: three were in use).
+    # A page that names a success criterion names this one, not one of the older three.
     for page in DOCS.glob('*.md'):
         text = page.read_text()
         for wrong in ('1 mm and 0.1 deg', '1 mm and 0.2 deg', '1 mm / 0.1 deg'):

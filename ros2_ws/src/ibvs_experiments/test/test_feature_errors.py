@@ -1,4 +1,4 @@
-"""analysis.feature_errors: measured features against the true projection (issue 24)."""
+"""analysis.feature_errors: measured features against the true projection."""
 
 from ibvs_experiments.analysis import feature_errors, RunData
 from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, paper,

@@ -21,7 +21,7 @@ def test_latency_from_exposure_to_first_command_and_rtf_held():
 
 
 def test_frames_published_and_the_factor_held_while_servoing():
-    """Issue 34: frames_published beside frames_used; the servoing's factor held."""
+    """Frames_published beside frames_used; the servoing's factor held."""
     pairs = np.column_stack([np.arange(1, 4) * 40 * MS, np.arange(3) * 33 * MS])
     m = free_running_metrics(pairs, [0.01, 0.05], frames_published=5,
                              servo_rtf={'real_time_factor_servo_mean': '0.049',
@@ -42,7 +42,7 @@ def test_a_lockstep_run_gains_no_keys():
 
 
 def test_the_render_device_comes_from_the_simulators_diagnostics():
-    """render_device and render_hardware (issue 35), from /diagnostics strings."""
+    """render_device and render_hardware, from /diagnostics strings."""
     from ibvs_experiments.analysis import render_metrics
     assert render_metrics({'render_device': 'llvmpipe (LLVM 15.0.6, 256 bits)',
                            'render_hardware': 'False'}) == {

@@ -4,8 +4,8 @@ Rules between parameters: refused before any node starts, by the nodes' own func
 Each node module lists its rules as ``RULES`` and runs them at start
 (``ibvs_common.params.declare(node, PARAMS, RULES)``); ``ibvs run`` (runner.resolve),
 ``ibvs study`` and ``ibvs cell`` run the same functions (graph_params.check_rules) before
-anything starts. Issue 36: ``runner.resolve('scenario1', {'servo_law': 'ibvs'})`` passed,
-and the feedback node refused only after start.
+anything starts: ``runner.resolve('scenario1', {'servo_law': 'ibvs'})`` is refused there,
+not by the feedback node after start.
 """
 
 import importlib
@@ -142,7 +142,7 @@ def test_every_node_config_is_its_parameters_and_scenario1_builds_them_all():
 
 
 def test_a_start_outside_a_joints_range_is_refused_before_any_node_starts():
-    # It used to start, and the graph stalled with the feedforward unable to plan from it.
+    # Started, the graph would stall with the feedforward unable to plan from it.
     with pytest.raises(ScenarioError, match=r"'start_joints'.*joint 1 at 229\.2 deg is "
                                             r'outside its range \[-180\.0, 180\.0\] deg'):
         runner.resolve('scenario1', {'start_joints': [4.0, 0.0, 0.0, 0.0, 0.0, 0.0]})

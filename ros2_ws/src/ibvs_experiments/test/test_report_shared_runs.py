@@ -33,7 +33,7 @@ def test_the_report_runs_the_scenario_runs_that_other_studies_repeat_once():
     expected = {(report.SWEEP_STUDY, index_of(sweep, l2_scale=1.0)): ('scenario1', 0),
                 (report.SWEEP_STUDY, index_of(sweep, l4_scale=1.0)): ('scenario1', 0)}
     # The law study's paper runs with ideal actuators are the scenario studies' runs (one
-    # renderer since issue 35: nothing tells them apart), so they run once.
+    # renderer: nothing tells them apart), so they run once.
     for n in (1, 2, 3):
         laws = by_name[f'laws_ideal_scenario{n}']
         paper_run = next(run.index for run in laws.runs()

@@ -107,7 +107,7 @@ def test_watch_ends_at_once_on_a_failed_teach():
 
 
 def test_watch_goes_on_without_an_optional_viewer_once_the_simulator_runs():
-    """SIGKILL of viz_node, a viewer nothing waits for, aborted the run (issue 39)."""
+    """SIGKILL of viz_node, a viewer nothing waits for, does not abort the run."""
     said = []
     run = runner.Prepared({'scenario_name': 's'}, 0.5, None, None, None, None, None)
     viewer = _Process(code=-9, name='viz_node', nodes=('viz_node',))
@@ -125,7 +125,7 @@ def test_watch_goes_on_without_an_optional_viewer_once_the_simulator_runs():
 
 
 def test_the_metrics_are_handed_over_before_the_figures_are_drawn(monkeypatch, tmp_path):
-    # ibvs run prints the metrics as soon as they are written (issue 24: start to metrics);
+    # ibvs run prints the metrics as soon as they are written (start to metrics);
     # matplotlib's seconds come after.
     order = []
     run_data = type('Run', (), {'params': {}, 'run_info': {}, 'joints': ([],),

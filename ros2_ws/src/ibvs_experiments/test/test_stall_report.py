@@ -1,8 +1,8 @@
 """
 The stall report names what holds the run and dates what it quotes.
 
-Finding 12 of issue 26: the frozen node. Issue 39, item 2: the node busy in a callback (not
-the nodes that wait behind it in its process), and a stopped process.
+The frozen node, the node busy in a callback (not the nodes that wait behind it in its
+process), and a stopped process.
 """
 
 import os
@@ -29,7 +29,7 @@ def _status(node, **values):
         name=f'{node}: x', values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])])
 
 
-def test_finding12_the_report_names_the_node_whose_heartbeat_stopped(tmp_path):
+def test_the_report_names_the_node_whose_heartbeat_stopped(tmp_path):
     now = [100.0]
     monitor = Monitor(_Node(), SimpleNamespace(), None, clock=lambda: now[0])
     monitor.sim_ns = 500_000_000  # the last /clock: 0.5 s
@@ -58,9 +58,9 @@ def _watchdog(node, callback, seconds):
         values=[KeyValue(key='busy_callback', value=callback)])])
 
 
-def test_issue39_the_report_names_the_busy_node_not_those_behind_it(tmp_path):
+def test_the_report_names_the_busy_node_not_those_behind_it(tmp_path):
     """
-    A busy detection froze its whole process; every node of it was called frozen.
+    A busy detection freezes its whole process; not every node of it is called frozen.
 
     The process's watchdog names the callback: that node is the cause, the others of its
     process wait behind it, and a node of another process keeps its own account.
@@ -99,7 +99,7 @@ def _until(condition, what, deadline_s=30.0):
         time.sleep(0.01)
 
 
-def test_issue39_a_stopped_process_is_named_as_stopped(tmp_path):
+def test_a_stopped_process_is_named_as_stopped(tmp_path):
     """A SIGSTOP'd process (or a worker it waits for) is named from outside: it says nothing."""
     proc = NodeProcess.of_command(
         [sys.executable, '-c', 'import subprocess, sys, time; '

@@ -77,9 +77,9 @@ def test_the_progress_line_says_a_run_was_attempted_again():
 
 
 def test_progress_names_the_varied_parameters_and_its_eta_leaves_start_up_out(monkeypatch):
-    # Issue 37: 'laws_limited_scenario2#2' did not say servo_law=ibvs, and the first ETA of a
-    # make report said 72:45 for a 26:49 run (elapsed time, Ray's start-up included, per run
-    # finished, as if one run went at a time).
+    # A label names the swept values ('laws_limited_scenario2#2' alone does not say
+    # servo_law=ibvs), and the ETA leaves Ray's start-up out and counts the runs going at
+    # once (elapsed time per run finished, as if one run went at a time, is far too long).
     assert study.run_label({'study': 'laws_limited_scenario2', 'index': 2,
                             'swept': {'servo_law': 'ibvs', 'l2_scale': 0.5}}) == \
         'laws_limited_scenario2#2 (servo_law=ibvs, l2_scale=0.5)'

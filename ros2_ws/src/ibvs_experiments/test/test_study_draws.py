@@ -1,4 +1,4 @@
-"""Study draws of issue 38: integers, vectors, per-run draws, tasks, values as drawn."""
+"""Study draws: integers, vectors, per-run draws, tasks, values as drawn."""
 
 from ibvs_bringup import scenario
 from ibvs_experiments import study, study_spec
