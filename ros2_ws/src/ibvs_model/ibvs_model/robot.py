@@ -193,7 +193,7 @@ def forward_kinematics_batch(qs: ArrayLike, params: RobotParams = IRB4600
     One product A_1^0 ... A_6^5 per row, as :func:`joint_frames` builds it: the same
     operations in the same order (cos and sin from :mod:`math`, numpy's matmul of each 4x4
     pair), so that a pose does not depend on whether it was computed alone or in a batch
-    (the simulator's evaluation poses, issue 24).
+    (the simulator's evaluation poses).
 
     Parameters
     ----------

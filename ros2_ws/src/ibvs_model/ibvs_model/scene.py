@@ -105,10 +105,8 @@ def discs_apart(camera: 'StereoCamera', points: 'NDArray[np.float64]',
     far apart to be told apart: they must not overlap, else the nearer sphere hides part of
     the farther one and its circle is cut. Each disc's radius is the marker's at its own
     depth (f_u R / Z), and ``gap_px`` more keeps the two antialiased edge pixels apart: the
-    centres at least r1 + r2 + gap_px apart, in the left and in the right image. (Before
-    issue 38 the criterion took the nearer marker's radius twice plus 3 px, in the left
-    image only, and refused the paper's own target: 19.9 px between the centres against
-    20.1 px asked, discs 10.1 px apart from edge to edge.)
+    centres at least r1 + r2 + gap_px apart, in the left and in the right image (the
+    nearer marker's radius taken twice would refuse the paper's own target).
 
     Parameters
     ----------
