@@ -156,7 +156,7 @@ def test_tool_frames_stay_off_where_the_cells_urdf_has_them(context, executor_of
 
 
 def test_the_frames_the_images_name_are_placed_at_the_lenses(rig):
-    # The ZED wrapper's images carry zed_{left,right}_camera_frame_optical (issue 37).
+    # The ZED wrapper's images carry zed_{left,right}_camera_frame_optical.
     executor, driver, node = rig
     camera = default_camera('VGA')
     infos = camera_infos(camera.intrinsics, 0,
