@@ -16,7 +16,7 @@ Cost of the detector per stereo pair, for ``make bench`` (``ibvs_experiments.ben
 
 ``python -m ibvs_vision.bench --calibrate`` measures the cost model of the detector's budget
 (:data:`ibvs_vision.detector.budget.COSTS`) again: on synthetic frames and on the hostile
-images of issue 39 (noise, checkerboard, many circles) at HD720, the wall time of each kind
+images of the fuzz classes (noise, checkerboard, many circles) at HD720, the wall time of each kind
 of step against what the model in use prices it (a ratio: 1 or less where the model is
 not too cheap), median and largest; then the wall time of whole detections against their
 estimated cost.

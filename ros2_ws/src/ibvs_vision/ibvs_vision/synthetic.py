@@ -266,7 +266,7 @@ def hostile_image(kind: str, width: int, height: int,
     """
     Return an RGB image (height, width, 3) uint8 that makes a circle search expensive.
 
-    The detector's worst cases, as the fuzz classes of issue 39 name them:
+    The detector's worst cases, as the fuzz classes name them:
 
     - 'noise': mid-grey with Gaussian noise of 0.5 (of the full range) per pixel and
       channel, as ``image_noise_stddev`` 0.5 gives: edges everywhere;

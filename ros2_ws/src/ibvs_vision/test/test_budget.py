@@ -1,5 +1,5 @@
 """
-The detector's budget per stereo pair (detector.budget, issue 39): pure, no ROS, no clock.
+The detector's budget per stereo pair (detector.budget): pure, no ROS, no clock.
 
 Every test judges the budget by the work it counts and prices, never by the wall clock: a
 full-size noisy pair, a checkerboard and a crowd of circles each stop within the budget of a

@@ -26,7 +26,7 @@ import pytest
 
 @pytest.fixture
 def any_world(world):
-    """Return the module's World (one renderer since issue 35)."""
+    """Return the module's World (the one renderer)."""
     return world
 
 
@@ -112,7 +112,7 @@ def test_target_pose_measurement_does_not_depend_on_joint_6(any_world, hd_model)
     """
     At the target, turning joint 6 (which moves no marker centre) moves no measured feature.
 
-    This is what the end-to-end accuracy rests on (issue 6): the feedback drives the measured
+    This is what the end-to-end accuracy rests on: the feedback drives the measured
     features onto F(q_target), so a measurement bias becomes a pose error; at 2.4 m one
     hundredth of a pixel of disparity is 0.7 mm of depth, and 0.004 px of vertical
     separation between the markers is 0.1 deg of tool axis (the weakest direction of C1).

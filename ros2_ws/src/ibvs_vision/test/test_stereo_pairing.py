@@ -21,7 +21,7 @@ CAM = 33_333_333        # 30 Hz camera: frames stamped 0, 34, 67, 100 ms, ...
 
 
 def test_stereo_pairing_tests_run_without_rclpy():
-    """Acceptance (issue 12): the rule and these tests load and pass with no rclpy imported."""
+    """The rule and these tests load and pass with no rclpy imported."""
     assert run_without_rclpy(__file__, 'test_stereo_pairing_tests_run_without_rclpy') > 0
 
 

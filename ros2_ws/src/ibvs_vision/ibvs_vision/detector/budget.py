@@ -2,11 +2,11 @@
 The detector's time budget per stereo pair: counted work, priced by a measured cost model.
 
 A noisy, textured or crowded image gives the Hough transform tens of thousands of edge
-pixels and thousands of circle centres: one noisy HD720 pair took 12-30 s of full-image
-search (issue 39) while the simulator, the controllers and their heartbeats waited. The
-detector therefore prices each step before it runs it (:class:`WorkBudget`) and stops the
-pair, with :attr:`Reason.OVER_BUDGET <.config.Reason.OVER_BUDGET>`, at the first step the
-rest of the budget cannot pay for.
+pixels and thousands of circle centres: a full-image search of one noisy HD720 pair takes
+12-30 s, while the simulator, the controllers and their heartbeats wait. The detector
+therefore prices each step before it runs it (:class:`WorkBudget`) and stops the pair, with
+:attr:`Reason.OVER_BUDGET <.config.Reason.OVER_BUDGET>`, at the first step the rest of the
+budget cannot pay for.
 
 The price is not the wall clock: a decision taken on the wall clock would depend on the
 machine's load, and the same run twice would not give the same numbers (docs/design.md §4).
@@ -28,17 +28,17 @@ import math
 
 #: Cost of each kind of step: (ns per unit of work, ns per call), one core of the 2-core
 #: machine, OpenCV on one thread: the upper end of what ``python -m ibvs_vision.bench
-#: --calibrate`` measured on 2026-11-27 (load average 1.2-2.5) over rendered, synthetic,
-#: noisy (0.05-0.5), checkerboard and many-circle HD720 images. 'score': per image pixel,
-#: the hue-selective channels of both markers (0.5-0.6 measured). 'hot': per pixel, the
-#: hot-block search of one marker (0.2). 'edges': per pixel of a search window, its blur
-#: and Canny edges (1.2 on a clean image, 12 on heavy noise, whose edges Canny follows;
-#: more on the smallest windows: the per-call part). 'hough': per edge pixel to the power
-#: HOUGH_EXPONENT (up to 470 on noise, 90 on many circles, 35-120 on checkerboards), and
-#: 'hough_pixel' per pixel of the window. 'refine': per pixel of a refined candidate's
-#: window (18 median, up to 90 on the smallest windows: the per-call part, which also
-#: covers the axis band's centre). 'pair': once a pair, what no step counts (the pairing,
-#: the windows, Python's calls; a pair that stopped at 8.32 ms estimated took 8.64 ms of CPU).
+#: --calibrate`` measured (load average 1.2-2.5) over rendered, synthetic, noisy (0.05-0.5),
+#: checkerboard and many-circle HD720 images. 'score': per image pixel, the hue-selective
+#: channels of both markers (0.5-0.6 measured). 'hot': per pixel, the hot-block search of
+#: one marker (0.2). 'edges': per pixel of a search window, its blur and Canny edges (1.2 on
+#: a clean image, 12 on heavy noise, whose edges Canny follows; more on the smallest
+#: windows: the per-call part). 'hough': per edge pixel to the power HOUGH_EXPONENT (up to
+#: 470 on noise, 90 on many circles, 35-120 on checkerboards), and 'hough_pixel' per pixel
+#: of the window. 'refine': per pixel of a refined candidate's window (18 median, up to 90
+#: on the smallest windows: the per-call part, which also covers the axis band's centre).
+#: 'pair': once a pair, what no step counts (the pairing, the windows, Python's calls; a
+#: pair that stopped at 8.32 ms estimated took 8.64 ms of CPU).
 COSTS = {'score': (0.6, 0.0), 'hot': (0.25, 0.0), 'edges': (12.0, 1e5),
          'hough': (470.0, 0.0), 'hough_pixel': (2.0, 0.0), 'refine': (45.0, 3e5),
          'pair': (0.0, 5e5)}
