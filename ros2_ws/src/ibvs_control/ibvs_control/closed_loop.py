@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import node_params
-from .controllers import Feedforward, JointLoop, makes_own_move
+from .controllers import Feedforward, JointLoop, makes_own_move, synchronised_move
 from .feedback_lockstep import FeedbackLockstep
 from .prediction import Predictor
 from .servo_laws import AdaptiveGain, feedforward_overrides, law_class
@@ -263,12 +263,14 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
         q_true0 = inverse_kinematics(paper.scenario_start_pose(config.scenario), plant.params)
     q = q_true0 - d_q
     qd = np.zeros(6)
+    feedforward_method = law.feedforward_method(config.feedforward_method)
     joint = JointLoop(config.tau_in, dt, config.actuators, plant.params.qd_max,
                       config.torque_limits, speed_margin=config.speed_margin,
-                      acceleration_margin=config.acceleration_margin)
+                      acceleration_margin=config.acceleration_margin,
+                      synchronised=synchronised_move(feedforward_method))
     ff = Feedforward(pose, config.tau_in, dt, model.params,
                      feedforward_ratio=config.feedforward_ratio,
-                     feedforward_method=law.feedforward_method(config.feedforward_method))
+                     feedforward_method=feedforward_method)
     q_target = ff.start(q)
     # Limited actuators: the joint loop makes the time-optimal move to the goal itself.
     goal = ff.goal if makes_own_move('effort', config.actuators) else None

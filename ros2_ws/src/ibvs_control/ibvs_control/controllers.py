@@ -107,8 +107,13 @@ class JointLoop:
     def __init__(self, tau_in: float, dt: float, actuators: str = ACTUATORS[0],
                  qd_max: ArrayLike = IRB4600.qd_max, torque_limits: ArrayLike | None = None,
                  speed_margin: float = SPEED_MARGIN,
-                 acceleration_margin: float = ACCELERATION_MARGIN) -> None:
-        """Design G_c,d at sample time ``dt``; limits are needed in 'limited' mode only."""
+                 acceleration_margin: float = ACCELERATION_MARGIN,
+                 synchronised: bool = True) -> None:
+        """
+        Design G_c,d at sample time ``dt``; limits are needed in 'limited' mode only.
+
+        ``synchronised``: the governor moves the joints together (:func:`synchronised_move`).
+        """
         if actuators not in ACTUATORS:
             raise ValueError(f'actuators must be one of {ACTUATORS}, got {actuators!r}')
         self.dt = float(dt)
@@ -125,7 +130,8 @@ class JointLoop:
             if not (0.0 < speed_margin <= 1.0 and 0.0 < acceleration_margin <= 1.0):
                 raise ValueError('speed and acceleration margins must be in (0, 1]')
             self.governor = ReferenceGovernor(dt, speed_margin * self.qd_max,
-                                              jerk_rise_s=JERK_RISE_S)
+                                              jerk_rise_s=JERK_RISE_S,
+                                              synchronised=synchronised)
         self.filter = StateSpaceFilter(youla.inner_controller_discrete(tau_in, dt), 6)
         self.saturated = np.zeros(6, dtype=bool)
         self.reference = None
@@ -185,6 +191,20 @@ def makes_own_move(command_interface: str, actuators: str) -> bool:
     paper) the reference is T_forward's trajectory.
     """
     return command_interface == 'position' or actuators == 'limited'
+
+
+def synchronised_move(feedforward_method: str) -> bool:
+    """
+    Return whether the governor moves the joints together, for ``feedforward_method``.
+
+    A feedforward plans a move to its goal: every joint arrives at once, on the straight
+    joint-space line from rest (the paper's law, 'switching'). With 'hold' (the velocity
+    laws, 'ibvs' and 'pbvs') there is no move to plan: the reference is the law's stream of
+    joint corrections, one per frame, each asked of its joint, and each joint follows its
+    own as fast as it can (tied to the slowest, the joints the law asks least of would
+    lag what it asked, and its integrator, clamped per joint, would wind the path off).
+    """
+    return feedforward_method != 'hold'
 
 
 #: Longest feedforward trajectory (samples): 60 s at 1 kHz. With the paper's values the

@@ -25,7 +25,7 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from .controllers import JointLoop, makes_own_move
+from .controllers import JointLoop, makes_own_move, synchronised_move
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
 from .joint_controller_mode import JointControllerMode
@@ -53,7 +53,8 @@ class EffortController(JointControllerMode):
         self.loop = JointLoop(config.tau_in, ns_to_seconds(self.dt_ns), config.actuators,
                               IRB4600.qd_max, self.torque_limits,
                               speed_margin=config.speed_margin,
-                              acceleration_margin=config.acceleration_margin)
+                              acceleration_margin=config.acceleration_margin,
+                              synchronised=synchronised_move(config.feedforward_method))
         self.own_move = makes_own_move('effort', config.actuators)
         self._lockstep = self._new_lockstep()
         clock_watch(node).on_back(self._clock_back)

@@ -44,16 +44,20 @@ class ReferenceGovernor:
 
     def __init__(self, dt: float, speed_limits: ArrayLike,
                  acceleration_limits: ArrayLike | None = None,
-                 jerk_limits: ArrayLike | None = None, jerk_rise_s: float | None = None
-                 ) -> None:
+                 jerk_limits: ArrayLike | None = None, jerk_rise_s: float | None = None,
+                 synchronised: bool = True) -> None:
         """
         Sample time ``dt`` (s); limits (6,) in rad/s, rad/s^2 and rad/s^3, all > 0.
 
         The acceleration limits may instead be given at each :meth:`step` (they depend on
         the configuration through M(q) and h(q, qdot)); so may the jerk limits, or they
         follow the acceleration limits as a / ``jerk_rise_s`` (the time the reference takes
-        to reach full acceleration).
+        to reach full acceleration). ``synchronised``: the joints move together
+        (:data:`SYNCHRONIZATIONS`, a planned move), or each on its own time-optimal profile
+        (a velocity law's stream of corrections: :func:`.controllers.synchronised_move`).
         """
+        self.synchronizations = SYNCHRONIZATIONS if synchronised \
+            else (ruckig.Synchronization.No,)
         self.dt = float(dt)
         self.v_max = np.asarray(speed_limits, dtype=float)
         self.a_max = None if acceleration_limits is None \
@@ -134,7 +138,7 @@ class ReferenceGovernor:
         # within the limit).
         for scale in JERK_RETRY_SCALES:
             inp.max_jerk = (scale * j_max).tolist()
-            for sync in SYNCHRONIZATIONS:
+            for sync in self.synchronizations:
                 inp.synchronization = sync
                 try:
                     result = self._otg.calculate(inp, trajectory)

@@ -50,6 +50,7 @@ class JointControllerConfig(ParamConfig):
     actuators: str = param_field(shared.ACTUATORS)
     torque_limits: tuple[float, ...] = param_field(own.TORQUE_LIMITS)
     speed_margin: float = param_field(own.SPEED_MARGIN)
+    feedforward_method: str = param_field(own.FEEDFORWARD_METHOD)
     acceleration_margin: float = param_field(own.ACCELERATION_MARGIN)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
     command_interface: str = param_field(shared.COMMAND_INTERFACE)

@@ -9,8 +9,8 @@ within the arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), o
 /joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
 command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input, a clock
 that jumped back, a sim time that stopped or a second publisher on /joint_states, the
-q_feedback, the feedforward or its own command topic stops and holds the arm (:mod:`.servo_status`, on
-/ibvs/servo_status). In full: docs/nodes.md.
+q_feedback, the feedforward or its own command topic stops and holds the arm
+(:mod:`.servo_status`, on /ibvs/servo_status). In full: docs/nodes.md.
 """
 
 from typing import TYPE_CHECKING
@@ -29,7 +29,7 @@ from std_msgs.msg import Float64MultiArray, Header, Int8
 from trajectory_msgs.msg import JointTrajectory
 
 from .joint_controller_mode import JointControllerMode
-from .position_interface import FeedbackHold, PositionShaper
+from .position_interface import FeedbackHold, shaper_for
 from .servo_status import clock_stopped, InputWatch, second_publisher, ServoStatus
 
 if TYPE_CHECKING:
@@ -114,8 +114,7 @@ class PositionController(JointControllerMode):
         self._warn_ignored(node, config)
         self.joints = list(config.joints)
         self.command_period_ns = period_ns(config.command_rate_hz)
-        self.shaper = PositionShaper(config.command_rate_hz, speed_margin=config.speed_margin,
-                                     max_speed=np.radians(config.max_joint_speed_deg_s))
+        self.shaper = shaper_for(config.values())
         self._hold = FeedbackHold(np.zeros(6))
         self._measured = None
         frame_timeout_ns = seconds_to_ns(config.frame_timeout_s)

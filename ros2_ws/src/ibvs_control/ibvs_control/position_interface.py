@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import node_params
+from .controllers import synchronised_move
 from .governor import ReferenceGovernor
 
 
@@ -51,8 +52,13 @@ class PositionShaper:
                  speed_margin: float = 1.0,
                  position_limits: tuple[ArrayLike, ArrayLike] = (IRB4600.q_min, IRB4600.q_max),
                  range_margin: float = 0.02, max_speed: float = math.inf,
-                 jerk_limits: ArrayLike = JERK_LIMITS) -> None:
-        """Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2, rad/s^3 and rad."""
+                 jerk_limits: ArrayLike = JERK_LIMITS, synchronised: bool = True) -> None:
+        """
+        Nominal rate ``command_rate_hz``; limits (6,) rad/s, rad/s^2, rad/s^3 and rad.
+
+        ``synchronised``: the joints move together (a planned move), or each on its own
+        (a velocity law's corrections: :func:`.controllers.synchronised_move`).
+        """
         if not (np.isfinite(command_rate_hz) and command_rate_hz > 0.0):
             raise ValueError(f'command_rate_hz must be > 0, got {command_rate_hz}')
         if not (0.0 < speed_margin <= 1.0):
@@ -72,7 +78,7 @@ class PositionShaper:
         self.low = np.asarray(position_limits[0], dtype=float) + range_margin
         self.high = np.asarray(position_limits[1], dtype=float) - range_margin
         self._governor = ReferenceGovernor(self.period, self.speed_limits, a_max,
-                                           jerk_limits=j_max)
+                                           jerk_limits=j_max, synchronised=synchronised)
 
     @property
     def state(self) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -148,16 +154,17 @@ def shaper_for(values: Mapping[str, Any]) -> PositionShaper:
     """
     Return the joint controller's shaper for its parameters ``values`` (by name).
 
-    ``command_rate_hz``, ``speed_margin`` and ``max_joint_speed_deg_s``, each its
-    parameter's default where ``values`` does not set it: the one place the position
-    interface's limits are put together, for the controller and for the bound
-    (:func:`time_optimal_s`).
+    ``command_rate_hz``, ``speed_margin``, ``max_joint_speed_deg_s`` and
+    ``feedforward_method`` (:func:`.controllers.synchronised_move`), each its parameter's
+    default where ``values`` does not set it: the one place the position interface's
+    limits are put together, for the controller and for the bound (:func:`time_optimal_s`).
     """
     def value(param):
         return values.get(param.name, param.default)
-    return PositionShaper(value(shared.COMMAND_RATE_HZ),
-                          speed_margin=value(node_params.SPEED_MARGIN),
-                          max_speed=math.radians(value(shared.MAX_JOINT_SPEED_DEG_S)))
+    return PositionShaper(
+        value(shared.COMMAND_RATE_HZ), speed_margin=value(node_params.SPEED_MARGIN),
+        max_speed=math.radians(value(shared.MAX_JOINT_SPEED_DEG_S)),
+        synchronised=synchronised_move(value(node_params.FEEDFORWARD_METHOD)))
 
 
 def time_optimal_s(q_start: ArrayLike, goal: ArrayLike, values: Mapping[str, Any]) -> float:

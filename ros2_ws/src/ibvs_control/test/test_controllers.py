@@ -96,19 +96,35 @@ def test_governor_moves_every_joint_along_the_straight_line_from_rest():
     np.testing.assert_allclose(share, share[:, :1] * np.ones((1, 6)), atol=1e-9)
 
 
-def test_governor_follows_limits_that_change_each_step():
-    """'limited' actuators: the acceleration limit is what the torque buys now."""
+def test_governor_plans_each_target_under_the_limits_given_with_it():
+    """'limited' actuators: the acceleration limit is what the torque buys when planned."""
     gov = ReferenceGovernor(DT, np.full(6, 3.0), jerk_rise_s=0.02)
     gov.reset(np.zeros(6))
-    target = np.full(6, 0.5)
     for k in range(2000):
+        target = np.full(6, 0.5 + 0.001 * (k // 100))  # a new target every 0.1 s
         limits = np.full(6, 20.0 + 10.0 * np.sin(k * DT * 7.0))
         gov.step(target, limits)
+        assert np.all(np.abs(gov.state[2]) <= 30.0 + 1e-9)
     np.testing.assert_allclose(gov.r, target, atol=1e-9)
     with pytest.raises(ValueError):
-        gov.step(target)  # no limits given at construction nor now
+        gov.step(target + 0.1)  # a new plan, and no limits given at construction nor now
     with pytest.raises(ValueError):
         ReferenceGovernor(DT, np.full(6, 3.0))  # neither jerk limits nor a rise time
+
+
+def test_an_unsynchronised_governor_moves_each_joint_on_its_own_time_optimal_profile():
+    """A velocity law's corrections: each joint as fast as it can, not tied to the slowest."""
+    start, target = np.zeros(6), np.array([1.0, 0.1, 0.1, 0.1, 0.1, 0.1])
+    arrivals = {}
+    for synchronised in (True, False):
+        gov = ReferenceGovernor(DT, np.full(6, 2.0), np.full(6, 10.0), jerk_rise_s=0.05,
+                                synchronised=synchronised)
+        gov.reset(start)
+        path = np.array([gov.step(target) for _ in range(3000)])
+        arrivals[synchronised] = np.argmax(np.abs(path - target) < 1e-9, axis=0)
+    assert np.ptp(arrivals[True]) <= 1  # together
+    assert np.all(arrivals[False][1:] < arrivals[True][1:] // 2)  # the short ones far sooner
+    assert arrivals[False][0] == arrivals[True][0]  # the longest is the time-optimal one
 
 
 # -- joint loop -------------------------------------------------------------------------------
