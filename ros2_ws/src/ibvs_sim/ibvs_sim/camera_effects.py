@@ -22,8 +22,8 @@ Four imperfections, each off by default (sim_node parameters of the same names):
 Randomness comes from one numpy Generator seeded with ``camera_seed``; per frame it draws the
 drop decision first and, for a frame that is kept, the seed of the left image's noise and
 then of the right one's, so that a run is the same every time. The noise itself is OpenCV's
-normal draw (``cv2.randn``) from that seed: 7 ms an HD720 image, where numpy's float64 draw
-took 57 ms and made a noisy run three to four times slower than a noiseless one (issue 39).
+normal draw (``cv2.randn``) from that seed: numpy's float64 draw costs several times as
+much per image, and would make a noisy run several times slower than a noiseless one.
 """
 
 from collections.abc import Iterable

@@ -2,9 +2,9 @@
 A renderer of our own: the world's visual shapes drawn with OpenGL (moderngl), no PyBullet.
 
 The simulator's renderer (:class:`ibvs_sim.rendering.Renderer`). PyBullet's own renderers
-were retired (issue 35): its EGL plugin spent 5-9 ms of every ``getCameraImage`` call on
-llvmpipe in a shadow-map pass that no argument reaches, however small the image, and the
-same triangles drawn directly cost a fraction of that (docs/speed.md).
+are not used: its EGL plugin spends 5-9 ms of every ``getCameraImage`` call on llvmpipe in
+a shadow-map pass that no argument reaches, however small the image, and the same
+triangles drawn directly cost a fraction of that (docs/speed.md).
 
 Device (:func:`device_order`). The context is opened once, at construction, on an EGL
 device: a GPU's when the EGL library lists one and a context opens on it, Mesa's software
@@ -533,7 +533,7 @@ class GLRenderer:
             for index, (fbo, viewport) in enumerate(drawn):
                 # Read as the framebuffer holds it (RGBA) and drop alpha in OpenCV: Mesa
                 # packs RGB pixel by pixel, 0.9 ms an HD720 image on llvmpipe against
-                # 0.08 + 0.08 ms (measured 2026-11-27); the same bytes.
+                # 0.08 + 0.08 ms; the same bytes.
                 rgba = self._readback(index, viewport[2], viewport[3])
                 fbo.read_into(rgba, viewport=viewport, components=4, alignment=1)
                 images.append(cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB))
