@@ -2,7 +2,7 @@
 One bad publisher on the domain does not take the graph down: a /clock with a negative ``sec``.
 
 rclpy's TimeSource raises ``ValueError: Seconds value must not be negative`` inside the
-executor for such a message; every node that runs on sim time used to end with exit code 1.
+executor for such a message, which would end every node that runs on sim time with exit 1.
 The four sim-time nodes run here as their own processes (as the runner starts them), are fed
 malformed /clock messages, and must count them on /diagnostics and keep running.
 """

@@ -1,8 +1,8 @@
 """
 The README stays a front page, and the documentation's relative links lead somewhere.
 
-Issue 23: README.md at most 200 lines, the rest in docs/ pages; a link to a page that
-was renamed or never written is caught here, not by a reader.
+README.md at most 200 lines, the rest in docs/ pages; a link to a page that was renamed or
+never written is caught here, not by a reader.
 """
 
 from pathlib import Path

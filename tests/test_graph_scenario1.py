@@ -24,9 +24,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 SIM_SECONDS = 1.0
-#: Issue 6's bounds. Within 1 mm after 0.54 s (`make demo`), the graph is 0.12 mm /
-#: 0.005 deg from the target after 1.0 s (measured 2026-11-25; 0.15 mm / 0.06 deg after
-#: 1.5 s: the axis error still moves within a few hundredths of a degree). What is left is
+#: The bounds after 1.0 s: the graph is within 1 mm well before (docs/results.md), and the
+#: axis error still moves within a few hundredths of a degree. What is left is
 #: the stereo measurement, and the tool axis is its weakest direction: 0.004 px of vertical
 #: separation between the markers is 0.1 deg (ibvs_vision test_rendered). It holds because
 #: the simulator renders the markers with 8 x 8 samples per pixel and the detector fills

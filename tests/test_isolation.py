@@ -1,9 +1,10 @@
 """
-Test processes take their ROS domain through the lock of the runs (issue 39, item 9).
+Test processes take their ROS domain through the lock of the runs.
 
-With another ROS 2 graph on one of its domains, ``make test`` failed 8 tests and erred in 8
-(the joint controller waited for the other graph's frames): a test process chose its domain
-by a hash of pids, outside the lock every run takes (:mod:`ibvs_bringup.domains`).
+A test process that chose its domain by a hash of pids, outside the lock every run takes
+(:mod:`ibvs_bringup.domains`), could share it with another ROS 2 graph, and its nodes would
+then read that graph's messages (the joint controller waiting for the other graph's
+frames).
 """
 
 import os

@@ -1,8 +1,8 @@
 """
 The nodes started by hand as docs/running.md says: they tell how they get on, and stop.
 
-Issue 37: started by hand, the nodes said nothing after their start, the simulation ran
-past the scenario's duration, and Ctrl-C stopped only the foreground node. Here the two
+Started by hand, the nodes must say how they get on, stop the simulation at the scenario's
+duration, and all stop at Ctrl-C, not only the foreground node. Here the two
 shell functions of docs/running.md (``ibvs_nodes``, ``ibvs_nodes_stop``), taken from the
 page itself, start the graph in bash with job control, as an interactive shell has it (and
 without the ``ros2`` CLI, as this repository's venv has it), with

@@ -1,7 +1,7 @@
 """
 The README's commands work as written, and none of them touches ``make demo``'s results.
 
-Issue 37: the README's own ``ibvs run scenario1 --duration 0.5 --video`` once wrote into
+A README command such as ``ibvs run scenario1 --duration 0.5 --video`` must not write into
 ``results/scenario1``, over ``make demo``'s metrics. Here every ``bash`` block of the README
 runs, as a user would paste it, at the root of a folder that holds the repository's
 ``.venv`` and ``ros2_ws`` (links) and a ``results/scenario1`` from a ``make demo``-like run
@@ -28,7 +28,7 @@ README = ROOT / 'README.md'
 #: Sim seconds of each ``ibvs run`` of the README here.
 SHORT_S = 0.2
 BLOCK = re.compile(r'^```bash\n(.*?)^```', re.MULTILINE | re.DOTALL)
-#: What rcl prints when it takes ``-p name:=value`` of sys.argv for a remap rule (issue 37).
+#: What rcl prints when it takes ``-p name:=value`` of sys.argv for a remap rule.
 REMAP_WARNING = 'Found remap rule'
 
 

@@ -1,5 +1,5 @@
 """
-A real cell's joint states into the feature and feedback nodes (issue 34, acceptance 1).
+A real cell's joint states into the feature and feedback nodes.
 
 abb_ros2's joint_state_broadcaster publishes /joint_states at the controller manager's
 250 Hz, stamped on its own cycle, never at the camera's exposure. Here 30 Hz stereo frames

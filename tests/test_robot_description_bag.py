@@ -1,8 +1,8 @@
 """
 A real-cell run's bag: one publisher of /robot_description, and the arm's frames are ABB's.
 
-Issue 34: viz_node once published a second /robot_description and its own (DH) link
-frames beside the ones robot_state_publisher publishes from ABB's URDF. One run of
+viz_node publishes neither a second /robot_description nor its own (DH) link frames beside
+the ones robot_state_publisher publishes from ABB's URDF. One run of
 ``real_cell`` (``ibvs run real_cell --duration 1``) through the installed graph; its bag's
 metadata lists, per topic, the QoS of each publisher the recorder saw
 (``offered_qos_profiles``, ibvs_bringup.recorder: one entry per publisher), and its /tf,

@@ -24,8 +24,8 @@ def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run
     The paper's nodes share the simulator's process (ibvs_bringup.graph): freezing the
     feature node freezes them all. None of them can say anything, not even its process's
     watchdog; the runner sees the process stopped (state T in /proc) and names it as the
-    cause, and each of its nodes as stopped with it (issue 39: it called each of them frozen
-    and named no process). The viewers' node, in a process of its own, keeps its heartbeat.
+    cause, and each of its nodes as stopped with it (not each of them as frozen with no
+    process named). The viewers' node, in a process of its own, keeps its heartbeat.
     """
     code, out, err = signalled_run(
         ['--stall-s', '6'], lambda log: log.exists() and 'starting at t = 0' in log.read_text(),
@@ -45,7 +45,7 @@ def test_runner_reports_a_stall_and_who_waits(installed_workspace, signalled_run
 
 #: A test hook (``sitecustomize``, imported by every Python process of the run): the feature
 #: node's fourth camera_info callback, at the run's first frame, runs busy for 8 s, as
-#: a detection of a noisy frame did (issue 39: 12.3 s idle, 118 s under load).
+#: a detection of a noisy frame can without the detector's budget.
 BUSY_HOOK = """
 import importlib.abc
 import importlib.util
@@ -85,8 +85,8 @@ def test_runner_names_the_busy_node_not_those_behind_it(installed_workspace, tmp
     """
     A callback busy for seconds is named as the cause; its process's other nodes wait.
 
-    Issue 39: a noisy frame's detection held the feature node for 12 s, and the report
-    called all five nodes of its process frozen. Here a test hook makes one of its callbacks
+    A noisy frame's detection can hold the feature node for seconds; the report must not
+    call all five nodes of its process frozen. Here a test hook makes one of its callbacks
     busy for 8 s (not a real detection); the run stalls after 4 s.
     """
     hook = tmp_path / 'hook'

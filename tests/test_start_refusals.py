@@ -1,5 +1,5 @@
 """
-A bad configuration is refused at start with exit code 2 and a message (issue 39, items 4, 7).
+A bad configuration is refused at start with exit code 2 and a message.
 
 Each node's executable, started as ``ros2 run PKG NODE --ros-args ...`` starts it, refuses a
 parameter that no node of its process declares (naming the closest), a value of the wrong

@@ -3,8 +3,8 @@ One QoS a topic: every node of the graph opens its topics through ibvs_common.ki
 
 The kit records what each node opens (kit.opened); here every node of the graph is built in
 one context, in each command interface, and each topic must have one profile across all
-the nodes that publish or read it (issue 36: CameraInfo was read RELIABLE by one node and
-with the images' QoS by another), and the transport the kit chose must be rclcpp's rule.
+the nodes that publish or read it (not CameraInfo read RELIABLE by one node and with the
+images' QoS by another), and the transport the kit chose must be rclcpp's rule.
 """
 
 from collections import defaultdict

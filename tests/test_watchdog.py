@@ -1,8 +1,8 @@
 """
-A node process names the callback it is busy in (issue 39, item 2).
+A node process names the callback it is busy in.
 
-A noisy frame kept the feature node's detection busy for 12 s and more; every node of its
-process fell silent, and the stall report called them all frozen. The watchdog of
+A callback kept busy (a detection of a noisy frame, say) silences every node of its process,
+and a stall report would call them all frozen. The watchdog of
 ``ibvs_common.node_main`` says on /diagnostics which callback runs, and for how long, while
 the executor waits for it; here a node's timer callback is made busy on purpose (a test
 hook in the test's own node, not a real detection).
