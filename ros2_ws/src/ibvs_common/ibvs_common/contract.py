@@ -52,6 +52,10 @@ EFFORT_COMMANDS = '/joint_effort_commands'
 #: joint name). Remappable, as every name here.
 POSITION_COMMANDS = '/forward_position_controller/commands'
 TRAJECTORY_COMMANDS = '/joint_trajectory_controller/joint_trajectory'
+#: A dry run's references (the joint controller's ``dry_run``): what it would send on
+#: POSITION_COMMANDS or TRAJECTORY_COMMANDS, the same type, on a topic no arm reads.
+DRY_RUN_COMMANDS = '/ibvs/dry_run/commands'
+DRY_RUN_TRAJECTORY = '/ibvs/dry_run/joint_trajectory'
 #: sensor_msgs/TimeReference, one per camera frame, from the joint controller in position
 #: mode: header.stamp = the time of the first command that uses the frame's q_feedback,
 #: time_ref = the frame's stamp (its exposure); the run's latency metric.

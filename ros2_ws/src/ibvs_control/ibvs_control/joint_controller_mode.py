@@ -2,11 +2,12 @@
 What both joint controllers share: the typed configuration and the common inputs.
 
 :class:`JointControllerConfig` holds the parameters of ``joint_controller_node`` (each a
-Param, checked at construction, and the one rule across them: effort goes with lockstep,
-position with free-running). :class:`JointControllerMode` reads the feedforward trajectory
-and the q_feedback for either command interface (:mod:`.effort_controller`,
-:mod:`.position_controller`) and hands them on, as ros2_controllers' controllers share
-their reference and state interfaces while each claims its own command interface.
+Param, checked at construction, and the rules across them: effort goes with lockstep,
+position with free-running; a dry run is of the position interface).
+:class:`JointControllerMode` reads the feedforward trajectory and the q_feedback for either
+command interface (:mod:`.effort_controller`, :mod:`.position_controller`) and hands them
+on, as ros2_controllers' controllers share their reference and state interfaces while each
+claims its own command interface.
 """
 
 from dataclasses import dataclass
@@ -18,7 +19,7 @@ from ibvs_common.conversions import (check_finite, ignored_joints, InputError,
                                      position_bounds, read_joints, read_stamp, read_trajectory,
                                      stamp_lead_ns, trajectory_arrays, velocity_bounds)
 from ibvs_common.kit import subscription
-from ibvs_common.params import param_field, ParamConfig
+from ibvs_common.params import param_field, ParamConfig, ParameterError
 from ibvs_common.timing import period_ns
 from ibvs_model import IRB4600
 import numpy as np
@@ -62,6 +63,7 @@ class JointControllerConfig(ParamConfig):
     frame_timeout_s: float = param_field(own.FRAME_TIMEOUT_S)
     max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
     trajectory_window_points: int = param_field(own.TRAJECTORY_WINDOW_POINTS)
+    dry_run: bool = param_field(own.DRY_RUN)
 
     def __post_init__(self):
         """Check each value, the command interface against the time mode, the joints."""
@@ -69,6 +71,11 @@ class JointControllerConfig(ParamConfig):
         shared.check_command_interface(vars(self))
         if self.command_interface == 'position':
             shared.joint_order(self.joints)  # the ros2_control controller's joint order
+        elif self.dry_run:
+            raise ParameterError("parameter 'dry_run' = True is invalid with command_interface "
+                                 "'effort': a dry run is of the position interface (the "
+                                 "lockstep's simulator waits for every effort command); "
+                                 "allowed: false (or command_interface 'position')")
 
 
 class JointControllerMode:

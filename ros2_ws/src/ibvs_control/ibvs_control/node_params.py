@@ -136,6 +136,12 @@ SPEED_MARGIN = Param('speed_margin', controllers.SPEED_MARGIN, "'limited' actuat
 ACCELERATION_MARGIN = Param('acceleration_margin', controllers.ACCELERATION_MARGIN,
                             "'limited' actuators: share of the torque left after h(q, qdot) "
                             'that the governor may use', '-', low=0.0, high=1.0, low_open=True)
+DRY_RUN = Param(
+    'dry_run', False,
+    "command_interface 'position': compute the references as always but publish them on "
+    '/ibvs/dry_run/commands (joint_trajectory: /ibvs/dry_run/joint_trajectory), never on '
+    "the arm's command topic, which is not even opened: the features, the errors and the "
+    'references of a cell, the arm still (ibvs cell --dry-run)', '-')
 TRAJECTORY_WINDOW_POINTS = Param(
     'trajectory_window_points', 26,
     "position_command_type 'joint_trajectory': points in each JointTrajectory, one every "

@@ -2,15 +2,17 @@
 The position joint controller: joint references for the arm's own drive, free-running.
 
 Every 1 / ``command_rate_hz`` of the node's clock it sends the reference of the
-time-optimal, jerk-limited move toward the feedforward's target plus q_feedback (the
-newest: :class:`.position_interface.FeedbackHold`), re-planned from its own last state
-within the arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), on
+time-optimal, jerk-limited move toward the feedforward's target plus q_feedback (the newest:
+:class:`.position_interface.FeedbackHold`), re-planned from its own last state within the
+arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), on
 /forward_position_controller/commands or as a JointTrajectory window on
-/joint_trajectory_controller/joint_trajectory (``position_command_type``); the first
-command that uses a frame's q_feedback goes on /ibvs/frame_latency. A stale input, a clock
-that jumped back, a sim time that stopped or a second publisher on /joint_states, the
-q_feedback, the feedforward or its own command topic stops and holds the arm
-(:mod:`.servo_status`, on /ibvs/servo_status). In full: docs/nodes.md.
+/joint_trajectory_controller/joint_trajectory (``position_command_type``), or in a dry run
+(``dry_run``) on /ibvs/dry_run/commands or /ibvs/dry_run/joint_trajectory instead, the arm's
+command topic never opened; the first command that uses a frame's q_feedback goes on
+/ibvs/frame_latency. A stale input, a clock that jumped back, a sim time that stopped or a
+second publisher on /joint_states, the q_feedback, the feedforward or its own command topic
+stops and holds the arm (:mod:`.servo_status`, on /ibvs/servo_status). In full:
+docs/nodes.md.
 """
 
 from typing import TYPE_CHECKING
@@ -56,10 +58,13 @@ class ForwardCommand:
     (``joints``). ``send`` takes what :meth:`PositionController._command` computed.
     """
 
+    #: The command topic, and a dry run's (``dry_run``: never the arm's).
+    TOPICS = (contract.POSITION_COMMANDS, contract.DRY_RUN_COMMANDS)
+
     def __init__(self, node: 'Node', ctrl: 'PositionController') -> None:
-        """Open the command topic."""
+        """Open the command topic (a dry run's own topic in a dry run)."""
         self._ctrl = ctrl
-        self.pub = publisher(node, Float64MultiArray, contract.POSITION_COMMANDS,
+        self.pub = publisher(node, Float64MultiArray, self.TOPICS[ctrl.config.dry_run],
                              contract.RELIABLE)
 
     def send(self, now_ns, q_command, target, q_feedback):
@@ -79,11 +84,14 @@ class TrajectoryWindow:
     joint order.
     """
 
+    #: The command topic, and a dry run's (``dry_run``: never the arm's).
+    TOPICS = (contract.TRAJECTORY_COMMANDS, contract.DRY_RUN_TRAJECTORY)
+
     def __init__(self, node: 'Node', ctrl: 'PositionController') -> None:
-        """Open the command topic."""
+        """Open the command topic (a dry run's own topic in a dry run)."""
         self._ctrl = ctrl
         self._ahead = ctrl.config.trajectory_window_points - 1
-        self.pub = publisher(node, JointTrajectory, contract.TRAJECTORY_COMMANDS,
+        self.pub = publisher(node, JointTrajectory, self.TOPICS[ctrl.config.dry_run],
                              contract.RELIABLE)
 
     def send(self, now_ns, q_command, target, q_feedback):
@@ -127,7 +135,8 @@ class PositionController(JointControllerMode):
         self.frames_used = 0
         self.last_command_ns = None
         self.diagnostics.update(command_interface='position', commands=0,
-                                position_command_type=config.position_command_type)
+                                position_command_type=config.position_command_type,
+                                dry_run=config.dry_run)
         self._sender = COMMAND_TYPES[config.position_command_type](node, self)
         self._pub_latency = publisher(node, TimeReference, contract.FRAME_LATENCY,
                                       contract.RELIABLE)
@@ -154,7 +163,9 @@ class PositionController(JointControllerMode):
         node.get_logger().info(
             f'position references at {config.command_rate_hz:g} Hz on '
             f'{self._sender.pub.topic_name} ({config.position_command_type}), joints '
-            f'{self.joints}')
+            f'{self.joints}' + (': DRY RUN, nothing goes to the arm (its command topic, '
+                                f'{node.resolve_topic_name(type(self._sender).TOPICS[0])}, '
+                                'is not opened)' if config.dry_run else ''))
 
     @staticmethod
     def _warn_ignored(node, config):

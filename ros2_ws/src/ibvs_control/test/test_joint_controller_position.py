@@ -19,6 +19,8 @@ from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
 Q0 = inverse_kinematics(paper.scenario_start_pose(1))
@@ -170,11 +172,38 @@ def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(positi
     assert np.all(steps <= node.mode.shaper.speed_limits + 1e-9)
 
 
+@pytest.mark.parametrize('command_type, kind, topic', [
+    ('forward_command', Float64MultiArray, contract.DRY_RUN_COMMANDS),
+    ('joint_trajectory', JointTrajectory, contract.DRY_RUN_TRAJECTORY),
+])
+def test_a_dry_run_sends_its_references_on_its_own_topic_and_never_opens_the_arms(
+        position_cell, command_type, kind, topic):
+    cell = position_cell(command_type, dry_run=True)
+    node, executor = cell.node, cell.executor
+    dry = cell.record(kind, topic)
+    spin_until(executor, lambda: node.mode._sender.pub.get_subscription_count() > 0,
+               what='the dry run topic discovered')
+    target = Q0 + np.radians(5.0)
+    cell.start(0, target)
+    for t in range(4, 41, 4):
+        count = len(dry)
+        cell.clock(t * MS)
+        spin_until(executor, lambda c=count: len(dry) > c, what=f'the reference at {t} ms')
+    first = np.asarray(dry[0].data if kind is Float64MultiArray else dry[0].points[0].positions)
+    last = np.asarray(dry[-1].data if kind is Float64MultiArray else dry[-1].points[0].positions)
+    assert np.all((last - first) * (target - Q0) > 0), 'toward the target, as it would send'
+    assert not cell.commands, 'nothing on the command topic'
+    arm = contract.POSITION_COMMANDS if kind is Float64MultiArray else \
+        contract.TRAJECTORY_COMMANDS
+    assert node.count_publishers(arm) == 0, "the arm's command topic is not even opened"
+
+
 @pytest.mark.parametrize('params, name', [
     ({'lockstep': True}, 'lockstep'),
     ({'joints': ORDER[:5] + ['joint_2']}, 'joints'),
     ({'joints': ORDER[:5]}, 'joints'),
     ({'command_interface': 'effort'}, 'lockstep'),
+    ({'command_interface': 'effort', 'lockstep': True, 'dry_run': True}, 'dry_run'),
 ])
 def test_bad_configurations_are_refused_naming_the_parameter(context, params, name):
     values = {'command_interface': 'position', 'lockstep': False}
