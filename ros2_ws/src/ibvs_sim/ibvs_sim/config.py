@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from ibvs_common.params import Param, param_field, ParamConfig
 from ibvs_common.shared_params import (CAMERA_RATE_HZ, DISTURBANCE_DEG, L2_SCALE, L4_SCALE,
                                        PHYSICS_RATE_HZ, SCENARIO, START_JOINTS)
+from ibvs_common.teach import TEACH_FRAMES
 from ibvs_model import paper
 
 from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
@@ -75,13 +76,6 @@ CAMERA_POSE_ERROR_RPY_DEG = Param(
     'orientation: the published /stereo/pose is the true one turned by roll, pitch, yaw '
     'about the true camera axes x, y, z (R = Rz Ry Rx)', 'deg', low=-10.0, high=10.0,
     length=3)
-#: Most frames a taught pair may average.
-MAX_TEACH_FRAMES = 100
-TEACH_FRAMES = Param(
-    'teach_frames', 1, 'stereo frames of the tool held at the target that the teach pair '
-    "averages, pixel by pixel (each its own image noise; target_features_source 'taught'): "
-    'the features of the taught target then carry 1 / sqrt(teach_frames) of one '
-    "frame's noise; 1: one frame", '-', low=1, high=MAX_TEACH_FRAMES)
 FOCAL_LENGTH_ERROR = Param(
     'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
     'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)

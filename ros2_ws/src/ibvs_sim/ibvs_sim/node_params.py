@@ -4,7 +4,8 @@ The typed configurations of ibvs_sim's nodes (:class:`SimNodeConfig`, :class:`Ro
 :class:`SimNodeConfig` is :class:`.config.SimConfig` (what the simulator simulates) and the
 node's own parameters below: each value checked against its Param at construction, then
 the rules across them (the command interface against the time mode, a taught target
-against publish_images, a camera outage against lockstep, the extra joints' names), so
+against publish_images, a camera outage against lockstep, the extra joints' names, a start
+at the target against start_joints), so
 that a bad combination is refused before the node opens a topic.
 """
 
@@ -31,6 +32,15 @@ CLOCK_RATE_HZ = Param(
     'so the rate changes no result, only the cost: each /clock wakes every node',
     'Hz', low=shared.MIN_RATE_HZ, high=10000.0)
 
+MIN_COMMAND_PUBLISHERS = Param(
+    'min_command_publishers', 1, 'the start waits until the command topic has this many '
+    'publishers (the joint controller); 0: it starts without one, the arm held where it '
+    'starts (a cell with nobody commanding: ibvs teach, ibvs cell --dry-run)', '-', low=0,
+    high=1000)
+START_AT_TARGET = Param(
+    'start_at_target', False, 'the arm starts at the target pose (target_position, '
+    "target_rotation; the simulated robot's IK, as its teach pair) instead of the "
+    "scenario's start: the tool held at the target, to teach it (ibvs teach)", '-')
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
     'subscribers (every node that must see step 0)', '-', low=1, high=1000)
@@ -135,6 +145,8 @@ class SimNodeConfig(SimConfig):
     min_tool_path_subscribers: int = param_field(MIN_TOOL_PATH_SUBSCRIBERS)
     min_joint_path_subscribers: int = param_field(MIN_JOINT_PATH_SUBSCRIBERS)
     min_camera_info_subscribers: int = param_field(MIN_CAMERA_INFO_SUBSCRIBERS)
+    min_command_publishers: int = param_field(MIN_COMMAND_PUBLISHERS)
+    start_at_target: bool = param_field(START_AT_TARGET)
     target_features_source: str = param_field(shared.TARGET_FEATURES_SOURCE)
     target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
     target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
@@ -161,6 +173,10 @@ class SimNodeConfig(SimConfig):
         super().__post_init__()
         shared.check_command_interface(vars(self))
         shared.start_joints(self.start_joints)  # 6 angles within the joints' ranges, or none
+        if self.start_at_target and self.start_joints:
+            raise ParameterError("parameter 'start_at_target' = True is invalid with "
+                                 'start_joints set: the arm starts at one of them; allowed: '
+                                 'false (or start_joints empty)')
         if not self.lockstep:  # the free-running drive's joint order
             shared.joint_order(self.joints)
         if self.target_features_source == 'taught' and not self.publish_images:

@@ -18,7 +18,9 @@ the true one (:mod:`.camera_effects`); with target_features_source 'taught' the 
 pair at the target goes out latched on /stereo/teach/{left,right}/image_raw.
 
 Step 0 goes out once every reader the ``min_*_subscribers`` parameters name is matched
-(until then a line a second says what is missing); with ``duration_s`` the node stops
+and the command topic has ``min_command_publishers`` publishers (until then a line a
+second says what is missing); ``start_at_target`` starts the arm at the target pose (the
+tool held there, to teach it); with ``duration_s`` the node stops
 stepping at that sim time and stays up. Parameters: :class:`.node_params.SimNodeConfig`
 (docs/parameters.md). Bad input is rejected, logged and counted on /diagnostics. The
 contract in full: docs/nodes.md, docs/design.md §3 and §4.
@@ -103,13 +105,16 @@ class SimNode(Node):
         self.frames_outage = 0
         self._next_clock_ns = 0
         self.last_clock_ns = None
-        teach_pose = target_from_parameters(vars(config)) \
-            if config.target_features_source == 'taught' else None
+        target = target_from_parameters(vars(config)) \
+            if config.target_features_source == 'taught' or config.start_at_target else None
+        teach_pose = target if config.target_features_source == 'taught' else None
         # Physics only (publish_images false): no renderer to load.
-        self.sim = Simulator(config, teach_pose=teach_pose, render=config.publish_images)
+        self.sim = Simulator(config, teach_pose=teach_pose, render=config.publish_images,
+                             start_pose=target if config.start_at_target else None)
         pos_err, rot_err = self.sim.start_residual
         self.get_logger().info(
-            f'scenario {self.sim.scenario}: true start angles '
+            ('at the target' if config.start_at_target else f'scenario {self.sim.scenario}')
+            + ': true start angles '
             f'{np.round(np.degrees(self.sim.q_start), 3).tolist()} deg (IK residual '
             f'{pos_err:.2e} m, {rot_err:.2e} rad); d_q '
             f'{np.round(np.degrees(self.sim.d_q), 3).tolist()} deg; renderer '
@@ -175,8 +180,10 @@ class SimNode(Node):
         """Return what the start still waits for (empty when it can start)."""
         config = self.config
         missing = []
-        if self.mode.command_sub.get_publisher_count() < 1:
-            missing.append(f'a publisher on {self.mode.command_sub.topic_name}')
+        have = self.mode.command_sub.get_publisher_count()
+        if have < config.min_command_publishers:
+            missing.append(f'{config.min_command_publishers - have} more publisher(s) on '
+                           f'{self.mode.command_sub.topic_name}')
         for pub, wanted in ((self.pub_joints, config.min_joint_state_subscribers),
                             (self.pub_frame_joints, self.mode.frame_joint_subscribers),
                             (self._pub_tool, config.min_tool_path_subscribers),

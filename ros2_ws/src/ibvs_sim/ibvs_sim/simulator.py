@@ -26,6 +26,7 @@ from fractions import Fraction
 
 from ibvs_common.params import ParameterError
 from ibvs_common.shared_params import start_joints
+from ibvs_common.teach import FrameMean
 from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
                         IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
@@ -54,7 +55,8 @@ class Simulator:
     ``config``: the sim_node parameters (:class:`.config.SimConfig`, each value checked
     there). ``teach_pose``: a flange pose T_E^O whose stereo pair to render before the run
     (module docstring), or None. ``render``: False builds no renderer (physics only; a
-    frame is then taken without images, :meth:`take_frame`).
+    frame is then taken without images, :meth:`take_frame`). ``start_pose``: a flange pose
+    T_E^O to start at instead of the scenario's (solved as ``teach_pose`` is), or None.
 
     Raises :class:`ConfigError` at construction for what no single parameter's range
     says: a camera rate above the physics rate, a start pose (or a pose to teach) the
@@ -63,7 +65,8 @@ class Simulator:
     """
 
     def __init__(self, config: SimConfig = SimConfig(),
-                 teach_pose: ArrayLike | None = None, render: bool = True) -> None:
+                 teach_pose: ArrayLike | None = None, render: bool = True,
+                 start_pose: ArrayLike | None = None) -> None:
         """Check the combinations, solve the start pose and build the PyBullet world."""
         self.config = config
         self.dt_ns = period_ns(config.physics_rate_hz)
@@ -87,10 +90,17 @@ class Simulator:
         if given is not None:  # a task's start (issue 38): the true angles as given
             target = forward_kinematics(given, self.params)
         try:
-            # The branch nearest q = 0 inside the reach cone (no over-the-head arm).
-            self.q_start = nearest_branch_ik(target, np.zeros(6), self.params) \
-                if given is None else given
+            if start_pose is not None:  # the tool held at the target: the teach's IK
+                target = np.asarray(start_pose, dtype=float)
+                self.q_start = inverse_kinematics(target, self.params)
+            else:
+                # The branch nearest q = 0 inside the reach cone (no over-the-head arm).
+                self.q_start = nearest_branch_ik(target, np.zeros(6), self.params) \
+                    if given is None else given
         except ModelError as exc:
+            if start_pose is not None:
+                raise ConfigError('start_at_target', 'the target pose is unreachable by the '
+                                  f'simulated robot: {exc}') from None
             raise ConfigError('scenario', f'start pose of scenario {config.scenario} is '
                               f'unreachable by the simulated robot (l2_scale = '
                               f'{config.l2_scale}, l4_scale = {config.l4_scale}): '
@@ -215,18 +225,18 @@ class Simulator:
         Return the teach pair: ``frames`` noisy pairs of the still tool, averaged.
 
         One frame is :meth:`_render`'s pair. More are the pixelwise mean of as many 8-bit
-        pairs, each with its own noise, rounded to 8 bits: what a user who holds the tool
+        pairs, each with its own noise, rounded to 8 bits (:class:`ibvs_common.teach.
+        FrameMean`, the rule ``ibvs teach`` follows on a cell): what a user who holds the tool
         still at the target and averages the camera's frames gets (the scene is static, so
         the pair is drawn once and only the noise differs; without noise, that one pair).
         """
         if frames == 1 or self.effects.noise_stddev == 0.0:
             return self._render()
         clean = self._draw()
-        total = [np.zeros(image.shape, np.float64) for image in clean]
+        mean = FrameMean()
         for _ in range(frames):
-            for acc, image in zip(total, self.effects.noisy(clean)):
-                acc += image
-        return tuple(np.rint(acc / frames).astype(np.uint8) for acc in total)
+            mean.add(self.effects.noisy(clean))
+        return mean.mean()
 
     def hold_torque(self) -> NDArray[np.float64]:
         """Return the torque that stops the arm where it is in one step (World.hold_torque)."""

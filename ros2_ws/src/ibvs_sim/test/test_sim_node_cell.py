@@ -130,7 +130,28 @@ def test_the_factor_held_while_servoing_is_measured_from_the_first_reference(cel
     assert values['real_time_factor_servo_mean'] <= 0.5 * 1.1  # never faster than set
 
 
+def test_with_min_command_publishers_0_it_starts_uncommanded_and_holds_the_arm(
+        context, executor_of):
+    """The tool held at the target for ibvs teach: nobody commands, the arm stays there."""
+    from ibvs_model import forward_kinematics, paper
+    sim = SimNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in {
+        'resolution': 'VGA', 'publish_images': False, 'command_interface': 'position',
+        'lockstep': False, 'real_time_factor': 1.0, 'min_command_publishers': 0,
+        'start_at_target': True, 'disturbance_deg': [0.0] * 6}.items()])
+    listener = Node('listener', context=context)
+    states = []
+    listener.create_subscription(JointState, contract.JOINT_STATES, states.append,
+                                 contract.RELIABLE)
+    executor = executor_of(sim, listener)
+    spin_until(executor, lambda: len(states) >= 20)
+    q = np.array([s.position for s in states[-10:]])
+    assert np.ptp(q, axis=0).max() == 0.0  # held, uncommanded
+    pose = forward_kinematics(q[-1])
+    assert np.linalg.norm(pose[:3, 3] - paper.target_pose()[:3, 3]) < 1e-9
+
+
 @pytest.mark.parametrize('params, name', [
+    ({'start_at_target': True, 'start_joints': [0.0] * 6}, 'start_at_target'),
     ({'lockstep': True, 'command_interface': 'effort', 'camera_outage_s': [1.0, 0.5]},
      'camera_outage_s'),
     ({'extra_joints': ['joint_3']}, 'extra_joints'),

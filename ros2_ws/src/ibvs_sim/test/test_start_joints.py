@@ -28,3 +28,14 @@ def test_start_joints_are_the_true_start_angles_and_empty_keeps_the_scenario():
 def test_start_joints_of_another_length_are_refused_naming_them():
     with pytest.raises(ConfigError, match='start_joints'):
         Simulator(SimConfig(start_joints=(0.0, 0.1)), render=False)
+
+
+def test_a_start_pose_is_solved_as_the_teach_pose_is():
+    """The tool held at the target (start_at_target): the same angles as the teach pair's."""
+    target = paper.target_pose()
+    sim = Simulator(SimConfig(), render=False, start_pose=target, teach_pose=None)
+    try:
+        assert np.array_equal(sim.q_start, inverse_kinematics(target, sim.params))
+        assert max(sim.start_residual) < 1e-9
+    finally:
+        sim.world.close()
