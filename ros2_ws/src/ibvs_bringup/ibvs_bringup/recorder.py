@@ -26,7 +26,8 @@ message: one that never had a message is not in it.
 
 A recorder that dies before :meth:`Recorder.close` (its runner killed with SIGKILL) leaves
 a readable bag behind: the MCAP file holds every message up to the last /clock (each
-/clock closes a chunk, :meth:`_JazzyMcapStorage.flush`), and ``metadata.yaml`` is written
+/clock closes a chunk, :meth:`_JazzyMcapStorage.flush`; on the wall clock, a real cell's,
+every :data:`WALL_FLUSH_S`), and ``metadata.yaml`` is written
 when the bag opens, with the run's custom data and :data:`IN_PROGRESS_KEY`; :func:`recover`
 (called by ``ibvs analyse`` and every analysis of a run) then ends the MCAP file after its
 last whole record and writes the metadata of what it holds.
@@ -37,6 +38,7 @@ from functools import partial
 import importlib
 from io import BytesIO, StringIO
 from pathlib import Path
+import time
 from typing import Any
 
 from ibvs_common import contract
@@ -93,6 +95,9 @@ RECORD_QOS = QoSProfile(depth=2000, reliability=contract.RELIABLE.reliability,
                         durability=contract.RELIABLE.durability)
 LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY,
                   contract.ROBOT_DESCRIPTION, contract.TF_STATIC}
+#: Wall seconds between two flushes of a bag on the wall clock (``wall_clock``): what a
+#: killed recorder leaves readable, as each /clock does on sim time.
+WALL_FLUSH_S = 0.1
 
 
 def bag_qos(profile: QoSProfile) -> Qos:
@@ -307,7 +312,7 @@ class Recorder(Node):
     def __init__(self, bag_path: str | Path, include_images: bool = False,
                  custom_data: Mapping[str, str] | None = None,
                  include_overlays: bool = False, include_per_step: bool = False,
-                 **kwargs: Any) -> None:
+                 wall_clock: bool = False, **kwargs: Any) -> None:
         """
         Open the bag at ``bag_path`` (must not exist) and subscribe to the known topics.
 
@@ -315,6 +320,9 @@ class Recorder(Node):
         (:data:`OVERLAY_TOPICS`), which are recorded with ``include_overlays``: they are
         drawn only while someone subscribes to them. The lockstep's per-step messages
         (:data:`PER_STEP_TOPICS`) are recorded with ``include_per_step`` (module docstring).
+        ``wall_clock``: a graph on the wall clock, with no /clock (a real cell's): each
+        message's time in the bag is the system time it came at, and the file is flushed
+        every :data:`WALL_FLUSH_S` of wall time instead of at each /clock.
         """
         super().__init__('ibvs_recorder', **kwargs)
         self._include_images = include_images
@@ -344,6 +352,9 @@ class Recorder(Node):
             self._record(topic, type_name)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._discovery = self.create_timer(0.5, self._discover, clock=self._steady)
+        self._wall_clock = wall_clock
+        self._flush = self.create_timer(WALL_FLUSH_S, self._writer.storage.flush,
+                                        clock=self._steady) if wall_clock else None
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Add a key/value (strings) to the bag's metadata; effective at :meth:`close`."""
@@ -394,7 +405,8 @@ class Recorder(Node):
                     self.clock_ns = clock.sec * 1_000_000_000 + clock.nanosec
                     self.timing.reached(self.clock_ns)
                     self._writer.storage.flush()  # what came before this /clock: on disk
-            self._writer.write(self._connection(topic), self.clock_ns, data)
+            self._writer.write(self._connection(topic),
+                               time.time_ns() if self._wall_clock else self.clock_ns, data)
             self.latest[topic] = data
         self.counts[topic] += 1
 
@@ -404,4 +416,6 @@ class Recorder(Node):
             self.destroy_subscription(sub)
         self._topic_subs.clear()
         self._discovery.cancel()
+        if self._flush is not None:
+            self._flush.cancel()
         self._writer.close()
