@@ -69,6 +69,14 @@ metrics stay as they were):
   limits plus the drive's dead time (:func:`optimal_metrics`), and
   ``time_to_1mm_over_optimal_s``, the time to 1 mm less it.
 
+A cell's bag (``ibvs cell``; the keys are absent from a run's): without the simulator's
+/ibvs/tool_path the tool poses are the nominal kinematics of /joint_states (the encoders:
+the model's pose, what a real cell knows), ``tool_pose_source: joint_states``; a
+rehearsal's bag that carries its teach record (``ibvs cell --teach``) with the true tool
+pose where the simulator held the tool has that pose as the target, ``target_source:
+teach`` (the parameters' target is the encoders' kinematics there, which the simulated
+encoder offsets move away from the truth).
+
 What drew the images (runs that rendered them; the simulator's /diagnostics):
 ``render_device``, the OpenGL GL_RENDERER string (e.g. 'llvmpipe (LLVM 15.0.6, 256 bits)'),
 and ``render_hardware``, true on a GPU, false on a software rasteriser (ibvs_sim.gl_renderer).
@@ -80,7 +88,8 @@ from pathlib import Path
 from typing import Any, TYPE_CHECKING
 
 from ibvs_common import contract, profiling
-from ibvs_common.conversions import camera_from_msgs, InputError, pose_matrix, read_joint_path
+from ibvs_common.conversions import (camera_from_msgs, InputError, pose_matrix, read_joint_path,
+                                     read_joints)
 from ibvs_common.shared_params import target_from_parameters
 from ibvs_common.timing import NS_PER_S, ns_to_seconds, seconds_to_ns
 import numpy as np
@@ -97,6 +106,16 @@ if TYPE_CHECKING:
 #: Custom-data key of the bag's metadata that holds the run's parameters (YAML).
 PARAMS_KEY = 'ibvs.parameters'
 RUN_KEY = 'ibvs.run'
+#: Custom-data key of a cell session's teach record (``ibvs cell --teach``: YAML of
+#: ibvs_experiments.teach's record, its true tool pose under :data:`TRUE_TOOL_POSE_KEY`).
+TEACH_KEY = 'ibvs.teach'
+TRUE_TOOL_POSE_KEY = 'true_tool_pose'
+#: Where the tool poses come from: the simulator's truth (/ibvs/tool_path), or the
+#: encoders through the nominal kinematics (/joint_states: a real cell has no truth).
+TOOL_SOURCES = ('simulator', 'joint_states')
+#: Where the target comes from: the parameters, or a rehearsal's teach record (the true
+#: tool pose where the simulator held it, ``ibvs teach``).
+TARGET_SOURCES = ('parameters', 'teach')
 #: The simulator's /diagnostics values that say what drew the images (module docstring).
 RENDER_KEYS = ('render_device', 'render_hardware')
 #: The simulator's /diagnostics values of the factor held while servoing (module docstring).
@@ -143,6 +162,10 @@ class RunData:
     #: and the controller servoed to (``target_features_source: taught``), from its
     #: ``taught_target_px`` on /diagnostics; None when not taught (or an older bag).
     taught_target: np.ndarray | None = None
+    #: Where :attr:`position` and :attr:`rotation` come from, and :attr:`target`
+    #: (:data:`TOOL_SOURCES`, :data:`TARGET_SOURCES`).
+    tool_source: str = TOOL_SOURCES[0]
+    target_source: str = TARGET_SOURCES[0]
 
 
 def _settle_time(t, inside):
@@ -318,6 +341,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     params = yaml.safe_load(custom.get(PARAMS_KEY, '{}')) or {}
     run_info = yaml.safe_load(custom.get(RUN_KEY, '{}')) or {}
     t, poses, ft, feats, mt, modes = [], [], [], [], [], []
+    states = []  # (stamp s, q) of /joint_states: the tool poses of a bag without the truth
     infos, cam_pose = {}, None
     latency, rtf_held, render, taught = [], [], {}, []
     frame_stamps, servo_rtf = [], {}
@@ -327,10 +351,17 @@ def load_run(bag_path: str | Path) -> 'RunData':
                   contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE,
                   contract.ZED_LEFT_INFO, contract.ZED_RIGHT_INFO, contract.FRAME_LATENCY,
                   contract.DIAGNOSTICS}
+        if not any(c.topic in (contract.TOOL_PATH, OLD_TOOL_POSE) for c in reader.connections):
+            wanted.add(contract.JOINT_STATES)
         conns = [c for c in reader.connections if c.topic in wanted]
         for conn, _, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic in (contract.TOOL_PATH, OLD_TOOL_POSE):
+            if conn.topic == contract.JOINT_STATES:
+                try:  # by name, other joints ignored, as the nodes read them
+                    states.append((_stamp(msg.header), read_joints(msg)))
+                except InputError:
+                    pass
+            elif conn.topic in (contract.TOOL_PATH, OLD_TOOL_POSE):
                 for pose in (msg.poses if conn.topic == contract.TOOL_PATH else [msg]):
                     t.append(_stamp(pose.header))
                     poses.append(pose_matrix(pose.pose))
@@ -363,6 +394,12 @@ def load_run(bag_path: str | Path) -> 'RunData':
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
     # the runner was stopping it is left out, so that the metrics do not depend on when it
     # stopped (older bags have no duration_s and are taken whole).
+    tool_source = TOOL_SOURCES[0]
+    if not t and states:  # a real cell's bag: the model's pose, FK of the encoders
+        from ibvs_model import forward_kinematics_batch
+        t = [stamp for stamp, _ in states]
+        poses = list(forward_kinematics_batch(np.array([q for _, q in states])))
+        tool_source = TOOL_SOURCES[1]
     limit = run_info.get('duration_s')
     if limit is not None:
         end_ns = seconds_to_ns(limit)
@@ -372,8 +409,9 @@ def load_run(bag_path: str | Path) -> 'RunData':
         latency = [pair for pair in latency if pair[0] < end_ns]
         frame_stamps = [stamp for stamp in frame_stamps if stamp < end_ns]
     if len(t) < 2:
-        raise NotAnalysable(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH}: '
-                            'the run ended (or was killed) before sim time advanced')
+        raise NotAnalysable(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH} '
+                            f'(or {contract.JOINT_STATES}): the run ended (or was killed) '
+                            'before time advanced')
     order = np.argsort(t, kind='stable')
     poses = np.array(poses)[order]
     camera = None
@@ -381,6 +419,13 @@ def load_run(bag_path: str | Path) -> 'RunData':
         # rosbags messages have the fields of the rclpy ones: the same conversion serves.
         camera = camera_from_msgs(infos['left'], infos['right'], cam_pose)
     target = target_from_parameters(params)
+    teach = yaml.safe_load(custom.get(TEACH_KEY, '{}')) or {}
+    target_source = TARGET_SOURCES[0]
+    if tool_source == TOOL_SOURCES[0] and teach.get(TRUE_TOOL_POSE_KEY) is not None:
+        # A rehearsal's taught target: where the simulator held the tool, in the truth's
+        # own terms (the parameters' target is the encoders' FK, which d_q moves).
+        target = np.array(teach[TRUE_TOOL_POSE_KEY], dtype=float).reshape(4, 4)
+        target_source = TARGET_SOURCES[1]
     feats = np.array([np.ravel(f) for f in feats if len(f) == 2]) if feats else np.zeros((0, 6))
     return RunData(params=params, run_info=run_info, t=np.asarray(t)[order],
                    position=poses[:, :3, 3], rotation=poses[:, :3, :3], target=target,
@@ -389,7 +434,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    latency=np.array(latency, dtype=np.int64).reshape(-1, 2),
                    rtf_held=np.array(rtf_held), render=render_metrics(render),
                    taught_target=_taught(taught),
-                   frame_stamps=np.array(frame_stamps, dtype=np.int64), servo_rtf=servo_rtf)
+                   frame_stamps=np.array(frame_stamps, dtype=np.int64), servo_rtf=servo_rtf,
+                   tool_source=tool_source, target_source=target_source)
 
 
 #: The feature node's /diagnostics key of the taught target features (feature_node.py).
@@ -429,7 +475,8 @@ def load_joints(bag_path: str | Path, end_s: float | None = None
         wanted = {contract.JOINT_PATH if has_batches else contract.JOINT_STATES,
                   contract.EFFORT_COMMANDS}
         conns = [c for c in reader.connections if c.topic in wanted]
-        for conn, _, raw in reader.messages(connections=conns):
+        # rosbags reads every topic for an empty list: a bag without joints has none here
+        for conn, _, raw in reader.messages(connections=conns) if conns else ():
             msg = reader.deserialize(raw, conn.msgtype)
             if conn.topic == contract.JOINT_PATH:
                 try:
@@ -543,6 +590,10 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
                                         run.servo_rtf))
     metrics.update(optimal_metrics(run, metrics))
     metrics.update(run.render)
+    if run.tool_source != TOOL_SOURCES[0]:  # a cell's bag: say what the errors are of
+        metrics['tool_pose_source'] = run.tool_source
+    if run.target_source != TARGET_SOURCES[0]:
+        metrics['target_source'] = run.target_source
     return run, interrupted_outcome(metrics, run.run_info)
 
 

@@ -16,7 +16,8 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
    each topic the nodes read has a publisher of the right type whose QoS our subscription
    matches (the rectified images and their camera_info, /joint_states; /stereo/pose while
    ``camera_pose`` is zeros; the taught pair while ``target_features_source`` is
-   ``taught``), and the command topic has a subscriber (the position controller), within
+   ``taught``), and the command topic has a subscriber (the position controller; not in a
+   dry run, which commands nobody), within
    ``check_timeout_s`` (10 s; discovery takes a second or two). What is missing is named
    with what to look at, e.g. zed-ros2-wrapper's ``video.publish_left_right``, false by
    default (master 33dfefa ``zed_wrapper/config/common_stereo.yaml`` L54; the wrapper
@@ -24,18 +25,35 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
    creates the left and right publishers only when it is true,
    ``zed_camera_component_video_depth.cpp`` L258-261 and L391-395); then the command exits
    with :data:`EXIT_CHECK_FAILED` and nothing has started.
-3. **Run**: the four processes start; a status line once a second (:class:`StatusBoard`):
-   the joint controller's ``/ibvs/servo_status`` code and name
-   (:class:`ibvs_control.servo_status.ServoStatus`), the frames used (its
-   ``/ibvs/frame_latency``, one per frame a command used), the second publishers a node
-   names on /diagnostics (``second_publishers``: :class:`ibvs_common.kit.PublisherWatch`,
-   which every node runs) and the last error any node reported there (a WARN or ERROR
-   status, or a rejected input). A new servo status or second publisher prints a line at
-   once, without waiting for the second. A node that exits ends the session
-   (:data:`runner.EXIT_NODE_DIED`), the others stopped.
-4. **Stop**: one SIGINT (Ctrl-C) stops every process together
+   With a teach (``--teach DIR``, :mod:`.teach`) this process publishes its pair latched
+   before the check (which then finds it), takes its target (the cli sets it), and
+   refuses another publisher of the pair (:func:`foreign_publishers`: a simulator that
+   teaches for itself).
+3. **Run**: the recorder of ``ibvs run`` (:class:`ibvs_bringup.recorder.Recorder`) opens
+   ``bag/`` in the session's folder, with the parameters, the teach record and, at the end,
+   the session (exit codes, dry run) in its metadata, /joint_states included, on the wall
+   clock without sim time; ``ibvs analyse DIR/bag`` reads it (:mod:`.analysis`: a cell's
+   tool poses are the kinematics of /joint_states where the simulator's truth is not there).
+   Then the four processes start; a status line once a second (:class:`StatusBoard`): DRY
+   RUN first in a dry run (the joint controller's ``dry_run``: its references on
+   :func:`dry_run_topic`, none on the command topic), the joint controller's
+   ``/ibvs/servo_status`` code and name (:class:`ibvs_control.servo_status.ServoStatus`),
+   the second publishers a node names on /diagnostics (``second_publishers``:
+   :class:`ibvs_common.kit.PublisherWatch`, which every node runs), the image error
+   (:meth:`StatusBoard.image_error`: |s - s*| of the features the loop used, /ibvs/features,
+   against the taught target's, /ibvs/target_features; without a taught target the feedback
+   node's own ``image_error_norm_px`` on /diagnostics) and the model's pose error
+   (:class:`PoseError`: the nominal kinematics of the newest /joint_states against the
+   target), the frames used (its ``/ibvs/frame_latency``, one per frame a command used) and
+   the last error any node reported there (a WARN or ERROR status, or a rejected input). A
+   new servo status or second publisher prints a line at once, without waiting for the
+   second. A node that exits ends the session (:data:`runner.EXIT_NODE_DIED`), the others
+   stopped.
+4. **Stop**: one SIGINT (Ctrl-C; taken between two spins, as ``ibvs run`` takes it, so
+   that it never lands inside the recorder's message) stops every process together
    (:func:`ibvs_bringup.supervision.stop_all`: SIGINT, then SIGTERM, then SIGKILL of each
-   process group; each also dies with this process, PR_SET_PDEATHSIG), exit code 0.
+   process group; each also dies with this process, PR_SET_PDEATHSIG; the recorder takes
+   their last messages meanwhile), then the bag is closed; exit code 0.
 
 The ROS domain is the cell's: ``ROS_DOMAIN_ID``, else ROS's default 0 (never a free one of
 the pool: the driver and the camera are on the cell's), and this process holds that
@@ -54,11 +72,16 @@ from pathlib import Path
 import re
 import sys
 import time
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 from ibvs_bringup import domains, graph_params, scenario
 from ibvs_bringup.graph import GRAPH
 from ibvs_common import contract
+from ibvs_common.shared_params import target_from_parameters
+import numpy as np
+
+if TYPE_CHECKING:
+    from .teach import Recorded
 
 #: The nodes of a cell, in start order (docs/real_cell.md "By hand"): the paper's, no
 #: simulator and no viewers' node.
@@ -83,6 +106,11 @@ STATUS_PERIOD_S = 1.0
 EXIT_CHECK_FAILED = 5
 #: Where ``ibvs cell`` writes its parameters and the nodes' logs without ``-o``.
 CELL_DIR = Path('results') / 'cell'
+#: What a session replaces of a previous one in its folder, by name, once its check passed
+#: (as ``ibvs run`` does): the bag and the metrics ``ibvs analyse`` wrote beside it.
+SESSION_RESULTS = ('bag', 'metrics.json')
+#: The taught pair's topics (``ibvs cell --teach`` publishes them).
+TEACH_TOPICS = (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE)
 
 #: Where the hints of :func:`expectations` send the reader (upstream, file and line).
 ZED_LEFT_RIGHT = ('is video.publish_left_right true? (zed-ros2-wrapper common_stereo.yaml L54 '
@@ -104,6 +132,8 @@ class Controller:
     suffix: str
     #: The topic's type, as the graph names it.
     msg_type: str
+    #: Where the joint controller publishes instead in a dry run (``dry_run``).
+    dry_run_topic: str
 
 
 #: ``--controller``: abb_ros2 (rolling 0705714) abb_bringup/config/abb_controllers.yaml
@@ -114,10 +144,11 @@ class Controller:
 CONTROLLERS = {
     'forward_command': Controller('forward_command', contract.POSITION_COMMANDS,
                                   'forward_command_controller_position', 'commands',
-                                  'std_msgs/msg/Float64MultiArray'),
+                                  'std_msgs/msg/Float64MultiArray', contract.DRY_RUN_COMMANDS),
     'joint_trajectory': Controller('joint_trajectory', contract.TRAJECTORY_COMMANDS,
                                    'joint_trajectory_controller', 'joint_trajectory',
-                                   'trajectory_msgs/msg/JointTrajectory'),
+                                   'trajectory_msgs/msg/JointTrajectory',
+                                   contract.DRY_RUN_TRAJECTORY),
 }
 
 #: A ROS name token (camera and controller names): letters, digits, underscores.
@@ -155,6 +186,11 @@ def command_topic(controller: str, controller_name: str | None = None) -> str:
     if not _TOKEN.fullmatch(name):
         raise CellError(f'controller name {name!r}: expected a ROS name (letters, digits, _)')
     return f'/{name}/{spec.suffix}'
+
+
+def dry_run_topic(controller: str) -> str:
+    """Return where the joint controller's references go in a dry run of ``controller``."""
+    return _controller(controller).dry_run_topic
 
 
 def _controller(controller):
@@ -311,11 +347,12 @@ def expectations(params: Mapping[str, Any], controller: str = 'forward_command',
     spec = _controller(controller)
     name = controller_name or spec.default_name
     other = ('joint_trajectory' if controller == 'forward_command' else 'forward_command')
-    out.append(Expectation(
-        command_topic(controller, controller_name), spec.msg_type, 'subscriber',
-        f'is the controller spawned? abb_ros2 starts joint_trajectory_controller unless '
-        f'launched with initial_joint_controller:={name} (abb_control.launch.py '
-        f'initial_joint_controller); or ibvs cell --controller {other}'))
+    if not params.get('dry_run', False):  # a dry run commands nobody
+        out.append(Expectation(
+            command_topic(controller, controller_name), spec.msg_type, 'subscriber',
+            f'is the controller spawned? abb_ros2 starts joint_trajectory_controller unless '
+            f'launched with initial_joint_controller:={name} (abb_control.launch.py '
+            f'initial_joint_controller); or ibvs cell --controller {other}'))
     if all(float(v) == 0.0 for v in params.get('camera_pose', [0.0] * 7)):
         out.append(Expectation(
             contract.STEREO_POSE, 'geometry_msgs/msg/PoseStamped', 'publisher',
@@ -326,8 +363,9 @@ def expectations(params: Mapping[str, Any], controller: str = 'forward_command',
         for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
             out.append(Expectation(
                 topic, 'sensor_msgs/msg/Image', 'publisher',
-                'target_features_source is taught: publish the stereo pair of the tool at '
-                'the target, latched (transient local; docs/real_cell.md step 4), or set '
+                'target_features_source is taught: ibvs cell --teach DIR publishes the '
+                'pair ibvs teach recorded in DIR (or publish the stereo pair of the tool at '
+                'the target latched, transient local: docs/real_cell.md step 4), or set '
                 'target_features_source:=model', durability='transient_local'))
     return out
 
@@ -390,14 +428,66 @@ def endpoints_of(node: Any, expected: Sequence[Expectation]) -> dict[str, list[E
 
 def wait_for_topics(node: Any, expected: Sequence[Expectation],
                     timeout_s: float = CHECK_TIMEOUT_S, poll_s: float = 0.2,
-                    clock: Callable[[], float] = time.monotonic) -> list[str]:
-    """Look at the graph until every expectation is met or ``timeout_s``; return problems."""
+                    clock: Callable[[], float] = time.monotonic,
+                    stopped: Callable[[], bool] = lambda: False) -> list[str]:
+    """
+    Look at the graph until every expectation is met or ``timeout_s``; return problems.
+
+    Raises KeyboardInterrupt once ``stopped()`` says so (a SIGINT the caller deferred).
+    """
     deadline = clock() + timeout_s
     while True:
+        if stopped():
+            raise KeyboardInterrupt
         found = problems(expected, endpoints_of(node, expected))
         if not found or clock() >= deadline:
             return found
         time.sleep(poll_s)
+
+
+def foreign_publishers(node: Any, topics: Iterable[str], hint: str) -> list[str]:
+    """Return a problem for each of ``topics`` that another node than ``node`` publishes."""
+    out = []
+    for topic in topics:
+        others = [f'{i.node_namespace.rstrip("/")}/{i.node_name}'
+                  for i in node.get_publishers_info_by_topic(topic)
+                  if i.node_name != node.get_name()]
+        if others:
+            out.append(f'{topic}: published by {", ".join(others)} too: {hint}')
+    return out
+
+
+class PoseError:
+    """
+    The model's pose error of the tool: the nominal kinematics of /joint_states vs the target.
+
+    Called with the newest /joint_states as serialized bytes (the recorder's ``latest``),
+    returns (position error m, tool-axis error deg) as the analysis defines them
+    (:func:`.analysis.axis_angle_deg`), or (None, None) without a readable one. The
+    encoders' view: on a cell the only one; at the taught pose it is the target's own
+    (:mod:`.teach`), so it goes to zero as the image error does.
+    """
+
+    def __init__(self, target: Any) -> None:
+        """Keep the target T_E^O (4x4)."""
+        self.target = target
+
+    def __call__(self, raw: bytes | None) -> tuple[float | None, float | None]:
+        """Return the errors of the joint state ``raw`` (class docstring)."""
+        if raw is None:
+            return None, None
+        from ibvs_common.conversions import InputError, read_joints
+        from ibvs_model import forward_kinematics
+        from rclpy.serialization import deserialize_message
+        from sensor_msgs.msg import JointState
+
+        from .analysis import axis_angle_deg
+        try:
+            pose = forward_kinematics(read_joints(deserialize_message(raw, JointState)))
+        except (InputError, ValueError):
+            return None, None
+        position = float(math.dist(pose[:3, 3], self.target[:3, 3]))
+        return position, float(axis_angle_deg(pose[None, :3, :3], self.target[:3, :3])[0])
 
 
 @dataclass
@@ -421,6 +511,18 @@ class StatusBoard:
     #: Whether something the operator must see at once came since :meth:`take_news`: a
     #: new servo status, a second publisher that came or went.
     news: bool = False
+    #: A dry run (the joint controller's ``dry_run``): the line says so first.
+    dry_run: bool = False
+    #: The newest features the loop used (/ibvs/features) and the taught target's
+    #: (/ibvs/target_features), px (6,): the image error |s - s*| of the status line.
+    features_px: Any = None
+    target_px: Any = None
+    #: The feedback node's own error norm (its /diagnostics ``image_error_norm_px``: the
+    #: error it integrates, predicted to the rest pose), shown without a taught target.
+    feedback_error_px: float | None = None
+    #: The model's pose error (:class:`PoseError`): position (m), tool axis (deg).
+    position_error_m: float | None = None
+    axis_error_deg: float | None = None
     _rejected: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -432,10 +534,37 @@ class StatusBoard:
         self.news = self.news or int(code) != self.code
         self.code = int(code)
 
+    def take(self, attr: str, msg: Any) -> None:
+        """Take a features message as ``attr`` (:attr:`features_px`, :attr:`target_px`)."""
+        from ibvs_common.conversions import InputError, read_features
+        try:
+            setattr(self, attr, read_features(msg))
+        except InputError:
+            pass  # the nodes reject and count it: the last error says so
+
     def take_news(self) -> bool:
         """Return whether there is news (:attr:`news`), and clear it."""
         news, self.news = self.news, False
         return news
+
+    def image_error(self) -> tuple[float | None, str]:
+        """
+        Return the image error (px) and its words: |s - s*| of the features the loop used.
+
+        s* is the taught target's (/ibvs/target_features); without one (a model target) the
+        feedback node's own error norm, said so; (None, '') before either.
+        """
+        if self.features_px is not None and self.target_px is not None:
+            from ibvs_control.controllers import feature_error
+            return float(np.linalg.norm(feature_error(self.features_px, self.target_px))), ''
+        if self.feedback_error_px is not None:
+            return self.feedback_error_px, " (the feedback's)"
+        return None, ''
+
+    def pose_error(self, position_m: float | None, axis_deg: float | None) -> None:
+        """Take the model's pose error (:class:`PoseError`; None: none known yet)."""
+        if position_m is not None:
+            self.position_error_m, self.axis_error_deg = position_m, axis_deg
 
     def frame_used(self, frame_stamp_ns: int) -> None:
         """Take a /ibvs/frame_latency: the frame of that stamp was used by a command."""
@@ -452,6 +581,11 @@ class StatusBoard:
         node = name.partition(': ')[0]
         if node == 'joint_controller_node' and 'servo_status' in values:
             self.detail = message
+        if node == 'adaptive_feedback_node' and 'image_error_norm_px' in values:
+            try:
+                self.feedback_error_px = float(values['image_error_norm_px'])
+            except ValueError:
+                pass
         if 'second_publishers' in values:
             words = values['second_publishers']
             words = '' if words == 'none' else words
@@ -504,7 +638,15 @@ class StatusBoard:
                 seen.setdefault(item, []).append(node)
         second = ''.join(f' | {words} (seen by {", ".join(nodes)})'
                          for words, nodes in seen.items())
-        return (f'[{now - self.started:6.0f} s] {servo}{second} | frames used '
+        errors = ''
+        image, whose = self.image_error()
+        if image is not None:
+            errors += f' | image error {image:.3f} px{whose}'
+        if self.position_error_m is not None:
+            errors += (f' | pose error {self.position_error_m * 1e3:.3f} mm, '
+                       f'{self.axis_error_deg:.3f} deg')
+        dry = 'DRY RUN | ' if self.dry_run else ''
+        return (f'[{now - self.started:6.0f} s] {dry}{servo}{second}{errors} | frames used '
                 f'{len(self.frames)} | last error: {error}')
 
 
@@ -514,9 +656,9 @@ def session_dir(root: Path = CELL_DIR) -> Path:
 
 
 @contextmanager
-def _session_folder(out_dir: Path, procs: Sequence[Any]) -> Iterator[Path]:
+def _session_folder(out_dir: Path, procs: Sequence[Any]) -> Iterator[tuple[Path, Any]]:
     """
-    Hold a session's folder (:func:`.output_dir.claim`); yield the path of its params.yaml.
+    Hold a session's folder (:func:`.output_dir.claim`); yield its params.yaml and the claim.
 
     Claimed once the cell's domain is held, so that a refused start (its domain busy, the
     folder refused) makes no folder; one this start made is removed again, with the
@@ -528,7 +670,7 @@ def _session_folder(out_dir: Path, procs: Sequence[Any]) -> Iterator[Path]:
     claimed = output_dir.claim(out_dir)
     try:
         (out_dir / 'logs').mkdir(exist_ok=True)
-        yield out_dir / 'params.yaml'
+        yield out_dir / 'params.yaml', claimed
     finally:
         claimed.release(None if procs else ('params.yaml', 'logs'))
 
@@ -536,18 +678,25 @@ def _session_folder(out_dir: Path, procs: Sequence[Any]) -> Iterator[Path]:
 def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = 'forward_command',
              camera_name: str = DEFAULT_CAMERA, controller_name: str | None = None,
              check_timeout_s: float = CHECK_TIMEOUT_S,
-             print_line: Callable[[str], None] = print, live: bool = False) -> int:
+             print_line: Callable[[str], None] = print, live: bool = False,
+             teach: 'Recorded | None' = None) -> int:
     """
     Check the cell's topics, start the four nodes, show their status until SIGINT; stop.
 
-    ``params``: :func:`cell_parameters`'s. Returns the exit code: 0 after SIGINT with
-    every process stopped, :data:`EXIT_CHECK_FAILED` when the check fails (nothing
-    started), :data:`runner.EXIT_NODE_DIED` when a node exits, 130 after a SIGINT during
-    the check (nothing started). ``live``: rewrite one status
-    line in place (a terminal) instead of a line each second. Raises
-    :class:`domains.DomainBusy` when another run holds the cell's domain.
+    ``params``: :func:`cell_parameters`'s (``dry_run`` true: :func:`expectations` wants no
+    command subscriber, the status line says DRY RUN). ``teach``: a recorded teach
+    (:class:`.teach.Recorded`) whose pair this process publishes latched (module docstring,
+    step 2).
+    Returns the exit code: 0 after SIGINT with every process stopped,
+    :data:`EXIT_CHECK_FAILED` when the check fails (nothing started),
+    :data:`runner.EXIT_NODE_DIED` when a node exits, 130 after a SIGINT during the check
+    (nothing started). ``live``: rewrite one status line in place (a terminal) instead of a
+    line each second. Raises :class:`domains.DomainBusy` when another run holds the cell's
+    domain.
     """
     from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PolygonStamped
+    from ibvs_bringup.recorder import Recorder
     from ibvs_bringup.supervision import NodeDied, NodeProcess, stop_all
     from ibvs_common import dds
     from ibvs_common.conversions import stamp_ns
@@ -556,8 +705,9 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import TimeReference
     from std_msgs.msg import Int8
+    import yaml
 
-    from . import runner
+    from . import analysis, runner
 
     out_dir = Path(out_dir)
     log_dir = out_dir / 'logs'
@@ -566,8 +716,12 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
     if domains.domain_id() is None:
         os.environ[domains.DOMAIN_ENV] = '0'  # ROS's default: the cell's, not a free one
     procs = []
-    with runner.interruptible(), domains.held() as (domain, _), \
-            _session_folder(out_dir, procs) as params_file:
+    recorder = None
+    info = {'session': 'ibvs cell', 'interrupted': False, 'dry_run': bool(params.get(
+        'dry_run', False)), 'controller': controller, 'camera_name': camera_name}
+    with runner.interruptible(deferred=True) as stop, domains.held() as (domain, _), \
+            _session_folder(out_dir, procs) as (params_file, claimed):
+        stopped = stop.is_set if stop is not None else (lambda: False)
         params_file = scenario.write_parameters(dict(params), params_file)
         dds.configure()
         context = rclpy.context.Context()
@@ -575,10 +729,20 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
         node = rclpy.create_node('ibvs_cell', context=context, parameter_overrides=[])
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
+        started = time.monotonic()
         try:
+            if teach is not None:  # ours before the check: the check then finds it
+                teach_pubs = teach.publish(node)
+                print_line(f'publishing the taught pair of {teach.folder} latched on '
+                           f'{teach_pubs[0].topic_name} and {teach_pubs[1].topic_name}')
             print_line(f"ibvs cell: ROS_DOMAIN_ID {domain}; checking the cell's topics (up to "
                        f'{check_timeout_s:g} s): ' + ', '.join(e.topic for e in expected))
-            found = wait_for_topics(node, expected, check_timeout_s)
+            found = wait_for_topics(node, expected, check_timeout_s, stopped=stopped)
+            if teach is not None:
+                found += foreign_publishers(node, TEACH_TOPICS, (
+                    'ibvs cell --teach publishes the taught pair itself: stop the other '
+                    'publisher (a simulator standing in for the cell: -p '
+                    'target_features_source:=model), or leave out --teach'))
             if found:
                 for text in found:
                     print(f'error: {text}', file=sys.stderr)
@@ -591,7 +755,7 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                 print_line(f'warning: {command} already has publisher(s) '
                            f'{", ".join(i.node_name for i in others)}: they command the '
                            'same controller')
-            board = StatusBoard()
+            board = StatusBoard(dry_run=info['dry_run'])
             node.create_subscription(Int8, contract.SERVO_STATUS,
                                      lambda m: board.servo(m.data), contract.LATCHED)
             node.create_subscription(TimeReference, contract.FRAME_LATENCY,
@@ -605,15 +769,35 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                                       {kv.key: kv.value for kv in s.values})
 
             node.create_subscription(DiagnosticArray, contract.DIAGNOSTICS, on_diagnostics, 10)
+            for topic, qos, attr in ((contract.FEATURES, contract.RELIABLE, 'features_px'),
+                                     (contract.TARGET_FEATURES, contract.LATCHED, 'target_px')):
+                node.create_subscription(PolygonStamped, topic,
+                                         lambda m, a=attr: board.take(a, m), qos)
+            custom = {analysis.PARAMS_KEY: yaml.safe_dump(dict(params))}
+            if teach is not None:
+                custom[analysis.TEACH_KEY] = yaml.safe_dump(dict(teach.record))
+            # The bag (module docstring, step 3): the nodes' topics from before they start;
+            # /joint_states too (a cell's tool poses), on the wall clock without sim time.
+            claimed.remove(SESSION_RESULTS)  # a previous session's, by name
+            recorder = Recorder(out_dir / 'bag', include_per_step=True, custom_data=custom,
+                                wall_clock=not params.get('use_sim_time', False),
+                                context=context)
+            executor.add_node(recorder)
+            pose_of = PoseError(target_from_parameters(params))
             for name in CELL_NODES:
                 spec = GRAPH.node(name)
                 procs.append(NodeProcess(spec.package, name, params_file, log_dir,
                                          remap_args(node_remaps.get(name, {}))))
             print_line(f'started {", ".join(f"{p.name} (pid {p.proc.pid})" for p in procs)}; '
-                       f'commands on {command}; logs in {log_dir}; Ctrl-C stops them all')
+                       + (f'DRY RUN: references on {dry_run_topic(controller)}, nothing to the '
+                          'arm; ' if info['dry_run'] else f'commands on {command}; ')
+                       + f'logs in {log_dir}, the bag in {out_dir / "bag"}; Ctrl-C stops them '
+                       'all')
             next_line = time.monotonic()
             while True:
                 executor.spin_once(timeout_sec=0.05)
+                if stopped():
+                    raise KeyboardInterrupt
                 dead = next((p for p in procs if p.poll() is not None), None)
                 if dead is not None:
                     if live:
@@ -625,6 +809,7 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                 if news or time.monotonic() >= next_line:
                     if time.monotonic() >= next_line:
                         next_line += STATUS_PERIOD_S
+                    board.pose_error(*pose_of(recorder.latest.get(contract.JOINT_STATES)))
                     if live:
                         sys.stdout.write('\r\033[K' + board.line())
                         sys.stdout.flush()
@@ -638,14 +823,23 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                 print_line('SIGINT during the check: no node started')
                 return 130
             print_line(f'SIGINT: stopping {", ".join(p.name for p in procs)}')
-            codes = stop_all(procs)
+            codes = stop_all(procs, executor=executor)
+            info['exit_codes'] = codes
             procs = []
             print_line('stopped: ' + ', '.join(f'{n} exit {c}' for n, c in codes.items()))
             return 0
         finally:
             if procs:
-                stop_all(procs)
+                info['exit_codes'] = stop_all(procs, executor=executor)
+            if recorder is not None:
+                info['wall_duration_s'] = time.monotonic() - started
+                recorder.set_custom_data(analysis.RUN_KEY, yaml.safe_dump(info))
+                recorder.close()
+                print_line(f'wrote the bag {out_dir / "bag"} (ibvs analyse {out_dir / "bag"}: '
+                           'its metrics and figures)')
             executor.shutdown()
+            if recorder is not None:
+                recorder.destroy_node()
             node.destroy_node()
             context.try_shutdown()
 

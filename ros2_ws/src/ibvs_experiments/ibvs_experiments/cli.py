@@ -23,10 +23,13 @@ Commands:
   over parameters) as Ray tasks, cached;
 - ``cell [--controller forward_command|joint_trajectory] [--camera-name zed]
   [--controller-name NAME] [--params-file FILE] [-p name:=value ...] [-o DIR]
-  [--check-timeout S]``: the controller side of a real cell (docs/real_cell.md): checks
-  that the camera's and the arm's topics are there, starts the feature, feedback,
-  feedforward and joint controller nodes with ``config/cell.yaml`` (no simulator), prints
-  their status once a second; Ctrl-C stops them all (:mod:`ibvs_experiments.cell`);
+  [--check-timeout S] [--teach DIR] [--dry-run]``: the controller side of a real cell
+  (docs/real_cell.md): checks that the camera's and the arm's topics are there, starts the
+  feature, feedback, feedforward and joint controller nodes with ``config/cell.yaml`` (no
+  simulator), records a bag for ``ibvs analyse``, prints their status once a second (the
+  image and pose errors among it); ``--teach`` publishes a taught pair and takes its
+  target, ``--dry-run`` sends nothing to the arm; Ctrl-C stops them all
+  (:mod:`ibvs_experiments.cell`);
 - ``calibrate [--bag DIR] [-n N] [--seed S] [--poses FILE] [--draw-poses FILE]
   [-p name:=value ...] [-o FILE] [--force]``: the hand-eye calibration, the camera pose {C}
   in ``base_link`` from the tool's own spheres at N poses, by least squares on the
@@ -34,6 +37,12 @@ Commands:
   uncertainty: in the offline simulator (the default, ``-p`` its parameters, e.g. a camera
   error to recover), from a cell's recording (``--bag``), or only the poses to visit
   (``--draw-poses``) (:mod:`ibvs_experiments.calibrate`, docs/real_cell.md);
+- ``teach [-o DIR] [--teach-frames N] [--camera-name zed] [--timeout S] [--still-tol-deg D]``,
+  ``teach --publish DIR``: the taught target, with the tool held at it: the mean of N
+  consecutive stereo pairs from the camera's topics while the arm is still, written with
+  the joints of /joint_states, the camera_info and the stamps, and the target (the forward
+  kinematics of those joints) as a parameter file; or a recorded pair published latched
+  for the feature node (:mod:`ibvs_experiments.teach`, docs/real_cell.md);
 - ``report [--quick] [--no-laws] [--retry-failed]``: scenarios 1-3, the L2/L4 robustness
   sweep and each servo law on scenarios 1-3 with ideal and with limited actuators
   (:mod:`ibvs_experiments.laws_report`), as studies on Ray, into ``results/report.md``;
@@ -219,21 +228,42 @@ def cmd_cell(args: argparse.Namespace) -> int:
               f"domain: set it to the cell's, a decimal number from {low} to {high}; "
               + cell_domain, file=sys.stderr)
         return 2
+    from . import teach
     overrides = dict(scenario.parse_override(p) for p in args.param)
+    taught = None
     try:
         if args.params_file:  # named as what it is: the cell's parameter file
             scenario.load_parameters(args.params_file, what='parameter file')
+        if args.teach:  # the target is the teach's: one pose, by construction
+            taught = teach.load(args.teach)
+            given = sorted(set(overrides) & {'target_position', 'target_rotation'})
+            if given:
+                raise cell.CellError(f'-p {", ".join(given)} with --teach: the target is the '
+                                     f"teach's ({Path(args.teach) / teach.TARGET_FILE}); "
+                                     'leave it out')
+            overrides.update(teach.target_overrides(taught.record))
+        if args.dry_run:
+            overrides['dry_run'] = True
         params = cell.cell_parameters(args.params_file, overrides, args.controller)
+        if taught is not None and params.get('target_features_source') != 'taught':
+            raise cell.CellError('--teach with target_features_source '
+                                 f"{params.get('target_features_source')!r}: the pair would not "
+                                 'be used; leave out --teach or set target_features_source:='
+                                 'taught')
         # The names first: a bad camera or controller name is refused before anything.
         cell.remaps(args.controller, args.camera_name, args.controller_name)
-    except cell.CellError as exc:
+    except (cell.CellError, teach.TeachError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else cell.session_dir()
+    if taught is not None:
+        print(f'--teach {args.teach}: target_position {params["target_position"]}, '
+              f'target_rotation {params["target_rotation"]} (its {teach.TARGET_FILE}: the '
+              'forward kinematics of the joints taught)')
     try:
         return cell.run_cell(params, out, args.controller, args.camera_name,
                              args.controller_name, args.check_timeout,
-                             live=sys.stdout.isatty())
+                             live=sys.stdout.isatty(), teach=taught)
     except output_dir.OutputRefused as exc:
         print(f'cell not started: {exc}', file=sys.stderr)
         return 2
@@ -248,6 +278,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """Hand-eye calibration: the camera pose {C} in base_link from the tool's spheres."""
     from . import calibrate
     return calibrate.main(args)
+
+
+def cmd_teach(args: argparse.Namespace) -> int:
+    """Teach the target: record the still tool's stereo pair and joints, or publish one."""
+    from . import teach
+    return teach.main(args)
 
 
 def cmd_video(args: argparse.Namespace) -> int:
@@ -414,6 +450,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--check-timeout', type=cell.check_seconds, default=cell.CHECK_TIMEOUT_S,
                    help="wall seconds the cell's topics have to appear before the nodes "
                    'start (default %(default)s; exit code 5 if they do not)')
+    p.add_argument('--teach', metavar='DIR', help='a teach folder (ibvs teach -o DIR): its '
+                   'pair published latched from this process for the feature node, its '
+                   'target (the forward kinematics of the joints taught) as the target')
+    p.add_argument('--dry-run', action='store_true',
+                   help="the joint controller's dry_run: the references computed and "
+                   'published on /ibvs/dry_run/commands (joint_trajectory: '
+                   '/ibvs/dry_run/joint_trajectory), nothing on the command topic; the arm '
+                   'stays where it is and no controller need be there')
     p.set_defaults(func=cmd_cell)
     from . import calibrate, handeye  # their defaults (no ROS, no seconds of start-up)
     p = sub.add_parser('calibrate', help=cmd_calibrate.__doc__)
@@ -441,6 +485,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--force', action='store_true',
                    help='replace an output file that ibvs calibrate did not write')
     p.set_defaults(func=cmd_calibrate)
+    from . import teach
+    p = sub.add_parser('teach', help=cmd_teach.__doc__)
+    p.add_argument('-o', '--out', help='the teach folder: left.png, right.png, teach.yaml, '
+                   'target.yaml (default results/teach/<date-time>; a folder of other files '
+                   'is refused)')
+    p.add_argument('--teach-frames', type=int, default=teach.DEFAULT_FRAMES,
+                   help='consecutive stereo pairs of the still tool to average, pixel by '
+                   'pixel (teach_frames, 1 to 100; default %(default)s)')
+    p.add_argument('--camera-name', default=cell.DEFAULT_CAMERA,
+                   help="the ZED wrapper's camera_name (its topics /<name>/zed_node/...; "
+                   'default %(default)s)')
+    p.add_argument('--timeout', type=positive_seconds, default=teach.TIMEOUT_S,
+                   help='wall seconds the frames have to come (default %(default)s; exit code '
+                   f'{teach.EXIT_NO_FRAMES} if they do not)')
+    p.add_argument('--still-tol-deg', type=float,
+                   default=math.degrees(handeye.STILL_TOL_RAD),
+                   help='how far a joint may move over the frames while the arm counts as '
+                   'still (default %(default).2g deg; a larger move takes them again)')
+    p.add_argument('--publish', metavar='DIR', help='publish the pair of a teach folder '
+                   'latched on /stereo/teach/{left,right}/image_raw until Ctrl-C, for a graph '
+                   'started by hand (ibvs cell --teach DIR publishes it itself)')
+    p.set_defaults(func=cmd_teach)
     p = sub.add_parser('video', help=cmd_video.__doc__)
     p.add_argument('run_dir', help='a run directory (with bag/)')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')

@@ -5,6 +5,7 @@ from pathlib import Path
 from ibvs_bringup import scenario
 from ibvs_common import contract
 from ibvs_experiments import cell, cli
+import numpy as np
 import pytest
 import yaml
 
@@ -250,3 +251,54 @@ def test_ibvs_cell_refuses_before_anything_starts(capsys, tmp_path):
 def test_scenario_listing_still_loads_cell_yaml():
     # cell.yaml is a valid parameters file (ibvs cell --params-file takes copies of it).
     assert scenario.load_parameters(cell.config_path())['lockstep'] is False
+
+
+def test_status_board_shows_the_image_and_pose_errors_and_a_dry_run():
+    board = cell.StatusBoard(clock=lambda: 0.0, dry_run=True)
+    board.servo(0)
+    assert board.line().startswith('[     0 s] DRY RUN | servo 0 NO_WARNING | frames used')
+    # Without a taught target: the feedback node's own error, said so.
+    board.diagnostics('adaptive_feedback_node: feedback', 0, 'ok',
+                      {'image_error_norm_px': '0.25'})
+    assert " | image error 0.250 px (the feedback's) | " in board.line()
+    # With one: |s - s*| of the features the loop used.
+    board.target_px = np.array([640.0, 600.0, 360.0, 650.0, 610.0, 400.0])
+    board.features_px = board.target_px + np.array([0.3, 0.0, 0.4, 0.0, 0.0, 0.0])
+    board.pose_error(0.00042, 0.031)
+    board.pose_error(None, None)  # no joint state readable: the last one stays
+    assert (' | image error 0.500 px | pose error 0.420 mm, 0.031 deg | frames used 0'
+            in board.line())
+
+
+def test_the_pose_error_is_the_kinematics_of_the_newest_joint_state_against_the_target():
+    from ibvs_common.conversions import joint_state
+    from ibvs_model import forward_kinematics, inverse_kinematics, paper
+    from rclpy.serialization import serialize_message
+    target = paper.target_pose()
+    q = inverse_kinematics(target)
+    error = cell.PoseError(target)
+    assert error(None) == (None, None)
+    position, axis = error(serialize_message(joint_state(0, q)))
+    assert position < 1e-9 and axis < 1e-6
+    q[4] += np.radians(1.0)  # joint 5 tilts the tool axis by 1 deg
+    moved = forward_kinematics(q)
+    position, axis = error(serialize_message(joint_state(0, q)))
+    assert position == pytest.approx(np.linalg.norm(moved[:3, 3] - target[:3, 3]))
+    assert axis == pytest.approx(1.0, abs=1e-6)
+
+
+def test_a_dry_run_wants_no_commanded_controller():
+    params = cell.cell_parameters(overrides={'dry_run': True})
+    topics = {e.topic for e in cell.expectations(params)}
+    assert cell.command_topic('forward_command') not in topics
+    assert cell.command_topic('forward_command') in {
+        e.topic for e in cell.expectations(cell.cell_parameters())}
+    assert cell.dry_run_topic('joint_trajectory') == contract.DRY_RUN_TRAJECTORY
+
+
+def test_ibvs_cell_teach_refuses_a_target_of_its_own_and_a_folder_without_a_record(
+        capsys, tmp_path):
+    (tmp_path / 'none').mkdir()
+    assert cli.main(['cell', '-o', str(tmp_path / 'x'), '--teach', str(tmp_path / 'none')]) == 2
+    assert 'no teach folder' in capsys.readouterr().err
+    assert not (tmp_path / 'x').exists()
