@@ -3,8 +3,8 @@ Killing a process of a run: what the runner does, and what is left of the run.
 
 A node of the paper's graph: the runner stops, names the node and its exit code, leaves
 nothing. The optional viewer: the run goes on. The runner itself: SIGINT writes the metrics
-of what was recorded; after SIGKILL the next ``ibvs analyse`` reads the bag and removes the
-shared memory of the killed nodes.
+of what was recorded; after SIGKILL its bag is read as it is, and the next ``ibvs analyse``
+removes the shared memory of the killed nodes.
 """
 
 import json
@@ -13,6 +13,8 @@ import subprocess
 import sys
 
 from ibvs_bringup import shm
+from ibvs_common import contract
+from rosbags.highlevel import AnyReader
 
 
 def test_runner_reports_a_dead_node_and_leaves_no_process(installed_workspace, signalled_run):
@@ -64,23 +66,36 @@ def test_sigint_writes_the_metrics_also_when_the_runner_ignored_it(
 def test_a_killed_runner_leaves_a_readable_bag_and_no_shared_memory(installed_workspace,
                                                                     signalled_run, tmp_path):
     """
-    After SIGKILL of the runner, ``ibvs analyse`` reads its bag and frees its shared memory.
+    After SIGKILL of the runner, rosbags reads its bag as it is; ``ibvs analyse`` frees its memory.
 
-    A killed runner leaves its Fast DDS shared memory in /dev/shm and a bag without
-    metadata.yaml. Its nodes die with it (PR_SET_PDEATHSIG); the next
-    ``ibvs analyse`` (or run) removes their shared memory and recovers the bag.
+    Its nodes die with it (PR_SET_PDEATHSIG) and leave their Fast DDS shared memory in
+    /dev/shm; the bag's MCAP file ends after its last chunk, and its metadata.yaml, marked
+    in progress, lists its topics: a reader of the bag gets every message up to the last
+    /clock. The next ``ibvs analyse`` (or run) removes the shared memory and writes the
+    bag's exact metadata; the same messages are read after.
     """
     before = shm.names()
+
+    def messages():
+        counts, last = {}, 0
+        with AnyReader([tmp_path / 'bag']) as reader:
+            for connection, stamp, _ in reader.messages():
+                counts[connection.topic] = counts.get(connection.topic, 0) + 1
+                last = max(last, stamp)
+        return counts, last
 
     def under_way(log):
         return started(log) and (tmp_path / 'bag' / 'bag.mcap').stat().st_size > 100_000
 
     code, out, err = signalled_run(['--no-figures'], under_way, signal.SIGKILL, 30.0,
-                                   victim='runner')
+                                   settle_s=3.0, victim='runner')  # some sim time recorded
     assert code == -signal.SIGKILL, (out, err)
     assert not (tmp_path / 'metrics.json').exists()
     dead = shm.zombies(new_since=before, min_age_s=0.0)
     assert dead, 'the killed nodes left no shared memory: nothing was tested'
+    killed, killed_at = messages()  # the bag as the kill left it
+    assert killed.get(contract.CLOCK, 0) >= 2 and killed.get(contract.TOOL_PATH, 0) >= 2, \
+        killed
     # No wait: a lock file nobody has open is a dead owner's however young (shm.open_files)
     done = subprocess.run([sys.executable, '-m', 'ibvs_experiments.cli', 'analyse',
                            str(tmp_path / 'bag')], capture_output=True, text=True,
@@ -90,3 +105,6 @@ def test_a_killed_runner_leaves_a_readable_bag_and_no_shared_memory(installed_wo
     assert [p for p in dead if p.exists()] == [], 'shared memory of the killed run is left'
     metrics = json.loads((tmp_path / 'metrics.json').read_text())
     assert metrics['sim_duration_s'] > 0.0, metrics
+    recovered, recovered_at = messages()
+    assert recovered_at == killed_at
+    assert {t: recovered[t] for t in killed} == killed, (killed, recovered)

@@ -25,18 +25,24 @@ its type hash (RIHS01, in metadata.yaml and on the MCAP channel as ``topic_type_
 message: one that never had a message is not in it.
 
 A recorder that dies before :meth:`Recorder.close` (its runner killed with SIGKILL) leaves
-a readable bag behind: the MCAP file holds every message up to the last /clock (each
-/clock closes a chunk, :meth:`_JazzyMcapStorage.flush`; on the wall clock, a real cell's,
-every :data:`WALL_FLUSH_S`), and ``metadata.yaml`` is written
-when the bag opens, with the run's custom data and :data:`IN_PROGRESS_KEY`; :func:`recover`
-(called by ``ibvs analyse`` and every analysis of a run) then ends the MCAP file after its
-last whole record and writes the metadata of what it holds.
+a bag that ``rosbags`` (``AnyReader``, ``Reader``) opens as it is. The MCAP file holds every
+message up to the last /clock (each /clock closes a chunk, :meth:`_JazzyMcapStorage.flush`;
+on the wall clock, a real cell's, every :data:`WALL_FLUSH_S`) and ends after each chunk as
+a file without summary does (:data:`OPEN_END`; the next chunk is written over it, in one
+write). ``metadata.yaml`` is written when the bag opens, with the run's custom data and
+:data:`IN_PROGRESS_KEY`, and again, atomically, at each flush that put a new topic's channel
+on disk (a few a run: the topics come in the first tenths of a second): a reader of the bag
+sees every topic the file holds, with every message of it. Its counts and times are those
+of the last new topic's flush; :func:`recover` (called by ``ibvs analyse`` and every
+analysis of a run) writes the exact ones, and ends an MCAP file cut inside a record after
+its last whole one.
 """
 
 from collections.abc import Mapping
 from functools import partial
 import importlib
 from io import BytesIO, StringIO
+import os
 from pathlib import Path
 import time
 from typing import Any
@@ -126,8 +132,39 @@ def _with_distro(text):
     return out.getvalue()
 
 
+#: The first and last 8 bytes of an MCAP file.
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+#: How an MCAP file without summary ends: a DataEnd record (0x0F, a zero CRC: not checked),
+#: a Footer (0x02) whose summary offsets are 0, and the magic. Readers then scan the records
+#: before it (rosbags' ``McapReader``: its ``meta_scan``).
+OPEN_END = (b'\x0f' + (4).to_bytes(8, 'little') + bytes(4)
+            + b'\x02' + (20).to_bytes(8, 'little') + bytes(20) + MCAP_MAGIC)
+
+
+class _Spool(BytesIO):
+    """A buffer that tells the file offset its bytes will have: ``start`` + its position."""
+
+    def __init__(self, start):
+        super().__init__()
+        self.start = start
+
+    def tell(self):
+        """Return the offset in the file (what rosbags' chunk index records)."""
+        return self.start + super().tell()
+
+
 class _JazzyMcapStorage(McapWriter):
-    """rosbags' MCAP storage, with each channel's type hash and the distro that rosbag2 writes."""
+    """
+    rosbags' MCAP storage, with each channel's type hash and the distro that rosbag2 writes.
+
+    The file on disk is a readable MCAP file at any time (:data:`OPEN_END` after its last
+    chunk), also when its writer is killed between two chunks.
+    """
+
+    def __init__(self, path, compression):
+        """Open the file as rosbags does; on disk at once, readable and empty."""
+        super().__init__(path, compression)
+        self._end_after(b'')
 
     def add_connection(self, connection, offered_qos_profiles):
         """
@@ -146,6 +183,28 @@ class _JazzyMcapStorage(McapWriter):
         self.channel_stats[connection.id] = 0
         write_channel(self.chunk.bio, self.channels[-1], self.schemas)
 
+    def _end_after(self, data):
+        """
+        Write ``data`` at the file's position, :data:`OPEN_END` after it; stay before the end.
+
+        One write, flushed: what follows (the next chunk, or :meth:`close`'s summary, longer
+        than the end) is written over the end.
+        """
+        start = self.bio.tell()
+        self.bio.write(data + OPEN_END)
+        self.bio.flush()
+        self.bio.seek(start + len(data))
+
+    def close_chunk(self):
+        """Write the pending chunk and its message indexes as rosbags does, then the end."""
+        file, spool = self.bio, _Spool(self.bio.tell())
+        self.bio = spool
+        try:
+            super().close_chunk()
+        finally:
+            self.bio = file
+        self._end_after(spool.getvalue())
+
     def flush(self):
         """
         Write the messages so far to the file as a chunk, and the file to the disk.
@@ -153,12 +212,10 @@ class _JazzyMcapStorage(McapWriter):
         rosbags closes a chunk at 1 MB, about 1.5 s of sim time: a runner killed before left
         a 0-byte bag. The recorder flushes at every /clock (10 Hz of sim time, so the chunks
         stay the same from run to run); a killed runner's bag then holds every message up to
-        its last /clock, without the summary that :meth:`close` writes (``mcap recover``
-        restores it).
+        its last /clock, without the summary that :meth:`close` writes.
         """
         if self.chunk.msgs:
             self.close_chunk()
-        self.bio.flush()
 
     def close(self, version, metadata):
         """Close the file, its embedded metadata naming :data:`ROS_DISTRO`."""
@@ -171,9 +228,11 @@ class JazzyWriter(Writer):
     STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _JazzyMcapStorage}
 
     def close(self) -> None:
-        """Close the bag; metadata.yaml names :data:`ROS_DISTRO`."""
+        """Close the bag; metadata.yaml names :data:`ROS_DISTRO` (replaced whole, atomically)."""
         super().close()
-        self.metapath.write_text(_with_distro(self.metapath.read_text('utf8')), 'utf8')
+        tmp = self.metapath.with_name(f'.{self.metapath.name}.tmp')
+        tmp.write_text(_with_distro(self.metapath.read_text('utf8')), 'utf8')
+        os.replace(tmp, self.metapath)
 
 
 #: Custom-data key of the metadata written when a bag opens; the metadata that
@@ -181,8 +240,6 @@ class JazzyWriter(Writer):
 IN_PROGRESS_KEY = 'ibvs.recording'
 #: Custom-data key that :func:`recover` adds: what it did.
 RECOVERED_KEY = 'ibvs.recovered'
-#: The first and last 8 bytes of an MCAP file.
-MCAP_MAGIC = b'\x89MCAP0\r\n'
 
 
 class _MetadataOnly:
@@ -230,7 +287,8 @@ def _end_mcap(path):
     End the MCAP file ``path`` after its last whole record, with a footer without summary.
 
     What a writer killed mid-file leaves: records up to its last flush, perhaps part of
-    one more. Return whether the file had to be ended (False: it was closed).
+    one more written over the :data:`OPEN_END` it had ended with. Return whether the file
+    had to be ended (False: it ends as a closed or an open-ended file does).
     """
     with open(path, 'r+b') as f:
         size = f.seek(0, 2)
@@ -254,9 +312,7 @@ def _end_mcap(path):
             end += 9 + length
         f.truncate(end)
         f.seek(end)
-        # DataEnd (0x0F, a zero CRC), then a Footer (0x02) with no summary, and the magic.
-        f.write(b'\x0f' + (4).to_bytes(8, 'little') + bytes(4))
-        f.write(b'\x02' + (20).to_bytes(8, 'little') + bytes(20) + MCAP_MAGIC)
+        f.write(OPEN_END)
     return True
 
 
@@ -335,8 +391,9 @@ class Recorder(Node):
         self._writer.open()
         # What a recorder that dies leaves (recover): the run's custom data, and that the
         # bag was not closed.
-        write_metadata(bag_path, custom_data={**self._writer.custom_data,
-                                              IN_PROGRESS_KEY: 'true'})
+        self._bag_path = Path(bag_path)
+        self._listed = 0  # topics in metadata.yaml
+        self._write_open_metadata()
         self._connections = {}
         self._types = {}
         self._qos = {}
@@ -353,8 +410,26 @@ class Recorder(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._discovery = self.create_timer(0.5, self._discover, clock=self._steady)
         self._wall_clock = wall_clock
-        self._flush = self.create_timer(WALL_FLUSH_S, self._writer.storage.flush,
+        self._flush = self.create_timer(WALL_FLUSH_S, self.flush,
                                         clock=self._steady) if wall_clock else None
+
+    def _write_open_metadata(self):
+        """Write metadata.yaml of what the file holds now, marked :data:`IN_PROGRESS_KEY`."""
+        writer = self._writer
+        write_metadata(self._bag_path, writer.connections, writer.counts,
+                       {**writer.custom_data, IN_PROGRESS_KEY: 'true'},
+                       writer.min_timestamp, writer.max_timestamp)
+        self._listed = len(writer.connections)
+
+    def flush(self) -> None:
+        """
+        Put every message so far on disk; list new topics in metadata.yaml (module docstring).
+
+        Right after the flush the writer's connections and counts are what the file holds.
+        """
+        self._writer.storage.flush()
+        if len(self._writer.connections) > self._listed:
+            self._write_open_metadata()
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Add a key/value (strings) to the bag's metadata; effective at :meth:`close`."""
@@ -404,7 +479,7 @@ class Recorder(Node):
                 if clock_problem(clock.sec, clock.nanosec) is None:  # else keep the last time
                     self.clock_ns = clock.sec * 1_000_000_000 + clock.nanosec
                     self.timing.reached(self.clock_ns)
-                    self._writer.storage.flush()  # what came before this /clock: on disk
+                    self.flush()  # what came before this /clock: on disk
             self._writer.write(self._connection(topic),
                                time.time_ns() if self._wall_clock else self.clock_ns, data)
             self.latest[topic] = data

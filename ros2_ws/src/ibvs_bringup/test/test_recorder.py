@@ -209,3 +209,74 @@ def test_a_bag_left_open_is_readable_once_recovered(bag, tmp_path):
     assert IN_PROGRESS_KEY not in custom and 'ended after its last whole record' in \
         custom[RECOVERED_KEY]
     assert info['rosbag2_bagfile_information']['ros_distro'] == 'jazzy'
+
+
+def test_an_open_bag_is_read_by_rosbags_as_it_is(tmp_path):
+    """
+    A recorder's bag, copied while it records (what a SIGKILL leaves), opens with rosbags.
+
+    The MCAP file ends after each chunk, and metadata.yaml lists the topics once their
+    channels are on disk: every message before the last /clock is read, the same after
+    recover().
+    """
+    import shutil
+    from ibvs_bringup.recorder import IN_PROGRESS_KEY, recover
+    from rosbags.highlevel import AnyReader
+    from ruamel.yaml import YAML
+    path = tmp_path / 'bag'
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    recorder = Recorder(path, context=ctx)
+    talker = rclpy.create_node('talker', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(recorder)
+    executor.add_node(talker)
+    copies = []
+    try:
+        clock = talker.create_publisher(Clock, contract.CLOCK, contract.RELIABLE)
+        batch = talker.create_publisher(JointTrajectory, contract.JOINT_PATH,
+                                        contract.RELIABLE)
+        deadline = time.monotonic() + DEADLINE_S
+        while not all(p.get_subscription_count() for p in (clock, batch)):
+            assert time.monotonic() < deadline, 'discovery'
+            executor.spin_once(timeout_sec=0.05)
+        shutil.copytree(path, tmp_path / 'opened')  # nothing recorded yet
+        copies.append(tmp_path / 'opened')
+
+        def until_recorded(topic, count):
+            while recorder.counts[topic] < count:
+                assert time.monotonic() < deadline, 'messages'
+                executor.spin_once(timeout_sec=0.05)
+
+        for sec in (1, 2, 3):
+            clock.publish(Clock(clock=Time(sec=sec)))
+            until_recorded(contract.CLOCK, sec)  # the time of what comes next
+            batch.publish(joint_path([joint_state(sec * 1_000_000_000, position=[0.0] * 6)]))
+            until_recorded(contract.JOINT_PATH, sec)
+        clock.publish(Clock(clock=Time(sec=4)))  # flushes what came at 3 s
+        until_recorded(contract.CLOCK, 4)
+        shutil.copytree(path, tmp_path / 'killed')  # the files as a SIGKILL leaves them
+        copies.append(tmp_path / 'killed')
+        recorder.close()
+    finally:
+        executor.shutdown()
+        talker.destroy_node()
+        recorder.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+    def read(bag):
+        with AnyReader([bag]) as reader:
+            return sorted((c.topic, t) for c, t, _ in reader.messages())
+
+    for copy in copies:
+        meta = YAML(typ='safe').load((copy / 'metadata.yaml').read_text())
+        assert IN_PROGRESS_KEY in meta['rosbag2_bagfile_information']['custom_data']
+    assert read(tmp_path / 'opened') == []
+    expected = sorted([(contract.CLOCK, s * 1_000_000_000) for s in (1, 2, 3)] + [
+        (contract.JOINT_PATH, s * 1_000_000_000) for s in (1, 2, 3)])
+    killed = tmp_path / 'killed'
+    assert read(killed) == expected
+    (killed / 'bag.mcap').rename(killed / 'killed.mcap')  # recover() finds it by its name
+    assert recover(killed)
+    assert read(killed) == expected
+    assert read(path) == sorted(expected + [(contract.CLOCK, 4_000_000_000)])
