@@ -136,7 +136,7 @@ class NodeProcess:
         """SIGINT, wait; then SIGTERM, wait; then SIGKILL the process group. Return the code."""
         return stop_all([self], timeout_s)[self.name]
 
-    def _signal(self, sig):
+    def send_signal(self, sig: int) -> None:
         """Send ``sig`` to the process group, if it is still there."""
         try:
             os.killpg(self.proc.pid, sig)
@@ -199,14 +199,14 @@ def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
     batches) reaches them.
     """
     for p in procs:
-        p._signal(signal.SIGCONT)
+        p.send_signal(signal.SIGCONT)
     for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0),
                       (signal.SIGKILL, 3.0)):
         running = [p for p in procs if p.proc.poll() is None]
         if not running:
             break
         for p in running:
-            p._signal(sig)
+            p.send_signal(sig)
         deadline = time.monotonic() + wait
         if executor is not None:
             while time.monotonic() < deadline and any(p.proc.poll() is None for p in running):
@@ -220,7 +220,7 @@ def stop_all(procs: Sequence[NodeProcess], timeout_s: float = 10.0,
     for _ in range(SETTLE_SPINS if executor is not None else 0):
         executor.spin_once(timeout_sec=STOP_SPIN_S)
     for p in procs:
-        p._signal(signal.SIGKILL)
+        p.send_signal(signal.SIGKILL)
         p._log.close()
     return {p.name: p.proc.returncode for p in procs}
 

@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 import json
+import os
 from pathlib import Path
 import re
 import signal
@@ -471,6 +472,58 @@ def interruptible(deferred: bool = False) -> Iterator[StopRequest | None]:
             signal.signal(signal.SIGINT, previous)
 
 
+@dataclass
+class JobStops:
+    """How many times Ctrl-Z stopped the graph with the runner (:func:`stops_with_the_runner`)."""
+
+    count: int = 0
+
+
+@contextmanager
+def stops_with_the_runner(procs: Sequence[NodeProcess]) -> Iterator[JobStops | None]:
+    """
+    Within, Ctrl-Z of the runner stops its graph too, and ``fg`` continues both (job control).
+
+    Every node runs in a process group of its own (:func:`ibvs_common.process.supervised_child`),
+    so the terminal's SIGTSTP reaches the runner alone, and the graph, which after step 0
+    waits for nothing of the runner's, would run on without its recorder: past the run's
+    end, with a bag that lacks everything sent meanwhile. Here SIGTSTP stops each process of
+    ``procs`` (SIGSTOP to its group; the list as it is then: :func:`start` fills it) and
+    then the runner itself; the SIGCONT of ``fg`` (or ``kill -CONT``) continues the
+    processes the runner stopped, and only those. The lockstep then resumes at the step it
+    was at: the run's numbers are those of a run never stopped. A runner stopped alone
+    (SIGSTOP, a debugger) stops nothing else: :func:`watch` tells its own stop from the
+    graph's. Yields the :class:`JobStops` it counts (None outside the main thread, where no
+    handler can be set and nothing changes); the handlers found are put back after, and
+    what is still stopped is continued.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield None
+        return
+    held, stops = [], JobStops()
+
+    def go_on(*_):
+        while held:
+            held.pop().send_signal(signal.SIGCONT)
+
+    def stop_all_and_self(*_):
+        held.extend(p for p in procs if p.poll() is None and p not in held)
+        for p in held:
+            p.send_signal(signal.SIGSTOP)
+        stops.count += 1
+        os.kill(os.getpid(), signal.SIGSTOP)
+        go_on()  # continued: SIGCONT's handler may not have run yet
+
+    previous = {sig: signal.signal(sig, handler) for sig, handler in
+                ((signal.SIGTSTP, stop_all_and_self), (signal.SIGCONT, go_on))}
+    try:
+        yield stops
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        go_on()
+
+
 def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress, stall_s,
                   start_timeout_s, record_overlays, figures, on_metrics, graph=GRAPH,
                   interrupt=None):
@@ -489,8 +542,11 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
         # Explicit arguments: by default rclpy parses sys.argv, where rcl takes the
         # command line's -p name:=value for a deprecated remap rule and warns about it.
         # No rclpy signal handler: SIGINT is the runner's (interruptible, read by watch), and
-        # the recorder goes on receiving while the nodes stop.
-        rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
+        # the recorder goes on receiving while the nodes stop. No shared memory for the
+        # runner itself: stopped (Ctrl-Z), it would not hear the graph again (dds).
+        with dds.without_shared_memory():
+            rclpy.init(args=[], context=context,
+                       signal_handler_options=SignalHandlerOptions.NO)
         executor = make_executor(context)
         recorder = Recorder(run.bag_path, include_images=record_images, context=context,
                             include_overlays=record_overlays,
@@ -504,11 +560,12 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
         outcome = Outcome()
         wall_start = time.monotonic()
         try:
-            start(run, executor, procs, graph)
-            outcome = watch(run, executor, monitor, procs, wall_start, progress,
-                            interrupt=interrupt,
-                            converge_hold_s=converge_hold_s, wall_timeout_s=wall_timeout_s,
-                            stall_s=stall_s, start_timeout_s=start_timeout_s)
+            with stops_with_the_runner(procs) as job:
+                start(run, executor, procs, graph)
+                outcome = watch(run, executor, monitor, procs, wall_start, progress,
+                                interrupt=interrupt, converge_hold_s=converge_hold_s,
+                                wall_timeout_s=wall_timeout_s, stall_s=stall_s,
+                                start_timeout_s=start_timeout_s, job=job)
         except KeyboardInterrupt:
             # SIGINT: stop as at the end of a run, and analyse what was recorded.
             progress(f'  interrupted (SIGINT) at sim time {ns_to_seconds(monitor.sim_ns):.3f}'
@@ -639,7 +696,7 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
           progress: Callable[[str], None] = print, converge_hold_s: float | None = None,
           wall_timeout_s: float = 1800.0, stall_s: float = STALL_S,
           start_timeout_s: float = START_TIMEOUT_S,
-          interrupt: StopRequest | None = None) -> Outcome:
+          interrupt: StopRequest | None = None, job: JobStops | None = None) -> Outcome:
     """
     Spin and look at the run every ``POLL_S`` until it ends; return its :class:`Outcome`.
 
@@ -658,16 +715,19 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
     time passed between two of its looks (Ctrl-Z and ``fg``, SIGSTOP and SIGCONT, a
     debugger, a starved CPU) it heard no heartbeat and saw no step meanwhile, so it says so
     and starts its stall and heartbeat clocks again (:meth:`Monitor.restart_clocks`); the
-    time is added to ``Outcome.paused_s``. The graph runs on meanwhile (after step 0 nothing
-    of the lockstep waits for the runner), and the bag lacks what a node's publisher could
-    not keep for the stopped recorder (its queue: ``contract.RELIABLE``'s depth); the metrics
-    take the steps before ``run.duration_s`` as always.
+    time is added to ``Outcome.paused_s``. Ctrl-Z stopped the graph with it (``job``, one
+    more in its count: :func:`stops_with_the_runner`): nothing was lost. Stopped alone, the
+    graph ran on meanwhile (after step 0 nothing of the lockstep waits for the runner), and
+    the bag lacks what a node's publisher could not keep for the stopped recorder (its
+    queue: ``contract.RELIABLE``'s depth); the metrics take the steps before
+    ``run.duration_s`` as always.
     """
     outcome = Outcome()
     procs = list(procs)
     last_print, printed_ns = 0.0, None
     last_sim_ns, last_advance = -1, time.monotonic()
     looked = last_advance  # the runner's own last look at the run
+    job_stops = job.count if job is not None else 0
     never = Future()
     while True:
         # Every callback due in the next POLL_S, then one look at the run.
@@ -679,10 +739,15 @@ def watch(run: Prepared, executor: 'Executor', monitor: Monitor,
             # The runner itself did not run (its own stop: Ctrl-Z, SIGSTOP, a debugger; or
             # starved of CPU): it heard no heartbeat and saw no step meanwhile, whatever the
             # graph did. Its stall and heartbeat clocks start again from now.
-            progress(f'  the runner itself did not run for {gap:.1f} s of wall time (stopped: '
-                     'Ctrl-Z, SIGSTOP, a debugger; or starved of CPU): its stall and '
-                     'heartbeat clocks start again; the bag may lack messages the graph '
-                     'sent meanwhile')
+            if job is not None and job.count > job_stops:
+                job_stops = job.count
+                said = ('stopped by Ctrl-Z with its graph, continued with it: nothing of '
+                        'the run was lost')
+            else:
+                said = ('stopped alone: SIGSTOP, a debugger; or starved of CPU; the bag may '
+                        'lack messages the graph sent meanwhile')
+            progress(f'  the runner itself did not run for {gap:.1f} s of wall time ({said}):'
+                     ' its stall and heartbeat clocks start again')
             monitor.restart_clocks()
             last_advance = time.monotonic()
             outcome.paused_s += gap
