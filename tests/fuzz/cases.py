@@ -4,15 +4,19 @@ The classes of bad input, as message builders for each message type of the graph
 Each builder returns a list of ``(name, make)``: ``make()`` returns the case's messages
 when the case runs (stamps are those the rig expects next, so that only the fault is
 wrong). Classes: NaN / inf, 1e308, wrong lengths, wrong / missing / repeated names,
-negative stamps, ``nanosec`` >= 1e9, far-future stamps, bursts; for images wrong step, size
+negative stamps, ``nanosec`` >= 1e9, far-future stamps, a stamp a little ahead
+(:data:`AHEAD_NS`: refused, and the next frame taken), bursts; for images wrong step, size
 or encoding, and valid full-size images costly to search (noise, checkerboards, many
 circles: :func:`contents`); for CameraInfo an impossible size or projection and absurd but
 finite camera models (focal length, principal point, baseline); for poses a non-finite or
 non-unit quaternion, a camera looking away; for trajectory commands what
-joint_trajectory_controller refuses (:func:`command_trajectories`). And one class that is
-no message: a second publisher on a topic the node reads or commands on
-(:func:`second_publishers`), which the node must name on /diagnostics and clear when it
-went.
+joint_trajectory_controller refuses (:func:`command_trajectories`); for the feedforward
+trajectory a valid one of :data:`HUGE_POINTS` points and one bad in its last
+(:func:`huge_trajectories`). And two classes that are no message: a second publisher on a
+topic the node reads or commands on (:func:`second_publishers`), which the node must name
+on /diagnostics and clear when it went; and a /clock set back, as a restarted simulator
+sets it, inputs then stamped from the earlier time on (:func:`clock_jumps`), which the node
+must see and take.
 """
 
 import copy
@@ -24,7 +28,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Point32, PolygonStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (feature_status_msg, FeatureStatus, image_msg, joint_state,
-                                     joint_trajectory, ns_stamp)
+                                     joint_trajectory, ns_stamp, stamp_ns)
+from ibvs_common.sim_time import clock_watch
 import numpy as np
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -38,6 +43,11 @@ NAMES = list(contract.JOINT_NAMES)
 FAR_SEC = 2 ** 31 - 1
 #: Messages in a burst.
 BURST = 50
+#: How far a stamp leads the next one in the 'stamp 0.4 s ahead' class: the outside audit's
+#: image, which refused the eleven frames after it as stamped before it.
+AHEAD_NS = 400_000_000
+#: Points of the 'huge trajectory' class: the audit's 6 s feedforward at 1 kHz.
+HUGE_POINTS = 6000
 #: The node of the second publisher (:func:`second_publishers`).
 ROGUE = 'fuzz_rogue'
 #: The topics whose second publisher an outside audit found unnoticed: every rig that
@@ -103,6 +113,7 @@ def joint_states(topic, next_ns, position, fields=('position',), scale=1.0, last
             _stamped(msg(0), dict(bad_stamps(next_ns()))[lb])]))
     cases.append((f'paced stream of {BURST} future stamps', lambda: [
         msg(next_ns() + (1000 + k) * 1_000_000_000) for k in range(BURST)]))
+    cases.append(('stamp 0.4 s ahead', lambda: [msg(next_ns() + AHEAD_NS)]))
     if last_ns is not None:
         cases += [('duplicate of the last stamp', lambda: [msg(last_ns())]),
                   ('stamp going back 1 ms', lambda: [msg(last_ns() - 1_000_000)])]
@@ -120,6 +131,8 @@ def headers(topic, next_ns, off_grid=True):
              for name, s in bad_stamps(0)]
     if off_grid:
         cases.append(('off the frame grid', lambda: [Header(stamp=ns_stamp(next_ns() + 1))]))
+    cases.append(('stamp 0.4 s ahead', lambda: [Header(stamp=ns_stamp(next_ns() + AHEAD_NS),
+                                                       frame_id=contract.CAMERA_FRAME)]))
     cases.append((f'burst of {BURST} far-future', lambda: [
         Header(stamp=stamp(FAR_SEC - k)) for k in range(BURST)]))
     return [(name, topic, make) for name, make in cases]
@@ -203,6 +216,7 @@ def polygons(topic, next_ns, features, last_ns=None):
         cases.append((name, lambda s=s: [_stamped(msg(0), s)]))
     cases.append((f'burst of {BURST} far-future', lambda: [
         _stamped(msg(0), stamp(FAR_SEC - k)) for k in range(BURST)]))
+    cases.append(('stamp 0.4 s ahead', lambda: [msg(next_ns() + AHEAD_NS)]))
     if last_ns is not None:
         cases += [('duplicate of the last stamp', lambda: [msg(last_ns())]),
                   ('stamp going back 1 ms', lambda: [msg(last_ns() - 1_000_000)])]
@@ -222,6 +236,8 @@ def statuses(topic, next_ns, last_ns=None):
              ('unknown mode', topic, lambda: [status(next_ns(), 'guessed')])]
     for name, s in bad_stamps(0):
         cases.append((name, topic, lambda s=s: [_stamped(status(0, 'measured'), s)]))
+    cases.append(('stamp 0.4 s ahead', topic,
+                  lambda: [status(next_ns() + AHEAD_NS, 'measured')]))
     if last_ns is not None:
         cases += [('duplicate of the last stamp', topic,
                    lambda: [status(last_ns(), 'measured')]),
@@ -436,6 +452,8 @@ def images(topic, frame, image):
              ('size disagrees with camera_info', variant(small))]
     for name, s in bad_stamps(0):
         cases.append((name, variant(lambda msg, s=s: _stamped(msg, s))))
+    cases.append(('stamp 0.4 s ahead', variant(lambda msg: _stamped(
+        msg, ns_stamp(stamp_ns(msg.header.stamp) + AHEAD_NS)))))
     return [(name, topic, make) for name, make in cases]
 
 
@@ -567,3 +585,73 @@ def second_publishers(rig):
                             answered=Newcomer(rig, topic, types[topic]))
             specs.append(('second publisher', topic, make))
     return specs
+
+
+def huge_trajectories(topic, rows, taken):
+    """
+    Return a valid feedforward trajectory of :data:`HUGE_POINTS` points, and one bad in its last.
+
+    ``rows`` (n, 6): the trajectory the rig holds, its last row repeated to the length;
+    ``taken(n)`` returns whether the node now holds a trajectory of ``n`` points. The valid
+    one must be taken (nothing to reject) and the node act on its next input; the other
+    rejected, its points all read.
+    """
+    rows = np.asarray(rows, dtype=float)
+    long = np.vstack([rows, np.tile(rows[-1], (HUGE_POINTS - len(rows), 1))])
+    bad = long.copy()
+    bad[-1, 2] = np.nan
+
+    def valid():
+        return Case(f'valid trajectory of {HUGE_POINTS} points', topic,
+                    [(topic, joint_trajectory(0, 1_000_000, long))], counted=0,
+                    answered=lambda: taken(HUGE_POINTS))
+
+    return [(f'valid trajectory of {HUGE_POINTS} points', topic, valid),
+            (f'{HUGE_POINTS} points, NaN in the last', topic,
+             lambda: [joint_trajectory(0, 1_000_000, bad)])]
+
+
+class Rewound:
+    """
+    The check of a /clock set back (:func:`clock_jumps`): seen by the node, the rig rewound.
+
+    Called (the case's ``answered``) once the jump is delivered: the rig's inputs go on from
+    ``back_ns`` (the rig's ``rewind``: a restarted simulator's time line), and it is true
+    once the node's clock watch (:func:`ibvs_common.sim_time.clock_watch`) counted one jump
+    back more. That the node takes the inputs of the earlier time is the harness's check
+    that it acts on the next valid input.
+    """
+
+    def __init__(self, rig, back_ns):
+        """Take the rig and the time set back to; note the jumps the node has seen."""
+        self.rig, self.back_ns = rig, back_ns
+        self.before = clock_watch(rig.node).jumps_back
+        self.rewound = False
+
+    def __call__(self):
+        """Rewind the rig (once); return whether the node saw the jump."""
+        if not self.rewound:
+            self.rig.rewind(self.back_ns)
+            self.rewound = True
+        return clock_watch(self.rig.node).jumps_back == self.before + 1
+
+
+def clock_jumps(rig):
+    """
+    Return the 'clock set back' case of a rig that reads /clock and can rewind its inputs.
+
+    A /clock at the rig's time (the stamp of its last valid input, ``rig.now_ns()``), then
+    one at 1 ms, as a simulator restarted under a running graph starts it again: the node
+    must see the jump (:class:`Rewound`) and take the inputs stamped from then on, which
+    its stamp orders of the old time line would refuse as gone back. Nothing is rejected.
+    """
+    if contract.CLOCK not in rig.pubs or not hasattr(rig, 'rewind'):
+        return []
+
+    def make():
+        now, back = max(rig.now_ns(), 2_000_000), 1_000_000
+        return Case('clock set back, then inputs from the earlier time', contract.CLOCK,
+                    [(contract.CLOCK, Clock(clock=ns_stamp(now))),
+                     (contract.CLOCK, Clock(clock=ns_stamp(back)))], counted=0,
+                    answered=Rewound(rig, back))
+    return [('clock set back, then inputs from the earlier time', contract.CLOCK, make)]

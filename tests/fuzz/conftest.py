@@ -11,7 +11,7 @@ HEADER = (f"{'node':32s} {'cases':>5s} {'crashes':>7s} {'stuck':>5s} {'accepted 
 def pytest_terminal_summary(terminalreporter):
     """Print the per-node table: cases / crashes / stuck / accepted silently / non-finite."""
     if TABLES:
-        terminalreporter.section('fuzz: bad input into every subscribed topic')
+        terminalreporter.section('fuzz: bad input into every subscribed topic, bad parameters')
         terminalreporter.write_line(HEADER)
         for line in TABLES:
             terminalreporter.write_line(line)

@@ -34,16 +34,41 @@ def frame_ns(n):
     return frame_stamp_ns(n, CAMERA_NS, MS)
 
 
+class FrameTimeLine:
+    """
+    The time line of a rig whose inputs are camera frames ``n``: its 'clock set back' part.
+
+    ``OUTPUTS`` names the list of what the node published that :meth:`Rig.valid_step`
+    looks for by stamp: a rewound time line stamps its frames again, so it is emptied.
+    """
+
+    OUTPUTS = 'out'
+
+    def now_ns(self):
+        """Return the stamp of the last frame sent."""
+        return frame_ns(self.n - 1)
+
+    def rewind(self, t_ns):
+        """Go on with the frames after ``t_ns``; forget what was published of the earlier."""
+        self.n = 0
+        while frame_ns(self.n) <= t_ns:
+            self.n += 1
+        getattr(self, self.OUTPUTS).clear()
+
+
 def build(rig, specs):
     """
     Return a case maker per (name, topic, make) of ``specs``, and the rig's second publishers.
 
     ``make()`` returns the messages (each a message of ``topic`` or (topic, msg)), or a
     whole :class:`~.harness.Case`. Every rig gets the 'second publisher' class on the
-    topics of :data:`.cases.SECOND_PUBLISHER_TOPICS` it reads or commands on.
+    topics of :data:`.cases.SECOND_PUBLISHER_TOPICS` it reads or commands on, and one that
+    reads /clock and can rewind its inputs (``now_ns`` and ``rewind(t_ns)``) the 'clock set
+    back' class (:func:`.cases.clock_jumps`), last: its time line starts again.
     """
     makers = []
-    for name, topic, make in list(specs) + bad.second_publishers(rig):
+    for name, topic, make in (list(specs) + bad.second_publishers(rig)
+                              + bad.clock_jumps(rig)):
         def maker(name=name, topic=topic, make=make):
             made = make()
             if isinstance(made, Case):
@@ -93,17 +118,35 @@ class JointControllerRig(Rig):
         t = self.next_ns() + CAMERA_NS
         return feedback_frame_ns(t, CAMERA_NS, 0, MS)
 
+    def now_ns(self):
+        """Return the stamp of the last joint state sent."""
+        return self.next_ns() - MS
+
+    def rewind(self, t_ns):
+        """Go on with the joint states after ``t_ns`` (and their q_feedback) as new."""
+        self.k = t_ns // MS + 1
+        self.feedback_sent.clear()
+        self.efforts.clear()
+
     def cases(self):
         """Return every case of every topic it subscribes."""
+        held = np.tile(Q0, (5, 1))
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
                                   ('position', 'velocity'),
                                   last_ns=lambda: self.next_ns() - MS)
                  + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
                  + bad.headers(contract.FRAME_LOST, self.next_frame_ns)
-                 + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
-                                    np.tile(Q0, (5, 1)))
+                 + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns, held)
+                 + bad.huge_trajectories(contract.FEEDFORWARD_TRAJECTORY, held,
+                                         lambda n: _holds(self.node, n))
                  + bad.clocks())
         return build(self, specs)
+
+
+def _holds(node, points):
+    """Return whether the joint controller ``node`` holds a feedforward of ``points`` points."""
+    trajectory = node.mode._trajectory
+    return trajectory is not None and len(trajectory[1]) == points
 
 
 class SimRig(Rig):
@@ -258,25 +301,39 @@ class JointControllerPositionRig(Rig):
         """Return whether every position reference it sent was finite."""
         return bool(self.commands) and all(np.all(np.isfinite(m.data)) for m in self.commands)
 
+    def now_ns(self):
+        """Return the time of the last joint state and /clock sent."""
+        return self.t_ns
+
+    def rewind(self, t_ns):
+        """Go on from ``t_ns`` (the /clock sent): its joint states and frames as new."""
+        self.t_ns = t_ns
+        self.frame = 0
+        self._deliver_frame()
+
     def cases(self):
         """Return every case of every topic it subscribes."""
+        held = np.tile(Q0, (5, 1))
         specs = (bad.joint_states(contract.JOINT_STATES, self.next_ns, Q0,
                                   last_ns=lambda: self.t_ns)
                  + bad.joint_states(contract.Q_FEEDBACK, self.next_frame_ns, np.zeros(6))
-                 + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns,
-                                    np.tile(Q0, (5, 1)))
+                 + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns, held)
+                 + bad.huge_trajectories(contract.FEEDFORWARD_TRAJECTORY, held,
+                                         lambda n: _holds(self.node, n))
                  + bad.camera_info_stamps(contract.LEFT_INFO, camera_infos(
                      default_camera('VGA').intrinsics, 0)[0])
                  + bad.clocks())
         return build(self, specs)
 
 
-class VizRig(Rig):
+class VizRig(FrameTimeLine, Rig):
     """
     viz_node: acts by /ibvs/markers at each joint state, stamped with its stamp.
 
     ``marker_rate_hz`` 1000: a frame's joint state (33 ms after the last) always draws.
     """
+
+    OUTPUTS = 'drawn'
 
     def __init__(self, context):
         """Create the node (sim time, as ``ibvs run`` starts it)."""
@@ -348,8 +405,10 @@ class VizRig(Rig):
         return build(self, specs)
 
 
-class RobotStateRig(Rig):
+class RobotStateRig(FrameTimeLine, Rig):
     """robot_state_node: acts by publishing /tf at each joint state, stamped with its stamp."""
+
+    OUTPUTS = 'tf'
 
     def __init__(self, context):
         """Create the node (sim time, as ``ibvs run`` starts it)."""
@@ -419,7 +478,7 @@ class FeedforwardRig(Rig):
         return build(self, specs)
 
 
-class AdaptiveFeedbackRig(Rig):
+class AdaptiveFeedbackRig(FrameTimeLine, Rig):
     """adaptive_feedback_node: acts by answering each frame's features with a q_feedback."""
 
     def __init__(self, context):
@@ -469,7 +528,7 @@ class AdaptiveFeedbackRig(Rig):
         return build(self, specs)
 
 
-class FeatureRig(Rig):
+class FeatureRig(FrameTimeLine, Rig):
     """
     feature_node: acts by publishing the features of each complete stereo frame.
 

@@ -122,7 +122,7 @@ class VizNode(Node):
         self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
         self._inputs = Inputs(self._diag, self.now_ns,
                               stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
-        forget_on_back(self, self._inputs)
+        forget_on_back(self, self._inputs, self)
         self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['joint_states_taken']
@@ -189,6 +189,16 @@ class VizNode(Node):
         if self._camera is None:
             return f'waiting for {", ".join(self.camera_input.missing())} to describe the camera'
         return None
+
+    def forget(self) -> None:
+        """
+        Forget the stamps of the old time line (the clock jumped back: :func:`forget_on_back`).
+
+        The features waiting for their status, and the time of the last markers, which
+        would hold every marker back until sim time passed it again.
+        """
+        self._features.clear()
+        self._last_markers_ns = None
 
     # --- features ---------------------------------------------------------------------------
 
