@@ -60,10 +60,16 @@ DRY_RUN_TRAJECTORY = '/ibvs/dry_run/joint_trajectory'
 #: mode: header.stamp = the time of the first command that uses the frame's q_feedback,
 #: time_ref = the frame's stamp (its exposure); the run's latency metric.
 FRAME_LATENCY = '/ibvs/frame_latency'
-#: std_msgs/Int8, latched: the joint controller's status in position mode, one code of
+#: std_msgs/Int8, latched: the joint controller's status, one code of
 #: ibvs_control.servo_status.ServoStatus (MoveIt Servo's codes, and ours from 10: waiting,
-#: holding on a stale input and which), on each change and once a second.
+#: holding on a stale input and which, a local minimum the feedback node reports); in
+#: position mode on each change and once a second, with the effort interface (which never
+#: holds) from its first command on, on each change.
 SERVO_STATUS = '/ibvs/servo_status'
+#: std_msgs/Int8, latched: the feedback node's status, NO_WARNING or LOCAL_MINIMUM of
+#: ibvs_control.servo_status.ServoStatus (ibvs_control.minimum_watch), from its first
+#: answered frame on, on each change; the joint controller relays it on SERVO_STATUS.
+FEEDBACK_STATUS = '/ibvs/feedback_status'
 #: Evaluation only (nav_msgs/Path in base_link): the true flange pose of every physics step,
 #: published in batches just before each /clock, so that when /clock says T every pose
 #: stamped before T is out. One pose message per step cost the lockstep 0.3 ms a step.

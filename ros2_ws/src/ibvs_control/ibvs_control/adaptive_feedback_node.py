@@ -5,7 +5,9 @@ Per frame, the law ``servo_law`` picks (:mod:`.servo_laws`; the paper's is
 :class:`.controllers.AdaptiveFeedback`): q~ = F^-1(p_hat), C1 = J, SVD decoupling and
 q_feedback = k_d(z) C1^+ (p_bar - p_hat) (eq. 38-42), with the frame's encoder joints
 (:class:`.frame_lockstep.FrameLockstep`). Every frame is answered, one it cannot use with
-the held q_feedback.
+the held q_feedback. Each used frame's image error and the model's pose error (FK of its
+encoder angles against the target) go on /diagnostics; a local minimum of the image error
+(:mod:`.minimum_watch`) goes on /ibvs/feedback_status, which the joint controller relays.
 
 Its topics and parameters: docs/nodes.md (generated from what it opens and :data:`PARAMS`).
 Determinism, staleness, rejections and the servo laws: docs/nodes.md.
@@ -32,11 +34,15 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Int8
 
+from .controllers import feature_error
 from .frame_lockstep import FrameLockstep
+from .minimum_watch import MinimumWatch
 from .node_params import AdaptiveFeedbackConfig, check_servo_law, LIVE_PARAMS, target_from
 from .prediction import Predictor
 from .servo_laws import law_class
+from .servo_status import ServoStatus
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
 CONFIG = AdaptiveFeedbackConfig
@@ -85,6 +91,9 @@ class AdaptiveFeedbackNode(Node):
         self.diagnostics.update(state='waiting for camera', frames=0)
         self.diagnostics.log_progress(self._progress)
         self._pub = publisher(self, JointState, contract.Q_FEEDBACK, contract.RELIABLE)
+        self._pub_status = publisher(self, Int8, contract.FEEDBACK_STATUS, contract.LATCHED)
+        self._minimum = None  # the local-minimum watch, built with the law
+        self._status = None  # the status published last
         self.camera_input = StereoCameraInput(self, self.diagnostics, values, self._on_camera)
         # The resolved name: the runner remaps it to /stereo/joint_states (one a frame).
         joints = subscription(self, JointState, contract.JOINT_STATES, self._on_joint_state,
@@ -220,6 +229,7 @@ class AdaptiveFeedbackNode(Node):
             self.camera_input.forget_infos()
             return
         self.camera_input.hold()
+        self._minimum = MinimumWatch(self.pose, model.params)
         self.diagnostics.update(state='running', servo_law=self.law.name,
                                 p_target=self.feedback.p_target)
         self.get_logger().info(
@@ -301,6 +311,7 @@ class AdaptiveFeedbackNode(Node):
                                     f'(> {self.stale_timeout_ns * 1e-9:g} s): integrator frozen, '
                                     'q_feedback held')
         else:
+            measured_features = features
             try:
                 with self.diagnostics.timing.section('prediction'):
                     q_action, qd_action = self._lockstep.action_joints()[1]
@@ -315,8 +326,11 @@ class AdaptiveFeedbackNode(Node):
                                         f'{exc}; q_feedback held')
             else:
                 self._fresh(t_ns, update)
+                self._watch_minimum(t_ns, measured_features, joints[0], measured)
         self.diagnostics.timing.reached(t_ns)
         self.frames += 1
+        if self._status is None:
+            self._report(ServoStatus.NO_WARNING)
         self._pub.publish(joint_state(t_ns, position=self.feedback.q_feedback))
         self.diagnostics.update(frames=self.frames, q_feedback=self.feedback.q_feedback)
 
@@ -329,7 +343,7 @@ class AdaptiveFeedbackNode(Node):
         self.diagnostics.update(
             state=self.law.holding if update.held else 'running',
             singular_values=update.singular_values, condition_number=update.condition,
-            rank=update.rank, image_error_norm_px=update.error_norm,
+            rank=update.rank,
             q_estimate=update.q_estimate, correction_clipped=update.clipped)
         counts = getattr(self.feedback, 'counts', None)  # the safety envelope's, if on
         if counts is not None:
@@ -338,6 +352,30 @@ class AdaptiveFeedbackNode(Node):
             if set(counts) - self._envelope_seen:
                 self._envelope_seen |= set(counts)
                 self.get_logger().info(f'safety envelope at {t_ns * 1e-9:.3f} s: {summary}')
+
+    def _watch_minimum(self, t_ns, features, q_encoder, measured):
+        """Show the image and model pose errors; report a local minimum's start and end."""
+        error_px = float(np.linalg.norm(feature_error(features, self.feedback.p_target)))
+        verdict = self._minimum.offer(ns_to_seconds(t_ns), error_px, q_encoder,
+                                      self.feedback.q_feedback, measured)
+        _, position, axis = self._minimum.errors
+        local = verdict.status == ServoStatus.LOCAL_MINIMUM
+        self.diagnostics.update(image_error_norm_px=error_px, model_position_error_m=position,
+                                model_tool_axis_error_deg=axis, local_minimum=local)
+        if verdict.status == (ServoStatus.NO_WARNING if self._status is None else self._status):
+            return
+        if local:
+            self.get_logger().warn(f'{verdict.status.name} at {t_ns * 1e-9:.3f} s: '
+                                   f'{verdict.detail}')
+        else:
+            self.get_logger().info(f'no longer in a local minimum at {t_ns * 1e-9:.3f} s')
+        self.diagnostics.alert('local_minimum', verdict.detail if local else None)
+        self._report(verdict.status)
+
+    def _report(self, status):
+        """Publish ``status`` on /ibvs/feedback_status (a change, or the first)."""
+        self._status = status
+        self._pub_status.publish(Int8(data=int(status)))
 
     def _watch_timeout(self, now_ns):
         """Mark the feedback frozen once no usable frame came for stale_timeout_s."""

@@ -10,7 +10,9 @@ v = G_c(q_ref - q) (the sampled eq. 28 at the physics rate) and u = M(q) v + h(q
 t_k, lost frames (/stereo/frame_lost), buffering and answering in stamp order are
 :class:`.feedback_lockstep.FeedbackLockstep` (docs/design.md §4, docs/nodes.md). A command
 that would not be finite is not published: the state is rejected ('non-finite command')
-and the holding torque h(q, 0) goes out instead.
+and the holding torque h(q, 0) goes out instead. It never holds (its simulator waits for
+every command): its status on /ibvs/servo_status is NO_WARNING from the first command on,
+or the local minimum the feedback node reports (:mod:`.feedback_relay`), on each change.
 """
 
 from typing import TYPE_CHECKING
@@ -23,12 +25,14 @@ from ibvs_common.timing import ns_to_seconds, seconds_to_ns
 from ibvs_model import IRB4600
 import numpy as np
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Header, Int8
 
 from .controllers import JointLoop, makes_own_move, synchronised_move
 from .dynamics import RobotDynamics
 from .feedback_lockstep import FeedbackLockstep
+from .feedback_relay import relay
 from .joint_controller_mode import JointControllerMode
+from .servo_status import ServoStatus, Verdict
 
 if TYPE_CHECKING:
     from rclpy.node import Node
@@ -69,6 +73,9 @@ class EffortController(JointControllerMode):
                      contract.RELIABLE)
         self.subscribe_inputs()
         subscription(node, Header, contract.FRAME_LOST, self._on_frame_lost, contract.RELIABLE)
+        self._pub_status = publisher(node, Int8, contract.SERVO_STATUS, contract.LATCHED)
+        self._status = None  # the status published last (None before the first command)
+        self._feedback_status = relay(node, self.diagnostics, self._report)
         self.waiting = WaitReporter(node, self._waiting)
         self.diagnostics.log_progress(self._progress_line)
         node.get_logger().info(
@@ -162,11 +169,24 @@ class EffortController(JointControllerMode):
         self.diagnostics.timing.reached(t_ns)
         self._pub.publish(joint_state(t_ns, effort=torque))
         self.commands += 1
+        if self._status is None:
+            self._report()
         self.last_answered_ns = t_ns
         self.saturated_joints = int(np.count_nonzero(self.loop.saturated))
         self.waiting.progress()
         self.diagnostics.update(commands=self.commands, last_answered_ns=t_ns,
                                 saturated_joints=self.saturated_joints)
+
+    def _report(self):
+        """Publish the status on a change, from the first command on (module docstring)."""
+        if not self.commands:
+            return
+        verdict = self._feedback_status.over(Verdict(ServoStatus.NO_WARNING, 'ok'))
+        if verdict.status == self._status:
+            return
+        self._status = verdict.status
+        self._pub_status.publish(Int8(data=int(verdict.status)))
+        self.diagnostics.update(servo_status=verdict.status.name)
 
     def _progress_line(self):
         """Return the progress line: commands sent, up to when, and how (None before)."""

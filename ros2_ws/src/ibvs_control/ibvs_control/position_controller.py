@@ -11,7 +11,8 @@ arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), on
 command topic never opened; the first command that uses a frame's q_feedback goes on
 /ibvs/frame_latency. A stale input, a clock that jumped back, a sim time that stopped or a
 second publisher on /joint_states, the q_feedback, the feedforward or its own command topic
-stops and holds the arm (:mod:`.servo_status`, on /ibvs/servo_status). In full:
+stops and holds the arm (:mod:`.servo_status`, on /ibvs/servo_status, which also relays
+the feedback node's local minimum: :mod:`.feedback_relay`). In full:
 docs/nodes.md.
 """
 
@@ -30,6 +31,7 @@ from sensor_msgs.msg import CameraInfo, JointState, TimeReference
 from std_msgs.msg import Float64MultiArray, Header, Int8
 from trajectory_msgs.msg import JointTrajectory
 
+from .feedback_relay import relay
 from .joint_controller_mode import JointControllerMode
 from .position_interface import FeedbackHold, shaper_for
 from .servo_status import clock_stopped, InputWatch, second_publisher, ServoStatus
@@ -156,6 +158,7 @@ class PositionController(JointControllerMode):
                             node.resolve_topic_name(contract.FEEDFORWARD_TRAJECTORY),
                             self._sender.pub.topic_name)
         self._second = None  # HOLD_SECOND_PUBLISHER's verdict while one is there
+        self._feedback_status = relay(node, self.diagnostics)  # the feedback's, relayed
         self.diagnostics.publishers.command(self._sender.pub.topic_name,
                                             self._publishers_changed)
         self.waiting = WaitReporter(node, self._waiting)
@@ -246,11 +249,15 @@ class PositionController(JointControllerMode):
         self._report(to_ns, self._watch.verdict(to_ns))
 
     def _verdict_at(self, now_ns):
-        """Return the status at ``now_ns``: the input watch's, a second publisher first."""
+        """
+        Return the status at ``now_ns``: the input watch's, a second publisher first.
+
+        Where neither has anything to say (NO_WARNING), the feedback node's warning.
+        """
         verdict = self._watch.verdict(now_ns)
         if self._second is not None and verdict.status != ServoStatus.WAITING:
             return self._second
-        return verdict
+        return self._feedback_status.over(verdict)
 
     def _publishers_changed(self, found):
         """Hold while a second publisher is on a topic of ``hold_topics``; report at once."""

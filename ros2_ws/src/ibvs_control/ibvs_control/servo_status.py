@@ -18,6 +18,11 @@ controller's own command topic (:func:`second_publisher`; who is seen there:
 :class:`ibvs_common.kit.PublisherWatch`): each of its messages may be well formed, and the
 arm would follow whichever came last.
 
+One node publishes the status: the joint controller. What only the feedback node can
+tell (the image error against the model's pose: :mod:`.minimum_watch`) it reports on its
+own /ibvs/feedback_status, and the joint controller relays it (:class:`FeedbackStatus`)
+while nothing of its own is to be said: a hold, or waiting, comes first.
+
 The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``, moveit2 jazzy
 4d84106 ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp`` L51-61), so
 that a supervisor written for Servo reads ours; 10 and up are this stack's. The 0.1 s
@@ -63,6 +68,11 @@ class ServoStatus(IntEnum):
     #: /ibvs/q_feedback, the feedforward trajectory) or a second commander on the
     #: controller's own command topic, until it is gone.
     HOLD_SECOND_PUBLISHER = 16
+    #: Not holding, a warning: the feedback node reports (on /ibvs/feedback_status) that
+    #: the image error is small while the model puts the tool far from the target, the
+    #: loop at rest: a local minimum of the image error (:mod:`.minimum_watch`). The arm
+    #: stays where the law holds it; the run does not count as a success.
+    LOCAL_MINIMUM = 17
 
 
 #: Each stale input's holding code.
@@ -197,3 +207,38 @@ def second_publisher(found: Mapping[str, Sequence[object]]) -> Verdict | None:
         return None
     return Verdict(ServoStatus.HOLD_SECOND_PUBLISHER,
                    f'{words}: holding the arm until it is gone')
+
+
+#: The codes the feedback node reports on /ibvs/feedback_status.
+FEEDBACK_CODES = frozenset({ServoStatus.NO_WARNING, ServoStatus.LOCAL_MINIMUM})
+
+
+class FeedbackStatus:
+    """
+    The feedback node's newest status (/ibvs/feedback_status), as the joint controller relays it.
+
+    :meth:`take` checks a code (one of :data:`FEEDBACK_CODES`) and returns whether it
+    changed; :meth:`over` lays it over the controller's own verdict.
+    """
+
+    def __init__(self) -> None:
+        """Start with nothing reported: NO_WARNING."""
+        self.status = ServoStatus.NO_WARNING
+
+    def take(self, code: int) -> bool:
+        """Take a reported code; ValueError names one the feedback node does not report."""
+        if code not in {int(c) for c in FEEDBACK_CODES}:
+            raise ValueError(f'code {code} is not one the feedback node reports (expected one '
+                             f'of {sorted((int(c), c.name) for c in FEEDBACK_CODES)})')
+        changed = ServoStatus(code) != self.status
+        self.status = ServoStatus(code)
+        return changed
+
+    def over(self, verdict: Verdict) -> Verdict:
+        """Return ``verdict``, or the feedback's warning where ``verdict`` is NO_WARNING."""
+        if verdict.status != ServoStatus.NO_WARNING or self.status == ServoStatus.NO_WARNING:
+            return verdict
+        return Verdict(self.status, 'the feedback node reports a local minimum of the image '
+                       'error: the image error is small while the model puts the tool far '
+                       'from the target (its /diagnostics: image_error_norm_px, '
+                       'model_position_error_m, model_tool_axis_error_deg)')

@@ -41,6 +41,7 @@ INPUTS = {
     contract.JOINT_STATES: (JointState, contract.RELIABLE),
     contract.Q_FEEDBACK: (JointState, contract.RELIABLE),
     contract.FEEDFORWARD_TRAJECTORY: (JointTrajectory, contract.LATCHED),
+    contract.FEEDBACK_STATUS: (Int8, contract.LATCHED),
 }
 #: What a second publisher (:meth:`PositionCell.rogue_on`) may publish on, by topic.
 ROGUE_KINDS = {topic: kind for topic, (kind, _) in INPUTS.items()} | {

@@ -45,8 +45,10 @@ def test_the_effort_interface_opens_only_its_topics(context):
         topics = _topics(node)
         assert (contract.EFFORT_COMMANDS, PUBLISHES) in topics
         assert (contract.FRAME_LOST, SUBSCRIBES) in topics
-        assert not {t for t, _ in topics} & {contract.POSITION_COMMANDS, contract.SERVO_STATUS,
-                                             contract.LEFT_INFO}
+        # the status too: it never holds, but relays what the feedback node reports
+        assert {(contract.SERVO_STATUS, PUBLISHES), (contract.FEEDBACK_STATUS, SUBSCRIBES)} \
+            <= set(topics)
+        assert not {t for t, _ in topics} & {contract.POSITION_COMMANDS, contract.LEFT_INFO}
     finally:
         node.destroy_node()
 

@@ -19,7 +19,7 @@ from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, Int8
 from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
@@ -170,6 +170,35 @@ def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(positi
     assert q[-1, 0] > q[held, 0][-1]
     steps = np.abs(np.diff(q, axis=0)) / 4e-3
     assert np.all(steps <= node.mode.shaper.speed_limits + 1e-9)
+
+
+def test_the_feedback_nodes_local_minimum_is_relayed_on_the_status_without_a_hold(
+        position_cell):
+    cell = position_cell()
+    node = cell.node
+    feedback_status = cell.pubs[contract.FEEDBACK_STATUS]  # the feedback node's
+    cell.start(0, Q0)
+    cell.tick(4 * MS)
+    cell.spin_to_status(ServoStatus.NO_WARNING)
+    feedback_status.publish(Int8(data=int(ServoStatus.LOCAL_MINIMUM)))
+    spin_until(cell.executor,
+               lambda: node.mode._feedback_status.status == ServoStatus.LOCAL_MINIMUM,
+               what="the feedback node's status")
+    cell.tick(8 * MS)  # a command goes out: the arm is not held
+    cell.spin_to_status(ServoStatus.LOCAL_MINIMUM)
+    assert node.mode.holds == 0
+    assert 'LOCAL_MINIMUM' in node.diagnostics.status().message
+    # a code the feedback node never reports is refused, the status kept
+    feedback_status.publish(Int8(data=int(ServoStatus.HOLD_STALE_CAMERA)))
+    spin_until(cell.executor, lambda: cell.rejected('unknown code') == 1, what='the refusal')
+    feedback_status.publish(Int8(data=int(ServoStatus.NO_WARNING)))
+    spin_until(cell.executor,
+               lambda: node.mode._feedback_status.status == ServoStatus.NO_WARNING,
+               what="the feedback node's NO_WARNING")
+    cell.tick(12 * MS)
+    cell.spin_to_status(ServoStatus.NO_WARNING)
+    assert changes(cell.status)[-3:] == [ServoStatus.NO_WARNING, ServoStatus.LOCAL_MINIMUM,
+                                         ServoStatus.NO_WARNING]
 
 
 @pytest.mark.parametrize('command_type, kind, topic', [

@@ -35,7 +35,7 @@ def cell(monkeypatch, position_cell):
     target[0] += 1.0  # a long move: under way when the rogue comes
     made.start(t0, target)
     watch = made.node.diagnostics.publishers
-    spin_until(made.executor, lambda: len(watch.expected) == 5 and all(
+    spin_until(made.executor, lambda: len(watch.expected) == 6 and all(
         e.settled for e in watch.expected.values()),
         what="the inputs' publishers seen once")  # the cell's, before any rogue
     made.t = t0

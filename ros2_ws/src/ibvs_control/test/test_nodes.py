@@ -24,6 +24,7 @@ from ibvs_control.dynamics import RobotDynamics
 from ibvs_control.feedforward_node import FeedforwardNode
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_control.servo_laws import ClassicIBVS
+from ibvs_control.servo_status import ServoStatus
 from ibvs_model import default_model, inverse_kinematics, paper
 from ibvs_testing.fixtures import spin_until
 import numpy as np
@@ -33,7 +34,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Header, Int8
 from trajectory_msgs.msg import JointTrajectory
 
 MS = 1_000_000
@@ -270,7 +271,12 @@ def test_feedback_answers_each_frame_like_the_pure_controller(context):
         assert values['rank'] == '5'
         assert float(values['condition_number']) > 1.0
         assert values['singular_values'].startswith('[')
-        assert float(values['image_error_norm_px']) > 0.0
+        # |p_hat - p_bar| of the frame as measured, and the model's pose: at the target
+        error = np.linalg.norm(sent - node.feedback.p_target)
+        assert float(values['image_error_norm_px']) == pytest.approx(error, rel=1e-5)
+        assert float(values['model_position_error_m']) < 1e-9
+        assert values['local_minimum'] == 'False'
+        assert node._status == ServoStatus.NO_WARNING  # on /ibvs/feedback_status
     finally:
         h.close()
 
@@ -447,6 +453,31 @@ def test_joint_controller_waits_for_both_inputs_and_stamps_its_answer(context, d
                              dynamics.bias(q, np.zeros(6)))
         np.testing.assert_allclose(read_joints(out[3], 'effort'), expected, rtol=1e-9)
         assert stamps(out) == [0, MS, 2 * MS, 34 * MS]
+
+
+def test_the_effort_controller_reports_its_status_and_relays_the_feedbacks(context):
+    with controller_harness(context) as (node, h, out):
+        status = []
+        h.node.create_subscription(Int8, contract.SERVO_STATUS,
+                                   lambda m: status.append(ServoStatus(m.data)),
+                                   contract.LATCHED)
+        feedback_status = h.node.create_publisher(Int8, contract.FEEDBACK_STATUS,
+                                                  contract.LATCHED)
+        h.spin_until(lambda: feedback_status.get_subscription_count() > 0, 'discovery')
+        h.publish(contract.FEEDFORWARD_TRAJECTORY, trajectory(0, [Q0]))
+        h.publish(contract.JOINT_STATES, joint_state(0, Q0, np.zeros(6)))
+        h.spin_until(lambda: len(node.mode._lockstep.states) == 1, 'joint state buffered')
+        assert status == []  # nothing before the first command
+        h.publish(contract.Q_FEEDBACK, joint_state(0, np.zeros(6)))
+        h.spin_until(lambda: len(out) == 1 and status, 'the first command and status')
+        assert status == [ServoStatus.NO_WARNING]
+        feedback_status.publish(Int8(data=int(ServoStatus.LOCAL_MINIMUM)))
+        h.spin_until(lambda: len(status) == 2, 'the relayed status')
+        assert status[-1] == ServoStatus.LOCAL_MINIMUM
+        assert node.diagnostics.values['servo_status'] == 'LOCAL_MINIMUM'
+        feedback_status.publish(Int8(data=int(ServoStatus.NO_WARNING)))
+        h.spin_until(lambda: len(status) == 3, 'the status back')
+        assert status[-1] == ServoStatus.NO_WARNING and len(out) == 1
 
 
 def test_joint_controller_with_latency_needs_no_feedback_at_first(context):

@@ -1,8 +1,8 @@
 """The joint controller's input watch and status codes (ibvs_control.servo_status), pure."""
 
 from ibvs_common.publishers import Publisher
-from ibvs_control.servo_status import (clock_stopped, HOLD_CODES, HOLDING, InputWatch,
-                                       second_publisher, ServoStatus)
+from ibvs_control.servo_status import (clock_stopped, FeedbackStatus, HOLD_CODES, HOLDING,
+                                       InputWatch, second_publisher, ServoStatus, Verdict)
 import pytest
 
 MS = 1_000_000
@@ -130,3 +130,27 @@ def test_a_second_publisher_holds_naming_each_topic_and_node():
     assert ServoStatus.HOLD_SECOND_PUBLISHER in HOLDING
     assert verdict.detail == ('second publisher on /fwd/commands: /rogue; second publisher on '
                               '/joint_states: /a, /b: holding the arm until it is gone')
+
+
+def test_the_feedback_nodes_local_minimum_is_relayed_only_when_nothing_else_is_said():
+    status = FeedbackStatus()
+    ok = Verdict(ServoStatus.NO_WARNING, 'ok')
+    assert status.over(ok) is ok
+    assert status.take(int(ServoStatus.LOCAL_MINIMUM)) and not status.take(17)
+    relayed = status.over(ok)
+    assert relayed.status == ServoStatus.LOCAL_MINIMUM == 17 and not relayed.holding
+    assert 'local minimum' in relayed.detail
+    # a hold, or waiting, is the controller's own and comes first
+    hold = Verdict(ServoStatus.HOLD_STALE_CAMERA, 'camera stale')
+    assert status.over(hold) is hold
+    waiting = Verdict(ServoStatus.WAITING, 'waiting for camera')
+    assert status.over(waiting) is waiting
+    assert status.take(int(ServoStatus.NO_WARNING)) and status.over(ok) is ok
+
+
+def test_a_code_the_feedback_node_never_reports_is_refused_naming_the_allowed():
+    status = FeedbackStatus()
+    for code in (int(ServoStatus.HOLD_STALE_CAMERA), 99, -1):
+        with pytest.raises(ValueError, match='LOCAL_MINIMUM'):
+            status.take(code)
+    assert status.status == ServoStatus.NO_WARNING

@@ -29,8 +29,13 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
 - ``success``: the run ends within :data:`.convergence.SUCCESS` (1 mm and 0.5 deg), the
   project's one success criterion, never for a run that SIGINT stopped
   (:func:`interrupted_outcome`); ``miss_reason``: why not (interrupted, timed out, stalled,
-  features lost, with the final errors: :func:`.convergence.miss_reason`), None on success;
-  ``time_to_success_s``: first time after which both errors stay within it;
+  features lost, held in a local minimum of the image error, with the final errors:
+  :func:`.convergence.miss_reason`), None on success; ``time_to_success_s``: first time
+  after which both errors stay within it;
+- ``final_image_error_px``: the feedback node's last |p_hat - p_bar| (``image_error_norm_px``
+  on its /diagnostics); ``final_servo_status``: the joint controller's last status
+  (``servo_status`` on its /diagnostics, a name of ibvs_control.servo_status.ServoStatus,
+  e.g. 'LOCAL_MINIMUM'); each absent from a bag without it;
 - ``peak_joint_speed_ratio``, ``peak_joint_torque_ratio`` (:func:`joint_metrics`; from the
   bag's joint states and torques, :func:`analyse_bag`): the largest |qdot_i| / qd_max_i
   (the IRB 4600's rated joint speeds) and |tau_i| / tau_max_i (the torque limits estimated
@@ -153,6 +158,10 @@ class RunData:
     camera: object = None
     #: The simulator's render_device and render_hardware (/diagnostics), where it said them.
     render: dict = field(default_factory=dict)
+    #: The feedback node's last image error (px) and the joint controller's last status
+    #: (/diagnostics: ``image_error_norm_px``, ``servo_status``), None where never said.
+    final_image_error_px: float | None = None
+    servo_status: str | None = None
     #: Set by :func:`analyse_bag`: the joint series (:func:`load_joints`, to the run's
     #: duration) and the limits of the run's robot (q_min, q_max, qd_max, torque), which
     #: the metrics and ``joints.png`` both use.
@@ -178,11 +187,8 @@ def _settle_time(t, inside):
 
 def axis_angle_deg(rotation: ArrayLike, target_rotation: ArrayLike) -> NDArray[np.float64]:
     """Return the angle (deg) between each tool axis z6 and the target's, for (N, 3, 3)."""
-    cos = np.clip(rotation[:, :, 2] @ target_rotation[:, 2], -1.0, 1.0)
-    # acos loses precision near 1: use the chord instead.
-    chord = np.linalg.norm(rotation[:, :, 2] - target_rotation[:, 2], axis=1)
-    angle = np.where(cos > 0.0, 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0)), np.arccos(cos))
-    return np.degrees(angle)
+    from ibvs_model import tool_axis_angle
+    return np.degrees(tool_axis_angle(rotation, target_rotation))
 
 
 def estimated_time(mode_t: 'Sequence[float] | NDArray[np.float64]', modes: Sequence[str],
@@ -197,8 +203,14 @@ def estimated_time(mode_t: 'Sequence[float] | NDArray[np.float64]', modes: Seque
 def compute_metrics(t: ArrayLike, position: ArrayLike, rotation: ArrayLike,
                     target: ArrayLike, mode_t: 'Sequence[float] | NDArray[np.float64]' = (),
                     modes: Sequence[str] = (), wall_duration_s: float | None = None,
-                    scenario: str | int | None = None) -> dict[str, Any]:
-    """Return the run's metrics dict (see the module docstring) from arrays."""
+                    scenario: str | int | None = None,
+                    final_image_error_px: float | None = None) -> dict[str, Any]:
+    """
+    Return the run's metrics dict (see the module docstring) from arrays.
+
+    ``final_image_error_px`` (the feedback's last image error, where known) is a metric and
+    tells a local minimum from another stall (:func:`.convergence.miss_reason`).
+    """
     t = np.asarray(t, dtype=float)
     position = np.asarray(position, dtype=float)
     rotation = np.asarray(rotation, dtype=float)
@@ -243,6 +255,8 @@ def compute_metrics(t: ArrayLike, position: ArrayLike, rotation: ArrayLike,
                              if wall_duration_s else None),
         'samples': int(t.size),
     }
+    if final_image_error_px is not None:
+        metrics['final_image_error_px'] = float(final_image_error_px)
     metrics['success'] = SUCCESS.final(metrics)
     metrics['miss_reason'] = miss_reason(metrics)
     return metrics
@@ -345,6 +359,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     infos, cam_pose = {}, None
     latency, rtf_held, render, taught = [], [], {}, []
     frame_stamps, servo_rtf = [], {}
+    said = {}  # the last value of each of SAID_KEYS on /diagnostics
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
         wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
@@ -389,6 +404,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
                           if kv.key == TAUGHT_KEY] or taught
                 servo_rtf.update((kv.key, kv.value) for status in msg.status
                                  for kv in status.values if kv.key in SERVO_RTF_KEYS)
+                said.update((kv.key, kv.value) for status in msg.status
+                            for kv in status.values if kv.key in SAID_KEYS)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -435,11 +452,26 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    rtf_held=np.array(rtf_held), render=render_metrics(render),
                    taught_target=_taught(taught),
                    frame_stamps=np.array(frame_stamps, dtype=np.int64), servo_rtf=servo_rtf,
-                   tool_source=tool_source, target_source=target_source)
+                   tool_source=tool_source, target_source=target_source,
+                   final_image_error_px=_number_or_none(said.get(IMAGE_ERROR_KEY)),
+                   servo_status=said.get(SERVO_STATUS_KEY))
+
+
+def _number_or_none(text):
+    """Return ``text`` as a float, or None (absent, or not a finite number)."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return None
+    return value if np.isfinite(value) else None
 
 
 #: The feature node's /diagnostics key of the taught target features (feature_node.py).
 TAUGHT_KEY = 'taught_target_px'
+#: The feedback node's key of its image error, the joint controller's of its status.
+IMAGE_ERROR_KEY = 'image_error_norm_px'
+SERVO_STATUS_KEY = 'servo_status'
+SAID_KEYS = (IMAGE_ERROR_KEY, SERVO_STATUS_KEY)
 
 
 def _taught(values):
@@ -580,7 +612,10 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
     run = load_run(bag_path)
     metrics = compute_metrics(run.t, run.position, run.rotation, run.target, run.mode_t,
                               run.modes, run.run_info.get('wall_duration_s'),
-                              run.params.get('scenario_name', run.params.get('scenario')))
+                              run.params.get('scenario_name', run.params.get('scenario')),
+                              final_image_error_px=run.final_image_error_px)
+    if run.servo_status is not None:
+        metrics['final_servo_status'] = run.servo_status
     robot = IRB4600.scaled(float(run.params.get('l2_scale', 1.0)),
                            float(run.params.get('l4_scale', 1.0)))
     run.joints = load_joints(bag_path, run.run_info.get('duration_s'))

@@ -31,7 +31,8 @@ Not success criteria, and so defined apart:
   within :data:`SUCCESS`'s distance (position only, as the paper reads its figures).
 
 :func:`miss_reason` says why a run's metrics miss :data:`SUCCESS` (timed out while still
-approaching, stalled away from the target, features lost at the end) with its final errors.
+approaching, stalled away from the target, held in a local minimum of the image error,
+features lost at the end) with its final errors.
 """
 
 from collections.abc import Mapping
@@ -39,6 +40,7 @@ from dataclasses import dataclass
 import math
 from typing import Any
 
+from ibvs_control.minimum_watch import describe as describe_disagreement, disagree
 from numpy.typing import ArrayLike
 
 
@@ -99,6 +101,10 @@ def miss_reason(metrics: Mapping[str, Any], criterion: Convergence = SUCCESS) ->
 
     - 'features lost': the last feature status was not 'measured' (``final_feature_mode``:
       the feedback ran on estimates, out of view or undetected);
+    - 'local minimum': stalled (below) with the final image error (``final_image_error_px``,
+      the feedback's |p_hat - p_bar| of its last frame) small while the tool is far
+      (:func:`ibvs_control.minimum_watch.disagree`, the rule the feedback node reports by
+      with the model's pose): the law is held where the image error has a local minimum;
     - 'stalled': each error that misses fell by less than :data:`STALL_SHARE` of its final
       value over the last 0.5 s (``max_*_last_0_5s_*`` against ``final_*``): the tool came
       to rest away from the target;
@@ -124,5 +130,10 @@ def miss_reason(metrics: Mapping[str, Any], criterion: Convergence = SUCCESS) ->
     duration = metrics.get('sim_duration_s')
     at = '' if duration is None else f' at {duration:.3g} s'
     if falling and not any(falling):
+        image = metrics.get('final_image_error_px')
+        if image is not None and disagree(float(image), position, axis):
+            return (f'local minimum of the image error{at}: '
+                    f'{describe_disagreement(float(image), position, axis)}; {errors}, '
+                    f'outside {criterion.describe()}')
         return f'stalled{at}: {errors}, outside {criterion.describe()}'
     return f'timed out{at}, still approaching: {errors}, outside {criterion.describe()}'

@@ -554,6 +554,7 @@ MISS_CATEGORIES = (
     ('graph stalled', ('run stalled',), ()),
     ('no final pose', (), ('no final pose',)),
     ('lost features', (), ('features lost',)),
+    ('local minimum', (), ('local minimum',)),
     ('stalled', (), ('stalled',)),
     ('timed out', (), ('timed out',)),
 )
@@ -566,9 +567,9 @@ def miss_category(record: Mapping[str, Any]) -> str:
     From :func:`why_missed`: a failed run's runner words ('refused': a parameter or a rule
     refused at start; 'node died'; 'teach failed': the taught target could not be
     measured; 'graph stalled': no progress for ``--stall-s``; else 'failed'), a finished
-    run's :func:`.convergence.miss_reason` ('no final pose', 'lost features', 'stalled',
-    'timed out'). Joint limits, singularities and collisions are not told apart: no metric
-    records them (a run that stops at one reads 'stalled').
+    run's :func:`.convergence.miss_reason` ('no final pose', 'lost features', 'local
+    minimum', 'stalled', 'timed out'). Joint limits, singularities and collisions are not
+    told apart: no metric records them (a run that stops at one reads 'stalled').
     """
     reason = why_missed(record)
     if not reason:

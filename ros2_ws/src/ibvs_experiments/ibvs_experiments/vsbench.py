@@ -388,7 +388,8 @@ def miss_class(row: Mapping[str, Any], last_limit_distance: float) -> str:
     within :data:`LIMIT_CLASS_RAD` of a joint limit in the last 0.5 s), 'singular' (the
     envelope halted for a singularity and the run stalled), else the study's category of
     :func:`.convergence.miss_reason`'s words (:func:`.study.reason_category`): 'lost
-    features', 'stalled', 'timed out', 'no final pose'.
+    features', 'local minimum' (a graph run's: the model loop records no image error),
+    'stalled', 'timed out', 'no final pose'.
     """
     if row['success']:
         return ''

@@ -12,7 +12,8 @@ SRC = Path(__file__).resolve().parents[2]
 DOCS = Path(__file__).resolve().parents[4] / 'docs'
 
 
-def run_metrics(end_error_m=0.0, axis_deg=0.0, approach_s=0.5, duration_s=2.0, modes=None):
+def run_metrics(end_error_m=0.0, axis_deg=0.0, approach_s=0.5, duration_s=2.0, modes=None,
+                image_px=None):
     """Return the metrics of a tool moving straight 1 m in ``approach_s``, ending off."""
     t = np.linspace(0.0, duration_s, 401)
     target = np.eye(4)
@@ -23,7 +24,8 @@ def run_metrics(end_error_m=0.0, axis_deg=0.0, approach_s=0.5, duration_s=2.0, m
     rotation = np.array([[[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]]
                          for a in angle])
     mode_t, names = (t[::10], [modes(x) for x in t[::10]]) if modes else ((), ())
-    return compute_metrics(t, position, rotation, target, mode_t, names)
+    return compute_metrics(t, position, rotation, target, mode_t, names,
+                           final_image_error_px=image_px)
 
 
 def test_one_criterion_of_1_mm_and_half_a_degree():
@@ -123,3 +125,30 @@ def test_miss_reason_sorts_each_kind_of_miss_into_its_category():
     assert rows[0]['frame_latency_mean_s'] == 0.05 and rows[1]['frames_used'] is None
     assert 'stale_holds' not in rows[0]
     assert 'frame_latency_mean_s' not in study.table_rows(spec, [lockstep])[0]
+
+
+def test_a_stall_with_a_small_image_error_far_off_is_a_local_minimum():
+    # classic IBVS in scenario 1: 0.41 px of image error, 25 mm and 45 deg off, at rest
+    metrics = run_metrics(end_error_m=0.025, axis_deg=45.0, image_px=0.41)
+    assert not metrics['success'] and metrics['final_image_error_px'] == 0.41
+    reason = metrics['miss_reason']
+    assert reason.startswith('local minimum of the image error at 2 s: image error 0.41 px, '
+                             'yet the tool is 25.0 mm and 45.0 deg from the target; final '), \
+        reason
+    assert study.reason_category(reason, failed=False) == 'local minimum'
+    # the image says far too, or the features sit on their target: another stall
+    for image_px in (5.0, 0.01, None):
+        reason = run_metrics(end_error_m=0.025, axis_deg=45.0, image_px=image_px)['miss_reason']
+        assert reason.startswith('stalled at 2 s'), (image_px, reason)
+    # near the target, a stall is a stall; still approaching is not a minimum
+    assert run_metrics(end_error_m=0.005, image_px=0.41)['miss_reason'].startswith('stalled')
+    assert run_metrics(approach_s=4.0, axis_deg=45.0, image_px=0.41)['miss_reason'] \
+        .startswith('timed out')
+    # a success is one whatever the image error says
+    assert run_metrics(image_px=0.41)['success']
+
+
+def test_the_local_minimums_far_bounds_lie_well_beyond_success():
+    from ibvs_control import minimum_watch
+    assert minimum_watch.FAR_POSITION_M >= 10.0 * convergence.SUCCESS.position_m
+    assert minimum_watch.FAR_AXIS_DEG >= 10.0 * convergence.SUCCESS.axis_deg

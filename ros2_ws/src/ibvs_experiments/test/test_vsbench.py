@@ -208,3 +208,15 @@ def test_the_sampler_margins_are_those_of_their_sources():
     assert margins.max_condition_number == LOWER_SINGULARITY_THRESHOLD
     bound = 3 * vsbench.FEATURE_NOISE_PX['HD720'] / math.radians(SUCCESS.axis_deg)
     assert margins.min_observability_px_rad == pytest.approx(bound, abs=0.05)
+
+
+def test_a_graph_runs_local_minimum_is_its_own_miss_class():
+    row = {'success': False, 'intervention_codes': {},
+           'miss_reason_text': 'local minimum of the image error at 6 s: image error 0.41 px, '
+                               'yet the tool is 25.3 mm and 45.1 deg from the target; final '
+                               '25.3 mm, 45.1 deg, outside 1 mm and 0.5 deg'}
+    assert vsbench.miss_class(row, last_limit_distance=1.0) == 'local minimum'
+    # next to a joint limit it is still the image's minimum, not the limit's stall
+    assert vsbench.miss_class(row, last_limit_distance=0.0) == 'local minimum'
+    row['miss_reason_text'] = 'stalled at 6 s: final 25.3 mm, 45.1 deg, outside 1 mm and 0.5 deg'
+    assert vsbench.miss_class(row, last_limit_distance=0.0) == 'limit'

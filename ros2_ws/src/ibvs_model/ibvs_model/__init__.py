@@ -14,7 +14,7 @@ from .errors import (BehindCameraError, InvalidInputError, ModelError, Triangula
 from .robot import (condition_number, fiducial_points, forward_kinematics,
                     forward_kinematics_batch, geometric_jacobian, ik_position_axis,
                     ik_solutions, inverse_kinematics, IRB4600, joint_frames, point_jacobian,
-                    pose_error, pose_from, RobotParams)
+                    pose_error, pose_from, RobotParams, tool_axis_angle)
 
 __all__ = [
     'BehindCameraError', 'CameraRobotModel', 'condition_number', 'fiducial_points',
@@ -23,8 +23,8 @@ __all__ = [
     'InvalidInputError',
     'inverse_kinematics', 'IRB4600', 'joint_frames', 'look_at', 'ModelError',
     'nearest_rotation', 'point_jacobian', 'pose_error', 'pose_from', 'RobotParams',
-    'StereoCamera', 'StereoIntrinsics', 'TriangulationError', 'UnreachablePoseError',
-    'default_camera', 'default_model',
+    'StereoCamera', 'StereoIntrinsics', 'tool_axis_angle', 'TriangulationError',
+    'UnreachablePoseError', 'default_camera', 'default_model',
 ]
 
 

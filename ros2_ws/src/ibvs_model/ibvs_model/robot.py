@@ -575,6 +575,35 @@ def ik_position_axis(position: ArrayLike, axis: ArrayLike, q6: float,
     return best
 
 
+def tool_axis_angle(rotation: ArrayLike, target_rotation: ArrayLike) -> NDArray[np.float64]:
+    """
+    Return the angle (rad) between each tool axis z6 and the target's.
+
+    The roll about the tool axis is not controlled (docs/design.md §5): the project's
+    tool-axis error compares the axes only.
+
+    Parameters
+    ----------
+    rotation : array_like, shape (N, 3, 3) or (3, 3)
+        Rotations R_E^O of the tool.
+    target_rotation : array_like, shape (3, 3)
+        The target's.
+
+    Returns
+    -------
+    ndarray, shape (N,) or ()
+        The angles (rad).
+
+    """
+    z = np.asarray(rotation, float)[..., :, 2]
+    z_target = np.asarray(target_rotation, float)[:, 2]
+    cos = np.clip(z @ z_target, -1.0, 1.0)
+    # acos loses precision near 1: use the chord instead.
+    chord = np.linalg.norm(z - z_target, axis=-1)
+    return np.where(cos > 0.0, 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0)),
+                    np.arccos(cos))
+
+
 def pose_error(pose_a: ArrayLike, pose_b: ArrayLike) -> tuple[float, float]:
     """
     Return the position and rotation errors between two poses.
