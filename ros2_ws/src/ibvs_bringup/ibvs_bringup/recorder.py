@@ -90,6 +90,8 @@ KNOWN_TOPICS = {
     contract.MARKERS: 'visualization_msgs/msg/MarkerArray',
     contract.DEBUG_LEFT_IMAGE: 'sensor_msgs/msg/Image',
     contract.DEBUG_RIGHT_IMAGE: 'sensor_msgs/msg/Image',
+    contract.SERVO_STATUS: 'std_msgs/msg/Int8',
+    contract.FEEDBACK_STATUS: 'std_msgs/msg/Int8',
 }
 IMAGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
 #: Per-step topics recorded with ``include_per_step`` only: /ibvs/joint_path has them.
@@ -100,7 +102,8 @@ OVERLAY_TOPICS = {contract.DEBUG_LEFT_IMAGE, contract.DEBUG_RIGHT_IMAGE}
 RECORD_QOS = QoSProfile(depth=2000, reliability=contract.RELIABLE.reliability,
                         durability=contract.RELIABLE.durability)
 LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY,
-                  contract.ROBOT_DESCRIPTION, contract.TF_STATIC}
+                  contract.ROBOT_DESCRIPTION, contract.TF_STATIC, contract.SERVO_STATUS,
+                  contract.FEEDBACK_STATUS}
 #: Wall seconds between two flushes of a bag on the wall clock (``wall_clock``): what a
 #: killed recorder leaves readable, as each /clock does on sim time.
 WALL_FLUSH_S = 0.1

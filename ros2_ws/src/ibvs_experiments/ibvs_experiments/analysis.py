@@ -32,10 +32,12 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   features lost, held in a local minimum of the image error, with the final errors:
   :func:`.convergence.miss_reason`), None on success; ``time_to_success_s``: first time
   after which both errors stay within it;
-- ``final_image_error_px``: the feedback node's last |p_hat - p_bar| (``image_error_norm_px``
-  on its /diagnostics); ``final_servo_status``: the joint controller's last status
-  (``servo_status`` on its /diagnostics, a name of ibvs_control.servo_status.ServoStatus,
-  e.g. 'LOCAL_MINIMUM'); each absent from a bag without it;
+- ``final_image_error_px``: |p_hat - p_bar| of the run's last frame of /ibvs/features, p_bar
+  the controller's target features (the taught ones the feature node measured, else the
+  target pose's through the run's camera: :func:`final_image_error`);
+  ``final_servo_status``: the last /ibvs/servo_status of the run (a name of
+  ibvs_control.servo_status.ServoStatus, e.g. 'LOCAL_MINIMUM'); each absent from a bag
+  without them;
 - ``peak_joint_speed_ratio``, ``peak_joint_torque_ratio`` (:func:`joint_metrics`; from the
   bag's joint states and torques, :func:`analyse_bag`): the largest |qdot_i| / qd_max_i
   (the IRB 4600's rated joint speeds) and |tau_i| / tau_max_i (the torque limits estimated
@@ -158,8 +160,8 @@ class RunData:
     camera: object = None
     #: The simulator's render_device and render_hardware (/diagnostics), where it said them.
     render: dict = field(default_factory=dict)
-    #: The feedback node's last image error (px) and the joint controller's last status
-    #: (/diagnostics: ``image_error_norm_px``, ``servo_status``), None where never said.
+    #: The last frame's image error (px, :func:`final_image_error`) and the run's last
+    #: /ibvs/servo_status (a ServoStatus name), None where the bag has none.
     final_image_error_px: float | None = None
     servo_status: str | None = None
     #: Set by :func:`analyse_bag`: the joint series (:func:`load_joints`, to the run's
@@ -359,19 +361,21 @@ def load_run(bag_path: str | Path) -> 'RunData':
     infos, cam_pose = {}, None
     latency, rtf_held, render, taught = [], [], {}, []
     frame_stamps, servo_rtf = [], {}
-    said = {}  # the last value of each of SAID_KEYS on /diagnostics
+    statuses = []  # (bag time ns, code) of each /ibvs/servo_status
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
         wanted = {contract.TOOL_PATH, OLD_TOOL_POSE, contract.FEATURES, contract.FEATURE_STATUS,
                   contract.LEFT_INFO, contract.RIGHT_INFO, contract.STEREO_POSE,
                   contract.ZED_LEFT_INFO, contract.ZED_RIGHT_INFO, contract.FRAME_LATENCY,
-                  contract.DIAGNOSTICS}
+                  contract.DIAGNOSTICS, contract.SERVO_STATUS}
         if not any(c.topic in (contract.TOOL_PATH, OLD_TOOL_POSE) for c in reader.connections):
             wanted.add(contract.JOINT_STATES)
         conns = [c for c in reader.connections if c.topic in wanted]
-        for conn, _, raw in reader.messages(connections=conns):
+        for conn, bag_ns, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic == contract.JOINT_STATES:
+            if conn.topic == contract.SERVO_STATUS:
+                statuses.append((bag_ns, int(msg.data)))  # no header: the bag's time
+            elif conn.topic == contract.JOINT_STATES:
                 try:  # by name, other joints ignored, as the nodes read them
                     states.append((_stamp(msg.header), read_joints(msg)))
                 except InputError:
@@ -404,8 +408,6 @@ def load_run(bag_path: str | Path) -> 'RunData':
                           if kv.key == TAUGHT_KEY] or taught
                 servo_rtf.update((kv.key, kv.value) for status in msg.status
                                  for kv in status.values if kv.key in SERVO_RTF_KEYS)
-                said.update((kv.key, kv.value) for status in msg.status
-                            for kv in status.values if kv.key in SAID_KEYS)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -424,6 +426,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
         ft, feats = _before(end_ns, ft, feats)
         mt, modes = _before(end_ns, mt, modes)
         latency = [pair for pair in latency if pair[0] < end_ns]
+        statuses = [status for status in statuses if status[0] < end_ns]
         frame_stamps = [stamp for stamp in frame_stamps if stamp < end_ns]
     if len(t) < 2:
         raise NotAnalysable(f'{bag_path}: fewer than two tool poses on {contract.TOOL_PATH} '
@@ -453,25 +456,42 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    taught_target=_taught(taught),
                    frame_stamps=np.array(frame_stamps, dtype=np.int64), servo_rtf=servo_rtf,
                    tool_source=tool_source, target_source=target_source,
-                   final_image_error_px=_number_or_none(said.get(IMAGE_ERROR_KEY)),
-                   servo_status=said.get(SERVO_STATUS_KEY))
+                   final_image_error_px=final_image_error(
+                       feats, _taught(taught), camera, target_from_parameters(params)),
+                   servo_status=_status_name(statuses[-1][1]) if statuses else None)
 
 
-def _number_or_none(text):
-    """Return ``text`` as a float, or None (absent, or not a finite number)."""
-    try:
-        value = float(text)
-    except (TypeError, ValueError):
+def final_image_error(features: NDArray[np.float64], taught: NDArray[np.float64] | None,
+                      camera: Any, target: NDArray[np.float64]) -> float | None:
+    """
+    Return |p_hat - p_bar| (px) of the last of ``features`` (N, 6), or None without one.
+
+    p_bar is what the controller servoes to: the ``taught`` target features where the
+    feature node measured them, else the fiducials (:attr:`ibvs_model.RobotParams.fiducials_E`)
+    at the ``target`` pose (the parameters') through ``camera`` (None: not known).
+    """
+    if not len(features):
         return None
-    return value if np.isfinite(value) else None
+    if taught is None:
+        if camera is None:
+            return None
+        from ibvs_model import IRB4600
+        points = IRB4600.fiducials_E @ target[:3, :3].T + target[:3, 3]
+        taught = camera.project(points).reshape(6)
+    return float(np.linalg.norm(features[-1] - taught))
+
+
+def _status_name(code):
+    """Return the ServoStatus name of ``code``, or the code in words if it is none."""
+    from ibvs_control.servo_status import ServoStatus
+    try:
+        return ServoStatus(code).name
+    except ValueError:
+        return f'code {code}'
 
 
 #: The feature node's /diagnostics key of the taught target features (feature_node.py).
 TAUGHT_KEY = 'taught_target_px'
-#: The feedback node's key of its image error, the joint controller's of its status.
-IMAGE_ERROR_KEY = 'image_error_norm_px'
-SERVO_STATUS_KEY = 'servo_status'
-SAID_KEYS = (IMAGE_ERROR_KEY, SERVO_STATUS_KEY)
 
 
 def _taught(values):

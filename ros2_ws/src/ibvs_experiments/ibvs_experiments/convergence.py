@@ -102,7 +102,7 @@ def miss_reason(metrics: Mapping[str, Any], criterion: Convergence = SUCCESS) ->
     - 'features lost': the last feature status was not 'measured' (``final_feature_mode``:
       the feedback ran on estimates, out of view or undetected);
     - 'local minimum': stalled (below) with the final image error (``final_image_error_px``,
-      the feedback's |p_hat - p_bar| of its last frame) small while the tool is far
+      |p_hat - p_bar| of the run's last frame) small while the tool is far
       (:func:`ibvs_control.minimum_watch.disagree`, the rule the feedback node reports by
       with the model's pose): the law is held where the image error has a local minimum;
     - 'stalled': each error that misses fell by less than :data:`STALL_SHARE` of its final

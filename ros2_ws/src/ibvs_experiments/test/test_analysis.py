@@ -240,3 +240,19 @@ def test_load_joints_reads_the_batches_of_a_run_and_the_states_of_a_cell(tmp_pat
         [joint_state(m.header.stamp, m.position, m.velocity) for m in states]))])
     free = analysis.load_joints(tmp_path / 'free')
     assert free[1].tobytes() == run[1].tobytes() and free[3].shape == (0,)
+
+
+def test_the_final_image_error_is_the_last_frames_against_the_controllers_target():
+    from ibvs_model import default_model, inverse_kinematics, paper
+    model = default_model('HD720')
+    target = paper.target_pose()
+    p_bar = model.features(inverse_kinematics(target))
+    off = p_bar + np.array([0.3, 0.0, 0.0, 0.0, 0.0, 0.4])  # 0.5 px off
+    features = np.vstack([p_bar + 10.0, off])  # the last frame counts
+    # the model's target: the fiducials at the target pose through the run's camera
+    assert analysis.final_image_error(features, None, model.camera, target) == \
+        pytest.approx(0.5, abs=1e-6)
+    # a taught target: the features the feature node measured on the teach pair
+    assert analysis.final_image_error(features, off, model.camera, target) == 0.0
+    assert analysis.final_image_error(features, None, None, target) is None
+    assert analysis.final_image_error(np.zeros((0, 6)), off, model.camera, target) is None
