@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .robot import IRB4600, joint_frames, RobotParams
+from .tool import TOOL
 
 #: Half the ZED 2's width (175 mm, Stereolabs' ZED 2 datasheet): a sphere of this radius
 #: around the camera eye holds the whole enclosure whatever its orientation (m).
@@ -133,7 +134,7 @@ def arm_capsules(q: ArrayLike, params: RobotParams = IRB4600) -> list[Capsule]:
     return [Capsule('upper_arm', tuple(origin[1]), tuple(origin[2]), 0.12),
             Capsule('forearm', tuple(origin[2]), tuple(origin[4]), 0.12),
             Capsule('wrist', tuple(origin[4]), tuple(origin[6]), 0.07),
-            Capsule('tool', tuple(origin[6]), tuple(tip), 0.025)]
+            Capsule('tool', tuple(origin[6]), tuple(tip), TOOL.marker_radius_m)]
 
 
 @dataclass(frozen=True)

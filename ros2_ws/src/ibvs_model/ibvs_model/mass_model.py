@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .robot import IRB4600, RobotParams
 from .scene import MARKER_RADIUS_M
+from .tool import TOOL
 
 #: Total mass of the IRB 4600-60/2.05 (ABB product specification), kg.
 ROBOT_MASS_KG = 425.0
@@ -38,8 +39,9 @@ EFFORT_MARGIN = 1.5
 #: Density of the screwdriver's steel shaft and of the ABS marker spheres, kg/m^3.
 STEEL_DENSITY = 7850.0
 ABS_DENSITY = 1050.0
-#: Radius of the screwdriver shaft and of the link-6 quill that carries P1, m.
-SHAFT_RADIUS_M = 0.002
+#: Radius of the screwdriver shaft (the tool's: :data:`.tool.TOOL`) and of the link-6
+#: quill that carries P1 (the simulated arm's), m.
+SHAFT_RADIUS_M = TOOL.shaft_radius_m
 QUILL_RADIUS_M = 0.0025
 GRAVITY = 9.81
 

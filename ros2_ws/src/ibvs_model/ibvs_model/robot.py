@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array, as_transform
 from .errors import InvalidInputError, UnreachablePoseError
+from .tool import TOOL
 
 _DEG = math.pi / 180.0
 
@@ -53,7 +54,7 @@ class RobotParams:
     L3: float = 0.175
     L4: float = 0.96
     Lt: float = 0.135
-    L_tool: float = 0.127
+    L_tool: float = TOOL.length_m
     q_min: tuple = field(default=_deg(-180.0, -90.0, -180.0, -400.0, -125.0, -400.0))
     q_max: tuple = field(default=_deg(180.0, 150.0, 75.0, 400.0, 120.0, 400.0))
     qd_max: tuple = field(default=_deg(175.0, 175.0, 175.0, 250.0, 250.0, 360.0))

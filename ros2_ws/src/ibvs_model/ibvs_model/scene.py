@@ -1,11 +1,8 @@
 """
 What the camera sees of the tool: fiducial size and colours, shared by simulator and detector.
 
-The paper specifies two circular fiducials (section 2.2) but not their size or colour.
-Spheres project to circles from every viewpoint (discs do not). A radius of 25 mm is
-about 8.5 px at the target (2.0 m from the camera at HD720, f_u ~ 685 px), enough for the
-Hough transform. Two saturated, distinct colours tell marker 1 (P1, flange centre) from
-marker 2 (P2, L_tool / 2 along the tool); the robot and the scene avoid both hues.
+The numbers are the tool's (:data:`.tool.TOOL`, docs/tool.md: why spheres, why 25 mm, why
+red and blue); here under the names the simulator, the detector and the viewers read.
 :func:`in_view_poses` draws random tool poses with both markers wholly in view, for the
 tests and benches of the renderer and the detector.
 """
@@ -18,16 +15,17 @@ from numpy.typing import NDArray
 
 from .errors import UnreachablePoseError
 from .robot import fiducial_points, ik_position_axis
+from .tool import TOOL
 
 if TYPE_CHECKING:
     from .camera import StereoCamera
     from .combined import CameraRobotModel
 
-#: Radius of each spherical fiducial, m.
-MARKER_RADIUS_M = 0.025
+#: Radius of each spherical fiducial, m (the tool's: :data:`.tool.TOOL`).
+MARKER_RADIUS_M = TOOL.marker_radius_m
 
-#: RGB colours (0-255) of marker 1 (P1) and marker 2 (P2): red and blue.
-MARKER_RGB = ((220, 30, 30), (30, 70, 220))
+#: RGB colours (0-255) of marker 1 (P1) and marker 2 (P2): red and blue (the tool's).
+MARKER_RGB = TOOL.marker_rgb
 
 
 def in_view_poses(model: 'CameraRobotModel', count: int, rng: np.random.Generator,

@@ -60,10 +60,11 @@ from .mass_model import inertials, joint_efforts, link_shapes, matrix_rpy, tool_
 from .mesh import icosphere_obj, MARKER_MESH
 from .robot import IRB4600, RobotParams
 from .scene import MARKER_RGB
+from .tool import TOOL
 
 ROBOT_RGBA = (0.82, 0.82, 0.80, 1.0)
 BASE_RGBA = (0.62, 0.62, 0.62, 1.0)
-SHAFT_RGBA = (0.35, 0.35, 0.35, 1.0)
+SHAFT_RGBA = TOOL.shaft_rgba  # the tool's (:data:`.tool.TOOL`)
 JOINT_NAMES = tuple(f'joint_{i}' for i in range(1, 7))
 LINK_NAMES = ('base_link',) + tuple(f'link_{i}' for i in range(1, 7))
 

@@ -25,7 +25,7 @@ CLUTTER_RGB = ((128, 128, 128), (40, 40, 40), (230, 230, 230), (90, 160, 90),
 
 
 def render_sphere_patch(camera: StereoCamera, centre_O: ArrayLike, lens: str,
-                        radius: float = MARKER_RADIUS_M, rgb: ArrayLike = (220, 30, 30),
+                        radius: float = MARKER_RADIUS_M, rgb: ArrayLike = MARKER_RGB[0],
                         supersample: int = 4, light_C: ArrayLike = (-0.4, -0.6, -1.0),
                         ambient: float = 0.35, specular: float = 0.25
                         ) -> tuple[int, int, NDArray[np.float64], NDArray[np.float64],
