@@ -34,7 +34,7 @@ import numpy as np
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo
-from std_msgs.msg import Float64MultiArray, Header
+from std_msgs.msg import Float64MultiArray, Header, Int8
 
 from .harness import Case, stamp
 
@@ -244,6 +244,12 @@ def statuses(topic, next_ns, last_ns=None):
                   ('stamp going back 1 ms', topic,
                    lambda: [status(last_ns() - 1_000_000, 'measured')])]
     return cases
+
+
+def feedback_statuses(topic=contract.FEEDBACK_STATUS):
+    """Bad /ibvs/feedback_status: codes the feedback node never reports (a hold's, unknown)."""
+    return [(f'feedback status {code}', topic, lambda code=code: [Int8(data=code)])
+            for code in (12, 99, -128)]
 
 
 def arrays(topic, good, beyond):

@@ -139,6 +139,7 @@ class JointControllerRig(Rig):
                  + bad.trajectories(contract.FEEDFORWARD_TRAJECTORY, self.next_ns, held)
                  + bad.huge_trajectories(contract.FEEDFORWARD_TRAJECTORY, held,
                                          lambda n: _holds(self.node, n))
+                 + bad.feedback_statuses()
                  + bad.clocks())
         return build(self, specs)
 
@@ -322,6 +323,7 @@ class JointControllerPositionRig(Rig):
                                          lambda n: _holds(self.node, n))
                  + bad.camera_info_stamps(contract.LEFT_INFO, camera_infos(
                      default_camera('VGA').intrinsics, 0)[0])
+                 + bad.feedback_statuses()
                  + bad.clocks())
         return build(self, specs)
 
