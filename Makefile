@@ -85,7 +85,7 @@ demo: build
 report: build
 	$(RUN) python -m ibvs_experiments.cli report
 
-# The workspace benchmark (issue 38): 500 tasks x 3 laws through the model loop, the first
+# The workspace benchmark (docs/vsbench.md): 500 tasks x 3 laws through the model loop, the first
 # 100 through the graph; VSBENCH_ARGS='--tasks 50 --graph-tasks 10' for a reduced run.
 VSBENCH_ARGS ?=
 vsbench: build

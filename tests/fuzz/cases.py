@@ -43,15 +43,15 @@ NAMES = list(contract.JOINT_NAMES)
 FAR_SEC = 2 ** 31 - 1
 #: Messages in a burst.
 BURST = 50
-#: How far a stamp leads the next one in the 'stamp 0.4 s ahead' class: the outside audit's
-#: image, which refused the eleven frames after it as stamped before it.
+#: How far a stamp leads the next one in the 'stamp 0.4 s ahead' class: a node that took
+#: such an image would refuse the eleven frames after it as stamped before it.
 AHEAD_NS = 400_000_000
-#: Points of the 'huge trajectory' class: the audit's 6 s feedforward at 1 kHz.
+#: Points of the 'huge trajectory' class: a 6 s feedforward at 1 kHz.
 HUGE_POINTS = 6000
 #: The node of the second publisher (:func:`second_publishers`).
 ROGUE = 'fuzz_rogue'
-#: The topics whose second publisher an outside audit found unnoticed: every rig that
-#: reads one, or commands on one, gets the class on it.
+#: The topics whose second publisher would otherwise go unnoticed: every rig that reads
+#: one, or commands on one, gets the class on it.
 SECOND_PUBLISHER_TOPICS = (contract.JOINT_STATES, contract.FRAME_JOINT_STATES,
                            contract.Q_FEEDBACK, contract.FEATURES, contract.EFFORT_COMMANDS,
                            contract.POSITION_COMMANDS, contract.TRAJECTORY_COMMANDS)
@@ -340,8 +340,8 @@ def camera_infos(topic, good):
     """
     Bad CameraInfo: impossible sizes and projections, absurd but finite camera models.
 
-    The absurd models (the audit's f_u = 1e308 with the right P[3] = -1e308, which made
-    b = 1 m and features of inf; P[3] = -1e300 alone) and the others of
+    The absurd models (f_u = 1e308 with the right P[3] = -1e308, which makes b = 1 m and
+    features of inf; P[3] = -1e300 alone) and the others of
     :func:`ibvs_common.conversions.check_camera_info` and ``intrinsics_from_infos``: a
     field of view of 179 deg, a principal point off the image, a lens of another size than
     its pair, and for the right lens baselines of 1 mm and 10 m and a positive P[3], for the

@@ -2,9 +2,9 @@
 Wrong-typed parameters into every node of the graph, however they come: refused, named.
 
 A node is started as docs/running.md starts it, ``--ros-args --params-file
-scenario1.yaml``; a ``-p`` of the wrong type after a file that sets the parameter was
-dropped by rcl's merge without a word (the outside audit's ``-p camera_rate_hz:=abc``:
-the node ran with the file's 30.0). For every parameter each node declares (its module's
+scenario1.yaml``; rcl's merge drops a ``-p`` of the wrong type after a file that sets the
+parameter without a word (``-p camera_rate_hz:=abc``: rclpy alone would run the node with
+the file's 30.0). For every parameter each node declares (its module's
 ``PARAMS``) three cases, checked as the node's ``main`` checks its command line before
 rclpy starts (:func:`ibvs_common.node_main.check_arguments`; exit code 2 in the process,
 tests/test_ros_args.py): ``-p`` of the wrong type after the scenario file; a parameter file

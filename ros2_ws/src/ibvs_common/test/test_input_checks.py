@@ -64,8 +64,8 @@ def test_an_absurd_lens_is_refused_by_itself(index, value, reason):
         assert _reason(conversions.check_camera_info, info) == reason
 
 
-def test_the_audit_camera_never_reaches_the_model():
-    """f_u = 1e308 with the right P[3] = -1e308 (b = 1 m) overflowed to inf features."""
+def test_an_absurd_camera_never_reaches_the_model():
+    """f_u = 1e308 with the right P[3] = -1e308 (b = 1 m), which overflows to inf features."""
     left, right = _infos()
     for info in (left, right):
         p = list(info.p)

@@ -117,7 +117,7 @@ def test_joint_trajectory_controller_gets_a_stamped_window_by_joint_name(positio
 
 
 def test_a_stale_camera_holds_the_arm_says_why_and_resumes_without_a_jump(position_cell):
-    """Acceptance (issue 34): hold within the timeout, the status names the input, resume."""
+    """Hold within the timeout, the status names the input, resume."""
     # the arm's own speed limits, not a first run's cap (max_joint_speed_deg_s)
     cell = position_cell(joints=ORDER, frame_timeout_s=0.3, max_joint_speed_deg_s=1000.0)
     node, executor, pubs = cell.node, cell.executor, cell.pubs

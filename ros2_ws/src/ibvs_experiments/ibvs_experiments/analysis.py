@@ -598,8 +598,7 @@ def feature_errors(run: 'RunData', params: 'RobotParams | None' = None
     pose of the frame's stamp, projected (eq. 14-22) by the run's camera (the published
     one: the true camera unless the run sets calibration errors). ``params``: the robot
     whose tool carries the fiducials (default the paper's IRB 4600). Not part of the
-    metrics (issue 24: an accuracy check of the renderer and detector, printed by
-    ``make bench``).
+    metrics: an accuracy check of the renderer and detector, printed by ``make bench``.
     """
     from ibvs_model import IRB4600
     params = IRB4600 if params is None else params

@@ -93,7 +93,7 @@ def with_servo_law(overrides: dict[str, Any]) -> dict[str, Any]:
     if law is None:
         return overrides
     # Here, not at the top: ibvs_control pulls in scipy.signal, seconds of start-up that a
-    # run without servo_law does not need (issue 24).
+    # run without servo_law does not need.
     from ibvs_control.servo_laws import feedforward_overrides
     for key, value in feedforward_overrides(law).items():
         overrides.setdefault(key, value)
@@ -183,7 +183,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f'running {args.scenario} -> {out}')
 
     def metrics_ready(metrics):
-        # The metrics before the figures, which take matplotlib seconds more (issue 24).
+        # The metrics before the figures, which take matplotlib seconds more.
         print(f'wrote {out}/metrics.json' + (', drawing the figures' if args.figures else ''))
         _print_summary(metrics)
         sys.stdout.flush()
@@ -331,7 +331,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     args.out = args.out or 'results/scenario1'
     args.param = ['actuators:=ideal'] + list(args.param)
     # The film of this run, from its own bag (its camera images rendered again from its
-    # joint states after the run: recording them would slow the run, issue 35).
+    # joint states after the run: recording them would slow the run).
     args.video = args.video or not args.no_video
     return cmd_run(args)
 

@@ -386,7 +386,7 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     Run scenario ``name`` through the graph; write bag, metrics and figures to ``out_dir``.
 
     ``figures=False`` writes the bag and metrics only (``ibvs analyse`` draws the figures
-    later); a study's runs save the few seconds of matplotlib each (issue 26).
+    later): a study's runs save the seconds of matplotlib each.
     ``on_metrics(metrics)``: called as soon as ``metrics.json`` is written, before the
     figures (:func:`write_results`).
 
@@ -868,7 +868,7 @@ def stop(procs: Sequence[NodeProcess], graph: Graph = GRAPH,
     signalled first: once it stops nothing is stepped, and a node that stops before it only
     makes it wait (the lockstep). The analysis takes the steps before the run's end only
     (:func:`.analysis.analyse_bag`), so the order cannot change a result. Stopping the
-    simulator alone first cost its exit time again, about a second a run (issue 26).
+    simulator alone first would add its exit time to every run's.
     ``executor`` (the recorder's) spins meanwhile: the nodes' last /diagnostics, with
     their timing totals, reach the bag (a simulated second takes about one of wall time,
     between two of their heartbeats).
@@ -933,7 +933,7 @@ def write_results(bag_path: str | Path, out_dir: str | Path,
         on_metrics(metrics)
     if not figures:
         return metrics
-    from . import plots  # here: matplotlib costs seconds of start-up (issue 24)
+    from . import plots  # here: matplotlib costs seconds of start-up
     plots.write_all(run, out_dir, target_features(run))
     if len(run.joints[0]):  # read and limited once, by analyse_bag
         plots.joints(run.joints, run.joint_limits, out_dir / 'joints.png', plots.title_of(run))

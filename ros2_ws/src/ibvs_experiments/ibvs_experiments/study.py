@@ -172,8 +172,9 @@ def run_command(run_dir: str | Path, scenario_name: str, overrides: Mapping[str,
 
 #: Attempts of a run whose node process died. A run is deterministic, so a death of ours (an
 #: exception in a node) comes back the same on the second attempt, and costs one run more;
-#: a crash below us (a segmentation fault in a native library the nodes load) need not,
-#: and the second attempt tells the two apart.
+#: a crash below us need not (the machine, or one of the native libraries the nodes load:
+#: Mesa's EGL and llvmpipe under the renderer, PyBullet, OpenCV, the DDS), and the second
+#: attempt tells the two apart.
 NODE_DEATH_ATTEMPTS = 2
 
 

@@ -1,5 +1,5 @@
 """
-``make vsbench``: the workspace benchmark of issue 38 (500 seeded tasks, three servo laws).
+``make vsbench``: the workspace benchmark (500 seeded tasks, three servo laws).
 
 The benchmark is data (:func:`definition`, committed as ``benchmarks/vsbench-2.json``):
 500 tasks of the workspace sampler (:func:`ibvs_model.task_sampler.tasks`, version
@@ -90,18 +90,17 @@ CONDITIONS = {**CASES['limited'], 'image_noise_stddev': 0.01, 'frame_drop_probab
 #: Sim time of a run (s): the law study's limited runs need up to 3 s from the paper's
 #: starts; the tasks start up to 20 deg per joint away.
 DURATION_S = 6.0
-#: The image size of both loops: HD720, the real cell's mode (vsbench-1 ran VGA: its
-#: feature noise, 2.2 times HD720's at half the focal length, decided the runs more than the
-#: law did, and the model loop was then harsher than the graph; docs/vsbench.md).
+#: The image size of both loops: HD720, the real cell's mode (at VGA the feature noise, 2.2
+#: times HD720's at half the focal length, decides the runs more than the law does, and the
+#: model loop is harsher than the graph; docs/vsbench.md).
 GRAPH_RESOLUTION = 'HD720'
 #: The graph's base scenario (the rest of its parameters: rates, gains).
 SCENARIO = 'scenario1'
 #: The feature noise (px, standard deviation per value and frame) the detector gives with
 #: image noise 0.01, per image size: :func:`measure_feature_noise` on the first 8 tasks'
 #: targets, 20 noise draws each (RMS over the six values of the per-pose standard
-#: deviations), 2026-11-27. At HD720 the model loop with it ends scenario 1 as the graph
-#: does (docs/camera.md: 0.140 mm, last 0.5 s 0.111 / 0.239 mm; the model loop, seeds 0-3:
-#: 0.015-0.189 mm, 0.043-0.181 / 0.144-0.257 mm).
+#: deviations). At HD720 the model loop with it ends scenario 1 as the graph does (the
+#: figures of both: docs/vsbench.md).
 FEATURE_NOISE_PX = {'VGA': 0.017, 'HD720': 0.0076}
 #: The model loop's 'limited' actuators (the bare double integrator, M = I): acceleration
 #: limits (rad/s^2), per joint the smallest (tau_max - |g(q)|) / M_ii over the first 50
@@ -382,7 +381,7 @@ def run_metrics(task: Mapping[str, Any], law: str, t: ArrayLike, q: ArrayLike,
 
 def miss_class(row: Mapping[str, Any], last_limit_distance: float) -> str:
     """
-    Return a run's miss class ('' for a success): the categories of issue 38 item 1.
+    Return a run's miss class ('' for a success): the category of why it missed.
 
     'collision' (a clearance reached 0, or the envelope halted for one), 'limit' (stalled
     within :data:`LIMIT_CLASS_RAD` of a joint limit in the last 0.5 s), 'singular' (the

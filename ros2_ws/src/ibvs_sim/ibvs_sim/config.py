@@ -21,7 +21,7 @@ from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
 from .rendering import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING,
                         MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING)
 
-#: The one renderer (issue 35 retired PyBullet's 'egl', 'tiny' and 'auto'): see RENDERER.
+#: The one renderer (PyBullet's 'egl', 'tiny' and 'auto' are refused): see RENDERER.
 RENDERERS = ('opengl',)
 #: The robot stands on a riser (:class:`.world.World`) whose top is the base plane. The
 #: paper's model has no floor; its sweep (Figure 13) needs room below the base: with L2 at
@@ -42,7 +42,7 @@ CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT
 #: parameter's message (not silently ignored, as an undeclared override would be).
 RENDERER = Param('renderer', 'opengl', "the images' renderer: 'opengl', our OpenGL renderer "
                  '(ibvs_sim.gl_renderer) on a GPU when there is one, llvmpipe otherwise; '
-                 "PyBullet's 'egl', 'tiny' and 'auto' were removed (issue 35)", '-',
+                 "PyBullet's 'egl', 'tiny' and 'auto' are refused", '-',
                  choices=RENDERERS)
 RENDER_SUPERSAMPLING = Param(
     'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '

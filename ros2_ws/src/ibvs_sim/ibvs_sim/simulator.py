@@ -87,7 +87,7 @@ class Simulator:
             given = start_joints(config.start_joints)
         except ParameterError as exc:
             raise ConfigError('start_joints', str(exc)) from None
-        if given is not None:  # a task's start (issue 38): the true angles as given
+        if given is not None:  # a task's start (start_joints): the true angles as given
             target = forward_kinematics(given, self.params)
         try:
             if start_pose is not None:  # the tool held at the target: the teach's IK

@@ -1,5 +1,5 @@
 """
-sim_node free-running as a real cell's components (issue 34), in an rclpy executor.
+sim_node free-running as a real cell's components, in an rclpy executor.
 
 /joint_states at joint_state_broadcaster's own rate and phase with extra joints, no
 /stereo/joint_states, each frame delivered feedback_latency_s after its exposure and stamped

@@ -77,7 +77,7 @@ def test_a_hostile_full_size_pair_stops_within_the_budget(kind, hd_model, monkey
     """
     Noise, a checkerboard, a crowd of circles: the pair stops within its budget, unmeasured.
 
-    Before the budget, one noisy HD720 pair took 12-30 s of Hough search. Searched in full
+    Unbounded, one noisy HD720 pair's Hough search lasts many frame periods. Searched in full
     (no prediction) and near a prediction, the pair ends with Reason.OVER_BUDGET, its
     estimated cost within the budget, and the Hough transforms and refinements that did
     run cost, priced again here, no more than what the detector paid.

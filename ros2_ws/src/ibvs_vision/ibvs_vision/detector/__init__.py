@@ -31,9 +31,8 @@ marker 2 blue):
    where a rod is in front, a darker background where a rod or the other marker is
    behind, and filling a notch from the opposite end copies that end's error. The band
    (the rods' image radius plus ``axis_band_px``) is point-symmetric about the centre, so
-   what is left still has its centroid at the ellipse's centre. With the 'opengl'
-   renderer's images at the target this took marker 1's vertical bias from 0.009 px to
-   under 0.001 px and scenario 1's final error from 0.23 to 0.08 mm (docs/design.md §7).
+   what is left still has its centroid at the ellipse's centre (what it removes from
+   marker 1's vertical bias and scenario 1's final error: docs/design.md §7).
 4. **Stereo pairing** by the epipolar constraint of a rectified pair: same v within a
    tolerance, positive disparity u_l - u_r (ROS signs, docs/design.md §5: the left lens at
    x = -b/2 of {C}), and radii that agree with each other and with the depth given by the

@@ -1,11 +1,11 @@
 """
-The node findings of the second audit (issue 39, items 3, 5 and 8), one test each.
+Absurd cameras, duplicate stamps and upstream's refusals into the nodes, one test each.
 
 On the fuzz rigs (:mod:`.rigs`), with the check that the suite's non-finite scan can fail.
 
-Each test sends what the audit found accepted and checks what must hold instead: refused
-with its reason under its topic (the resolved name), nothing non-finite published, and
-the node still acting on the next valid input.
+Each test sends inputs a node could take for valid and checks what must hold instead:
+refused with its reason under its topic (the resolved name), nothing non-finite published,
+and the node still acting on the next valid input.
 """
 
 from builtin_interfaces.msg import Duration
@@ -28,8 +28,8 @@ def _run(rig):
     return rig
 
 
-def _audit_cameras(intrinsics):
-    """Return the audit's two absurd pairs: f_u = 1e308 (right P[3] -1e308), P[3] -1e300."""
+def _absurd_cameras(intrinsics):
+    """Return two absurd pairs: f_u = 1e308 (right P[3] -1e308), and a right P[3] -1e300."""
     left, right = camera_infos(intrinsics, 0)
     for info in (left, right):
         p = list(info.p)
@@ -62,10 +62,10 @@ def test_the_non_finite_scan_finds_nan_and_inf_anywhere_in_a_message():
     assert non_finite_fields(image_msg(np.zeros((4, 4, 3), dtype=np.uint8), 0)) == []
 
 
-def test_finding3_the_feature_node_refuses_the_audit_cameras_and_publishes_finite(context):
+def test_the_feature_node_refuses_absurd_cameras_and_publishes_finite(context):
     rig = _run(rigs.FeatureRig(context))
     try:
-        (left, right), only_p3 = _audit_cameras(rig.camera.intrinsics)
+        (left, right), only_p3 = _absurd_cameras(rig.camera.intrinsics)
         rig.deliver(contract.LEFT_INFO, left)
         rig.deliver(contract.RIGHT_INFO, right)
         rig.deliver(contract.RIGHT_INFO, only_p3)
@@ -81,10 +81,10 @@ def test_finding3_the_feature_node_refuses_the_audit_cameras_and_publishes_finit
         rig.close()
 
 
-def test_finding3_the_feedback_node_counts_its_camera_rejections(context):
+def test_the_feedback_node_counts_its_camera_rejections(context):
     rig = rigs.AdaptiveFeedbackRig(context)
     try:
-        (left, right), only_p3 = _audit_cameras(rig.camera.intrinsics)
+        (left, right), only_p3 = _absurd_cameras(rig.camera.intrinsics)
         rig.deliver(contract.LEFT_INFO, left)  # before the model: refused, never built from
         rig.deliver(contract.RIGHT_INFO, only_p3)
         assert rig.node.feedback is None
@@ -100,7 +100,7 @@ def test_finding3_the_feedback_node_counts_its_camera_rejections(context):
         rig.close()
 
 
-def test_finding5_the_simulated_trajectory_controller_refuses_what_jtc_refuses(context):
+def test_the_simulated_trajectory_controller_refuses_what_jtc_refuses(context):
     rig = _run(rigs.SimPositionRig(context, 'joint_trajectory'))
     try:
         node = rig.node
@@ -128,7 +128,7 @@ def test_finding5_the_simulated_trajectory_controller_refuses_what_jtc_refuses(c
         rig.close()
 
 
-def test_finding8_viz_neither_redraws_a_duplicate_stamp_nor_draws_off_the_image(context):
+def test_viz_neither_redraws_a_duplicate_stamp_nor_draws_off_the_image(context):
     rig = _run(rigs.VizRig(context))
     try:
         last = rigs.frame_ns(rig.n - 1)
@@ -149,7 +149,7 @@ def test_finding8_viz_neither_redraws_a_duplicate_stamp_nor_draws_off_the_image(
         rig.close()
 
 
-def test_finding8_feature_node_counts_a_duplicate_joint_state(context):
+def test_feature_node_counts_a_duplicate_joint_state(context):
     rig = _run(rigs.FeatureRig(context))
     try:
         assert rig.recovered()  # a second frame: one stamp to go back to
@@ -163,7 +163,7 @@ def test_finding8_feature_node_counts_a_duplicate_joint_state(context):
         rig.close()
 
 
-def test_finding8_feature_node_files_rejections_under_the_zed_names(context):
+def test_feature_node_files_rejections_under_the_zed_names(context):
     from ibvs_vision.feature_node import FeatureNode
     remaps = {contract.LEFT_IMAGE: contract.ZED_LEFT_IMAGE,
               contract.RIGHT_IMAGE: contract.ZED_RIGHT_IMAGE,
