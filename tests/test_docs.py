@@ -1,8 +1,9 @@
 """
 The README stays a front page, and the documentation's relative links lead somewhere.
 
-README.md at most 200 lines, the rest in docs/ pages; a link to a page that was renamed or
-never written is caught here, not by a reader.
+README.md at most 200 lines, the rest in docs/ pages, each reached from the README by links
+(directly or through another page); a link to a page that was renamed or never written, or
+a page no link leads to, is caught here, not by a reader.
 """
 
 from pathlib import Path
@@ -84,11 +85,48 @@ def test_relative_links_point_at_files(page):
     assert broken_links(page) == []
 
 
+def reachable(start):
+    """
+    Return the Markdown pages that ``start`` links to, directly or through pages it reaches.
+
+    Parameters
+    ----------
+    start : Path
+        The first page (the README).
+
+    Returns
+    -------
+    set of Path
+        Resolved paths of ``start`` and of every existing .md page reached by relative links.
+
+    """
+    seen, todo = set(), [start.resolve()]
+    while todo:
+        page = todo.pop()
+        if page in seen or page.suffix != '.md' or not page.is_file():
+            continue
+        seen.add(page)
+        todo += [(page.parent / path).resolve()
+                 for path, _ in relative_links(page.read_text(encoding='utf-8')) if path]
+    return seen
+
+
 def test_every_docs_page_is_reachable_from_the_readme():
-    linked = {(README.parent / path).resolve()
-              for path, _ in relative_links(README.read_text(encoding='utf-8'))}
-    unlinked = [p.name for p in sorted((ROOT / 'docs').glob('*.md')) if p.resolve() not in linked]
-    assert unlinked == []
+    reached = reachable(README)
+    orphans = [p.name for p in sorted((ROOT / 'docs').glob('*.md')) if p.resolve() not in reached]
+    assert orphans == [], (f'docs pages no link leads to from README.md: {orphans}; link each '
+                           'from the README or from a page it reaches')
+
+
+def test_the_reach_follows_links_through_pages(tmp_path):
+    (tmp_path / 'README.md').write_text('[a](docs/a.md#top) and [web](https://example.org)\n')
+    docs = tmp_path / 'docs'
+    docs.mkdir()
+    (docs / 'a.md').write_text('# Top\n\n[b](b.md), [gone](gone.md), `[c](c.md)`\n')
+    (docs / 'b.md').write_text('[back](../README.md), [a](a.md)\n')
+    (docs / 'c.md').write_text('[a](a.md)\n')
+    assert reachable(tmp_path / 'README.md') == {
+        (tmp_path / 'README.md').resolve(), (docs / 'a.md').resolve(), (docs / 'b.md').resolve()}
 
 
 def test_the_link_check_finds_a_broken_link(tmp_path):
