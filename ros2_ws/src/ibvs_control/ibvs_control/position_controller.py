@@ -9,9 +9,11 @@ arm's limits (:class:`.position_interface.PositionShaper`, Ruckig), on
 /joint_trajectory_controller/joint_trajectory (``position_command_type``), or in a dry run
 (``dry_run``) on /ibvs/dry_run/commands or /ibvs/dry_run/joint_trajectory instead, the arm's
 command topic never opened; the first command that uses a frame's q_feedback goes on
-/ibvs/frame_latency. A stale input, a clock that jumped back, a sim time that stopped or a
-second publisher on /joint_states, the q_feedback, the feedforward or its own command topic
-stops and holds the arm (:mod:`.servo_status`, on /ibvs/servo_status, which also relays
+/ibvs/frame_latency. The move starts once the feedforward and a joint state are there: the
+camera's first frame and its q_feedback must follow within ``frame_timeout_s``. A stale
+input, a clock that jumped back, a sim time that stopped or a second publisher on
+/joint_states, the q_feedback, the feedforward or its own command topic stops and holds
+the arm (:mod:`.servo_status`, on /ibvs/servo_status, which also relays
 the feedback node's local minimum: :mod:`.feedback_relay`). In full:
 docs/nodes.md.
 """
@@ -46,10 +48,13 @@ EFFORT_ONLY = ('actuators', 'torque_limits', 'acceleration_margin')
 #: Wall seconds between two looks at whether sim time stopped (free-running only: the
 #: lockstep's effort interface waits for its simulator and never looks).
 CLOCK_CHECK_S = 0.25
+#: The inputs the first command does not wait for: the move starts on the feedforward and
+#: the joint states, and the first camera frame and q_feedback must come within
+#: ``frame_timeout_s`` of that start (:class:`.servo_status.InputWatch`).
+AFTER_START = ('camera', 'feedback')
 #: What each input the first command waits for is, in the wait reporter's words.
 INPUTS = {'feedforward': f'the feedforward trajectory on {contract.FEEDFORWARD_TRAJECTORY}',
-          'joint_states': f'a {contract.JOINT_STATES} (the shaper starts from it)',
-          'camera': 'a camera frame ({})', 'feedback': f'a {contract.Q_FEEDBACK}'}
+          'joint_states': f'a {contract.JOINT_STATES} (the shaper starts from it)'}
 
 
 class ForwardCommand:
@@ -130,7 +135,7 @@ class PositionController(JointControllerMode):
         frame_timeout_ns = seconds_to_ns(config.frame_timeout_s)
         self._watch = InputWatch({'joint_states': seconds_to_ns(config.joint_state_timeout_s),
                                   'camera': frame_timeout_ns, 'feedback': frame_timeout_ns},
-                                 required=('feedforward',))
+                                 required=('feedforward',), after_start=AFTER_START)
         self._verdict = None
         self._hold_target = None
         self.holds = 0
@@ -314,7 +319,7 @@ class PositionController(JointControllerMode):
 
     def _waiting(self):
         """Report the servo status; return the wait reporter's line (None when ready)."""
-        missing = [INPUTS[name].format(self._camera_topic) for name in self._watch.missing()]
+        missing = [INPUTS[name] for name in self._watch.awaited()]
         self._report(self.node.get_clock().now().nanoseconds)
         return 'waiting to send position references for ' + ', '.join(missing) \
             if missing else None

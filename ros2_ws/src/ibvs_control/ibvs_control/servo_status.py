@@ -48,7 +48,8 @@ class ServoStatus(IntEnum):
     DECELERATE_FOR_COLLISION = 4
     HALT_FOR_COLLISION = 5
     JOINT_BOUND = 6
-    #: Not started: an input has never come (nothing is commanded).
+    #: Not started: an input the first command waits for has never come (nothing is
+    #: commanded).
     WAITING = 10
     #: Holding: /joint_states older than their timeout (where the arm is, is not known).
     HOLD_STALE_JOINT_STATES = 11
@@ -112,10 +113,19 @@ class InputWatch:
     required : iterable of str
         Inputs without an age (latched once, e.g. the feedforward trajectory) that must
         have come before anything is commanded.
+    after_start : iterable of str
+        Inputs with a timeout that the first command does not wait for: until one first
+        comes, its age counts from the start (the first verdict at which every other
+        input had come). The position controller starts the arm's planned move on the
+        feedforward and the joint states and takes the camera and the q_feedback as they
+        come: a ZED 2's first frame arrives 67-100 ms after its exposure, which the arm
+        would otherwise spend at rest; with none within the timeout it holds as for a
+        camera that stopped.
 
     """
 
-    def __init__(self, timeouts_ns: Mapping[str, int], required: Iterable[str] = ()) -> None:
+    def __init__(self, timeouts_ns: Mapping[str, int], required: Iterable[str] = (),
+                 after_start: Iterable[str] = ()) -> None:
         """Create the watch with nothing heard (see the class docstring)."""
         for name, timeout in timeouts_ns.items():
             if name not in HOLD_CODES:
@@ -124,8 +134,15 @@ class InputWatch:
                 raise ValueError(f'timeout of {name!r} must be > 0, got {timeout}')
         self.timeouts_ns = dict(timeouts_ns)
         self.required = list(required)
+        self.after_start = list(after_start)
+        for name in self.after_start:
+            if name not in self.timeouts_ns:
+                raise ValueError(f'after_start input {name!r} has no timeout: expected one '
+                                 f'of {list(self.timeouts_ns)}')
         self.newest_ns: dict[str, int] = {}
         self._present: set[str] = set()
+        #: The time of the start (every input but ``after_start`` had come), else None.
+        self.start_ns: int | None = None
         #: The last jump back (from ns, to ns) until every input came again, else None.
         self.jump: tuple[int, int] | None = None
 
@@ -146,23 +163,39 @@ class InputWatch:
         """
         self.newest_ns.clear()
         self.jump = (int(from_ns), int(to_ns))
+        self.start_ns = None
 
     def missing(self) -> list[str]:
         """Return the inputs that never came, required ones first."""
         return ([n for n in self.required if n not in self._present]
                 + [n for n in self.timeouts_ns if n not in self._present])
 
+    def awaited(self) -> list[str]:
+        """Return the inputs the first command waits for: :meth:`missing`, not ``after_start``."""
+        return [n for n in self.missing() if n not in self.after_start]
+
+    def _age_ns(self, name: str, now_ns: int) -> tuple[int, str]:
+        """Return the age (ns) of ``name`` at ``now_ns`` and its words."""
+        if name in self.newest_ns:
+            age = now_ns - self.newest_ns[name]
+            return age, f'newest is {age * 1e-9:.3f} s old'
+        age = now_ns - self.start_ns
+        return age, f'none in the {age * 1e-9:.3f} s since the start'
+
     def verdict(self, now_ns: int) -> Verdict:
         """
         Return the status at ``now_ns`` and why.
 
-        WAITING until every input came once; after a jump back (:meth:`forget`)
-        HOLD_CLOCK_JUMPED_BACK until each came again; then the hold code of the first input
-        (in the order of ``timeouts_ns``) older than its timeout; else NO_WARNING.
+        WAITING until every input but ``after_start`` came once (the start); after a jump
+        back (:meth:`forget`) HOLD_CLOCK_JUMPED_BACK until each came again; then the hold
+        code of the first input (in the order of ``timeouts_ns``) older than its timeout,
+        an ``after_start`` input not heard yet aged from the start; else NO_WARNING.
         """
-        missing = self.missing()
-        if missing:
-            return Verdict(ServoStatus.WAITING, 'waiting for ' + ', '.join(missing))
+        awaited = self.awaited()
+        if awaited:
+            return Verdict(ServoStatus.WAITING, 'waiting for ' + ', '.join(awaited))
+        if self.start_ns is None:
+            self.start_ns = int(now_ns)
         if self.jump is not None:
             again = [n for n in self.timeouts_ns if n not in self.newest_ns]
             if again:
@@ -173,11 +206,10 @@ class InputWatch:
                                + ', '.join(again))
             self.jump = None
         for name, timeout in self.timeouts_ns.items():
-            age = now_ns - self.newest_ns[name]
+            age, words = self._age_ns(name, now_ns)
             if age > timeout:
-                return Verdict(HOLD_CODES[name],
-                               f'{name} stale: newest is {age * 1e-9:.3f} s old '
-                               f'(timeout {timeout * 1e-9:g} s): holding the arm')
+                return Verdict(HOLD_CODES[name], f'{name} stale: {words} (timeout '
+                               f'{timeout * 1e-9:g} s): holding the arm')
         return Verdict(ServoStatus.NO_WARNING, 'ok')
 
 

@@ -47,14 +47,13 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
     spin_until(executor, lambda: node.mode._trajectory is not None and
                node.mode._measured is not None, what='trajectory and joint state')
     cell.clock(4 * MS)
-    spin_until(executor, lambda: changes(cell.status) == [ServoStatus.WAITING],
-               what='waiting for the camera and the feedback')
-    assert not cell.commands  # nothing moves before the loop is closed
+    # the move starts on the feedforward and the joint states: no frame has come yet
+    spin_until(executor, lambda: cell.commands, what='the first command, before any frame')
     cell.frame(0)
     spin_until(executor, lambda: node.mode._hold.stamp_ns == 0, what="frame 0's feedback")
     for t in range(8, 45, 4):
         cell.clock(t * MS)
-        spin_until(executor, lambda n=t // 4 - 1: len(cell.commands) >= n,
+        spin_until(executor, lambda n=t // 4: len(cell.commands) >= n,
                    what=f'the command at {t} ms')
     first = cell.commands[0]
     # controller order; joint_1 has left Q0 by at most what its jerk limit allows in
@@ -68,7 +67,7 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
     np.testing.assert_allclose(moved[1:], 0.0, atol=1e-12)
     spin_until(executor, lambda: cell.latency, what="frame 0's latency record")
     assert len(cell.latency) == 1 and stamp_ns(cell.latency[0].time_ref) == 0
-    assert changes(cell.status) == [ServoStatus.WAITING, ServoStatus.NO_WARNING]
+    assert changes(cell.status) == [ServoStatus.NO_WARNING]
     # a q_feedback of the frame exposed at 34 ms: the next command uses it and says so
     cell.frame(34 * MS, np.full(6, 1e-3))
     spin_until(executor, lambda: node.mode._hold.stamp_ns == 34 * MS, what='the feedback')
@@ -81,6 +80,27 @@ def test_sends_shaped_references_in_the_controllers_joint_order_and_reports_late
     spin_until(executor, lambda: node.diagnostics.rejected_total == 1,
                what='the rejection')
     assert node.diagnostics.rejections[f'{contract.Q_FEEDBACK}: out of order'] == 1
+
+
+def test_without_a_first_frame_within_its_timeout_the_started_move_holds(position_cell):
+    """The camera follows the start; none within frame_timeout_s holds as a stale camera."""
+    cell = position_cell(frame_timeout_s=0.1)
+    node, executor, pubs = cell.node, cell.executor, cell.pubs
+    target = Q0.copy()
+    target[0] += 1.0
+    pubs[contract.FEEDFORWARD_TRAJECTORY].publish(joint_trajectory(0, MS, [target]))
+    pubs[contract.JOINT_STATES].publish(joint_state(0, Q0, np.zeros(6)))
+    spin_until(executor, lambda: node.mode._trajectory is not None and
+               node.mode._measured is not None, what='trajectory and joint state')
+    for t in range(4, 101, 4):  # the start is the first command, at 4 ms
+        cell.tick(t * MS, inputs=False)
+        pubs[contract.JOINT_STATES].publish(joint_state(t * MS, cell.measured, np.zeros(6)))
+    assert changes(cell.status) == [ServoStatus.NO_WARNING]
+    assert cell.commands[-1][0] > Q0[0]  # on its way to the feedforward's target
+    cell.clock(108 * MS)  # 104 ms after the start, no frame: hold
+    cell.spin_to_status(ServoStatus.HOLD_STALE_CAMERA)
+    assert 'none in the 0.104 s since the start' in node.diagnostics.status().message
+    assert node.mode.holds == 1
 
 
 def test_joint_trajectory_controller_gets_a_stamped_window_by_joint_name(position_cell):

@@ -66,11 +66,54 @@ def test_joint_states_take_precedence_and_an_old_stamp_does_not_rejuvenate():
     assert w.verdict(400 * MS).status == ServoStatus.HOLD_STALE_CAMERA
 
 
+def position_watch():
+    """Return the position controller's watch: the camera and the q_feedback follow the start."""
+    return InputWatch({'joint_states': 100 * MS, 'camera': 300 * MS, 'feedback': 300 * MS},
+                      required=('feedforward',), after_start=('camera', 'feedback'))
+
+
+def test_the_move_starts_without_waiting_for_the_inputs_that_follow_the_start():
+    w = position_watch()
+    w.heard('feedforward', 0)
+    assert w.verdict(0).detail == 'waiting for joint_states'
+    assert w.missing() == ['joint_states', 'camera', 'feedback']  # all of them, for tests
+    w.heard('joint_states', 20 * MS)
+    assert w.verdict(20 * MS).status == ServoStatus.NO_WARNING  # the start: at 20 ms
+    assert w.start_ns == 20 * MS and w.awaited() == []
+    w.heard('joint_states', 320 * MS)
+    w.heard('camera', 300 * MS)  # the first frame, 280 ms after the start
+    assert w.verdict(320 * MS).status == ServoStatus.NO_WARNING
+    verdict = w.verdict(321 * MS)  # no q_feedback within 300 ms of the start: hold
+    assert verdict.status == ServoStatus.HOLD_STALE_FEEDBACK
+    assert verdict.detail == ('feedback stale: none in the 0.301 s since the start '
+                              '(timeout 0.3 s): holding the arm')
+    w.heard('feedback', 321 * MS)
+    assert w.verdict(321 * MS).status == ServoStatus.NO_WARNING
+
+
+def test_an_input_that_follows_the_start_and_never_comes_holds_once_past_its_timeout():
+    w = position_watch()
+    w.heard('feedforward', 0)
+    w.heard('joint_states', 0)
+    assert w.verdict(0).status == ServoStatus.NO_WARNING
+    w.heard('joint_states', 300 * MS)
+    assert w.verdict(300 * MS).status == ServoStatus.NO_WARNING
+    w.heard('joint_states', 301 * MS)
+    assert w.verdict(301 * MS).status == ServoStatus.HOLD_STALE_CAMERA  # first in order
+    # a jump back: a new start on the new time line, and every timed input again
+    w.forget(301 * MS, 0)
+    w.heard('joint_states', 10 * MS)
+    assert w.verdict(10 * MS).detail.endswith('until fresh camera, feedback')
+    assert w.start_ns == 10 * MS
+
+
 def test_bad_configurations_are_refused():
     with pytest.raises(ValueError, match='unknown input'):
         InputWatch({'lidar': MS})
     with pytest.raises(ValueError, match='must be > 0'):
         InputWatch({'camera': 0})
+    with pytest.raises(ValueError, match='has no timeout'):
+        InputWatch({'camera': MS}, after_start=('feedback',))
 
 
 def started(t_ns=0):
