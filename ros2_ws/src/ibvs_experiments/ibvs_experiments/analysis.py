@@ -21,7 +21,8 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   below ``-mount_height_m`` of the simulator it is under the floor, hidden from the camera);
 - ``*_last_0_5s_*``: the mean and the maximum of the position and tool-axis errors over
   the last ``LAST_WINDOW_S`` = 0.5 s of the run (one final sample says little under image
-  noise); the whole run when it is shorter;
+  noise), and the position error's ripple there (its maximum less its minimum: ringing,
+  or the image noise through the feedback); the whole run when it is shorter;
 - ``time_estimated_s``: sim time during which the features were not measured: the feature
   node's modes 'estimated' (from the model, eq. 46) and 'blending' (the switch from one
   source to the other, section 2.3); ``final_feature_mode``: the mode of the last feature
@@ -240,6 +241,7 @@ def compute_metrics(t: ArrayLike, position: ArrayLike, rotation: ArrayLike,
         'max_position_error_last_0_5s_m': float(error[last].max()),
         'mean_tool_axis_error_last_0_5s_deg': float(axis_err[last].mean()),
         'max_tool_axis_error_last_0_5s_deg': float(axis_err[last].max()),
+        'position_error_ripple_last_0_5s_m': float(np.ptp(error[last])),
         'initial_position_error_m': float(error[0]),
         'settling_time_2pct_s': _relative(_settle_time(t, error <= 0.02 * error[0]), t),
         'time_to_1mm_s': _relative(_settle_time(t, REACHED.within(error)), t),

@@ -133,6 +133,8 @@ def test_mean_and_max_error_over_the_last_half_second():
     assert m['mean_position_error_last_0_5s_m'] == pytest.approx(0.003 * 2 / np.pi, rel=1e-2)
     assert m['mean_tool_axis_error_last_0_5s_deg'] == pytest.approx(0.05, rel=1e-6)
     assert m['max_tool_axis_error_last_0_5s_deg'] == pytest.approx(0.05, rel=1e-6)
+    # the ripple: from the sine's zero to its peak
+    assert m['position_error_ripple_last_0_5s_m'] == pytest.approx(0.003, rel=1e-6)
     # a run shorter than the window: the whole run
     short = analysis.compute_metrics(t[:100], position[:100], rotation[:100], target)
     assert short['max_position_error_last_0_5s_m'] == pytest.approx(0.01)
