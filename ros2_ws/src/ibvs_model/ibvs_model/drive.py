@@ -18,33 +18,35 @@ PositionShaper`) and the simulator's drive model tracks the reference with them
   applied to the references; 20 Hz is the value of ABB's examples and the order of a large
   arm's position-loop bandwidth. An assumption to measure on the cell (docs/real_cell.md):
   a step of 1 deg on one joint through EGM, time constant = 1 / (2 pi f).
-- ``ACCELERATION_LIMITS`` (rad/s^2): ABB publishes the IRB 4600's axis speeds
-  (``IRB4600.qd_max``) but not its accelerations. These are half of what the model's motor
-  torques give against gravity at the paper's start poses for joints 1-3 (174, 28 and
-  123 rad/s^2 for joint 1, 2, 3; the wrists' inertia is small), rounded down and made
-  uniform: 10 rad/s^2 for joints 1-3, 20 rad/s^2 for the wrist. Half, as the effort mode's
-  ``acceleration_margin``: what the drive can do at any pose, not at the best one.
-- ``JERK_LIMITS`` (rad/s^3): nor its jerk. Each is its joint's acceleration limit over
-  ``JERK_RISE_S`` = 0.1 s, the time the reference takes to reach full acceleration: five
-  time constants of the 20 Hz position loop (8 ms each) and five times EGM's 20 ms dead
-  time, so the drive follows a reference whose acceleration ramps that slowly without
-  lagging into saturation; MoveIt Servo's Ruckig smoother needs the same three limits per
-  joint (moveit2 53de800, ``moveit_core/online_signal_smoothing/src/ruckig_filter.cpp``,
+- ``SPEED_LIMITS``, ``ACCELERATION_LIMITS``, ``JERK_LIMITS``: the arm's joint_limits file
+  (:data:`.joint_limits.IRB4600_60_205`, where each number's source is written). ABB
+  publishes the IRB 4600's axis speeds but not its accelerations: these are half of what
+  the model's motor torques give against gravity at the paper's start poses for joints 1-3
+  (174, 28 and 123 rad/s^2 for joint 1, 2, 3; the wrists' inertia is small), rounded down
+  and made uniform: 10 rad/s^2 for joints 1-3, 20 rad/s^2 for the wrist. Half, as the
+  effort mode's ``acceleration_margin``: what the drive can do at any pose, not at the best
+  one. Nor its jerk: each is its joint's acceleration limit over ``JERK_RISE_S`` = 0.1 s,
+  the time the reference takes to reach full acceleration: five time constants of the 20 Hz
+  position loop (8 ms each) and five times EGM's 20 ms dead time, so the drive follows a
+  reference whose acceleration ramps that slowly without lagging into saturation; MoveIt
+  Servo's Ruckig smoother needs the same three limits per joint (moveit2 53de800,
+  ``moveit_core/online_signal_smoothing/src/ruckig_filter.cpp``,
   ``getVelAccelJerkBounds``). Assumptions to measure on the cell, as the others.
 """
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .robot import IRB4600
+from .joint_limits import IRB4600_60_205
 
 EGM_RATE_HZ = 250.0
 EGM_DELAY_S = 0.02
 EGM_BANDWIDTH_HZ = 20.0
-ACCELERATION_LIMITS = (10.0, 10.0, 10.0, 20.0, 20.0, 20.0)
+ACCELERATION_LIMITS = IRB4600_60_205.max_acceleration
+#: What the jerk limits are derived from: each joint's acceleration over this (s).
 JERK_RISE_S = 0.1
-JERK_LIMITS = tuple(a / JERK_RISE_S for a in ACCELERATION_LIMITS)
-SPEED_LIMITS = tuple(float(v) for v in IRB4600.qd_max)
+JERK_LIMITS = IRB4600_60_205.max_jerk
+SPEED_LIMITS = IRB4600_60_205.max_velocity
 
 
 def check_limits(speed_limits: ArrayLike, acceleration_limits: ArrayLike

@@ -29,13 +29,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validate import as_array, as_transform
 from .errors import InvalidInputError, UnreachablePoseError
+from .joint_limits import IRB4600_60_205
 from .tool import TOOL
-
-_DEG = math.pi / 180.0
-
-
-def _deg(*values):
-    return tuple(v * _DEG for v in values)
 
 
 @dataclass(frozen=True)
@@ -45,7 +40,8 @@ class RobotParams:
 
     Lengths in metres, angles in radians, speeds in rad/s. Joint ranges and speed limits
     are ABB's product specification for the IRB 4600-60/2.05 (docs/design.md §5), applied to
-    the paper's DH angles q (which share the zero pose and signs of ABB's axes 1-6).
+    the paper's DH angles q (which share the zero pose and signs of ABB's axes 1-6), read
+    from the arm's joint_limits file (:data:`.joint_limits.IRB4600_60_205`).
     """
 
     a1: float = 0.175
@@ -55,9 +51,9 @@ class RobotParams:
     L4: float = 0.96
     Lt: float = 0.135
     L_tool: float = TOOL.length_m
-    q_min: tuple = field(default=_deg(-180.0, -90.0, -180.0, -400.0, -125.0, -400.0))
-    q_max: tuple = field(default=_deg(180.0, 150.0, 75.0, 400.0, 120.0, 400.0))
-    qd_max: tuple = field(default=_deg(175.0, 175.0, 175.0, 250.0, 250.0, 360.0))
+    q_min: tuple = field(default=IRB4600_60_205.min_position)
+    q_max: tuple = field(default=IRB4600_60_205.max_position)
+    qd_max: tuple = field(default=IRB4600_60_205.max_velocity)
 
     def __post_init__(self):
         """Check lengths and limits once, so that every function can trust them."""
