@@ -52,6 +52,35 @@ def test_nothing_on_the_domain_exits_naming_the_image_topic(installed_workspace,
     assert not list((tmp_path / 'cell' / 'logs').glob('*.log'))  # nothing was started
 
 
+def test_a_downscaled_camera_is_refused_naming_pub_resolution(installed_workspace, tmp_path):
+    """The wrapper's 'CUSTOM' resolution rehearsed: HD720 published at half its size."""
+    with open(tmp_path / 'sim.log', 'w') as sim_log:
+        sim = subprocess.Popen(
+            [str(Path(installed_workspace) / 'lib' / 'ibvs_sim' / 'sim_node'), '--ros-args',
+             '--params-file', str(REAL_CELL), '-p', 'pub_downscale_factor:=2.0',
+             # as the ZED wrapper, it publishes to the first reader (the check's)
+             '-p', 'min_command_publishers:=0', '-p', 'min_joint_state_subscribers:=0',
+             '-r', '/forward_position_controller/commands:='
+             '/forward_command_controller_position/commands'],
+            stdout=sim_log, stderr=subprocess.STDOUT, preexec_fn=supervised_child)
+        try:
+            proc = ibvs_cell(tmp_path, '-p', 'use_sim_time:=true', '--check-timeout', '180')
+            try:
+                out, err = proc.communicate(timeout=300.0)
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+                    proc.communicate()
+        finally:
+            _stop(sim)
+    assert proc.returncode == 5, (out, err)
+    assert ("/zed/zed_node/left/color/rect/camera_info: 640 x 360 is none of the ZED 2's "
+            'native sizes') in err
+    assert 'general.pub_resolution:=NATIVE' in err and 'no node started' in err
+    assert 'camera_info 640 x 360, f_x' in out
+    assert not list((tmp_path / 'cell' / 'logs').glob('*.log'))  # nothing was started
+
+
 @pytest.fixture
 def cell_under_way(installed_workspace, tmp_path):
     """

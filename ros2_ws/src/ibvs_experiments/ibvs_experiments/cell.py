@@ -24,7 +24,11 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
    reads it at ``zed_components/src/zed_camera/src/zed_camera_component_main.cpp`` L904 and
    creates the left and right publishers only when it is true,
    ``zed_camera_component_video_depth.cpp`` L258-261 and L391-395); then the command exits
-   with :data:`EXIT_CHECK_FAILED` and nothing has started.
+   with :data:`EXIT_CHECK_FAILED` and nothing has started. Then one left and one right
+   camera_info (:func:`wait_for_camera_info`) must be a rectified pair at one of the ZED 2's
+   native sizes (:func:`.cell_camera.camera_problems`: a downscaled 640 x 360, the
+   wrapper's ``general.pub_resolution: 'CUSTOM'``, is refused naming it; a camera that
+   sends none within :data:`CAMERA_INFO_TIMEOUT_S` is named in a warning, not refused).
    With a teach (``--teach DIR``, :mod:`.teach`) this process publishes its pair latched
    before the check (which then finds it), takes its target (the cli sets it), and
    refuses another publisher of the pair (:func:`foreign_publishers`: a simulator that
@@ -95,6 +99,9 @@ DEFAULT_CAMERA = 'zed'
 ZED_NODE = 'zed_node'
 #: The default wall time (s) the cell's topics have to appear in the graph.
 CHECK_TIMEOUT_S = 10.0
+#: The wall time (s) the first camera_info pair has once the topics are there (a camera
+#: publishes one a frame, 30 or 60 a second, as soon as it is read).
+CAMERA_INFO_TIMEOUT_S = 2.0
 #: What the status line says of a holding code until /diagnostics says more (in the
 #: sim-time rehearsal a stopped /clock ages nothing: only the code tells it).
 HOLD_WORDS = {'HOLD_CLOCK_STOPPED': 'clock stopped',
@@ -445,6 +452,54 @@ def wait_for_topics(node: Any, expected: Sequence[Expectation],
         time.sleep(poll_s)
 
 
+def wait_for_camera_info(node: Any, camera_name: str, timeout_s: float,
+                         spin: Callable[[float], None],
+                         clock: Callable[[], float] = time.monotonic,
+                         stopped: Callable[[], bool] = lambda: False
+                         ) -> tuple[list[str], str]:
+    """
+    Read one left and one right camera_info of the camera; return (problems, a line).
+
+    :func:`.cell_camera.camera_problems` on the first of each. A camera that gives none
+    within ``timeout_s`` is not refused (a ZED wrapper that is up publishes one a frame to
+    any reader; the simulator standing in for the cell waits for all the nodes' readers
+    first): the line is then a warning that names it. The images are subscribed to as
+    well (their bytes dropped unread), as the feature node will: a camera that publishes
+    to its image readers only is read as the nodes will read it.
+    ``spin(seconds)`` lets ``node``'s executor deliver; raises KeyboardInterrupt once
+    ``stopped()`` says so.
+    """
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from .cell_camera import camera_problems
+
+    topics = camera_topics(camera_name)
+    sides = {'left': topics[contract.LEFT_INFO], 'right': topics[contract.RIGHT_INFO]}
+    got: dict[str, Any] = {}
+    subs = [node.create_subscription(
+        CameraInfo, topic, lambda m, side=side: got.setdefault(side, m), contract.CAMERA_INFO)
+        for side, topic in sides.items()]
+    subs += [node.create_subscription(Image, topics[image], lambda raw: None, contract.IMAGES,
+                                      raw=True)
+             for image in (contract.LEFT_IMAGE, contract.RIGHT_IMAGE)]
+    try:
+        deadline = clock() + timeout_s
+        while len(got) < 2 and clock() < deadline:
+            if stopped():
+                raise KeyboardInterrupt
+            spin(0.1)
+    finally:
+        for sub in subs:
+            node.destroy_subscription(sub)
+    missing = [topic for side, topic in sides.items() if side not in got]
+    if missing:
+        return [], (f'warning: no camera_info on {" or ".join(missing)} within '
+                    f'{timeout_s:g} s (a camera that waits for all its readers, as the '
+                    'simulator standing in for the cell does): its size is not checked '
+                    'before the start')
+    return camera_problems(got['left'], got['right'], sides['left'], sides['right'])
+
+
 def foreign_publishers(node: Any, topics: Iterable[str], hint: str) -> list[str]:
     """Return a problem for each of ``topics`` that another node than ``node`` publishes."""
     out = []
@@ -743,6 +798,11 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
                     'ibvs cell --teach publishes the taught pair itself: stop the other '
                     'publisher (a simulator standing in for the cell: -p '
                     'target_features_source:=model), or leave out --teach'))
+            if not found:
+                found, camera_line = wait_for_camera_info(
+                    node, camera_name, CAMERA_INFO_TIMEOUT_S,
+                    lambda s: executor.spin_once(timeout_sec=s), stopped=stopped)
+                print_line(camera_line)
             if found:
                 for text in found:
                     print(f'error: {text}', file=sys.stderr)

@@ -37,7 +37,10 @@ ZED2_FOCAL_LENGTH_M = 2.8e-3
 ZED2_BASELINE_M = 0.12
 ZED2_HFOV_DEG = 86.09
 ZED2_VFOV_DEG = 55.35
-ZED2_RESOLUTIONS = {'HD720': (1280, 720), 'VGA': (672, 376), 'HD1080': (1920, 1080)}
+#: The ZED 2's modes at their native size (width, height): what its SDK grabs and the
+#: wrapper publishes with ``general.pub_resolution: NATIVE``.
+ZED2_RESOLUTIONS = {'HD720': (1280, 720), 'VGA': (672, 376), 'HD1080': (1920, 1080),
+                    'HD2K': (2208, 1242)}
 
 
 @dataclass(frozen=True)
@@ -130,14 +133,18 @@ class StereoIntrinsics:
                    (height - 1) / 2.0 if cv is None else float(cv), float(baseline))
 
     @classmethod
-    def zed2(cls, resolution: str = 'HD720') -> 'StereoIntrinsics':
+    def zed2(cls, resolution: str = 'HD720', downscale: float = 1.0) -> 'StereoIntrinsics':
         """
-        ZED 2 intrinsics at one of its modes.
+        ZED 2 intrinsics at one of its modes, as published at a downscale of it.
 
         Parameters
         ----------
         resolution : str
-            'HD720' (default), 'VGA' or 'HD1080'.
+            'HD720' (default), 'VGA', 'HD1080' or 'HD2K' (:data:`ZED2_RESOLUTIONS`).
+        downscale : float
+            The native size divided by this, rounded (>= 1; 1: native): zed-ros2-wrapper's
+            ``general.pub_downscale_factor`` with ``general.pub_resolution: 'CUSTOM'``. The
+            field of view stays; the focal length in pixels shrinks with the size.
 
         Returns
         -------
@@ -147,7 +154,10 @@ class StereoIntrinsics:
         if resolution not in ZED2_RESOLUTIONS:
             raise InvalidInputError(
                 f'resolution must be one of {sorted(ZED2_RESOLUTIONS)}, got {resolution!r}')
-        return cls.from_fov(*ZED2_RESOLUTIONS[resolution])
+        if not (math.isfinite(downscale) and downscale >= 1.0):
+            raise InvalidInputError(f'downscale must be >= 1, got {downscale}')
+        width, height = ZED2_RESOLUTIONS[resolution]
+        return cls.from_fov(int(round(width / downscale)), int(round(height / downscale)))
 
     @property
     def K(self) -> NDArray[np.float64]:  # noqa: N802 (the usual name of the camera matrix)

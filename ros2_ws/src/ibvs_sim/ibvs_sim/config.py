@@ -31,6 +31,11 @@ MAX_MOUNT_HEIGHT_M = 5.0
 
 RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
                    'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
+PUB_DOWNSCALE_FACTOR = Param(
+    'pub_downscale_factor', 1.0, 'the images and camera_info published at the resolution '
+    "divided by this, as zed-ros2-wrapper's general.pub_downscale_factor does with "
+    "general.pub_resolution 'CUSTOM' (the wrapper's defaults up to v5.2.2: 'CUSTOM' and 2.0, "
+    'HD720 published as 640 x 360); 1: NATIVE', '-', low=1.0, high=8.0)
 CAMERA_EYE = Param('camera_eye', [float(v) for v in paper.CAMERA_EYE],
                    'camera frame {C} origin (midway between the lenses) in {O}', 'm',
                    low=-20.0, high=20.0, length=3)
@@ -97,6 +102,7 @@ class SimConfig(ParamConfig):
     physics_rate_hz: float = param_field(PHYSICS_RATE_HZ)
     camera_rate_hz: float = param_field(CAMERA_RATE_HZ)
     resolution: str = param_field(RESOLUTION)
+    pub_downscale_factor: float = param_field(PUB_DOWNSCALE_FACTOR)
     camera_eye: tuple[float, float, float] = param_field(CAMERA_EYE)
     camera_look_at: tuple[float, float, float] = param_field(CAMERA_LOOK_AT)
     l2_scale: float = param_field(L2_SCALE)

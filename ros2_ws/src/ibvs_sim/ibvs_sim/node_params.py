@@ -43,7 +43,8 @@ START_AT_TARGET = Param(
     "scenario's start: the tool held at the target, to teach it (ibvs teach)", '-')
 MIN_JOINT_STATE_SUBSCRIBERS = Param(
     'min_joint_state_subscribers', 1, 'the start waits until /joint_states has this many '
-    'subscribers (every node that must see step 0)', '-', low=1, high=1000)
+    'subscribers (every node that must see step 0); 0: it starts without one, as a real '
+    "cell's joint_state_broadcaster publishes to nobody", '-', low=0, high=1000)
 MIN_CAMERA_INFO_SUBSCRIBERS = Param(
     'min_camera_info_subscribers', 0, 'with publish_images, the start waits until each '
     'camera_info topic has this many subscribers (every node that builds its camera model '

@@ -106,7 +106,7 @@ class Simulator:
                               f'{config.l2_scale}, l4_scale = {config.l4_scale}): '
                               f'{exc}') from None
         self.start_residual = pose_error(forward_kinematics(self.q_start, self.params), target)
-        intrinsics = StereoIntrinsics.zed2(config.resolution)
+        intrinsics = StereoIntrinsics.zed2(config.resolution, config.pub_downscale_factor)
         try:
             self.camera = StereoCamera(intrinsics,
                                        look_at(config.camera_eye, config.camera_look_at))
