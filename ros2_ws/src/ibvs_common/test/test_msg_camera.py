@@ -1,14 +1,12 @@
-"""The input checks of the one place of conversion: camera ranges, stamp order, commands."""
+"""Image and CameraInfo: the stereo pair written and read, and the ranges a lens is read in."""
 
-from builtin_interfaces.msg import Duration
+from types import SimpleNamespace
+
 from ibvs_common import contract, conversions
-from ibvs_common.conversions import InputError, StampOrder
-from ibvs_model import default_camera, StereoIntrinsics
+from ibvs_common.conversions import InputError
+from ibvs_model import default_camera, default_model, StereoIntrinsics
 import numpy as np
 import pytest
-
-MS = 1_000_000
-NAMES = list(contract.JOINT_NAMES)
 
 
 def _infos(resolution='HD720'):
@@ -21,11 +19,75 @@ def _reason(call, *args):
     return caught.value.reason
 
 
+def _set(info, index, value):
+    p = list(info.p)
+    p[index] = value
+    info.p = p
+
+
+def test_camera_round_trip_through_camera_info_and_pose():
+    camera = default_model().camera
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    assert right.p[3] == pytest.approx(-camera.intrinsics.fu * 0.12)
+    pose = conversions.pose_stamped(camera.pose_C_O, 0, contract.BASE_FRAME)
+    back = conversions.camera_from_msgs(left, right, pose)
+    k, kb = camera.intrinsics, back.intrinsics
+    assert (kb.width, kb.height) == (k.width, k.height)
+    np.testing.assert_allclose([kb.fu, kb.fv, kb.cu, kb.cv, kb.baseline],
+                               [k.fu, k.fv, k.cu, k.cv, k.baseline], rtol=1e-12)
+    np.testing.assert_allclose(back.pose_C_O, camera.pose_C_O, atol=1e-12)
+    point = np.array([[0.1, 0.3, 0.8]])
+    np.testing.assert_allclose(back.project(point), camera.project(point), atol=1e-9)
+
+
+def test_camera_info_mismatch_is_rejected():
+    camera = default_model().camera
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    right.width += 2  # a lens of its own, not this one's pair
+    with pytest.raises(InputError, match='size mismatch'):
+        conversions.intrinsics_from_infos(left, right)
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    right.p[3] = 0.0
+    with pytest.raises(InputError, match='P\\[3\\]'):
+        conversions.intrinsics_from_infos(left, right)
+
+
+def test_a_camera_info_without_twelve_finite_values_is_refused_before_the_pose_is_read():
+    camera = default_model().camera
+    left, right = conversions.camera_infos(camera.intrinsics, 0)
+    left.p = [0.0] * 3
+    with pytest.raises(InputError, match='12 finite'):
+        conversions.camera_from_msgs(left, right, SimpleNamespace(pose=None))
+
+
 @pytest.mark.parametrize('resolution', ['VGA', 'HD720', 'HD1080'])
 def test_a_zed2_camera_info_is_read_back_exactly(resolution):
     k = default_camera(resolution).intrinsics
     back = conversions.intrinsics_from_infos(*conversions.camera_infos(k, 0))
     assert back == k
+
+
+def test_camera_infos_are_read_back_as_the_intrinsics_they_were_written_from():
+    rng = np.random.default_rng(51)
+    for _ in range(300):
+        width, height = (int(v) for v in rng.integers(16, conversions.MAX_IMAGE_SIDE_PX,
+                                                      size=2))
+        k = StereoIntrinsics.from_fov(width, height, rng.uniform(2.0, 160.0),
+                                      rng.uniform(2.0, 160.0), rng.uniform(0.006, 4.9),
+                                      cu=rng.uniform(0.05, 0.95) * width,
+                                      cv=rng.uniform(0.0, height))
+        if rng.random() < 0.5:  # lenses with their own f_u and c_u (older ZED SDKs)
+            k = StereoIntrinsics(k.width, k.height, k.fu, k.fv, k.cu, k.cv, k.baseline,
+                                 right_fu=k.fu * rng.uniform(0.99, 1.01),
+                                 right_cu=k.cu + rng.uniform(-0.01, 0.01) * width)
+        left, right = conversions.camera_infos(k, 5)
+        assert (left.header.frame_id, right.header.frame_id) == \
+            (contract.LEFT_CAMERA_FRAME, contract.RIGHT_CAMERA_FRAME)
+        back = conversions.intrinsics_from_infos(left, right)
+        # every value as written; the baseline through b = -P[3] / f_u'
+        assert back.baseline == pytest.approx(k.baseline, rel=1e-15)
+        assert back == StereoIntrinsics(k.width, k.height, k.fu, k.fv, k.cu, k.cv,
+                                        back.baseline, k.right_fu, k.right_cu)
 
 
 def test_the_focal_range_is_the_field_of_view_range():
@@ -111,83 +173,6 @@ def test_the_left_lens_is_the_reference():
         'left lens with a baseline'
 
 
-def test_stamp_order_counts_duplicates_and_stamps_going_back_per_source():
-    order = StampOrder()
-    order.check('/a', 5)
-    order.take('/a', 5)
-    assert _reason(order.check, '/a', 5) == 'duplicate stamp'
-    assert _reason(order.check, '/a', 4) == 'stamp went back'
-    order.check('/b', 4)  # another source has its own order
-    order.check('/a', 6)  # checked, not taken: 6 stays free
-    order.check('/a', 6)
-    assert order.newest('/a') == 5 and order.newest('/b') is None
-
-
-def test_features_in_image():
-    k = default_camera('VGA').intrinsics
-    inside = [10.0, 5.0, 100.0, k.width - 0.5, k.width - 10.0, k.height + 0.5]
-    conversions.check_features_in_image(inside, k)
-    for index, value in ((0, -2.0), (1, k.width + 1.5), (2, 1e6), (5, -1e6)):
-        bad = list(inside)
-        bad[index] = value
-        assert _reason(conversions.check_features_in_image, bad, k) == 'features off the image'
-
-
-def _command(rows, times_ns=None, start_ns=0, names=NAMES):
-    msg = conversions.joint_trajectory(start_ns, MS, np.atleast_2d(rows), names)
-    if times_ns is not None:
-        for point, t in zip(msg.points, times_ns):
-            point.time_from_start = Duration(sec=t // 10 ** 9, nanosec=t % 10 ** 9)
-    return msg
-
-
-def test_a_good_trajectory_command_is_read_in_the_controllers_order():
-    rows = np.arange(18, dtype=float).reshape(3, 6) * 0.01
-    order = [5, 0, 1, 2, 3, 4]
-    msg = _command(rows[:, order], names=[NAMES[i] for i in order])
-    np.testing.assert_array_equal(conversions.read_command_trajectory(msg, 0, 100 * MS), rows)
-    # stamped now, ending within the command timeout, and stamp 0 (start now) long after
-    msg = _command(rows, start_ns=5 * MS)
-    conversions.read_command_trajectory(msg, 100 * MS, 100 * MS)
-    conversions.read_command_trajectory(_command(rows), 10 ** 12, 100 * MS)
-
-
-def _point_change(field, k, value):
-    def change(msg):
-        setattr(msg.points[k], field, value)
-        return msg
-    return change
-
-
-@pytest.mark.parametrize('change, reason', [
-    (lambda m: _command(np.zeros((3, 6)), [0, 2 * MS, 2 * MS]), 'times not increasing'),
-    (lambda m: _command(np.zeros((3, 6)), [0, 3 * MS, 2 * MS]), 'times not increasing'),
-    (lambda m: _command(np.zeros((2, 6)), [-2 * 10 ** 9, MS]), 'negative time_from_start'),
-    (_point_change('positions', 0, [np.nan] + [0.0] * 5), 'non-finite positions'),
-    (_point_change('positions', 1, [np.inf] + [0.0] * 5), 'non-finite positions'),
-    (_point_change('velocities', 0, [np.nan] + [0.0] * 5), 'non-finite velocities'),
-    (_point_change('accelerations', 2, [0.0] * 5 + [-np.inf]), 'non-finite accelerations'),
-    (_point_change('velocities', 1, [0.0] * 5), 'wrong velocities length'),
-    (_point_change('positions', 0, [0.0] * 7), 'wrong positions length'),
-    (_point_change('effort', 2, [0.0] * 6), 'effort in a position command'),
-    (lambda m: _command(np.zeros((3, 6)), names=NAMES[:5] + ['joint_7']), 'wrong joint names'),
-    (lambda m: _command(np.zeros((3, 6)), names=[NAMES[0]] * 6), 'wrong joint names'),
-    (lambda m: _command(np.zeros((0, 6))), 'empty trajectory'),
-    (lambda m: _command(np.zeros((3, 6)), start_ns=10 * MS), 'trajectory ends in the past'),
-    (lambda m: _command(np.zeros((3, 6)), start_ns=10 ** 12), 'stamp in the future'),
-])
-def test_a_trajectory_command_joint_trajectory_controller_refuses(change, reason):
-    msg = change(_command(np.zeros((3, 6))))
-    # now 1 s, command timeout 100 ms: stamp 10 ms + 2 ms is 888 ms too old
-    assert _reason(conversions.read_command_trajectory, msg, 10 ** 9, 100 * MS) == reason
-
-
-def _set(info, index, value):
-    p = list(info.p)
-    p[index] = value
-    info.p = p
-
-
 def test_lenses_with_their_own_f_u_and_c_u_are_read_each_from_its_p():
     # older ZED SDKs: left f_x 701.40, right 696.83; T_x = -f_x' b
     left, right = _infos()
@@ -220,3 +205,28 @@ def test_a_pair_whose_rows_differ_is_refused_as_not_rectified(index, delta, ok):
     else:
         assert _reason(conversions.intrinsics_from_infos, left, right) == \
             'camera_info not rectified'
+
+
+@pytest.mark.parametrize('encoding', ['rgb8', 'bgr8'])
+def test_an_rgb8_or_bgr8_image_carries_the_pixels_as_they_are(encoding):
+    array = np.random.default_rng(52).integers(0, 256, size=(5, 7, 3), dtype=np.uint8)
+    msg = conversions.image_msg(array, 34_000_000, encoding, 'lens')
+    assert (msg.height, msg.width, msg.step, msg.encoding) == (5, 7, 21, encoding)
+    assert conversions.stamp_ns(msg.header.stamp) == 34_000_000
+    assert msg.header.frame_id == 'lens' and msg.is_bigendian == 0
+    assert bytes(msg.data) == array.tobytes()
+
+
+def test_a_bgra8_image_is_the_rgb_array_reordered_with_an_opaque_alpha():
+    array = np.random.default_rng(53).integers(0, 256, size=(4, 6, 3), dtype=np.uint8)
+    msg = conversions.image_msg(array, 0, 'bgra8')
+    assert (msg.height, msg.width, msg.step) == (4, 6, 24)
+    pixels = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(4, 6, 4)
+    assert pixels[..., :3].tobytes() == array[..., ::-1].tobytes()
+    assert (pixels[..., 3] == 255).all()
+
+
+def test_an_image_array_that_is_not_three_channels_is_refused():
+    for shape in ((4, 6), (4, 6, 4), (4, 6, 1)):
+        with pytest.raises(ValueError, match=r'\(H, W, 3\)'):
+            conversions.image_msg(np.zeros(shape, dtype=np.uint8), 0)
