@@ -128,6 +128,8 @@ TARGET_SOURCES = ('parameters', 'teach')
 RENDER_KEYS = ('render_device', 'render_hardware')
 #: The simulator's /diagnostics values of the factor held while servoing (module docstring).
 SERVO_RTF_KEYS = ('real_time_factor_servo_mean', 'real_time_factor_servo_min_1s')
+#: The feature node's /diagnostics values of the camera's stamp offset (ibvs_vision.stamp_offset).
+STAMP_OFFSET_KEYS = ('stamp_offset_ms', 'stamp_offset_sd_ms', 'stamp_offset_applied_ms')
 #: The closing window of the run over which the error's mean and maximum are reported, s.
 LAST_WINDOW_S = 0.5
 
@@ -158,6 +160,8 @@ class RunData:
     #: and the simulator's last real_time_factor_servo_* values (/diagnostics).
     frame_stamps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     servo_rtf: dict = field(default_factory=dict)
+    #: The feature node's last stamp offset values (:data:`STAMP_OFFSET_KEYS`), as strings.
+    stamp_offset: dict = field(default_factory=dict)
     camera: object = None
     #: The simulator's render_device and render_hardware (/diagnostics), where it said them.
     render: dict = field(default_factory=dict)
@@ -329,6 +333,20 @@ def render_metrics(values: dict[str, str]) -> dict[str, Any]:
     return out
 
 
+def stamp_offset_metrics(values: Mapping[str, str]) -> dict[str, Any]:
+    """
+    Return the camera's stamp offset the feature node estimated last (ms), where it did.
+
+    ``stamp_offset_ms`` and ``stamp_offset_sd_ms`` (the estimate and its noise's share,
+    ibvs_vision.stamp_offset) and ``stamp_offset_applied_ms``; nothing for a run without an
+    estimate (lockstep, where the stamps are the exposures, or a run too short).
+    """
+    try:
+        return {key: float(values[key]) for key in STAMP_OFFSET_KEYS}
+    except (KeyError, ValueError):  # 'none': no estimate
+        return {}
+
+
 def _relative(value, t):
     return None if value is None else float(value - t[0])
 
@@ -362,7 +380,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
     states = []  # (stamp s, q) of /joint_states: the tool poses of a bag without the truth
     infos, cam_pose = {}, None
     latency, rtf_held, render, taught = [], [], {}, []
-    frame_stamps, servo_rtf = [], {}
+    frame_stamps, servo_rtf, stamp_offset = [], {}, {}
     statuses = []  # (bag time ns, code) of each /ibvs/servo_status
     typestore = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([bag_path], default_typestore=typestore) as reader:
@@ -410,6 +428,8 @@ def load_run(bag_path: str | Path) -> 'RunData':
                           if kv.key == TAUGHT_KEY] or taught
                 servo_rtf.update((kv.key, kv.value) for status in msg.status
                                  for kv in status.values if kv.key in SERVO_RTF_KEYS)
+                stamp_offset.update((kv.key, kv.value) for status in msg.status
+                                    for kv in status.values if kv.key in STAMP_OFFSET_KEYS)
             elif conn.topic == contract.STEREO_POSE and cam_pose is None:
                 cam_pose = msg
     # A run of duration D covers the steps stamped in [0, D): what the simulator did while
@@ -457,6 +477,7 @@ def load_run(bag_path: str | Path) -> 'RunData':
                    rtf_held=np.array(rtf_held), render=render_metrics(render),
                    taught_target=_taught(taught),
                    frame_stamps=np.array(frame_stamps, dtype=np.int64), servo_rtf=servo_rtf,
+                   stamp_offset=stamp_offset,
                    tool_source=tool_source, target_source=target_source,
                    final_image_error_px=final_image_error(
                        feats, _taught(taught), camera, target_from_parameters(params)),
@@ -646,6 +667,7 @@ def analyse_bag(bag_path: str | Path) -> tuple['RunData', dict[str, Any]]:
                                         run.servo_rtf))
     metrics.update(optimal_metrics(run, metrics))
     metrics.update(run.render)
+    metrics.update(stamp_offset_metrics(run.stamp_offset))
     if run.tool_source != TOOL_SOURCES[0]:  # a cell's bag: say what the errors are of
         metrics['tool_pose_source'] = run.tool_source
     if run.target_source != TARGET_SOURCES[0]:

@@ -48,7 +48,10 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
    against the taught target's, /ibvs/target_features; without a taught target the feedback
    node's own ``image_error_norm_px`` on /diagnostics) and the model's pose error
    (:class:`PoseError`: the nominal kinematics of the newest /joint_states against the
-   target), the frames used (its ``/ibvs/frame_latency``, one per frame a command used) and
+   target), the camera's stamp offset once the feature node has estimated one (its
+   ``stamp_offset_ms`` and ``stamp_offset_sd_ms`` on /diagnostics, and its state when it
+   holds: pass it as ``stamp_offset_initial_s`` next time), the frames used (its
+   ``/ibvs/frame_latency``, one per frame a command used) and
    the last error any node reported there (a WARN or ERROR status, or a rejected input). A
    new servo status or second publisher prints a line at once, without waiting for the
    second. A node that exits ends the session (:data:`runner.EXIT_NODE_DIED`), the others
@@ -578,6 +581,12 @@ class StatusBoard:
     #: The model's pose error (:class:`PoseError`): position (m), tool axis (deg).
     position_error_m: float | None = None
     axis_error_deg: float | None = None
+    #: The camera's stamp offset the feature node estimated (its /diagnostics
+    #: ``stamp_offset_ms`` and ``stamp_offset_sd_ms``, ibvs_vision.stamp_offset), and the
+    #: estimate's state when it holds or waits: shown once there is an estimate.
+    stamp_offset_ms: float | None = None
+    stamp_offset_sd_ms: float | None = None
+    stamp_offset_state: str = ''
     _rejected: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -641,6 +650,13 @@ class StatusBoard:
                 self.feedback_error_px = float(values['image_error_norm_px'])
             except ValueError:
                 pass
+        if node == 'feature_node' and 'stamp_offset_state' in values:
+            self.stamp_offset_state = values['stamp_offset_state']
+            try:
+                self.stamp_offset_ms = float(values.get('stamp_offset_ms', ''))
+                self.stamp_offset_sd_ms = float(values.get('stamp_offset_sd_ms', ''))
+            except ValueError:
+                pass  # 'none': no estimate yet
         if 'second_publishers' in values:
             words = values['second_publishers']
             words = '' if words == 'none' else words
@@ -700,6 +716,11 @@ class StatusBoard:
         if self.position_error_m is not None:
             errors += (f' | pose error {self.position_error_m * 1e3:.3f} mm, '
                        f'{self.axis_error_deg:.3f} deg')
+        if self.stamp_offset_ms is not None:
+            held = '' if self.stamp_offset_state == 'estimating' else \
+                f' ({self.stamp_offset_state})'
+            errors += (f' | stamp offset {self.stamp_offset_ms:.1f} +- '
+                       f'{self.stamp_offset_sd_ms:.1f} ms{held}')
         dry = 'DRY RUN | ' if self.dry_run else ''
         return (f'[{now - self.started:6.0f} s] {dry}{servo}{second}{errors} | frames used '
                 f'{len(self.frames)} | last error: {error}')

@@ -302,3 +302,19 @@ def test_ibvs_cell_teach_refuses_a_target_of_its_own_and_a_folder_without_a_reco
     assert cli.main(['cell', '-o', str(tmp_path / 'x'), '--teach', str(tmp_path / 'none')]) == 2
     assert 'no teach folder' in capsys.readouterr().err
     assert not (tmp_path / 'x').exists()
+
+
+def test_status_board_shows_the_cameras_stamp_offset_once_estimated():
+    board = cell.StatusBoard(clock=lambda: 0.0)
+    waiting = {'stamp_offset_ms': 'none', 'stamp_offset_sd_ms': 'none',
+               'stamp_offset_state': 'waiting for the tool to move'}
+    board.diagnostics('feature_node: stereo fiducial features', 0, 'measured', waiting)
+    assert 'stamp offset' not in board.line()
+    board.diagnostics('feature_node: stereo fiducial features', 0, 'measured',
+                      {'stamp_offset_ms': '32.548', 'stamp_offset_sd_ms': '0.028',
+                       'stamp_offset_state': 'estimating'})
+    assert ' | stamp offset 32.5 +- 0.0 ms | ' in board.line()
+    board.diagnostics('feature_node: stereo fiducial features', 0, 'measured',
+                      {'stamp_offset_ms': '32.548', 'stamp_offset_sd_ms': '0.028',
+                       'stamp_offset_state': 'holding: the tool is still'})
+    assert 'stamp offset 32.5 +- 0.0 ms (holding: the tool is still)' in board.line()

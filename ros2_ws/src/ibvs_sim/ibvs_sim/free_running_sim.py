@@ -74,6 +74,7 @@ class FreeRunningSim:
         # A sim-time timer fires only when /clock moves: the command timer needs it.
         self.clock_rate_hz = max(config.clock_rate_hz, config.command_rate_hz)
         self.delivery_delay_ns = seconds_to_ns(config.feedback_latency_s)
+        self.stamp_offset_ns = seconds_to_ns(config.image_stamp_offset_s)
         self._joint_state_period_ns = period_ns(config.joint_state_rate_hz)
         self._next_joint_state_ns = seconds_to_ns(config.joint_state_phase_s)
         start_s, span_s = config.camera_outage_s
@@ -113,7 +114,15 @@ class FreeRunningSim:
         self._run_timer = None
 
     def exposes(self, t_ns: int) -> bool:
-        """Return whether the camera takes the frame due at ``t_ns`` (not in an outage)."""
+        """
+        Return whether the camera takes the frame due at ``t_ns``.
+
+        Not in an outage, and not before its stamp can be (a negative image_stamp_offset_s
+        would stamp the first frames before time 0: the camera starts with the first it can
+        stamp).
+        """
+        if t_ns + self.stamp_offset_ns < 0:
+            return False
         return self._outage is None or not self._outage[0] <= t_ns < self._outage[1]
 
     def publish_joints(self, t_ns: int, joints: JointState, frame_step: bool) -> None:
@@ -132,7 +141,8 @@ class FreeRunningSim:
             f'{self.node.clock_period_ns} ns, commands stale after '
             f'{self._command_timeout_ns} ns, /joint_states every '
             f'{self._joint_state_period_ns} ns from {self._next_joint_state_ns} ns, frames '
-            f'delivered {self.delivery_delay_ns} ns after exposure{outage}')
+            f'delivered {self.delivery_delay_ns} ns after exposure and stamped '
+            f'{self.stamp_offset_ns} ns after it{outage}')
         self._anchor = (time.monotonic(), self.sim.t_ns)
         self._window = (time.monotonic(), self.sim.t_ns)
         self._run_timer = self.node.create_timer(

@@ -52,6 +52,7 @@ class LockstepSim:
 
     #: Frames go out at their exposure's step: the joint controller applies the latency.
     delivery_delay_ns = 0
+    stamp_offset_ns = 0
 
     def __init__(self, node: 'Node', config: 'SimNodeConfig') -> None:
         """Warn about the free-running parameters set; subscribe to the effort commands."""

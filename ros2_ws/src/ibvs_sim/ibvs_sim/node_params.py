@@ -125,6 +125,13 @@ CAMERA_OUTAGE_S = Param(
     'duration 0: none (refused in lockstep, where the graph would wait for ever)', 's',
     low=0.0, high=1e6, length=2)
 
+IMAGE_STAMP_OFFSET_S = Param(
+    'image_stamp_offset_s', 0.0, 'free-running: every image, camera_info and '
+    '/stereo/frame_lost is stamped this long after its exposure (a camera driver that stamps '
+    'on receipt, as the ZED wrapper does; negative: before it); at most feedback_latency_s '
+    '(no stamp after its delivery); 0 in lockstep, where stamps pair frames with their joint '
+    'states', 's', low=-0.2, high=0.2)
+
 CAMERA_TOPICS = Param(
     'camera_topics', 'ibvs', "names and format of the stereo pair: 'ibvs' (/stereo/*/image_raw "
     "in rgb8, this project's contract) or 'zed_wrapper' (what zed-ros2-wrapper 5.4 publishes "
@@ -167,6 +174,7 @@ class SimNodeConfig(SimConfig):
     joint_state_phase_s: float = param_field(JOINT_STATE_PHASE_S)
     extra_joints: tuple[str, ...] = param_field(EXTRA_JOINTS)
     camera_outage_s: tuple[float, float] = param_field(CAMERA_OUTAGE_S)
+    image_stamp_offset_s: float = param_field(IMAGE_STAMP_OFFSET_S)
     max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
 
     def __post_init__(self):
@@ -193,6 +201,16 @@ class SimNodeConfig(SimConfig):
                 f"parameter 'camera_outage_s' = {list(self.camera_outage_s)!r} is invalid in "
                 'lockstep: the joint controller waits for every frame, so the run would stop; '
                 'allowed: a duration of 0 (or lockstep false)')
+        if self.image_stamp_offset_s != 0.0 and self.lockstep:
+            raise ParameterError(
+                f"parameter 'image_stamp_offset_s' = {self.image_stamp_offset_s!r} is invalid "
+                "in lockstep: a frame's stamp names its joint state there; allowed: 0 (or "
+                'lockstep false)')
+        if self.image_stamp_offset_s > self.feedback_latency_s:
+            raise ParameterError(
+                f"parameter 'image_stamp_offset_s' = {self.image_stamp_offset_s!r} is invalid "
+                f'with feedback_latency_s = {self.feedback_latency_s!r}: a frame cannot be '
+                'stamped after it is delivered; allowed: at most feedback_latency_s')
 
 
 @dataclass(frozen=True)

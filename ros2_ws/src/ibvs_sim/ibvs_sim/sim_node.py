@@ -56,8 +56,9 @@ from .simulator import Simulator
 CONFIG = SimNodeConfig
 PARAMS = CONFIG.params()
 #: lockstep -> the class that runs the time mode. The node reads its ``clock_rate_hz``,
-#: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``held_steps`` and ``command_sub``
-#: and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and ``waiting_line``.
+#: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``stamp_offset_ns``, ``held_steps``
+#: and ``command_sub`` and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and
+#: ``waiting_line``.
 MODES = {True: LockstepSim, False: FreeRunningSim}
 #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
 RULES = CONFIG.RULES
@@ -99,7 +100,8 @@ class SimNode(Node):
         self.finished = False
         self._extra_joints = list(config.extra_joints)
         #: The frames rendered and not yet delivered, (due ns, stamp ns, images or None
-        #: when lost, lost), in order (the mode's delivery_delay_ns after their exposure).
+        #: when lost, lost), in order (the mode's delivery_delay_ns after their exposure,
+        #: stamped its stamp_offset_ns after it).
         self._deliveries = []
         self.frames_published = 0
         self.frames_outage = 0
@@ -285,7 +287,8 @@ class SimNode(Node):
                 with timing.section('render'):
                     stamp, images, lost = sim.take_frame(render=self.config.publish_images)
                 self.frames += 1
-                self._deliveries.append((stamp + self.mode.delivery_delay_ns, stamp,
+                self._deliveries.append((stamp + self.mode.delivery_delay_ns,
+                                         stamp + self.mode.stamp_offset_ns,
                                          None if lost else images, lost))
         while self._deliveries and self._deliveries[0][0] <= t_ns:
             self._deliver(*self._deliveries.pop(0)[1:])
@@ -306,7 +309,7 @@ class SimNode(Node):
         return msg
 
     def _deliver(self, stamp, images, lost):
-        """Publish a frame stamped with its exposure: its images and CameraInfo, or lost."""
+        """Publish a frame as its camera stamps it: its images and CameraInfo, or lost."""
         if lost:
             self._pub_lost.publish(Header(stamp=ns_stamp(stamp),
                                           frame_id=contract.CAMERA_FRAME))

@@ -104,6 +104,22 @@ def test_frames_come_feedback_latency_s_after_their_exposure_stamped_with_it(cel
     assert sim.frames - sim.frames_published == len(pending)
 
 
+@pytest.mark.parametrize('offset_ms', [33, -20])
+def test_image_stamp_offset_s_shifts_every_stamp_from_the_exposure(cell, offset_ms):
+    sim, node, executor = cell(publish_images=True, feedback_latency_s=0.1,
+                               image_stamp_offset_s=offset_ms * 1e-3,
+                               min_camera_info_subscribers=1)
+    spin_until(executor, lambda: len(node.images) >= 4 and len(node.infos) >= 4,
+               what='four frames')
+    for stamp, arrived in node.images:
+        exposure = stamp - offset_ms * MS
+        assert exposure % sim.sim.dt_ns == 0 and exposure >= 0  # rendered at a step
+        assert arrived >= exposure + 100 * MS  # delivered as without an offset
+    assert sorted(s for s, _ in node.images) == sorted(node.infos)
+    # a negative offset: the frame exposed at 0 would be stamped before 0, and is not taken
+    assert (node.images[0][0] - offset_ms * MS == 0) == (offset_ms > 0)
+
+
 def test_a_camera_outage_publishes_nothing_for_its_span(cell):
     sim, node, executor = cell(publish_images=True, camera_outage_s=[0.1, 0.2],
                                min_camera_info_subscribers=1)

@@ -33,11 +33,16 @@ def test_config_checks_the_rules_across_parameters():
             ({'extra_joints': ['track', 'track']}, "'extra_joints'"),
             ({'extra_joints': ['joint_2']}, "'extra_joints'"),
             ({'clock_rate_hz': 0.0}, "'clock_rate_hz'"),
+            ({'image_stamp_offset_s': 0.01}, "'image_stamp_offset_s' = 0.01 is invalid in "
+             'lockstep'),
+            ({**FREE, 'image_stamp_offset_s': 0.05, 'feedback_latency_s': 0.04},
+             "'image_stamp_offset_s' = 0.05 is invalid with feedback_latency_s"),
             # Free-running only, checked before any node starts (ibvs run's configs):
             ({**FREE, 'joints': ['joint_1'] * 6}, "'joints'")):
         with pytest.raises(ParameterError, match=match):
             SimNodeConfig(**params)
     assert SimNodeConfig(camera_outage_s=[1.0, 0.5], **FREE).camera_outage_s == (1.0, 0.5)
+    assert SimNodeConfig(image_stamp_offset_s=-0.02, **FREE).image_stamp_offset_s == -0.02
     assert SimNodeConfig(joint_state_rate_hz=100.0).off_default(
         ('joint_state_rate_hz', 'real_time_factor')) == [('joint_state_rate_hz', 100.0)]
 

@@ -38,6 +38,7 @@ from .detector import Reason, StereoDetector
 from .frame_stats import FrameStats
 from .imageconv import image_array
 from .node_params import FeatureConfig
+from .stamp_offset import StampOffsetEstimator
 from .stereo_pairing import Drop, Ready, StereoPairer
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
@@ -71,6 +72,12 @@ class FeatureNode(Node):
         self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(c.stale_timeout_s),
                                     history_ns=seconds_to_ns(c.joint_history_s),
                                     sides=_SIDES)
+        self._camera_period_ns = period_ns(c.camera_rate_hz)
+        self._offset = StampOffsetEstimator(
+            seconds_to_ns(c.stamp_offset_window_s), self._camera_period_ns,
+            initial_ns=seconds_to_ns(c.stamp_offset_initial_s)) \
+            if c.stamp_offset_window_s > 0.0 else None
+        self._stereo.exposure_offset_ns = seconds_to_ns(c.stamp_offset_initial_s)
         #: Each input's resolved topic name (the ZED wrapper's under a remap), which its
         #: rejections are counted under; filled as the subscriptions are created.
         self._topics = {}
@@ -90,11 +97,13 @@ class FeatureNode(Node):
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._inputs = Inputs(self._diag, self.now_ns,
                               stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
-        forget_on_back(self, self._inputs, self._stereo)
+        forget_on_back(self, self._inputs, self._stereo,
+                       *([self._offset] if self._offset is not None else []))
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
                           frames_estimated=0, frames_over_budget=0,
                           detection_budget_ms=self._budget_ms, last_switch_time_s='none',
                           switches=0)
+        self._show_offset()
         self._images_in = dict.fromkeys(_SIDES, 0)
         self._diag.log_progress(self._progress)
         self._pub = publisher(self, PolygonStamped, contract.FEATURES, contract.RELIABLE)
@@ -261,13 +270,25 @@ class FeatureNode(Node):
                 self._diag.reject('stereo frame', event.reason, event.detail)
             elif isinstance(event, Ready):
                 self._process(event.t_ns, event.images, event.joints)
+                self._update_offset()
             else:
                 self._diag.update(waiting_for=', '.join(event.waiting))
         self._diag.update(pending_frames=len(self._stereo))
 
-    def _process(self, t_ns, images, q):
-        """Detect, estimate and publish the features of the stereo pair ``images`` at t_ns."""
+    def _process(self, stamp_ns, images, q):
+        """
+        Detect, estimate and publish the features of the stereo pair ``images``.
+
+        ``stamp_ns``: the images' stamp; ``q``: the joint state at the exposure, stamp less
+        the offset applied (:mod:`.stamp_offset`), which every output is stamped with.
+        """
         started = time.perf_counter()
+        t_ns = stamp_ns - self._stereo.exposure_offset_ns
+        if t_ns < 0:
+            self._diag.reject('stereo frame', 'exposure before time 0',
+                              f'stamp {stamp_ns} ns less the stamp offset '
+                              f'{self._stereo.exposure_offset_ns} ns')
+            return
         k = self._detector.intrinsics
         for side in _SIDES:
             h, w = images[side][0].shape[:2]
@@ -299,13 +320,47 @@ class FeatureNode(Node):
         self._publish_status(t_ns, detection)
         self._publish_overlays(t_ns, {'left': left, 'right': right}, encoding, detection,
                                estimate, output)
-        self._stereo.published(t_ns)
+        self._stereo.published(stamp_ns)
         if detection.ok:
+            if self._offset is not None:
+                self._offset.offer(stamp_ns, detection.features)
             self._last_measured = detection.features
             if estimate is not None:
                 self._model_error = detection.features - estimate
         elapsed_ms = (time.perf_counter() - started) * 1e3
         self._record(detection, previous, elapsed_ms)
+
+    def _update_offset(self):
+        """Fit the stamp offset when due, move the offset applied, show both."""
+        if self._offset is None:
+            return
+        track = self._stereo.joints
+        period = track.period_ns()
+        try:
+            self._offset.update(lambda t: track.at(t)[0], self._model.features,
+                                None if period is None else self._camera_period_ns / period)
+        except BehindCameraError:
+            pass  # a marker behind the camera somewhere in the window: the estimate held
+        self._stereo.exposure_offset_ns = self._offset.advance()
+        self._show_offset()
+
+    def _show_offset(self):
+        """Put the stamp offset on /diagnostics; log each change of its state."""
+        if self._offset is None:
+            self._diag.update(
+                stamp_offset_applied_ms=round(self._stereo.exposure_offset_ns * 1e-6, 3),
+                stamp_offset_state='not estimated (stamp_offset_window_s 0)')
+            return
+        o = self._offset.current()
+        estimate = 'none' if o.estimate_ns is None else round(o.estimate_ns * 1e-6, 3)
+        sd = 'none' if o.sd_ns is None else round(o.sd_ns * 1e-6, 3)
+        if o.state != self._diag.values.get('stamp_offset_state'):
+            self.get_logger().info(f'stamp offset: {o.state} (estimate {estimate} ms, sd {sd} '
+                                   f'ms, applied {o.applied_ns * 1e-6:.3f} ms)')
+        self._diag.update(stamp_offset_ms=estimate, stamp_offset_sd_ms=sd,
+                          stamp_offset_applied_ms=round(o.applied_ns * 1e-6, 3),
+                          stamp_offset_state=o.state,
+                          stamp_offset_excitation_px_s=round(o.excitation_px_s, 1))
 
     def _predict(self, estimate):
         """

@@ -10,8 +10,9 @@ detector's (:class:`.detector.DetectorConfig`: the Hough radii) and the camera p
 from dataclasses import dataclass
 
 from ibvs_common import shared_params as shared
-from ibvs_common.params import Param, param_field, ParamConfig
+from ibvs_common.params import Param, param_field, ParamConfig, ParameterError
 
+from . import stamp_offset
 from .detector import config as detector
 
 BLEND_TIME_S = Param(
@@ -28,6 +29,18 @@ DETECTION_BUDGET_SHARE = Param(
 JOINT_HISTORY_S = Param(
     'joint_history_s', 2.0, 'how long joint states are kept to match image stamps', 's',
     low=0.0, high=60.0, low_open=True)
+STAMP_OFFSET_WINDOW_S = Param(
+    'stamp_offset_window_s', 1.0, "the window of measured frames over which the camera's "
+    'stamp offset (stamp - exposure) is estimated from the joint states (stamp_offset: the '
+    'offset that best explains the image motion; each frame is then read and published at '
+    'its estimated exposure); 0: the stamps are taken as the exposures. Needs joint states '
+    'at least 4 a frame (none in lockstep) and the window, the largest offset (0.2 s) and '
+    'the speed step within joint_history_s', 's', low=0.0, high=10.0)
+STAMP_OFFSET_INITIAL_S = Param(
+    'stamp_offset_initial_s', 0.0, 'the stamp offset applied from the first frame and the '
+    "estimate's start: what an earlier run on the same camera found (its stamp_offset_ms on "
+    "/diagnostics, ibvs cell's status line); the estimate replaces it once the arm moves",
+    's', low=-0.2, high=0.2)
 PUBLISH_DEBUG_IMAGES = Param(
     'publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/image '
     'for every frame even when nobody subscribes (e.g. to record them)', '-')
@@ -51,6 +64,8 @@ class FeatureConfig(ParamConfig):
     roi_margin_px: int = param_field(detector.ROI_MARGIN_PX)
     detection_budget_share: float = param_field(DETECTION_BUDGET_SHARE)
     joint_history_s: float = param_field(JOINT_HISTORY_S)
+    stamp_offset_window_s: float = param_field(STAMP_OFFSET_WINDOW_S)
+    stamp_offset_initial_s: float = param_field(STAMP_OFFSET_INITIAL_S)
     publish_debug_images: bool = param_field(PUBLISH_DEBUG_IMAGES)
     camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
@@ -63,6 +78,14 @@ class FeatureConfig(ParamConfig):
         """Check each value, then the detector's rules (:meth:`detector_config`)."""
         super().__post_init__()
         self.detector_config()
+        reach_s = self.stamp_offset_window_s + stamp_offset.REACH_S
+        if self.stamp_offset_window_s > 0.0 and reach_s > self.joint_history_s:
+            raise ParameterError(
+                f"parameter 'stamp_offset_window_s' = {self.stamp_offset_window_s!r} is "
+                f'invalid with joint_history_s = {self.joint_history_s!r}: the estimate reads '
+                f'joint states up to {reach_s:g} s back; allowed: at most '
+                f'{self.joint_history_s - stamp_offset.REACH_S:g} (or a longer '
+                'joint_history_s, or 0: no estimate)')
 
     def detector_config(self) -> detector.DetectorConfig:
         """Return the detector's tuning of these values (ParameterError if it refuses them)."""

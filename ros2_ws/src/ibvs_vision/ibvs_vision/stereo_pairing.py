@@ -32,7 +32,7 @@ class Wait(NamedTuple):
 
 
 class Ready(NamedTuple):
-    """A complete stereo frame: the images by side and the joint state of its stamp."""
+    """A complete stereo frame: the images by side and the joint state of its exposure."""
 
     t_ns: int
     images: Dict[str, Any]
@@ -88,6 +88,10 @@ class StereoPairer:
         self.newest_ns = -1
         #: The stamp of the last frame published (:meth:`published`).
         self.last_published_ns = -1
+        #: How long (ns) after its exposure a frame is stamped: its joint state is read at
+        #: stamp - offset (the feature node's estimate, :mod:`.stamp_offset`; 0: the stamp
+        #: is the exposure).
+        self.exposure_offset_ns = 0
 
     def forget(self) -> None:
         """Forget every frame, state and stamp (the clock jumped back: a new time line)."""
@@ -199,7 +203,7 @@ class StereoPairer:
                     other = self.sides[1] if side == self.sides[0] else self.sides[0]
                     drop = ('left/right stamp mismatch',
                             f'{other} image at {t_ns * 1e-9:.9f} s has no {side} image')
-            joints, why = self.joints_at(t_ns)
+            joints, why = self.joints_at(t_ns - self.exposure_offset_ns)
             if drop is None and why is not None:
                 drop = ('no joint state', why)
             waiting = [f'{s} image' for s in missing] + (['joint state'] if joints is None

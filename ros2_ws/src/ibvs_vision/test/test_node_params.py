@@ -22,3 +22,11 @@ def test_the_detectors_rule_is_checked_when_the_config_is_built():
     assert str(caught.value) == str(detector.value)
     assert FeatureConfig(hough_min_radius_px=40, hough_max_radius_px=41) \
         .detector_config().hough_max_radius_px == 41
+
+
+def test_the_stamp_offsets_window_must_fit_in_the_joint_history():
+    with pytest.raises(ParameterError, match="parameter 'stamp_offset_window_s' = 1.9 is "
+                       'invalid with joint_history_s = 2.0'):
+        FeatureConfig(stamp_offset_window_s=1.9)
+    assert FeatureConfig(stamp_offset_window_s=1.9, joint_history_s=3.0)
+    assert FeatureConfig(stamp_offset_window_s=0.0, joint_history_s=0.1)  # no estimate
