@@ -36,6 +36,18 @@ A target is kept when (each a margin below, :class:`Margins`):
   benchmark teaches on 10 frames since, sigma / sqrt(10); the margin stays the one-frame
   one, so that a task set holds for a teach of any length.)
 
+**workspace-3** keeps what workspace-2 keeps, with two changes. The observability bound
+follows from the teach the benchmark uses, not from one frame: :func:`observability_bound`
+of ``teach_frames`` (10: 0.83 px/rad instead of 2.6), which brings back the third of the
+workspace workspace-2 refuses and which a ten-frame teach serves within the criterion. And
+every target must pass a line-of-sight check the caller gives (``line_of_sight``: the
+markers seen by both lenses past the arm's own links and the cell). The margins above are
+geometric and say nothing of what hides a marker: at 6 of workspace-2's first 500 targets
+of seed 1 (165, 193, 203, 224, 238, 253) the forearm hides them or the detector finds
+none. ``ibvs_experiments.line_of_sight`` renders the target as the simulator does and runs
+the detector (exact where the capsules of :mod:`.capsules`, conservative by design, would
+also refuse targets the camera sees); this package stays without a renderer.
+
 A start is the target's joint angles plus a uniform offset of up to ``start_offset_rad``
 per joint (joint 6 too: its roll is unobservable and the loop never corrects it), kept when
 within the limits by the same margin and clear of the pedestal and the floor; it need not
@@ -48,12 +60,13 @@ condition number, the measures its target passed, for the study's tables.
 """
 
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 import math
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 # default_model: the package's (the paper's robot, the ZED 2 at the paper's pose).
 from . import default_model
@@ -68,6 +81,14 @@ from .scene import discs_apart, MARKER_RADIUS_M, wrist_clear, WRIST_CLEAR_DEG
 #: success criterion (module docstring); :func:`.scene.wrist_clear` with the lenses at
 #: -b/2 and +b/2 (workspace-1 put them at 0 and b).
 VERSION = 'workspace-2'
+#: The versions :func:`tasks` draws; workspace-3 needs a ``line_of_sight`` check (module
+#: docstring).
+VERSIONS = (VERSION, 'workspace-3')
+#: The detector's noise per feature on one frame at HD720 (px; ``ibvs vsbench
+#: --measure-noise --resolution HD720``) and the success criterion's tool-axis bound (deg):
+#: what :func:`observability_bound` is made of.
+TEACH_NOISE_PX = 0.0076
+SUCCESS_AXIS_DEG = 0.5
 
 
 @dataclass(frozen=True)
@@ -89,6 +110,20 @@ class Margins:
     start_offset_rad: float = math.radians(20.0)
     max_condition_number: float = 17.0
     min_observability_px_rad: float = 2.6
+
+
+def observability_bound(teach_frames: int = 1, noise_px: float = TEACH_NOISE_PX) -> float:
+    """
+    Return the least tool-axis observability (px/rad) a target taught on ``teach_frames``.
+
+    The taught features' noise is noise_px / sqrt(teach_frames), and the taught axis tilts
+    by that over the observability (rad, standard deviation): three of them within the
+    success criterion's 0.5 deg, 3 noise_px / sqrt(teach_frames) / radians(0.5) (one frame:
+    2.6 px/rad, workspace-2's margin; ten: 0.83).
+    """
+    if teach_frames < 1:
+        raise ValueError(f'teach_frames must be >= 1, got {teach_frames!r}')
+    return 3.0 * noise_px / math.sqrt(teach_frames) / math.radians(SUCCESS_AXIS_DEG)
 
 
 #: Where targets are drawn: the flange in this box of {O} (m), in front of the camera.
@@ -204,11 +239,11 @@ def start_check(model: CameraRobotModel, q: ArrayLike, margins: Margins = Margin
     return None
 
 
-def _task_dict(model, index, seed, q_start, q_target, measures):
+def _task_dict(model, index, seed, q_start, q_target, measures, version=VERSION):
     pose = forward_kinematics(q_target, model.params)
     return {
-        'id': f'{VERSION}/{seed}/{index}',
-        'version': VERSION,
+        'id': f'{version}/{seed}/{index}',
+        'version': version,
         'seed': int(seed),
         'index': int(index),
         'start_joints': [float(v) for v in q_start],
@@ -225,8 +260,10 @@ def _task_dict(model, index, seed, q_start, q_target, measures):
 
 
 def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
-          margins: Margins = Margins(), max_tries: int = 200000,
-          tally: 'Counter[str] | None' = None) -> list[dict[str, Any]]:
+          margins: Margins | None = None, max_tries: int = 200000,
+          tally: 'Counter[str] | None' = None, version: str = VERSION,
+          line_of_sight: 'Callable[[NDArray[np.float64]], str | None] | None' = None,
+          teach_frames: int = 10) -> list[dict[str, Any]]:
     """
     Return ``n`` tasks drawn with ``numpy.random.default_rng(seed)`` (module docstring).
 
@@ -238,13 +275,22 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         The seed (>= 0).
     model : CameraRobotModel, optional
         The robot and camera; default :func:`default_model` (the paper's cell at HD720).
-    margins : Margins
-        The margins kept.
+    margins : Margins, optional
+        The margins kept; default workspace-2's (:class:`Margins`), and for workspace-3
+        the same with the observability bound of ``teach_frames``.
     max_tries : int
         Draws before giving up (a RuntimeError: the margins leave no room).
     tally : collections.Counter, optional
         Filled with why draws were refused (the reasons of :func:`target_check` and
         :func:`start_check`, 'unreachable' where the IK has no solution) and 'kept'.
+    version : str
+        One of :data:`VERSIONS`.
+    line_of_sight : callable, optional
+        workspace-3 only, and needed there: why the markers are not seen at a target's
+        joint angles, or None (called last, on a target and start that passed the rest).
+    teach_frames : int
+        workspace-3: the frames the target is taught on, which set the observability
+        bound (:func:`observability_bound`).
 
     Returns
     -------
@@ -261,6 +307,14 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         raise ValueError(f'n: expected an integer >= 0, got {n!r}')
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f'seed: expected an integer >= 0, got {seed!r}')
+    if version not in VERSIONS:
+        raise ValueError(f'version must be one of {VERSIONS}, got {version!r}')
+    if (version == VERSION) != (line_of_sight is None):
+        raise ValueError(f'{VERSIONS[1]} needs a line_of_sight check and {VERSION} takes '
+                         f'none (version {version!r})')
+    if margins is None:
+        margins = Margins() if version == VERSION else Margins(
+            min_observability_px_rad=observability_bound(teach_frames))
     model = default_model() if model is None else model
     rng = np.random.default_rng(seed)
     tally = Counter() if tally is None else tally
@@ -293,12 +347,16 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         if why is not None:
             tally[f'start: {why}'] += 1
             continue
+        why = None if line_of_sight is None else line_of_sight(q)
+        if why is not None:
+            tally[f'target: markers not seen ({why})'] += 1
+            continue
         tally['kept'] += 1
-        out.append(_task_dict(model, len(out), seed, q_start, q, measures))
+        out.append(_task_dict(model, len(out), seed, q_start, q, measures, version))
     return out
 
 
-def describe(margins: Margins = Margins()) -> dict[str, Any]:
+def describe(margins: Margins = Margins(), version: str = VERSION) -> dict[str, Any]:
     """Return the task set's definition (version, box, margins) for a task file's header."""
-    return {'version': VERSION, 'target_box_m': [list(b) for b in TARGET_BOX_M],
+    return {'version': version, 'target_box_m': [list(b) for b in TARGET_BOX_M],
             'margins': asdict(margins)}
