@@ -76,7 +76,7 @@ class FeatureNode(Node):
         self._offset = StampOffsetEstimator(
             seconds_to_ns(c.stamp_offset_window_s), self._camera_period_ns,
             initial_ns=seconds_to_ns(c.stamp_offset_initial_s)) \
-            if c.stamp_offset_window_s > 0.0 else None
+            if c.estimates_stamp_offset else None
         self._stereo.exposure_offset_ns = seconds_to_ns(c.stamp_offset_initial_s)
         #: Each input's resolved topic name (the ZED wrapper's under a remap), which its
         #: rejections are counted under; filled as the subscriptions are created.
@@ -347,9 +347,11 @@ class FeatureNode(Node):
     def _show_offset(self):
         """Put the stamp offset on /diagnostics; log each change of its state."""
         if self._offset is None:
+            why = 'lockstep: the stamps are the exposures' if self.config.lockstep \
+                else 'stamp_offset_window_s 0'
             self._diag.update(
                 stamp_offset_applied_ms=round(self._stereo.exposure_offset_ns * 1e-6, 3),
-                stamp_offset_state='not estimated (stamp_offset_window_s 0)')
+                stamp_offset_state=f'not estimated ({why})')
             return
         o = self._offset.current()
         estimate = 'none' if o.estimate_ns is None else round(o.estimate_ns * 1e-6, 3)

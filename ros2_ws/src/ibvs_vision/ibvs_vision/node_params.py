@@ -33,14 +33,15 @@ STAMP_OFFSET_WINDOW_S = Param(
     'stamp_offset_window_s', 1.0, "the window of measured frames over which the camera's "
     'stamp offset (stamp - exposure) is estimated from the joint states (stamp_offset: the '
     'offset that best explains the image motion; each frame is then read and published at '
-    'its estimated exposure); 0: the stamps are taken as the exposures. Needs joint states '
-    'at least 4 a frame (none in lockstep) and the window, the largest offset (0.2 s) and '
-    'the speed step within joint_history_s', 's', low=0.0, high=10.0)
+    'its estimated exposure); 0: the stamps are taken as the exposures. Free-running only '
+    '(in lockstep the stamps are the exposures and name the frames); needs joint states at '
+    'least 4 a frame and the window, the largest offset (0.2 s) and the speed step within '
+    'joint_history_s', 's', low=0.0, high=10.0)
 STAMP_OFFSET_INITIAL_S = Param(
     'stamp_offset_initial_s', 0.0, 'the stamp offset applied from the first frame and the '
     "estimate's start: what an earlier run on the same camera found (its stamp_offset_ms on "
-    "/diagnostics, ibvs cell's status line); the estimate replaces it once the arm moves",
-    's', low=-0.2, high=0.2)
+    "/diagnostics, ibvs cell's status line); the estimate replaces it once the arm moves; "
+    '0 in lockstep', 's', low=-0.2, high=0.2)
 PUBLISH_DEBUG_IMAGES = Param(
     'publish_debug_images', False, 'publish the overlays on /ibvs/debug/{left,right}/image '
     'for every frame even when nobody subscribes (e.g. to record them)', '-')
@@ -66,6 +67,7 @@ class FeatureConfig(ParamConfig):
     joint_history_s: float = param_field(JOINT_HISTORY_S)
     stamp_offset_window_s: float = param_field(STAMP_OFFSET_WINDOW_S)
     stamp_offset_initial_s: float = param_field(STAMP_OFFSET_INITIAL_S)
+    lockstep: bool = param_field(shared.LOCKSTEP)
     publish_debug_images: bool = param_field(PUBLISH_DEBUG_IMAGES)
     camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
@@ -78,6 +80,11 @@ class FeatureConfig(ParamConfig):
         """Check each value, then the detector's rules (:meth:`detector_config`)."""
         super().__post_init__()
         self.detector_config()
+        if self.lockstep and self.stamp_offset_initial_s != 0.0:
+            raise ParameterError(
+                f"parameter 'stamp_offset_initial_s' = {self.stamp_offset_initial_s!r} is "
+                "invalid in lockstep: a frame's stamp names it there (the joint controller "
+                'waits for the q_feedback of that stamp); allowed: 0 (or lockstep false)')
         reach_s = self.stamp_offset_window_s + stamp_offset.REACH_S
         if self.stamp_offset_window_s > 0.0 and reach_s > self.joint_history_s:
             raise ParameterError(
@@ -90,6 +97,11 @@ class FeatureConfig(ParamConfig):
     def detector_config(self) -> detector.DetectorConfig:
         """Return the detector's tuning of these values (ParameterError if it refuses them)."""
         return detector.DetectorConfig.from_parameters(self.values())
+
+    @property
+    def estimates_stamp_offset(self) -> bool:
+        """Return whether the stamp offset is estimated: free-running, with a window."""
+        return not self.lockstep and self.stamp_offset_window_s > 0.0
 
     @property
     def budget_ms(self) -> float:

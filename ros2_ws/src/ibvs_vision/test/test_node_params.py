@@ -30,3 +30,13 @@ def test_the_stamp_offsets_window_must_fit_in_the_joint_history():
         FeatureConfig(stamp_offset_window_s=1.9)
     assert FeatureConfig(stamp_offset_window_s=1.9, joint_history_s=3.0)
     assert FeatureConfig(stamp_offset_window_s=0.0, joint_history_s=0.1)  # no estimate
+
+
+def test_the_stamp_offset_is_estimated_free_running_only():
+    assert not FeatureConfig().estimates_stamp_offset  # lockstep: stamps name the frames
+    assert FeatureConfig(lockstep=False).estimates_stamp_offset
+    assert not FeatureConfig(lockstep=False, stamp_offset_window_s=0.0).estimates_stamp_offset
+    with pytest.raises(ParameterError, match="parameter 'stamp_offset_initial_s' = 0.03 is "
+                       'invalid in lockstep'):
+        FeatureConfig(stamp_offset_initial_s=0.03)
+    assert FeatureConfig(lockstep=False, stamp_offset_initial_s=0.03)
