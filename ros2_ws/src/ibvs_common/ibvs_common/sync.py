@@ -212,6 +212,7 @@ class JointTrack(Generic[V]):
         self.rate_samples = rate_samples
         self.good: StampHistory[V] = StampHistory(max_len, horizon_ns, strict)
         self.bad: StampHistory[str] = StampHistory(max_len, horizon_ns, strict=False)
+        self._period: Optional[Tuple[Tuple[int, ...], float]] = None
 
     def __len__(self) -> int:
         """Return the number of good states kept."""
@@ -242,10 +243,14 @@ class JointTrack(Generic[V]):
 
     def period_ns(self) -> Optional[float]:
         """Return the median interval (ns) of the newest states, None before two."""
-        stamps = self.good.last_stamps(self.rate_samples + 1)
+        stamps = tuple(self.good.last_stamps(self.rate_samples + 1))
         if len(stamps) < 2:
             return None
-        return float(np.median(np.diff(stamps)))
+        # Kept until the newest stamps change: every lookup reads it (:meth:`at`), and
+        # the median costs far more than the lookup.
+        if self._period is None or self._period[0] != stamps:
+            self._period = (stamps, float(np.median(np.diff(stamps))))
+        return self._period[1]
 
     def max_gap_ns(self) -> Optional[int]:
         """Return the widest gap (ns) interpolated over, None before two states."""

@@ -14,7 +14,8 @@ from numpy.typing import ArrayLike, NDArray
 from ._validate import as_array
 from .camera import StereoCamera
 from .errors import InvalidInputError
-from .robot import fiducial_points, ik_position_axis, IRB4600, joint_frames, RobotParams
+from .robot import (fiducial_points, forward_kinematics_batch, ik_position_axis, IRB4600,
+                    joint_frames, RobotParams)
 
 
 class CameraRobotModel:
@@ -72,6 +73,30 @@ class CameraRobotModel:
 
         """
         return self.camera.project(self.markers(q)).reshape(6)
+
+    def features_batch(self, qs: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return F(q) (eq. 30) for each row of ``qs``: :meth:`features` of many postures at once.
+
+        The poses by :func:`.robot.forward_kinematics_batch` (bit for bit
+        :func:`.robot.forward_kinematics`), the markers and their projections as arrays;
+        each row equals :meth:`features` of that row to rounding.
+
+        Parameters
+        ----------
+        qs : array_like, shape (m, 6)
+            Joint angles (rad), one posture per row.
+
+        Returns
+        -------
+        ndarray, shape (m, 6)
+            p_I of each row (px).
+
+        """
+        tfs = forward_kinematics_batch(qs, self.params)
+        points = np.einsum('kj,nij->nki', self.params.fiducials_E, tfs[:, :3, :3]) \
+            + tfs[:, None, :3, 3]
+        return self.camera.project(points.reshape(-1, 3)).reshape(-1, 6)
 
     def jacobian(self, q: ArrayLike) -> NDArray[np.float64]:
         """

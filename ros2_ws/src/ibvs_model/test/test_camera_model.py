@@ -265,3 +265,13 @@ def test_a_right_lens_that_is_no_lens_is_refused(right_fu, right_cu):
     with pytest.raises(InvalidInputError, match='right_'):
         StereoIntrinsics(1280, 720, 700.0, 700.0, 639.5, 359.5, 0.12, right_fu=right_fu,
                          right_cu=right_cu)
+
+
+def test_features_of_many_postures_at_once_equal_each_posture_alone():
+    from ibvs_model import default_model
+    model = default_model()
+    rng = np.random.default_rng(3)
+    qs = rng.uniform(-0.5, 0.5, (7, 6)) + np.array([0.0, 0.1, 0.2, 0.0, 0.6, 0.0])
+    batch = model.features_batch(qs)
+    assert batch.shape == (7, 6)
+    np.testing.assert_allclose(batch, [model.features(q) for q in qs], rtol=0, atol=1e-9)

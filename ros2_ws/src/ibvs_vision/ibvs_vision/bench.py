@@ -10,7 +10,11 @@ Cost of the detector per stereo pair, for ``make bench`` (``ibvs_experiments.ben
   :func:`ibvs_sim.bench.stereo_frames`; ``python -m ibvs_vision.bench`` alone has none);
 - the same on synthetic frames (ibvs_vision.synthetic: shaded spheres on a cluttered,
   noisy background, a harder scene than the simulator's);
-- a frame without markers (scenario 2/3 start), searched in full every frame.
+- a frame without markers (scenario 2/3 start), searched in full every frame;
+- one fit of the camera's stamp offset (:func:`.stamp_offset.fit_stamp_offset`) over a
+  1 s window of 30 frames of a rest-to-rest move, the joint states in a
+  :class:`ibvs_common.sync.JointTrack` at 250 Hz as the feature node keeps them: the node
+  fits every 10 measured frames, so a tenth of it falls on each frame on average.
 
 ``python -m ibvs_vision.bench`` prints median and p95 of each. No ROS involved.
 
@@ -35,6 +39,7 @@ import numpy as np
 from . import synthetic
 from .detector import budget, StereoDetector
 from .detector.refine import refine_circle, window_half
+from .stamp_offset import fit_stamp_offset
 
 FRAMES = {'HD720': 20, 'VGA': 20}
 REPEAT = 3
@@ -89,6 +94,31 @@ def run(report, render=None):
                        _time_detection(detector, synth, tracking))
     finally:
         cv2.setNumThreads(threads)
+    report('vision: stamp offset fit (1 s window, 30 frames; one every 10 frames)',
+           _time_offset_fit())
+
+
+def _time_offset_fit(repeat=10):
+    """Time :func:`.stamp_offset.fit_stamp_offset` as the feature node calls it."""
+    from ibvs_common.sync import JointTrack
+    model = _model('HD720')
+    q0 = inverse_kinematics(paper.target_pose())
+    move = np.array([0.5, 0.15, -0.1, 0.2, 0.1, 0.3])
+
+    def q_of(t_s):
+        x = min(max((t_s - 0.2) / 0.8, 0.0), 1.0)
+        return q0 + move * (x * x * (3.0 - 2.0 * x))
+    track = JointTrack(horizon_ns=2_000_000_000)
+    for t_ns in range(0, 1_500_000_000, 4_000_000):
+        track.add(t_ns, q_of(t_ns * 1e-9))
+    stamps = [int(e * 1e9) + 33_000_000 for e in np.arange(0.2, 1.2, 1 / 30)]
+    features = np.array([model.features(q_of(t * 1e-9 - 0.033)) for t in stamps])
+    out = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fit_stamp_offset(stamps, features, lambda t: track.at(t)[0], model.features_batch)
+        out.append(time.perf_counter() - start)
+    return out
 
 
 def _best_of(repeat, func, *args):

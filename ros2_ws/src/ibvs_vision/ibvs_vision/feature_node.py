@@ -337,7 +337,7 @@ class FeatureNode(Node):
         track = self._stereo.joints
         period = track.period_ns()
         try:
-            self._offset.update(lambda t: track.at(t)[0], self._model.features,
+            self._offset.update(lambda t: track.at(t)[0], self._model.features_batch,
                                 None if period is None else self._camera_period_ns / period)
         except BehindCameraError:
             pass  # a marker behind the camera somewhere in the window: the estimate held

@@ -78,6 +78,7 @@ MIN_EXCITATION_PX_S = 100.0
 MIN_STATES_PER_FRAME = 4
 
 JointsAt = Callable[[int], Optional[NDArray[np.float64]]]
+#: F of many joint vectors: (m, 6) joint angles to (m, 6) features.
 FeaturesOf = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 
@@ -107,7 +108,8 @@ def fit_stamp_offset(stamps_ns: Sequence[int], features: ArrayLike, joints_at: J
         The encoder angles at a time (ns), or None where the joint states kept do not
         reach (the frame is then left out).
     features_of : callable
-        The model F (eq. 30): joint angles to features.
+        The model F (eq. 30) of many joint vectors at once: (m, 6) joint angles to (m, 6)
+        features (``CameraRobotModel.features_batch``).
     offset0_ns : int
         Where Gauss-Newton starts (the last estimate).
     max_offset_ns : int
@@ -129,7 +131,7 @@ def fit_stamp_offset(stamps_ns: Sequence[int], features: ArrayLike, joints_at: J
     offset = int(offset0_ns)
     speed = keep = None
     for _ in range(ITERATIONS):
-        rows, f = [], []
+        rows, qs = [], []
         for i, t in enumerate(stamps):
             if keep is not None and not keep[i]:
                 continue
@@ -137,31 +139,36 @@ def fit_stamp_offset(stamps_ns: Sequence[int], features: ArrayLike, joints_at: J
             if q is None:
                 continue
             rows.append(i)
-            f.append(features_of(q))
+            qs.append(q)
+        if not rows:
+            return None
+        f = features_of(np.asarray(qs))
         if speed is None:  # the image speed, once, at the starting offset
-            speed_rows, speeds = [], []
+            speed_rows, q_a, q_b = [], [], []
             for i in rows:
                 t = int(stamps[i]) - offset
-                q_a, q_b = joints_at(t - SPEED_STEP_NS), joints_at(t + SPEED_STEP_NS)
-                if q_a is None or q_b is None:
+                a, b = joints_at(t - SPEED_STEP_NS), joints_at(t + SPEED_STEP_NS)
+                if a is None or b is None:
                     continue
                 speed_rows.append(i)
-                speeds.append((features_of(q_b) - features_of(q_a)) * (0.5e9 / SPEED_STEP_NS))
+                q_a.append(a)
+                q_b.append(b)
+            if len(speed_rows) < MIN_FRAMES:
+                return None
             keep = np.zeros(len(stamps), dtype=bool)
             keep[speed_rows] = True
-            f = [fi for i, fi in zip(rows, f) if keep[i]]
+            f = f[keep[rows]]
             rows = speed_rows
-            if len(rows) < MIN_FRAMES:
-                return None
-            speed = np.asarray(speeds)
-            drift = _centred(np.asarray(f))
+            both = features_of(np.vstack([q_a, q_b]))
+            speed = (both[len(rows):] - both[:len(rows)]) * (0.5e9 / SPEED_STEP_NS)
+            drift = _centred(f)
             speed_c = _residual(_centred(speed), drift)
             energy = float(np.sum(speed_c ** 2))
             if energy <= 0.0:  # no image motion at all: nothing to tell the offset by
                 return OffsetFit(offset, float('inf'), 0.0, len(rows))
         if len(rows) != len(speed):  # a state gone from the history since: start again
             return None
-        r = s[rows] - np.asarray(f)
+        r = s[rows] - f
         r_c = _residual(_centred(r), drift)
         step = -float(np.sum(r_c * speed_c)) / energy
         offset += int(round(step * 1e9))

@@ -46,7 +46,7 @@ def frames(q_of, offset_ns, exposures_s, noise_px=0.2, seed=0):
 def test_a_window_of_motion_gives_the_offset_within_a_millisecond(offset_ms):
     exposures = np.arange(0.2, 1.2, 1 / 30)
     stamps, features = frames(smooth_move, offset_ms * MS, exposures)
-    fit = fit_stamp_offset(stamps, features, encoders(smooth_move), MODEL.features)
+    fit = fit_stamp_offset(stamps, features, encoders(smooth_move), MODEL.features_batch)
     assert abs(fit.offset_ns - offset_ms * MS) < 1 * MS
     assert 0 < fit.sd_ns < 1 * MS and fit.frames == len(stamps)
     assert fit.excitation_px_s > stamp_offset.MIN_EXCITATION_PX_S
@@ -56,9 +56,9 @@ def test_a_frame_far_off_the_others_is_left_out():
     exposures = np.arange(0.2, 1.2, 1 / 30)
     stamps, features = frames(smooth_move, 33 * MS, exposures)
     features[7] += 25.0  # a blob taken for a marker
-    fit = fit_stamp_offset(stamps, features, encoders(smooth_move), MODEL.features)
+    fit = fit_stamp_offset(stamps, features, encoders(smooth_move), MODEL.features_batch)
     assert abs(fit.offset_ns - 33 * MS) < 1 * MS and fit.frames == len(stamps) - 1
-    kept_in = fit_stamp_offset(stamps, features, encoders(smooth_move), MODEL.features,
+    kept_in = fit_stamp_offset(stamps, features, encoders(smooth_move), MODEL.features_batch,
                                outliers_out=False)
     assert kept_in.frames == len(stamps)
 
@@ -72,7 +72,7 @@ def test_uniform_motion_cannot_tell_an_offset_from_a_bias():
     stamps, features = frames(uniform, 33 * MS, np.arange(0.3, 1.5, 1 / 30), noise_px=0.0)
     for t, s in zip(stamps, features):
         est.offer(t, s)
-        state = est.update(joints_at, MODEL.features, 8.3)
+        state = est.update(joints_at, MODEL.features_batch, 8.3)
     assert state.estimate_ns is None and state.state == 'waiting for the tool to move'
     assert state.excitation_px_s < stamp_offset.MIN_EXCITATION_PX_S
     assert est.advance() == 0
@@ -85,7 +85,7 @@ def test_the_estimate_is_held_while_the_tool_is_still_and_applied_in_quarter_per
     applied, states = [], []
     for t, s in zip(stamps, features):
         est.offer(t, s)
-        states.append(est.update(joints_at, MODEL.features, 8.3))
+        states.append(est.update(joints_at, MODEL.features_batch, 8.3))
         applied.append(est.advance())
     assert abs(states[-1].estimate_ns - 33 * MS) < 2 * MS
     assert states[-1].state == 'holding: the tool is still'
@@ -101,7 +101,7 @@ def test_one_joint_state_a_frame_is_not_estimated_from():
     stamps, features = frames(smooth_move, 0, np.arange(0.3, 1.5, 1 / 30))
     for t, s in zip(stamps, features):
         est.offer(t, s)
-        state = est.update(encoders(smooth_move), MODEL.features, 1.0)
+        state = est.update(encoders(smooth_move), MODEL.features_batch, 1.0)
     assert state.state.startswith('not estimated: joint states a frame 1.0')
     assert state.estimate_ns is None and est.advance() == 5 * MS  # the initial one, kept
 
@@ -113,6 +113,6 @@ def test_an_initial_offset_is_applied_from_the_first_frame_and_refined():
     stamps, features = frames(smooth_move, 33 * MS, np.arange(0.3, 2.0, 1 / 30))
     for t, s in zip(stamps, features):
         est.offer(t, s)
-        est.update(joints_at, MODEL.features, 8.3)
+        est.update(joints_at, MODEL.features_batch, 8.3)
         est.advance()
     assert abs(est.applied_ns - 33 * MS) < 2 * MS and est.fits > 0
