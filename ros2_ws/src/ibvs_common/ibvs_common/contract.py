@@ -1,11 +1,14 @@
 """
 The interface contract of the node graph (docs/design.md §3) and its timing rule (§4).
 
-Every name a node publishes or subscribes comes from here, so a rename is one edit.
+Every name a node publishes or subscribes comes from here, so a rename is one edit; so do
+the codes of /ibvs/servo_status (:class:`ServoStatus`), the meaning of that topic.
 """
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
+# The codes of /ibvs/servo_status are part of the contract (without rclpy: servo_codes).
+from .servo_codes import ServoStatus  # noqa: F401
 # The timing rule is part of the contract.
 from .timing import feedback_frame_ns, frame_stamp_ns  # noqa: F401
 
@@ -61,13 +64,13 @@ DRY_RUN_TRAJECTORY = '/ibvs/dry_run/joint_trajectory'
 #: time_ref = the frame's stamp (its exposure); the run's latency metric.
 FRAME_LATENCY = '/ibvs/frame_latency'
 #: std_msgs/Int8, latched: the joint controller's status, one code of
-#: ibvs_control.servo_status.ServoStatus (MoveIt Servo's codes, and ours from 10: waiting,
+#: :class:`ServoStatus` (MoveIt Servo's codes, and ours from 10: waiting,
 #: holding on a stale input and which, a local minimum the feedback node reports); in
 #: position mode on each change and once a second, with the effort interface (which never
 #: holds) from its first command on, on each change.
 SERVO_STATUS = '/ibvs/servo_status'
 #: std_msgs/Int8, latched: the feedback node's status, NO_WARNING or LOCAL_MINIMUM of
-#: ibvs_control.servo_status.ServoStatus (ibvs_control.minimum_watch), from its first
+#: :class:`ServoStatus` (ibvs_control.minimum_watch), from its first
 #: answered frame on, on each change; the joint controller relays it on SERVO_STATUS.
 FEEDBACK_STATUS = '/ibvs/feedback_status'
 #: Evaluation only (nav_msgs/Path in base_link): the true flange pose of every physics step,

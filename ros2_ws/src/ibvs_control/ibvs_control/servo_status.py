@@ -23,57 +23,20 @@ tell (the image error against the model's pose: :mod:`.minimum_watch`) it report
 own /ibvs/feedback_status, and the joint controller relays it (:class:`FeedbackStatus`)
 while nothing of its own is to be said: a hold, or waiting, comes first.
 
-The codes 0-6 and -1 are MoveIt Servo's own (``moveit_servo::StatusCode``, moveit2 jazzy
-4d84106 ``moveit_ros/moveit_servo/include/moveit_servo/utils/datatypes.hpp`` L51-61), so
-that a supervisor written for Servo reads ours; 10 and up are this stack's. The 0.1 s
+The codes (:class:`ibvs_common.servo_codes.ServoStatus`, re-exported here) 0-6 and -1 are
+MoveIt Servo's own, so that a supervisor written for Servo reads ours; 10 and up are this
+stack's. The 0.1 s
 default of ``joint_state_timeout_s`` is Servo's ``incoming_command_timeout``
 (``moveit_ros/moveit_servo/config/servo_parameters.yaml`` L102-104).
 """
 
 from collections.abc import Iterable, Mapping, Sequence
-from enum import IntEnum
 from typing import NamedTuple
 
 from ibvs_common.publishers import describe
-
-
-class ServoStatus(IntEnum):
-    """One code a supervisor reads (MoveIt Servo's 0-6 and -1, ours from 10)."""
-
-    INVALID = -1
-    NO_WARNING = 0
-    DECELERATE_FOR_APPROACHING_SINGULARITY = 1
-    HALT_FOR_SINGULARITY = 2
-    DECELERATE_FOR_LEAVING_SINGULARITY = 3
-    DECELERATE_FOR_COLLISION = 4
-    HALT_FOR_COLLISION = 5
-    JOINT_BOUND = 6
-    #: Not started: an input the first command waits for has never come (nothing is
-    #: commanded).
-    WAITING = 10
-    #: Holding: /joint_states older than their timeout (where the arm is, is not known).
-    HOLD_STALE_JOINT_STATES = 11
-    #: Holding: no new camera frame within its timeout.
-    HOLD_STALE_CAMERA = 12
-    #: Holding: frames come but no q_feedback for them within its timeout.
-    HOLD_STALE_FEEDBACK = 13
-    #: Holding: the node's clock jumped back (a restarted simulator's /clock, an NTP step):
-    #: every input's age and stamp order start again, and the arm holds until each input
-    #: came again on the new time line.
-    HOLD_CLOCK_JUMPED_BACK = 14
-    #: Holding: sim time stopped (``use_sim_time``: /clock has not moved for the wall-time
-    #: bound of :meth:`ibvs_common.sim_time.ClockWatch.stall_bound_s`): no input can age, and
-    #: the simulator is not running.
-    HOLD_CLOCK_STOPPED = 15
-    #: Holding: a second publisher on an input the arm follows (/joint_states,
-    #: /ibvs/q_feedback, the feedforward trajectory) or a second commander on the
-    #: controller's own command topic, until it is gone.
-    HOLD_SECOND_PUBLISHER = 16
-    #: Not holding, a warning: the feedback node reports (on /ibvs/feedback_status) that
-    #: the image error is small while the model puts the tool far from the target, the
-    #: loop at rest: a local minimum of the image error (:mod:`.minimum_watch`). The arm
-    #: stays where the law holds it; the run does not count as a success.
-    LOCAL_MINIMUM = 17
+# The codes are the meaning of /ibvs/servo_status, so they live in the topic contract (a
+# supervisor or the launcher reads them without this package); re-exported here.
+from ibvs_common.servo_codes import ServoStatus  # noqa: F401
 
 
 #: Each stale input's holding code.

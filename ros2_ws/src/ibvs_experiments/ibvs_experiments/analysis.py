@@ -37,7 +37,7 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
   the controller's target features (the taught ones the feature node measured, else the
   target pose's through the run's camera: :func:`final_image_error`);
   ``final_servo_status``: the last /ibvs/servo_status of the run (a name of
-  ibvs_control.servo_status.ServoStatus, e.g. 'LOCAL_MINIMUM'); each absent from a bag
+  ibvs_common.servo_codes.ServoStatus, e.g. 'LOCAL_MINIMUM'); each absent from a bag
   without them;
 - ``peak_joint_speed_ratio``, ``peak_joint_torque_ratio`` (:func:`joint_metrics`; from the
   bag's joint states and torques, :func:`analyse_bag`): the largest |qdot_i| / qd_max_i
@@ -506,7 +506,7 @@ def final_image_error(features: NDArray[np.float64], taught: NDArray[np.float64]
 
 def _status_name(code):
     """Return the ServoStatus name of ``code``, or the code in words if it is none."""
-    from ibvs_control.servo_status import ServoStatus
+    from ibvs_common.servo_codes import ServoStatus
     try:
         return ServoStatus(code).name
     except ValueError:

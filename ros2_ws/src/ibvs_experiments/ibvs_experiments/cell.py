@@ -41,7 +41,7 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
    Then the four processes start; a status line once a second (:class:`StatusBoard`): DRY
    RUN first in a dry run (the joint controller's ``dry_run``: its references on
    :func:`dry_run_topic`, none on the command topic), the joint controller's
-   ``/ibvs/servo_status`` code and name (:class:`ibvs_control.servo_status.ServoStatus`),
+   ``/ibvs/servo_status`` code and name (:class:`ibvs_common.servo_codes.ServoStatus`),
    the second publishers a node names on /diagnostics (``second_publishers``:
    :class:`ibvs_common.kit.PublisherWatch`, which every node runs), the image error
    (:meth:`StatusBoard.image_error`: |s - s*| of the features the loop used, /ibvs/features,
@@ -684,7 +684,7 @@ class StatusBoard:
 
     def line(self) -> str:
         """Return the status line now."""
-        from ibvs_control.servo_status import ServoStatus
+        from ibvs_common.servo_codes import ServoStatus
         now = self.clock()
         if self.code is None:
             servo = 'servo: no status yet'
