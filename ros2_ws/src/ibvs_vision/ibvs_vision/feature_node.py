@@ -96,7 +96,7 @@ class FeatureNode(Node):
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
         self._inputs = Inputs(self._diag, self.now_ns,
-                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
+                              stamp_lead_ns(c.stale_timeout_s, self._camera_period_ns))
         forget_on_back(self, self._inputs, self._stereo,
                        *([self._offset] if self._offset is not None else []))
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,

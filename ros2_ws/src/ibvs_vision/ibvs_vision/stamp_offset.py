@@ -72,9 +72,9 @@ REACH_S = (MAX_OFFSET_NS + SPEED_STEP_NS) * 1e-9
 #: (docs/real_cell.md) windows at 40-50 px/s were off by up to 40 ms, at 130 px/s and more
 #: by at most 2 ms. The standard deviation given is the noise's share alone.
 MIN_EXCITATION_PX_S = 100.0
-#: Joint states must come at least this many times a camera period to estimate from: the
-#: simulator's lockstep publishes one a frame (/stereo/joint_states), at the exposure, and
-#: its stamps need no estimate.
+#: Joint states must come at least this many times a camera period to estimate from:
+#: between sparser ones the interpolated encoders cannot tell a few milliseconds (the
+#: feature node estimates free-running only; lockstep's stamps are the exposures).
 MIN_STATES_PER_FRAME = 4
 
 JointsAt = Callable[[int], Optional[NDArray[np.float64]]]
