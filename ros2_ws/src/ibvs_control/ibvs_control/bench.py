@@ -11,7 +11,8 @@ Benchmarks of the controllers' hot paths (``make bench`` calls :func:`run`).
   q_feedback of a new frame) and sampling it, every command period at 250 Hz (4 ms);
 - the feedforward node's start-up, from a joint state to its message: the two-point
   trajectory of the joint controller's own move (position interface, limited actuators)
-  and T_forward's trajectory (ideal actuators) at the paper's ``tau_in`` and at 0.05 s.
+  and T_forward's trajectory (ideal actuators) at the paper's ``tau_in`` and at 0.05, 0.2
+  and 1 s (the slowest, a 60 s trajectory).
 
 No assertion on time: numbers to read. ``python -m ibvs_control.bench`` prints median/p95.
 """
@@ -75,7 +76,7 @@ def run(report: Callable[[str, list[float]], None]) -> None:
         return joint_trajectory(0, 1_000_000, positions)
     report('ibvs_control: feedforward start-up, own move (IK, two points, message)',
            _timed(start_up, [(paper.TAU_IN, True)] * 20))
-    for tau_in in (paper.TAU_IN, 0.05):
+    for tau_in in (paper.TAU_IN, 0.05, 0.2, 1.0):
         report(f'ibvs_control: feedforward start-up, T_forward at tau_in {tau_in:g} '
                '(IK, trajectory, message)', _timed(start_up, [(tau_in, False)] * 3))
 

@@ -308,17 +308,28 @@ class Feedforward:
         tail has left to travel by then is far below what the encoders resolve (the
         paper's values end by the first rule, about 500 samples after their moves fell
         below FLOOR_RAD). ``max_samples`` bounds the length in any case.
+
+        The rows are computed in blocks (:meth:`.StateSpaceFilter.held_outputs`: the
+        filter's own recurrence for its first 10 s, its closed form for a slow loop's tail)
+        and the two rules are checked on each block at once, so that a trajectory of the
+        full ``max_samples`` costs milliseconds; the filter has then run on past the
+        last row (:meth:`start` again to step it).
         """
         if max_samples < 2:
             raise ValueError(f'max_samples must be >= 2, got {max_samples}')
-        rows = [self.step()]
-        still = floor = 0
-        while len(rows) < max_samples and still < settled_samples and floor < FLOOR_SAMPLES:
-            rows.append(self.step())
-            moved = float(np.max(np.abs(rows[-1] - rows[-2])))
-            still = still + 1 if moved <= atol else 0
-            floor = floor + 1 if moved <= FLOOR_RAD else 0
-        return np.array(rows)
+        if settled_samples < 1:
+            raise ValueError(f'settled_samples must be >= 1, got {settled_samples}')
+        rows = self.step()[np.newaxis]
+        block = 1024
+        while True:
+            take = min(block, max_samples - len(rows))
+            more = (np.tile(self.q_start, (take, 1)) if self.hold
+                    else self.filter.held_outputs(self.q_target, take))
+            rows = np.concatenate((rows, more))
+            end = _settled_length(rows, ((atol, settled_samples), (FLOOR_RAD, FLOOR_SAMPLES)))
+            if end is not None or len(rows) >= max_samples:
+                return rows[:min(end or max_samples, max_samples)]
+            block *= 2
 
     def pose_error(self) -> tuple[float, float]:
         """Return (m, rad) between FK(q_target) and the target pose: the IK residual."""
@@ -330,6 +341,24 @@ class Feedforward:
 #: (``joint_limit_margin_rad``, :mod:`.servo_laws`), and so does the safety envelope's final
 #: guarantee (:class:`.envelope.EnvelopeConfig`).
 JOINT_LIMIT_MARGIN_RAD = 0.05
+
+
+def _settled_length(rows: NDArray[np.float64], rules) -> int | None:
+    """
+    Return the length at which ``rows`` first meets one of ``rules``, else None.
+
+    A rule (limit, count) is met at row i when rows 1 ... i, the last ``count`` of them,
+    have each moved by at most ``limit`` (max over columns) from the row before; the
+    length is then i + 1 (:meth:`Feedforward.trajectory`).
+    """
+    moved = np.max(np.abs(np.diff(rows, axis=0)), axis=1)
+    ends = []
+    for limit, count in rules:
+        still = np.concatenate(([0], np.cumsum(moved <= limit)))
+        full = np.flatnonzero(still[count:] - still[:-count] == count)
+        if full.size:
+            ends.append(int(full[0]) + count + 1)
+    return min(ends) if ends else None
 
 
 def target_branch(pose: ArrayLike, q0: ArrayLike, params: 'RobotParams' = IRB4600

@@ -17,6 +17,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from .transfer_function import TransferFunction
 
+#: Samples after a reset that :meth:`StateSpaceFilter.held_outputs` computes by the
+#: recurrence, bit for bit as :meth:`StateSpaceFilter.step` would: 10 s at 1 kHz, more than
+#: T_forward needs to settle at a ``tau_in`` up to 0.2 s. Later samples (a slower inner
+#: loop's long tail) run the same recurrence in compiled code, equal to within rounding.
+RECURRENCE_SAMPLES = 10_000
+
 
 class StateSpaceFilter:
     """A discrete SISO filter run on ``channels`` signals, one sample per :meth:`step`."""
@@ -34,6 +40,9 @@ class StateSpaceFilter:
         self.C = np.asarray(c, dtype=float).reshape(-1)
         self.D = float(np.asarray(d).reshape(-1)[0]) if np.size(d) else 0.0
         self.order = self.A.shape[0]
+        # tf2ss's controllable form: x = the last n values of w, w_(k+1) = A[0] x_k + B[0] u
+        self._shift_form = (self.order > 0 and not self.B[1:].any()
+                            and np.array_equal(self.A[1:], np.eye(self.order - 1, self.order)))
         self.x = np.zeros((self.order, self.channels))
         self.last_output = np.zeros(self.channels)
         self.steps = 0
@@ -96,6 +105,49 @@ class StateSpaceFilter:
             raise ValueError('a filter with an integrator has no rest state for u != 0')
         self.x = np.linalg.solve(lhs, np.outer(self.B, u))
         self.last_output = self.output(u)
+
+    def held_outputs(self, u: ArrayLike, samples: int) -> NDArray[np.float64]:
+        """
+        Return the next ``samples`` outputs, shape (samples, channels), for input held at u.
+
+        The state advances ``samples`` steps, as that many :meth:`step` calls would leave it.
+        Samples up to :data:`RECURRENCE_SAMPLES` after the last :meth:`reset` are the
+        recurrence y_k = C x_k + D u, x_(k+1) = A x_k + B u itself, bit for bit as
+        :meth:`step`. Later ones run the same recurrence in scipy's ``lfilter``: in the
+        controllable form (``tf2ss``) the state is the last n values of one signal w,
+        w_(k+1) = A[0] x_k + B[0] u, so w continues as the all-pole filter 1 / den(z) from its
+        last n values (``lfiltic``), and y_k = C x_k + D u. (A closed form x_inf + A^j (x_k -
+        x_inf) is not an option: with T_forward's poles near z = 1, x_inf is far larger than
+        the output and solving for it loses the output to rounding.)
+        """
+        u = self._input(u)
+        out = np.empty((int(samples), self.channels))
+        a, c, bu, du = self.A, self.C, np.outer(self.B, u), self.D * u
+        x = self.x
+        exact = (min(len(out), max(RECURRENCE_SAMPLES - self.steps, 0)) if self._shift_form
+                 else len(out))
+        for k in range(exact):
+            out[k] = c @ x + du
+            x = a @ x + bu
+        rest = len(out) - exact
+        if rest:
+            from scipy import signal  # here: its import costs what most filters never use
+            den = np.concatenate(([1.0], -a[0]))
+            w = np.empty((rest + self.order, self.channels))
+            w[:self.order] = x[::-1]
+            for ch in range(self.channels):
+                held = np.full(rest, self.B[0] * u[ch])
+                zi = signal.lfiltic([1.0], den, x[:, ch], held[:1])
+                w[self.order:, ch] = signal.lfilter([1.0], den, held, zi=zi)[0]
+            # x_(k+j) = w[j + order - 1], ..., w[j] (newest first), for j = 0 ... rest
+            states = np.lib.stride_tricks.sliding_window_view(w, self.order, axis=0)
+            out[exact:] = np.einsum('i,jci->jc', c, states[:rest, :, ::-1]) + du
+            x = states[rest, :, ::-1].T.copy()
+        self.x = x
+        self.steps += len(out)
+        if len(out):
+            self.last_output = out[-1].copy()
+        return out
 
     def copy(self) -> 'StateSpaceFilter':
         """Return an independent filter with the same coefficients and state."""

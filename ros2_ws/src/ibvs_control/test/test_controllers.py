@@ -4,7 +4,7 @@ from ibvs_control import youla
 from ibvs_control.controllers import (AdaptiveFeedback, check_reachable, Feedforward,
                                       JointLoop)
 from ibvs_control.decoupling import decouple
-from ibvs_control.filters import StateSpaceFilter
+from ibvs_control.filters import RECURRENCE_SAMPLES, StateSpaceFilter
 from ibvs_control.governor import ReferenceGovernor
 from ibvs_control.transfer_function import TransferFunction
 from ibvs_model import (default_model, forward_kinematics, ik_solutions, InvalidInputError,
@@ -349,3 +349,17 @@ def test_feedforward_trajectory_is_the_filter_output_then_held_exactly(tau_in, d
     capped = Feedforward(paper.target_pose(), tau_in, dt)
     capped.start(q0)
     np.testing.assert_array_equal(capped.trajectory(max_samples=50), rows[:50])
+
+
+def test_feedforward_trajectory_of_a_slow_inner_loop_is_the_filter_output_to_within_rounding():
+    q0 = inverse_kinematics(paper.scenario_start_pose(2))
+    ref = Feedforward(paper.target_pose(), 0.5, 1e-3)
+    ff = Feedforward(paper.target_pose(), 0.5, 1e-3)
+    ref.start(q0)
+    ff.start(q0)
+    rows = ff.trajectory()
+    assert len(rows) > RECURRENCE_SAMPLES
+    stepped = np.array([ref.step() for _ in range(len(rows))])
+    np.testing.assert_array_equal(rows[:RECURRENCE_SAMPLES], stepped[:RECURRENCE_SAMPLES])
+    np.testing.assert_allclose(rows, stepped, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(rows[-1], ff.q_target, atol=1e-3)
