@@ -1,5 +1,5 @@
 """
-A JointTrajectory read from its serialized bytes (CDR) as arrays, without a message object.
+A JointTrajectory read from and written to its serialized bytes (CDR) as arrays.
 
 rclpy turns every message it takes into Python objects in the executor's thread and holds
 the interpreter while it does: for a JointTrajectory a point object, four arrays and a
@@ -18,14 +18,20 @@ of the same shape (the four arrays of each as long as those of the first) are re
 once (bytes after the last point are ignored, as rclpy ignores them: rmw_serialize's buffer
 may be longer than the message); anything else (points of different lengths, another
 encapsulation, bytes too few) gives None, and the caller reads the message as rclpy does.
+
+Publishing costs the same in the other direction: a message object of thousands of points
+takes rclpy as long to build as to read. :func:`trajectory_bytes` writes the bytes
+``rclpy.serialization.serialize_message`` would (padding zero) from the arrays, and a
+publisher sends bytes as they are (``Publisher.publish`` takes ``bytes``).
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import struct
 
 from builtin_interfaces.msg import Time
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 #: The encapsulation identifier read here (``CDR_LE``) and its byte order (numpy's).
 ENCAPSULATIONS = {b'\x00\x01': '<'}
@@ -189,3 +195,73 @@ def trajectory_arrays(data: bytes) -> TrajectoryArrays | None:
     return TrajectoryArrays(
         stamp, names, sec * 1_000_000_000 + nanosec, arrays['positions'],
         {name: bool(np.all(np.isfinite(arrays[name]))) for name in POINT_ARRAYS[1:]})
+
+
+def trajectory_bytes(stamp: Time, frame_id: str, joint_names: Sequence[str],
+                     times_ns: ArrayLike, positions: ArrayLike,
+                     velocities: ArrayLike | None = None,
+                     accelerations: ArrayLike | None = None) -> bytes:
+    """
+    Return the XCDR1 little-endian bytes of a JointTrajectory of points of one shape.
+
+    ``times_ns`` (N,): each point's ``time_from_start``; ``positions`` (N, k); the points'
+    ``velocities`` and ``accelerations`` (N, k) when given, else empty, and ``effort``
+    empty. The bytes are those rclpy serializes for the same message (module docstring),
+    written with a few array operations whatever N.
+    """
+    times_ns = np.asarray(times_ns, dtype=np.int64)
+    count = len(times_ns)
+    head = bytearray(b'\x00\x01\x00\x00')
+
+    def align(size):
+        head.extend(bytes(-(len(head) - HEADER_BYTES) % size))
+
+    def uint32(value):
+        align(4)
+        head.extend(struct.pack('<I', value))
+
+    def string(text):
+        raw = text.encode('utf-8') + b'\x00'
+        uint32(len(raw))
+        head.extend(raw)
+
+    head.extend(struct.pack('<iI', stamp.sec, stamp.nanosec))
+    string(frame_id)
+    uint32(len(joint_names))
+    for name in joint_names:
+        string(name)
+    uint32(count)
+    if count == 0:
+        return bytes(head)
+    arrays = [np.asarray(positions, dtype=np.float64).reshape(count, -1)]
+    for extra in (velocities, accelerations):
+        arrays.append(np.zeros((count, 0)) if extra is None
+                      else np.asarray(extra, dtype=np.float64).reshape(count, -1))
+    arrays.append(np.zeros((count, 0)))  # effort
+    lengths = tuple(a.shape[1] for a in arrays)
+    layouts = {phase: _point_layout(HEADER_BYTES + phase, lengths) for phase in (0, 4)}
+
+    def size_at(start):
+        return layouts[(start - HEADER_BYTES) % 8][1]
+
+    starts = _point_starts(len(head), count, size_at)
+    buf = np.zeros(int(starts[-1]) + size_at(int(starts[-1])), dtype=np.uint8)
+    buf[:len(head)] = np.frombuffer(bytes(head), dtype=np.uint8)
+    phase = (starts - HEADER_BYTES) % 8 == 4
+    for i, (values, length) in enumerate(zip(arrays, lengths)):
+        count_at = np.where(phase, layouts[4][0][i][0], layouts[0][0][i][0]) + starts
+        _scatter(buf, count_at, np.full((count, 1), length, dtype='<u4'))
+        data_at = np.where(phase, layouts[4][0][i][1], layouts[0][0][i][1]) + starts
+        _scatter(buf, data_at, values.astype('<f8'))
+    tail = np.where(phase, layouts[4][1], layouts[0][1]) + starts - 8
+    sec, nanosec = np.divmod(times_ns, 1_000_000_000)
+    _scatter(buf, tail, sec.astype('<i4').reshape(-1, 1))
+    _scatter(buf, tail + 4, nanosec.astype('<u4').reshape(-1, 1))
+    return buf.tobytes()
+
+
+def _scatter(buf: NDArray[np.uint8], offsets: NDArray[np.int64], values: NDArray) -> None:
+    """Write each row of ``values`` at its offset in ``buf`` (the inverse of _gather)."""
+    raw = np.ascontiguousarray(values).view(np.uint8).reshape(len(offsets), -1)
+    if raw.shape[1]:
+        buf[offsets[:, None] + np.arange(raw.shape[1], dtype=np.int64)] = raw

@@ -1,6 +1,7 @@
-"""A JointTrajectory read from its serialized bytes: what rclpy reads, as arrays."""
+"""A JointTrajectory read from and written to its serialized bytes, as arrays."""
 
 from ibvs_common import cdr, conversions
+from ibvs_common.msg_trajectory import joint_trajectory_bytes
 from ibvs_common.conversions import InputError
 import numpy as np
 import pytest
@@ -89,3 +90,40 @@ def test_bytes_that_are_no_trajectory_are_refused_as_malformed():
     for broken in (raw[:40], b'\x00\x01\x00\x00', b'', raw[:2] + b'\xff' * 60):
         with pytest.raises(InputError, match='malformed message'):
             conversions.read_trajectory(broken, MS)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_written_bytes_deserialize_to_the_message_and_read_back_as_its_arrays(seed):
+    rng = np.random.default_rng(seed)
+    names = ['j' * int(rng.integers(1, 8)) for _ in range(int(rng.integers(0, 7)))]
+    count, width = int(rng.integers(0, 9)), int(rng.choice([0, 1, 2, 3, 6, 7]))
+    stamp = JointTrajectory().header.stamp
+    stamp.sec, stamp.nanosec = int(rng.integers(-2 ** 31, 2 ** 31)), int(rng.integers(0, 2 ** 32))
+    frame_id = 'x' * int(rng.integers(0, 9))
+    times_ns = rng.integers(-10 ** 12, 10 ** 12, size=count)
+    positions = rng.normal(size=(count, width))
+    extra = [rng.normal(size=(count, width)) if rng.random() < 0.5 else None for _ in range(2)]
+    data = cdr.trajectory_bytes(stamp, frame_id, names, times_ns, positions, *extra)
+    expected = JointTrajectory(joint_names=names)
+    expected.header.stamp, expected.header.frame_id = stamp, frame_id
+    for k in range(count):
+        point = JointTrajectoryPoint(positions=positions[k].tolist())
+        for field, values in zip(('velocities', 'accelerations'), extra):
+            if values is not None:
+                setattr(point, field, values[k].tolist())
+        point.time_from_start.sec, point.time_from_start.nanosec = divmod(int(times_ns[k]),
+                                                                          10 ** 9)
+        expected.points.append(point)
+    assert deserialize_message(data, JointTrajectory) == expected
+    arrays = cdr.trajectory_arrays(data)
+    np.testing.assert_array_equal(arrays.times_ns, times_ns)
+    if count:
+        np.testing.assert_array_equal(arrays.positions, positions)
+
+
+def test_a_feedforward_trajectory_as_bytes_is_the_message_joint_trajectory_builds():
+    positions = np.random.default_rng(7).normal(size=(1000, 6))
+    velocities = np.gradient(positions, axis=0)
+    data = joint_trajectory_bytes(123 * MS, MS, positions, velocities=velocities)
+    assert deserialize_message(data, JointTrajectory) == conversions.joint_trajectory(
+        123 * MS, MS, positions, velocities=velocities)

@@ -21,7 +21,7 @@ from collections.abc import Callable
 import time
 
 from ibvs_common.bench import print_timing
-from ibvs_common.conversions import joint_trajectory
+from ibvs_common.msg_trajectory import joint_trajectory_bytes
 from ibvs_model import default_model, IRB4600, paper
 import numpy as np
 
@@ -73,12 +73,12 @@ def run(report: Callable[[str, list[float]], None]) -> None:
         ff = Feedforward(paper.target_pose(), tau_in, 1e-3)
         ff.start(run_.q[0])
         positions = np.array([run_.q[0], ff.goal]) if two_points else ff.trajectory()
-        return joint_trajectory(0, 1_000_000, positions)
-    report('ibvs_control: feedforward start-up, own move (IK, two points, message)',
+        return joint_trajectory_bytes(0, 1_000_000, positions)
+    report('ibvs_control: feedforward start-up, own move (IK, two points, bytes)',
            _timed(start_up, [(paper.TAU_IN, True)] * 20))
     for tau_in in (paper.TAU_IN, 0.05, 0.2, 1.0):
         report(f'ibvs_control: feedforward start-up, T_forward at tau_in {tau_in:g} '
-               '(IK, trajectory, message)', _timed(start_up, [(tau_in, False)] * 3))
+               '(IK, trajectory, bytes)', _timed(start_up, [(tau_in, False)] * 3))
 
     dynamics = RobotDynamics(IRB4600, with_tool=True)
     try:

@@ -18,10 +18,11 @@ and rejections: docs/nodes.md.
 from typing import Any
 
 from ibvs_common import contract
-from ibvs_common.conversions import (ignored_joints, InputError, joint_trajectory, read_joints,
-                                     read_stamp, stamp_lead_ns, travel_bounds)
+from ibvs_common.conversions import (ignored_joints, InputError, read_joints, read_stamp,
+                                     stamp_lead_ns, travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import config, publisher, subscription
+from ibvs_common.msg_trajectory import joint_trajectory_bytes
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import ns_to_seconds, period_ns
@@ -101,7 +102,9 @@ class FeedforwardNode(Node):
                                     f'from q = {q.tolist()}')
             return
         self.t0_ns = t_ns
-        self._pub.publish(joint_trajectory(self.t0_ns, self.dt_ns, positions))
+        # as bytes: a message object of T_forward's thousands of points would hold the
+        # process for rclpy's conversion (ibvs_common.cdr)
+        self._pub.publish(joint_trajectory_bytes(self.t0_ns, self.dt_ns, positions))
         self.destroy_subscription(self._sub)
         dpos, drot = self.ff.pose_error()
         self.get_logger().info(
