@@ -1,8 +1,8 @@
 """A JointTrajectory read from and written to its serialized bytes, as arrays."""
 
 from ibvs_common import cdr, conversions
-from ibvs_common.msg_trajectory import joint_trajectory_bytes
 from ibvs_common.conversions import InputError
+from ibvs_common.msg_trajectory import joint_trajectory_bytes
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
