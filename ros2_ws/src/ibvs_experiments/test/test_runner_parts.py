@@ -164,7 +164,8 @@ class _StartingMonitor(_Monitor):
 
 def test_progress_says_starting_once_then_prints_only_when_sim_time_moved(monkeypatch):
     # make demo printed 'sim 0.000/3.00 s ... - mm' seven times while the nodes started.
-    monkeypatch.setattr(runner, 'PROGRESS_S', 0.0)
+    from ibvs_bringup import launcher
+    monkeypatch.setattr(launcher, 'PROGRESS_S', 0.0)
     lines = []
     run = runner.Prepared({'scenario_name': 's'}, 0.5, None, None, None, None, None)
     runner.watch(run, _Executor(), _StartingMonitor(), [], time.monotonic(), lines.append)
