@@ -21,7 +21,8 @@ def test_the_feature_node_finds_the_cameras_stamp_offset(installed_workspace, tm
     out = tmp_path / 'run'
     code = cli.main(['run', 'real_cell', '--duration', '4.5', '--no-figures', '-o', str(out),
                      '-p', 'feedback_latency_s:=0.1', '-p', 'max_joint_speed_deg_s:=60',
-                     '-p', f'image_stamp_offset_s:={offset_ms * 1e-3}'])
+                     '-p', f'image_stamp_offset_s:={offset_ms * 1e-3}',
+                     '-p', 'stamp_offset_initial_s:=0.0'])  # a first run: nothing known
     assert code == 0
     metrics = json.loads((out / 'metrics.json').read_text())
     assert abs(metrics['stamp_offset_ms'] - offset_ms) < 3.0

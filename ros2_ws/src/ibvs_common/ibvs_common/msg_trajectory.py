@@ -3,8 +3,8 @@ trajectory_msgs/JointTrajectory <-> (N, 6) arrays: feedforward, commands, joint 
 
 A trajectory sampled every period (:func:`joint_trajectory`, :func:`read_trajectory`, also
 from its serialized bytes: :mod:`.cdr`), a joint_trajectory_controller command
-(:func:`read_command_trajectory`) and a batch of joint states as one message
-(:func:`joint_path`, :func:`read_joint_path`). Readers raise
+(:func:`read_command_trajectory`, :func:`command_velocities`) and a batch of joint states
+as one message (:func:`joint_path`, :func:`read_joint_path`). Readers raise
 :class:`.input_error.InputError`.
 """
 
@@ -230,6 +230,22 @@ def read_command_trajectory(msg: JointTrajectory, now_ns: int, timeout_ns: int,
                              f'point {k}: {len(point.effort)} efforts')
     positions = np.array([p.positions for p in msg.points], dtype=float)
     return positions[:, [given.index(n) for n in names]]
+
+
+def command_velocities(msg: JointTrajectory, names: Sequence[str] = contract.JOINT_NAMES
+                       ) -> NDArray[np.float64] | None:
+    """
+    Return the (N, 6) velocities of a command :func:`read_command_trajectory` accepted.
+
+    In ``names``' order; None unless every point carries its velocities (a point without
+    them is interpolated from positions only: joint_trajectory_controller's
+    ``interpolate_between_points`` takes a spline's velocity only where both ends have one).
+    """
+    if not msg.points or any(len(p.velocities) == 0 for p in msg.points):
+        return None
+    given = list(msg.joint_names)
+    velocities = np.array([p.velocities for p in msg.points], dtype=float)
+    return velocities[:, [given.index(n) for n in names]]
 
 
 def joint_path(states: Sequence[JointState]) -> JointTrajectory:

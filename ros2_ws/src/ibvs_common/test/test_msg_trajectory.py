@@ -3,6 +3,7 @@
 from builtin_interfaces.msg import Duration
 from ibvs_common import contract, conversions
 from ibvs_common.conversions import InputError
+from ibvs_common.msg_trajectory import command_velocities
 import numpy as np
 import pytest
 
@@ -126,6 +127,17 @@ def test_a_good_trajectory_command_is_read_in_the_controllers_order():
     msg = _command(rows, start_ns=5 * MS)
     conversions.read_command_trajectory(msg, 100 * MS, 100 * MS)
     conversions.read_command_trajectory(_command(rows), 10 ** 12, 100 * MS)
+
+
+def test_a_commands_velocities_are_read_in_the_controllers_order_where_every_point_has_them():
+    rows = np.arange(18, dtype=float).reshape(3, 6) * 0.01
+    order = [5, 0, 1, 2, 3, 4]
+    msg = conversions.joint_trajectory(0, MS, rows[:, order], [NAMES[i] for i in order],
+                                       velocities=-rows[:, order])
+    np.testing.assert_array_equal(command_velocities(msg, NAMES), -rows)
+    msg.points[1].velocities = []
+    assert command_velocities(msg, NAMES) is None
+    assert command_velocities(_command(rows), NAMES) is None
 
 
 def _point_change(field, k, value):

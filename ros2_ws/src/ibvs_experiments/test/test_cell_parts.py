@@ -26,15 +26,18 @@ def test_cell_yaml_is_real_cell_less_the_simulators_keys_on_the_wall_clock():
     assert params['use_sim_time'] is False
     # Nothing of real_cell.yaml that a cell's node reads is left out, and no value differs
     # but the speed cap: a first run on abb_ros2's example RAPID (20 deg/s) against the
-    # rehearsal's 60 deg/s (docs/real_cell.md, a first run's speed).
+    # rehearsal's 60 deg/s (docs/real_cell.md, a first run's speed); and a first run knows
+    # no stamp offset, where the rehearsal starts from an earlier run's estimate.
     kept = {k: v for k, v in real.items() if k in declared}
     assert params['max_joint_speed_deg_s'] == 20.0 < kept['max_joint_speed_deg_s']
-    assert {k: v for k, v in params.items() if k not in ('use_sim_time',
-                                                         'max_joint_speed_deg_s')} == \
-        {k: v for k, v in kept.items() if k != 'max_joint_speed_deg_s'}
+    assert 'stamp_offset_initial_s' not in params and kept['stamp_offset_initial_s'] != 0.0
+    first_run = ('use_sim_time', 'max_joint_speed_deg_s', 'stamp_offset_initial_s')
+    assert {k: v for k, v in params.items() if k not in first_run} == \
+        {k: v for k, v in kept.items() if k not in first_run}
     # What was left out is the simulator's or the runner's (real_cell.yaml has several).
     dropped = set(real) - set(params)
-    assert dropped == set(cell.simulator_only(real)) | {'run_duration_s'}
+    assert dropped == set(cell.simulator_only(real)) | {'run_duration_s',
+                                                        'stamp_offset_initial_s'}
     assert {'real_time_factor', 'camera_topics', 'command_timeout_s',
             'image_noise_stddev'} <= dropped
 

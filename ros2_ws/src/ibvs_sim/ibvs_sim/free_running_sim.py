@@ -6,8 +6,9 @@ skipping sim time; the factor held is reported); /joint_states go out on
 joint_state_broadcaster's cycle (``joint_state_rate_hz``, ``joint_state_phase_s``), each
 frame ``feedback_latency_s`` after its exposure, none within ``camera_outage_s``. The drive
 model (:class:`.position_servo.PositionServo`) follows the references of
-/forward_position_controller/commands or /joint_trajectory_controller/joint_trajectory
-(:class:`.position_servo.TrajectoryFollower`) and holds the arm when they go stale
+/forward_position_controller/commands (positions only: no speed reference) or
+/joint_trajectory_controller/joint_trajectory (:class:`.position_servo.TrajectoryFollower`:
+positions and the points' velocities, EGM's speed reference) and holds the arm when they go stale
 (``command_timeout_s``); a command ros2_controllers would refuse, or out of a joint's
 range, is rejected and counted. In full: docs/nodes.md.
 """
@@ -19,6 +20,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from ibvs_common import contract
 from ibvs_common.conversions import duration_ns, InputError, read_command_trajectory, stamp_ns
 from ibvs_common.kit import subscription
+from ibvs_common.msg_trajectory import command_velocities
 from ibvs_common.params import ParameterError
 from ibvs_common.shared_params import joint_permutation
 from ibvs_common.timing import period_ns, seconds_to_ns
@@ -219,9 +221,9 @@ class FreeRunningSim:
             self.diagnostics.set_level(DiagnosticStatus.WARN, message)
             self.diagnostics.update(command='stale')
         if self._follower is not None and not self._stale and self._follower.due(sim.t_ns):
-            reference = self._follower.update(sim.t_ns, self.servo.q - sim.d_q)
-            if reference is not None:
-                self.servo.command(reference + sim.d_q)
+            written = self._follower.update(sim.t_ns, self.servo.q - sim.d_q)
+            if written is not None:  # position and velocity: EGM's speed reference
+                self.servo.command(written[0] + sim.d_q, written[1])
         with self.diagnostics.timing.section('physics'):
             q, qd = self.servo.step()
             sim.move_to(q, qd)
@@ -237,9 +239,9 @@ class FreeRunningSim:
         """
         Take a reference in encoder angles (contract order): range check, then the drive.
 
-        ``trajectory`` (stamp ns, times ns, positions): a joint_trajectory command whose
-        points were range-checked already, for the trajectory controller
-        (:class:`.position_servo.TrajectoryFollower`).
+        ``trajectory`` (stamp ns, times ns, positions, velocities or None): a
+        joint_trajectory command whose points were range-checked already, for the
+        trajectory controller (:class:`.position_servo.TrajectoryFollower`).
         """
         if trajectory is None and self._beyond_range(q_encoder)[0]:
             self.diagnostics.reject(source, 'out of range', f'{q_encoder.tolist()} rad: '
@@ -295,4 +297,4 @@ class FreeRunningSim:
             return
         self._take_reference(positions[-1], source, trajectory=(
             stamp_ns(msg.header.stamp), [duration_ns(p.time_from_start) for p in msg.points],
-            positions))
+            positions, command_velocities(msg)))

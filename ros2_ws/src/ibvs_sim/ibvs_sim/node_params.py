@@ -76,7 +76,7 @@ DRIVE_BANDWIDTH_HZ = Param(
     'position loop (ibvs_model.drive: EGM)', 'Hz', low=0.0, high=80.0, low_open=True)
 DRIVE_DELAY_S = Param(
     'drive_delay_s', EGM_DELAY_S, 'position drive model: dead time from a reference to the '
-    'motion (ibvs_model.drive: EGM, about 20 ms)', 's', low=0.0, high=0.5)
+    'motion (ibvs_model.drive: EGM as its users measure it)', 's', low=0.0, high=0.5)
 DURATION_S = Param(
     'duration_s', 0.0, 'sim time at which the simulator stops stepping, for nodes started '
     'by hand (0: never): it publishes the last batches and /clock, logs that it stopped and '

@@ -2,7 +2,8 @@
 
 import math
 
-from ibvs_model.drive import ACCELERATION_LIMITS, EGM_BANDWIDTH_HZ, SPEED_LIMITS
+from ibvs_model.drive import (ACCELERATION_LIMITS, EGM_BANDWIDTH_HZ, EGM_DELAY_S,
+                              SPEED_LIMITS)
 from ibvs_sim.position_servo import PositionServo
 import numpy as np
 import pytest
@@ -74,7 +75,24 @@ def test_a_bad_reference_is_refused_and_the_old_one_kept():
         with pytest.raises(ValueError):
             servo.command(bad)
     assert np.all(servo.reference == 1.0)
-    assert EGM_BANDWIDTH_HZ == 20.0
+    with pytest.raises(ValueError):
+        servo.command(np.ones(6), speed=np.full(6, np.inf))
+
+
+@pytest.mark.parametrize('with_speed', [False, True])
+def test_a_steady_move_lags_by_the_dead_time_and_without_its_speed_by_the_loop_too(
+        with_speed):
+    """The default drive: EGM as its users measure it (ibvs_model.drive)."""
+    servo = PositionServo(DT, np.zeros(6))
+    speed = 0.2  # rad/s, far inside every limit
+    t = np.arange(1, 3001) * DT
+    path = np.array([servo.command(np.full(6, speed * tk), np.full(6, speed) if with_speed
+                                   else None) or servo.step()[0] for tk in t])
+    lag_s = t[-1] - path[-1, 0] / speed
+    loop_s = 1.0 / (2 * math.pi * EGM_BANDWIDTH_HZ)
+    expected = EGM_DELAY_S + (0.0 if with_speed else loop_s)
+    assert lag_s == pytest.approx(expected, abs=2 * DT)
+    assert (0.045 <= lag_s <= 0.055) if with_speed else (0.07 <= lag_s <= 0.08)
 
 
 # -- the trajectory controller (TrajectoryFollower) fed at 250 Hz, updating at another rate --
@@ -119,11 +137,11 @@ def run_cell(update_rate_hz, window_points, old_single_point=False, duration_ns=
         while inbox and inbox[0][0] <= t:
             follower.receive(*inbox.pop(0)[1])
         if follower.due(t):
-            reference = follower.update(t, servo.q)
-            if reference is not None:
-                servo.command(reference)
+            sample = follower.update(t, servo.q)
+            if sample is not None:
+                servo.command(*sample)
                 updates.append(t)
-                written.append(reference[0])
+                written.append(sample[0][0])
         speeds.append(servo.step()[1][0])
     return np.array(updates), np.array(written), np.array(path), np.array(speeds)
 
@@ -164,14 +182,21 @@ def test_the_trajectory_follower_samples_as_joint_trajectory_controller():
     points = np.outer([1.0, 2.0, 4.0], np.ones(6))
     follower.receive(0, [20_000_000, 30_000_000, 50_000_000], points)  # stamp 0: now
     assert not follower.due(5_000_000) and follower.due(10_000_000)
-    # first sampling at 10 ms: starts now, from the measured state, toward the first point
-    np.testing.assert_allclose(follower.update(10_000_000, q), 0.0)
-    np.testing.assert_allclose(follower.update(20_000_000, q), 0.5)  # halfway to 1 at 30 ms
-    np.testing.assert_allclose(follower.update(35_000_000, q), 1.5)  # between points 0, 1
-    np.testing.assert_allclose(follower.update(50_000_000, q), 3.0)
-    np.testing.assert_allclose(follower.update(90_000_000, q), 4.0)  # played out: the last
-    # a stamped trajectory is placed at its stamp, and replaces the current one
-    follower.receive(100_000_000, [0, 10_000_000], np.outer([5.0, 6.0], np.ones(6)))
-    np.testing.assert_allclose(follower.update(105_000_000, q), 5.5)
+    # first sampling at 10 ms: starts now, from the measured state, toward the first point;
+    # the velocity written is the segment's slope (positions only)
+    for t_ms, position, velocity in ((10, 0.0, 50.0), (20, 0.5, 50.0),  # 1 rad in 20 ms
+                                     (35, 1.5, 100.0), (50, 3.0, 100.0),  # points 0 to 2
+                                     (90, 4.0, 0.0)):  # played out: the last, at rest
+        written = follower.update(t_ms * 1_000_000, q)
+        np.testing.assert_allclose(written[0], position)
+        np.testing.assert_allclose(written[1], velocity)
+    # a stamped trajectory is placed at its stamp, and replaces the current one; its points'
+    # own velocities are written where it carries them
+    follower.receive(100_000_000, [0, 10_000_000], np.outer([5.0, 6.0], np.ones(6)),
+                     np.outer([0.0, 2.0], np.ones(6)))
+    written = follower.update(105_000_000, q)
+    np.testing.assert_allclose(written[0], 5.5)
+    np.testing.assert_allclose(written[1], 1.0)
+    np.testing.assert_allclose(follower.update(200_000_000, q)[1], 2.0)
     with pytest.raises(ValueError):
         TrajectoryFollower(0.0)
