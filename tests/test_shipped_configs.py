@@ -11,6 +11,7 @@ checks are run on each file's values without starting a node.
 from dataclasses import fields
 from pathlib import Path
 
+from ibvs_common.params import RETIRED
 from ibvs_control.joint_controller_mode import JointControllerConfig
 from ibvs_control.position_controller import EFFORT_ONLY, PositionController
 from ibvs_sim.lockstep_sim import FREE_RUNNING_ONLY
@@ -50,6 +51,11 @@ class _Logger:
 def test_every_shipped_file_is_checked():
     assert {p.name for p in SHIPPED} >= {'scenario1.yaml', 'scenario2.yaml', 'scenario3.yaml',
                                          'real_cell.yaml', 'cell.yaml'}
+
+
+@pytest.mark.parametrize('path', SHIPPED, ids=lambda p: p.name)
+def test_no_shipped_file_sets_a_retired_parameter(path):
+    assert not set(RETIRED) & set(_values(path)), path.name
 
 
 @pytest.mark.parametrize('path', SHIPPED, ids=lambda p: p.name)

@@ -130,8 +130,47 @@ def test_an_executable_refuses_a_wrong_type_over_its_parameter_file(installed_wo
 def test_compose_refuses_a_name_neither_of_its_nodes_declares(installed_workspace):
     compose = executable(installed_workspace, 'ibvs_bringup', 'compose')
     code, out = start([compose, 'sim_node', 'joint_controller_node', '--ros-args',
-                       '-p', 'lockstepp:=false'])
-    assert code == 2 and "did you mean 'lockstep'" in out, out
+                       '-p', 'command_interfacee:=position'])
+    assert code == 2 and "did you mean 'command_interface'" in out, out
+
+
+#: The retired parameters, each with a value it took, and the words of its refusal.
+RETIRED_GIVEN = [
+    ('lockstep', 'false', "parameter 'lockstep' is retired: the time mode follows from "
+                          "command_interface ('effort': lockstep, 'position': free-running)"),
+    ('renderer', 'opengl', "parameter 'renderer' is retired: the simulator renders with "
+                           'OpenGL (ibvs_sim.gl_renderer)'),
+]
+
+
+@pytest.mark.parametrize('name, value, message', RETIRED_GIVEN, ids=[r[0] for r in RETIRED_GIVEN])
+def test_an_executable_refuses_a_retired_parameter_naming_what_replaces_it(
+        installed_workspace, tmp_path, name, value, message):
+    compose = executable(installed_workspace, 'ibvs_bringup', 'compose')
+    code, out = start([compose, 'sim_node', 'joint_controller_node', '--ros-args',
+                       '-p', f'{name}:={value}'])
+    assert code == 2 and f'-p {name}:={value}: {message}' in out, out
+    assert 'Traceback' not in out, out
+    # Under /** too, which a node's name check leaves to ibvs run: nobody reads it.
+    shared = tmp_path / 'shared.yaml'
+    shared.write_text(f'/**:\n  ros__parameters: {{{name}: {value}}}\n')
+    node = executable(installed_workspace, 'ibvs_vision', 'feature_node')
+    code, out = start([node, '--ros-args', '--params-file', str(shared)])
+    assert code == 2 and f'parameter file {shared}: {message}' in out, out
+
+
+@pytest.mark.parametrize('name, value, message', RETIRED_GIVEN, ids=[r[0] for r in RETIRED_GIVEN])
+def test_ibvs_run_refuses_a_retired_parameter_before_any_node(capsys, monkeypatch, tmp_path,
+                                                              name, value, message):
+    code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', f'{name}:={value}')
+    assert code == 2 and f'-p: {message}' in err and 'Traceback' not in err, err
+    mine = tmp_path / 'mine.yaml'  # a scenario file of one's own
+    mine.write_text(scenario.scenario_path('scenario1').read_text()
+                    + f'    {name}: {value}\n')
+    code = cli.main(['run', str(mine), '--duration', '0.1', '-o', str(tmp_path / 'out')])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and 'Traceback' not in err, err
+    assert not (tmp_path / 'out').exists()
 
 
 def test_an_executable_refuses_a_wrong_type_and_a_bad_parameter_file(
@@ -196,8 +235,8 @@ def test_ibvs_run_refuses_an_output_it_cannot_write(capsys, monkeypatch, tmp_pat
 
 def test_ibvs_run_applies_the_nodes_cross_parameter_rules_before_any_node(capsys, monkeypatch,
                                                                           tmp_path):
-    code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'command_interface:=position')
-    assert code == 2 and "'lockstep' = True is invalid" in err, err
+    code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'omega_n:=1000.0')
+    assert code == 2 and "'omega_n' = 1000.0 is invalid with tau_in" in err, err
     code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p',
                         'camera_pose:=[1.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5]')
     assert code == 2 and "'camera_pose'" in err and 'quaternion' in err, err
@@ -218,7 +257,7 @@ def test_ibvs_run_builds_every_node_config_before_any_node(capsys, monkeypatch, 
 def test_ibvs_run_refuses_a_bad_joint_order_before_any_node(capsys, monkeypatch, tmp_path):
     # The ros2_control controller's joints (free-running): each joint once, or no run.
     code, err = refused(capsys, monkeypatch, tmp_path, {}, '-p', 'command_interface:=position',
-                        '-p', 'lockstep:=false', '-p', f"joints:=[{', '.join(['joint_1'] * 6)}]")
+                        '-p', f"joints:=[{', '.join(['joint_1'] * 6)}]")
     assert code == 2 and "parameter 'joints'" in err and 'exactly once' in err, err
     assert not (tmp_path / 'out' / 'logs').exists()  # refused before any node started
 

@@ -26,8 +26,7 @@ def _profile(qos):
 
 @pytest.mark.parametrize('interface', ['effort', 'position'])
 def test_each_topic_has_one_qos_across_the_nodes(context, interface):
-    mode = ({} if interface == 'effort'
-            else {'command_interface': 'position', 'lockstep': False})
+    mode = {} if interface == 'effort' else {'command_interface': 'position'}
     nodes = []
     try:
         for cls in (FeatureNode, AdaptiveFeedbackNode, FeedforwardNode, VizNode):

@@ -25,8 +25,7 @@ CAMERA_NS = 33_333_333
 Q0 = inverse_kinematics(paper.scenario_start_pose(1))
 SIM_TIME = [Parameter('use_sim_time', value=True)]
 #: The free-running position interface (docs/design.md §4): sim_node and joint controller.
-POSITION = [Parameter('command_interface', value='position'),
-            Parameter('lockstep', value=False)]
+POSITION = [Parameter('command_interface', value='position')]
 
 
 def frame_ns(n):

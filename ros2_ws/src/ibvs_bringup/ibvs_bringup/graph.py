@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ibvs_common import contract
+from ibvs_common import contract, shared_params
 
 from .supervision import ProcessSpec
 
@@ -270,10 +270,11 @@ def uses_frame_states(params: Mapping[str, Any]) -> bool:
     """
     Whether the simulator of a run with ``params`` publishes /stereo/joint_states.
 
-    In lockstep only: free-running (``lockstep: false``, a real cell's timing) it publishes
-    none, as a real cell has none (docs/real_cell.md step 3).
+    In lockstep only (:func:`ibvs_common.shared_params.lockstep`): free-running
+    (``command_interface: position``, a real cell's timing) it publishes none, as a real
+    cell has none (docs/real_cell.md step 3).
     """
-    return bool(params.get('lockstep', True))
+    return shared_params.lockstep(params)
 
 
 def uses_zed_names(params: Mapping[str, Any]) -> bool:

@@ -32,9 +32,8 @@ from .graph import FRAME_STATES, GRAPH, Graph, uses_frame_states, uses_zed_names
 #: that declares them (the rest keep their defaults). 'effort' is scenario 1's.
 MODES = {
     'effort': {},
-    'position': {'command_interface': 'position', 'lockstep': False},
-    'trajectory': {'command_interface': 'position', 'lockstep': False,
-                   'position_command_type': 'joint_trajectory'},
+    'position': {'command_interface': 'position'},
+    'trajectory': {'command_interface': 'position', 'position_command_type': 'joint_trajectory'},
     'taught': {'target_features_source': 'taught'},
     'zed': {'camera_topics': 'zed_wrapper'},
 }

@@ -50,7 +50,8 @@ def test_free_running_reads_joint_states_as_a_real_cell_does():
             f'{contract.RIGHT_INFO}:={contract.ZED_RIGHT_INFO}')
     images = (f'{contract.LEFT_IMAGE}:={contract.ZED_LEFT_IMAGE}',
               f'{contract.RIGHT_IMAGE}:={contract.ZED_RIGHT_IMAGE}')
-    plan = dict(graph.process_plan({'camera_topics': 'zed_wrapper', 'lockstep': False}))
+    plan = dict(graph.process_plan({'camera_topics': 'zed_wrapper',
+                                    'command_interface': 'position'}))
     assert plan[ProcessSpec('ibvs_viz', 'viz_node')] == _remaps(*info)
     assert plan[ProcessSpec('ibvs_bringup', 'compose', LOCKSTEP, LOCKSTEP, 'lockstep')] == (
         _remaps(images[0], images[1], *info, node='feature_node')
@@ -66,7 +67,8 @@ def test_free_running_reads_joint_states_as_a_real_cell_does():
         contract.JOINT_STATES, contract.FRAME_JOINT_STATES)} == {
         k: v for k, v in GRAPH.step0_readers().items() if k not in (
             contract.JOINT_STATES, contract.FRAME_JOINT_STATES)}
-    assert graph.uses_frame_states({}) and not graph.uses_frame_states({'lockstep': False})
+    assert graph.uses_frame_states({}) and graph.uses_frame_states({'command_interface': 'effort'})
+    assert not graph.uses_frame_states({'command_interface': 'position'})
 
 
 def test_the_step0_readers_are_the_runners_of_before():

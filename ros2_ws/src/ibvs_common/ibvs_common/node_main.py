@@ -26,7 +26,7 @@ from rclpy.signals import SignalHandlerOptions
 from . import contract, dds, process, ros_args
 from .diagnostics import publish_last, publisher_of
 from .intra_process import bus_of
-from .params import check_declared, Param, ParameterError, plain_value
+from .params import check_declared, check_retired, Param, ParameterError, plain_value
 
 if TYPE_CHECKING:
     from rclpy.context import Context
@@ -342,9 +342,10 @@ def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
     A node class's module lists what the node declares as ``PARAMS`` (the list the runner
     checks a run against, :func:`ibvs_bringup.graph_params.declared`). Raises
     :class:`ParameterError` naming the closest declared names (:func:`check_declared`,
-    the words of ``ibvs run``), for a parameter file that cannot be read or parsed, and for
-    a value of the wrong type or range (:func:`check_types`). Classes whose module has no
-    ``PARAMS`` disable the name check.
+    the words of ``ibvs run``), for a parameter file that cannot be read or parsed, for a
+    :data:`~.params.RETIRED` name in any section, ``/**`` too (:func:`check_retired`,
+    naming where it came from), and for a value of the wrong type or range
+    (:func:`check_types`). Classes whose module has no ``PARAMS`` disable the name check.
     """
     classes = list(classes)
     known = []
@@ -358,6 +359,9 @@ def check_arguments(classes: Iterable[type], argv: Sequence[str]) -> None:
         parsed = ros_args.parse(argv)
     except ros_args.ArgumentsError as exc:
         raise ParameterError(str(exc)) from None
+    for params in parsed.sections.values():  # under /** too: a retired name is nobody's
+        for name, given in params.items():
+            check_retired([name], given.last()[1])
     names = list(parsed.rule_names)
     for path in parsed.files:
         names += file_parameter_names(path)

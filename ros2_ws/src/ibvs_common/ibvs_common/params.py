@@ -212,18 +212,45 @@ def number_hint(value: Any) -> str:
 ROS_PARAMS = ('use_sim_time', 'start_type_description_service')
 
 
+#: Parameters that no node declares any more, by name, with what took their place. A
+#: parameter file or override that still sets one is refused with these words
+#: (:func:`check_retired`), by ``ibvs run`` and by a node at start, not ignored as an
+#: undeclared override is by rclpy: it would no longer do what it says.
+RETIRED = {
+    'lockstep': "the time mode follows from command_interface ('effort': lockstep, "
+                "'position': free-running)",
+    'renderer': 'the simulator renders with OpenGL (ibvs_sim.gl_renderer)',
+}
+
+
+def check_retired(names: Iterable[str], where: str = 'parameter') -> None:
+    """
+    Raise :class:`ParameterError` for the first of ``names`` that is :data:`RETIRED`.
+
+    The message names it and what replaces it (``where``, unless the default, starts it:
+    e.g. ``-p`` or a parameter file).
+    """
+    for name in names:
+        if name in RETIRED:
+            lead = '' if where == 'parameter' else f'{where}: '
+            raise ParameterError(f"{lead}parameter '{name}' is retired: {RETIRED[name]}", name)
+
+
 def check_declared(names: Iterable[str], known: Iterable[str], where: str = 'parameter',
                    owner: str = 'no node of the graph') -> None:
     """
     Raise :class:`ParameterError` for the first of ``names`` that is not in ``known``.
 
     The message names it, says that ``owner`` does not declare it, and offers the closest
-    names of ``known`` (``where`` starts it: e.g. ``-p`` or a scenario file). rclpy keeps
-    an override that no declaration takes and says nothing: a misspelt name would leave the
-    parameter at its default. :data:`ROS_PARAMS` and ``qos_overrides.*`` always pass.
+    names of ``known`` (``where`` starts it: e.g. ``-p`` or a scenario file); a
+    :data:`RETIRED` name is refused with what replaces it (:func:`check_retired`). rclpy
+    keeps an override that no declaration takes and says nothing: a misspelt name would
+    leave the parameter at its default. :data:`ROS_PARAMS` and ``qos_overrides.*`` always
+    pass.
     """
     known = list(known)
     for name in names:
+        check_retired([name], where)
         if name in known or name in ROS_PARAMS or str(name).startswith('qos_overrides.'):
             continue
         near = difflib.get_close_matches(str(name), known, n=3)
@@ -273,8 +300,12 @@ def declare(node: 'Node', specs: Iterable[Param], rules: Iterable[Rule] = ()
     Integer defaults accept integer values only; float defaults also accept integers
     (a YAML ``1`` for a float parameter is a common slip), which are converted. ``rules``:
     the node's rules between parameters (its module's ``RULES``), run on the values
-    (:func:`check_rules`).
+    (:func:`check_rules`). An override of a :data:`RETIRED` parameter is refused
+    (:func:`check_retired`).
     """
+    # rclpy keeps the overrides (-p, parameter files, parameter_overrides) of the node and
+    # has no public reader of those that no declaration takes.
+    check_retired(getattr(node, '_parameter_overrides', None) or ())
     values = {}
     for spec in specs:
         descriptor = spec.descriptor()

@@ -102,7 +102,8 @@ COMMAND_INTERFACE = Param(
     'command_interface', 'effort', "how the joint controller drives the arm: 'effort' (the "
     'paper: computed torque at physics_rate_hz on /joint_effort_commands, in lockstep) or '
     "'position' (joint position references at command_rate_hz for a ros2_control position "
-    "controller, the arm's own drive closing the loop; needs lockstep false)", '-',
+    "controller, the arm's own drive closing the loop, free-running: the simulator runs on "
+    'its own at real_time_factor, as a real cell does)', '-',
     choices=('effort', 'position'))
 POSITION_COMMAND_TYPE = Param(
     'position_command_type', 'forward_command', "with command_interface 'position': "
@@ -120,28 +121,19 @@ JOINTS = Param(
     "the position controller's joints parameter: the order of the values in each command "
     "(ros2_control's forward_command_controller takes them in exactly this order); each "
     'of joint_1 ... joint_6 once', '-', length=6)
-LOCKSTEP = Param(
-    'lockstep', True, "true (the paper's reproduction): the simulator steps only when the "
-    'effort command of each step has come; false: it runs on its own at real_time_factor, '
-    'as a real cell does, and nobody waits for anybody', '-')
 
 
-def check_command_interface(values: Mapping[str, Any]) -> None:
+def lockstep(values: Mapping[str, Any]) -> bool:
     """
-    Refuse a command interface and time mode that do not go together (ParameterError).
+    Return whether a run of these parameter values (by name) runs in lockstep.
 
-    'effort' runs in lockstep only (the computed-torque loop answers every physics step);
-    'position' is free-running only (the drive waits for nobody).
+    The time mode follows from ``command_interface``, as ros2_controllers' controller class
+    fixes its command interface: 'effort' (the computed-torque loop answers every physics
+    step, so the simulator steps on each effort command) runs in lockstep, 'position' (the
+    arm's drive waits for nobody) free-running, the simulator on its own at
+    real_time_factor. A missing ``command_interface`` takes its default ('effort').
     """
-    interface, lockstep = values['command_interface'], values['lockstep']
-    if interface == 'position' and lockstep:
-        raise ParameterError("parameter 'lockstep' = True is invalid with command_interface "
-                             "'position': the arm's drive waits for nobody; allowed: false "
-                             "(or command_interface 'effort')")
-    if interface == 'effort' and not lockstep:
-        raise ParameterError("parameter 'lockstep' = False is invalid with command_interface "
-                             "'effort': the computed-torque loop runs in lockstep only; "
-                             "allowed: true (or command_interface 'position')")
+    return values.get(COMMAND_INTERFACE.name, COMMAND_INTERFACE.default) == 'effort'
 
 
 def check_camera_rate_param(values: Mapping[str, Any]) -> None:

@@ -1,7 +1,7 @@
 """The real cell's shared parameters, without rclpy: joints, modes, hand-eye camera pose."""
 
-from ibvs_common.params import ParameterError
-from ibvs_common.shared_params import (camera_pose_from, check_command_interface, JOINTS)
+from ibvs_common.params import check_declared, check_retired, ParameterError, RETIRED
+from ibvs_common.shared_params import camera_pose_from, JOINTS, lockstep
 import numpy as np
 import pytest
 
@@ -15,16 +15,27 @@ def test_joints_is_an_array_of_six_strings():
     assert JOINTS.allowed() == '6 strings'
 
 
-@pytest.mark.parametrize('interface, lockstep, ok', [
-    ('effort', True, True), ('position', False, True),
-    ('effort', False, False), ('position', True, False)])
-def test_command_interface_and_lockstep_go_together(interface, lockstep, ok):
-    values = {'command_interface': interface, 'lockstep': lockstep}
-    if ok:
-        check_command_interface(values)
-    else:
-        with pytest.raises(ParameterError, match="parameter 'lockstep'"):
-            check_command_interface(values)
+@pytest.mark.parametrize('values, runs_in_lockstep', [
+    ({}, True), ({'command_interface': 'effort'}, True),
+    ({'command_interface': 'position'}, False)])
+def test_the_time_mode_follows_from_the_command_interface(values, runs_in_lockstep):
+    assert lockstep(values) is runs_in_lockstep
+
+
+@pytest.mark.parametrize('name, replacement', [
+    ('lockstep', "the time mode follows from command_interface ('effort': lockstep, "
+                 "'position': free-running)"),
+    ('renderer', 'the simulator renders with OpenGL (ibvs_sim.gl_renderer)')])
+def test_a_retired_parameter_is_refused_naming_what_replaces_it(name, replacement):
+    message = f"parameter '{name}' is retired: {replacement}"
+    assert RETIRED[name] == replacement
+    with pytest.raises(ParameterError) as info:
+        check_retired(['command_interface', name])
+    assert str(info.value) == message and info.value.param == name
+    with pytest.raises(ParameterError) as info:  # before 'no node declares it'
+        check_declared([name], ['command_interface'], '-p')
+    assert str(info.value) == f'-p: {message}'
+    check_retired(['command_interface', 'lockstepp'])
 
 
 def test_camera_pose_parameter_is_a_hand_eye_result_or_unset():

@@ -2,8 +2,9 @@
 What both joint controllers share: the typed configuration and the common inputs.
 
 :class:`JointControllerConfig` holds the parameters of ``joint_controller_node`` (each a
-Param, checked at construction, and the rules across them: effort goes with lockstep,
-position with free-running; a dry run is of the position interface).
+Param, checked at construction, and the rules across them: the position interface's joint
+order; a dry run is of the position interface). The time mode follows from the interface
+(:attr:`JointControllerConfig.lockstep`): effort in lockstep, position free-running.
 :class:`JointControllerMode` reads the feedforward trajectory and the q_feedback for either
 command interface (:mod:`.effort_controller`, :mod:`.position_controller`) and hands them
 on, as ros2_controllers' controllers share their reference and state interfaces while each
@@ -42,7 +43,7 @@ class JointControllerConfig(ParamConfig):
     """The parameters of joint_controller_node (each field: the parameter of its name)."""
 
     #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-    RULES = (shared.check_command_interface, shared.check_camera_rate_param)
+    RULES = (shared.check_camera_rate_param,)
 
     tau_in: float = param_field(shared.TAU_IN)
     physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
@@ -58,7 +59,6 @@ class JointControllerConfig(ParamConfig):
     command_rate_hz: float = param_field(shared.COMMAND_RATE_HZ)
     position_command_type: str = param_field(shared.POSITION_COMMAND_TYPE)
     joints: tuple[str, ...] = param_field(shared.JOINTS)
-    lockstep: bool = param_field(shared.LOCKSTEP)
     joint_state_timeout_s: float = param_field(own.JOINT_STATE_TIMEOUT_S)
     frame_timeout_s: float = param_field(own.FRAME_TIMEOUT_S)
     max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
@@ -66,9 +66,8 @@ class JointControllerConfig(ParamConfig):
     dry_run: bool = param_field(own.DRY_RUN)
 
     def __post_init__(self):
-        """Check each value, the command interface against the time mode, the joints."""
+        """Check each value, then the joints (position) or that no dry run is asked (effort)."""
         super().__post_init__()
-        shared.check_command_interface(vars(self))
         if self.command_interface == 'position':
             shared.joint_order(self.joints)  # the ros2_control controller's joint order
         elif self.dry_run:
@@ -76,6 +75,11 @@ class JointControllerConfig(ParamConfig):
                                  "'effort': a dry run is of the position interface (the "
                                  "lockstep's simulator waits for every effort command); "
                                  "allowed: false (or command_interface 'position')")
+
+    @property
+    def lockstep(self) -> bool:
+        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
+        return shared.lockstep(vars(self))
 
 
 class JointControllerMode:

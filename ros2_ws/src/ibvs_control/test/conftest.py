@@ -120,7 +120,7 @@ class PositionCell(ControllerRig):
 
     def __init__(self, context, command_type='forward_command',  # noqa: F811 (as above)
                  **parameters):
-        values = {'command_interface': 'position', 'lockstep': False, 'use_sim_time': True,
+        values = {'command_interface': 'position', 'use_sim_time': True,
                   'frame_timeout_s': 0.3, 'position_command_type': command_type}
         values.update(parameters)
         super().__init__(context, 'cell', INPUTS, values)

@@ -31,7 +31,7 @@ CPU_GAP_S = 0.020
 def test_a_long_trajectory_is_taken_without_holding_the_command_timer(controller_rig):
     rig = controller_rig('sender', (contract.LEFT_INFO, contract.JOINT_STATES,
                                     contract.Q_FEEDBACK, contract.FEEDFORWARD_TRAJECTORY),
-                         command_interface='position', lockstep=False, frame_timeout_s=10.0,
+                         command_interface='position', frame_timeout_s=10.0,
                          joint_state_timeout_s=10.0)
     node, pubs = rig.node, rig.pubs
     sent = []  # (thread CPU time, wall time) of each command, in the executor's thread

@@ -16,20 +16,18 @@ from ibvs_control.position_controller import PositionController
 import pytest
 from rclpy.parameter import Parameter
 
-POSITION = [Parameter('command_interface', value='position'),
-            Parameter('lockstep', value=False)]
+POSITION = [Parameter('command_interface', value='position')]
 
 
-def test_config_takes_the_declared_parameters_and_refuses_a_mixed_mode():
+def test_config_takes_the_declared_parameters_and_its_time_mode_from_the_interface():
     assert [p.name for p in PARAMS] == [p.name for p in JointControllerConfig.params()]
     config = JointControllerConfig(torque_limits=[1, 2, 3, 4, 5, 6])
     assert config.torque_limits == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
-    assert JointControllerConfig(command_interface='position', lockstep=False).lockstep is False
-    with pytest.raises(ParameterError, match="'lockstep' = True is invalid with "
-                                             "command_interface 'position'"):
-        JointControllerConfig(command_interface='position')
-    with pytest.raises(ParameterError, match="'lockstep' = False"):
-        JointControllerConfig(lockstep=False)
+    assert JointControllerConfig(command_interface='position').lockstep is False
+    assert JointControllerConfig().lockstep is True
+    assert 'lockstep' not in {p.name for p in PARAMS}
+    with pytest.raises(TypeError):
+        JointControllerConfig(lockstep=False)  # no such field: the interface gives it
     with pytest.raises(ParameterError, match="'trajectory_window_points'"):
         JointControllerConfig(trajectory_window_points=0)
 

@@ -248,14 +248,13 @@ def test_a_dry_run_sends_its_references_on_its_own_topic_and_never_opens_the_arm
 
 
 @pytest.mark.parametrize('params, name', [
-    ({'lockstep': True}, 'lockstep'),
+    ({'lockstep': False}, 'lockstep'),  # retired: the interface gives the time mode
     ({'joints': ORDER[:5] + ['joint_2']}, 'joints'),
     ({'joints': ORDER[:5]}, 'joints'),
-    ({'command_interface': 'effort'}, 'lockstep'),
-    ({'command_interface': 'effort', 'lockstep': True, 'dry_run': True}, 'dry_run'),
+    ({'command_interface': 'effort', 'dry_run': True}, 'dry_run'),
 ])
 def test_bad_configurations_are_refused_naming_the_parameter(context, params, name):
-    values = {'command_interface': 'position', 'lockstep': False}
+    values = {'command_interface': 'position'}
     values.update(params)
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):
         JointControllerNode(context=context, parameter_overrides=[

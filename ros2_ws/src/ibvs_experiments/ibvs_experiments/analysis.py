@@ -47,7 +47,7 @@ Definitions (tool = flange frame {E}, target = the scenario's target pose):
 - ``wall_duration_s``, ``real_time_factor``: the machine's wall time from step 0 and sim
   time per wall second (timings of the machine, not of the loop).
 
-Free-running runs (``lockstep: false``; the keys are absent from lockstep runs, whose
+Free-running runs (``command_interface: position``; the keys are absent from lockstep runs, whose
 metrics stay as they were):
 
 - ``frame_latency_{mean,p95,max}_s``, ``frames_used``: sim time from a frame's exposure

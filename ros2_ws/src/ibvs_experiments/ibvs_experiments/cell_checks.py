@@ -22,6 +22,7 @@ from typing import Any
 from ibvs_bringup import graph_params, scenario
 from ibvs_bringup.graph import GRAPH
 from ibvs_common import contract
+from ibvs_common.params import check_retired, ParameterError
 
 #: The nodes of a cell, in start order (docs/real_cell.md "By hand"): the paper's, no
 #: simulator and no viewers' node.
@@ -189,11 +190,10 @@ def cell_parameters(params_file: str | Path | None = None,
     Return the checked parameters of a cell: the file's, the overrides, the controller's.
 
     The controller sets ``position_command_type`` (the file's is replaced). Raises
-    :class:`CellError` for a name the cell's nodes do not declare (a simulator's: none of
-    them would read it), a ``-p position_command_type`` other than the controller's,
-    a value out of its range or a rule between parameters broken
-    (:func:`graph_params.check`, :func:`graph_params.check_rules`: position interface,
-    free-running).
+    :class:`CellError` for a retired name (:data:`ibvs_common.params.RETIRED`), a name the
+    cell's nodes do not declare (a simulator's: none of them would read it), a ``-p
+    position_command_type`` other than the controller's, a value out of its range or a rule
+    between parameters broken (:func:`graph_params.check`, :func:`graph_params.check_rules`).
     """
     path = Path(params_file) if params_file else config_path()
     try:
@@ -209,6 +209,10 @@ def cell_parameters(params_file: str | Path | None = None,
                         f'the controller takes {spec.command_type!r} (leave it out, '
                         '--controller sets it)')
     params['position_command_type'] = spec.command_type
+    try:
+        check_retired(params, str(path))  # nobody's, rather than the simulator's only
+    except ParameterError as exc:
+        raise CellError(str(exc)) from None
     foreign = simulator_only(params)
     if foreign:
         raise CellError(f'{", ".join(foreign)}: not read by any node of a cell (feature, '

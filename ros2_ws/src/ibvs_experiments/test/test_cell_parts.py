@@ -96,8 +96,9 @@ def test_parameters_refuse_the_simulators_keys_and_a_conflicting_command_type():
         cell.cell_parameters(overrides={'real_time_factor': 0.1})
     with pytest.raises(cell.CellError, match="'joint_trajectory' with --controller"):
         cell.cell_parameters(overrides={'position_command_type': 'joint_trajectory'})
-    with pytest.raises(cell.CellError, match='lockstep'):
-        cell.cell_parameters(overrides={'lockstep': True})
+    with pytest.raises(cell.CellError, match="parameter 'lockstep' is retired: the time mode "
+                       'follows from command_interface'):
+        cell.cell_parameters(overrides={'lockstep': False})
     with pytest.raises(cell.CellError, match='command_rate_hz'):
         cell.cell_parameters(overrides={'command_rate_hz': -1.0})
     with pytest.raises(cell.CellError, match='does not exist'):
@@ -253,7 +254,7 @@ def test_ibvs_cell_refuses_before_anything_starts(capsys, tmp_path):
 
 def test_scenario_listing_still_loads_cell_yaml():
     # cell.yaml is a valid parameters file (ibvs cell --params-file takes copies of it).
-    assert scenario.load_parameters(cell.config_path())['lockstep'] is False
+    assert scenario.load_parameters(cell.config_path())['command_interface'] == 'position'
 
 
 def test_status_board_shows_the_image_and_pose_errors_and_a_dry_run():

@@ -158,10 +158,14 @@ def test_demo_runs_scenario1_and_films_that_run(monkeypatch, capsys, tmp_path, e
 
 
 def test_a_study_is_checked_against_the_rules_between_parameters(capsys, tmp_path):
-    spec = tmp_path / 'position.yaml'
-    spec.write_text('scenario: scenario1\ngrid: {command_interface: [effort, position]}\n')
+    spec = tmp_path / 'gains.yaml'
+    spec.write_text('scenario: scenario1\ngrid: {omega_n: [10.0, 1000.0]}\n')
     code, err = run(capsys, 'study', str(spec), '-o', str(tmp_path / 'out'))
-    assert code == 2 and "run 1: parameter 'lockstep' = True is invalid" in err, err
+    assert code == 2 and "run 1: parameter 'omega_n' = 1000.0 is invalid" in err, err
+    spec.write_text('scenario: scenario1\ngrid: {lockstep: [true, false]}\n')
+    code, err = run(capsys, 'study', str(spec), '-o', str(tmp_path / 'out'))
+    assert code == 2 and "parameter 'lockstep' is retired: the time mode follows from " \
+        'command_interface' in err, err
     with pytest.raises(ScenarioError, match='quaternion'):
         graph_params.check_rules({'camera_pose': [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0]})
-    graph_params.check_rules({'command_interface': 'position', 'lockstep': False})
+    graph_params.check_rules({'command_interface': 'position'})

@@ -21,8 +21,6 @@ from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
 from .rendering import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING,
                         MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING)
 
-#: The one renderer (PyBullet's 'egl', 'tiny' and 'auto' are refused): see RENDERER.
-RENDERERS = ('opengl',)
 #: The robot stands on a riser (:class:`.world.World`) whose top is the base plane. The
 #: paper's model has no floor; its sweep (Figure 13) needs room below the base: with L2 at
 #: 50 % the tool ends 0.11 m (its lower marker 0.17 m) under z = 0.
@@ -42,13 +40,6 @@ CAMERA_EYE = Param('camera_eye', [float(v) for v in paper.CAMERA_EYE],
 CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT],
                        'point of {O} on the optical axis (image up = +z of {O})', 'm',
                        low=-20.0, high=20.0, length=3)
-#: Kept with its one value so that a command, spec or bag that names it still runs and one
-#: that names a retired renderer ('egl', 'tiny', 'auto') is refused at start with this
-#: parameter's message (not silently ignored, as an undeclared override would be).
-RENDERER = Param('renderer', 'opengl', "the images' renderer: 'opengl', our OpenGL renderer "
-                 '(ibvs_sim.gl_renderer) on a GPU when there is one, llvmpipe otherwise; '
-                 "PyBullet's 'egl', 'tiny' and 'auto' are refused", '-',
-                 choices=RENDERERS)
 RENDER_SUPERSAMPLING = Param(
     'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
     'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
@@ -107,7 +98,6 @@ class SimConfig(ParamConfig):
     camera_look_at: tuple[float, float, float] = param_field(CAMERA_LOOK_AT)
     l2_scale: float = param_field(L2_SCALE)
     l4_scale: float = param_field(L4_SCALE)
-    renderer: str = param_field(RENDERER)
     render_supersampling: int = param_field(RENDER_SUPERSAMPLING)
     render_marker_supersampling: int = param_field(RENDER_MARKER_SUPERSAMPLING)
     mount_height_m: float = param_field(MOUNT_HEIGHT_M)

@@ -61,7 +61,7 @@ class LockstepSim:
         self.diagnostics = node.diagnostics
         for name, value in config.off_default(FREE_RUNNING_ONLY):
             node.get_logger().warn(f"parameter '{name}' = {value!r} is ignored in lockstep "
-                                   '(it applies to free-running, lockstep false)')
+                                   "(it applies to free-running, command_interface 'position')")
         self.clock_rate_hz = config.clock_rate_hz
         self.frame_joint_subscribers = config.min_frame_joint_state_subscribers
         limit = EFFORT_BOUND_FACTOR * np.asarray(joint_efforts(self.sim.params), dtype=float)

@@ -3,10 +3,9 @@ The typed configurations of ibvs_sim's nodes (:class:`SimNodeConfig`, :class:`Ro
 
 :class:`SimNodeConfig` is :class:`.config.SimConfig` (what the simulator simulates) and the
 node's own parameters below: each value checked against its Param at construction, then
-the rules across them (the command interface against the time mode, a taught target
-against publish_images, a camera outage against lockstep, the extra joints' names, a start
-at the target against start_joints), so
-that a bad combination is refused before the node opens a topic.
+the rules across them (a taught target against publish_images, a camera outage against
+lockstep, the extra joints' names, a start at the target against start_joints), so that a
+bad combination is refused before the node opens a topic.
 """
 
 from dataclasses import dataclass
@@ -62,8 +61,8 @@ MIN_JOINT_PATH_SUBSCRIBERS = Param(
     'subscribers (a recorder whose joint series start at step 0)', '-', low=0, high=1000)
 
 REAL_TIME_FACTOR = Param(
-    'real_time_factor', 0.05, 'free-running (lockstep false): sim seconds per wall second '
-    "(Gazebo's real_time_factor); 0.05 leaves margin for any graph on a loaded 2-core "
+    'real_time_factor', 0.05, "free-running (command_interface 'position'): sim seconds per "
+    "wall second (Gazebo's real_time_factor); 0.05 leaves margin for any graph on a loaded 2-core "
     'machine (0.1 was held at 0.05-0.09 with three other test suites running); real_cell.yaml '
     'sets 0.6, what the idle machine holds at HD720 (docs/speed.md); when it cannot be held '
     'the node says so',
@@ -143,8 +142,9 @@ CAMERA_TOPICS = Param(
 class SimNodeConfig(SimConfig):
     """The parameters of sim_node: the simulator's (:class:`.config.SimConfig`), then its own."""
 
-    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-    RULES = (shared.check_command_interface,)
+    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts:
+    #: none (its checks across values are its construction's, :meth:`__post_init__`).
+    RULES = ()
 
     publish_images: bool = param_field(PUBLISH_IMAGES)
     clock_rate_hz: float = param_field(CLOCK_RATE_HZ)
@@ -158,7 +158,6 @@ class SimNodeConfig(SimConfig):
     target_features_source: str = param_field(shared.TARGET_FEATURES_SOURCE)
     target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
     target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
-    lockstep: bool = param_field(shared.LOCKSTEP)
     command_interface: str = param_field(shared.COMMAND_INTERFACE)
     position_command_type: str = param_field(shared.POSITION_COMMAND_TYPE)
     command_rate_hz: float = param_field(shared.COMMAND_RATE_HZ)
@@ -180,7 +179,6 @@ class SimNodeConfig(SimConfig):
     def __post_init__(self):
         """Check each value, then the rules across them (module docstring)."""
         super().__post_init__()
-        shared.check_command_interface(vars(self))
         shared.start_joints(self.start_joints)  # 6 angles within the joints' ranges, or none
         if self.start_at_target and self.start_joints:
             raise ParameterError("parameter 'start_at_target' = True is invalid with "
@@ -200,17 +198,22 @@ class SimNodeConfig(SimConfig):
             raise ParameterError(
                 f"parameter 'camera_outage_s' = {list(self.camera_outage_s)!r} is invalid in "
                 'lockstep: the joint controller waits for every frame, so the run would stop; '
-                'allowed: a duration of 0 (or lockstep false)')
+                "allowed: a duration of 0 (or command_interface 'position')")
         if self.image_stamp_offset_s != 0.0 and self.lockstep:
             raise ParameterError(
                 f"parameter 'image_stamp_offset_s' = {self.image_stamp_offset_s!r} is invalid "
                 "in lockstep: a frame's stamp names its joint state there; allowed: 0 (or "
-                'lockstep false)')
+                "command_interface 'position')")
         if self.image_stamp_offset_s > self.feedback_latency_s:
             raise ParameterError(
                 f"parameter 'image_stamp_offset_s' = {self.image_stamp_offset_s!r} is invalid "
                 f'with feedback_latency_s = {self.feedback_latency_s!r}: a frame cannot be '
                 'stamped after it is delivered; allowed: at most feedback_latency_s')
+
+    @property
+    def lockstep(self) -> bool:
+        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
+        return shared.lockstep(vars(self))
 
 
 @dataclass(frozen=True)

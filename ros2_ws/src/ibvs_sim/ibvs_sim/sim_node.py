@@ -1,10 +1,11 @@
 """
 sim_node: the simulated plant (paper Figure 3), a PyBullet IRB 4600 seen by a ZED 2.
 
-One class per time mode, picked at start by ``lockstep`` (which ``command_interface``
-must match): :class:`.lockstep_sim.LockstepSim` steps on each effort command of the
-current stamp (/joint_effort_commands), :class:`.free_running_sim.FreeRunningSim` runs on
-its own at ``real_time_factor`` and follows position references
+One class per time mode, which follows from ``command_interface``
+(:func:`ibvs_common.shared_params.lockstep`): 'effort' runs
+:class:`.lockstep_sim.LockstepSim`, which steps on each effort command of the
+current stamp (/joint_effort_commands), 'position' :class:`.free_running_sim.FreeRunningSim`,
+which runs on its own at ``real_time_factor`` and follows position references
 (/forward_position_controller/commands or /joint_trajectory_controller/joint_trajectory).
 
 Each step (:meth:`SimNode.publish_step`) publishes, when /clock is due (``clock_rate_hz``),
@@ -55,10 +56,10 @@ from .simulator import Simulator
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
 CONFIG = SimNodeConfig
 PARAMS = CONFIG.params()
-#: lockstep -> the class that runs the time mode. The node reads its ``clock_rate_hz``,
-#: ``frame_joint_subscribers``, ``delivery_delay_ns``, ``stamp_offset_ns``, ``held_steps``
-#: and ``command_sub`` and calls ``publish_joints``, ``exposes``, ``start``, ``stop`` and
-#: ``waiting_line``.
+#: ``SimNodeConfig.lockstep`` -> the class that runs its time mode. The node reads its
+#: ``clock_rate_hz``, ``frame_joint_subscribers``, ``delivery_delay_ns``, ``stamp_offset_ns``,
+#: ``held_steps`` and ``command_sub`` and calls ``publish_joints``, ``exposes``, ``start``,
+#: ``stop`` and ``waiting_line``.
 MODES = {True: LockstepSim, False: FreeRunningSim}
 #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
 RULES = CONFIG.RULES

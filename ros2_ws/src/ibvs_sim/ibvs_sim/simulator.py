@@ -61,7 +61,7 @@ class Simulator:
     Raises :class:`ConfigError` at construction for what no single parameter's range
     says: a camera rate above the physics rate, a start pose (or a pose to teach) the
     simulated robot cannot reach, a camera eye and look-at point that give no camera pose,
-    and a renderer that cannot start here.
+    and an OpenGL renderer that cannot start here (named as ``publish_images``).
     """
 
     def __init__(self, config: SimConfig = SimConfig(),
@@ -125,8 +125,9 @@ class Simulator:
         try:
             self.world = World(self.params, float(Fraction(10 ** 9, self.dt_ns)),
                                mount_height_m=config.mount_height_m, render=render)
-        except RendererError as exc:
-            raise ConfigError('renderer', str(exc)) from None
+        except RendererError as exc:  # the parameter that asks for images
+            raise ConfigError('publish_images', f'{exc} (false: the physics only, no images)') \
+                from None
         self.teach_q = self.teach_images = None
         if teach_pose is not None:
             try:

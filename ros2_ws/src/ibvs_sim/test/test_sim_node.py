@@ -325,9 +325,8 @@ BAD_PARAMETERS = [
     ({'scenario': 4}, 'scenario'),
     ({'scenario': 1, 'l2_scale': 0.3, 'l4_scale': 0.3}, 'scenario'),
     ({'resolution': 'HD1080'}, 'resolution'),
-    ({'renderer': 'vulkan'}, 'renderer'),
-    ({'renderer': 'egl'}, 'renderer'),  # retired: refused, not ignored
-    ({'renderer': 'tiny'}, 'renderer'),
+    ({'renderer': 'opengl'}, 'renderer'),  # retired: refused, not ignored
+    ({'renderer': 'egl'}, 'renderer'),
     ({'camera_eye': [1.0, 2.0, 3.0], 'camera_look_at': [1.0, 2.0, 3.0]}, 'camera_look_at'),
     ({'disturbance_deg': [0.1, 0.2]}, 'disturbance_deg'),
     ({'publish_images': 'yes'}, 'publish_images'),

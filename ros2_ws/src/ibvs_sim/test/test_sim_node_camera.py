@@ -139,8 +139,8 @@ def test_two_runs_with_one_seed_publish_identical_images(context):
 
 
 def test_the_node_draws_with_opengl_and_says_on_which_device(context):
-    """The one renderer; its device on /diagnostics (the run's metrics render_device)."""
-    sim = SimNode(context=context, parameter_overrides=_overrides(renderer='opengl'))
+    """The one renderer, chosen by no parameter; its device on /diagnostics (render_device)."""
+    sim = SimNode(context=context, parameter_overrides=_overrides())
     try:
         device = sim.sim.world.render_device
         assert sim.diagnostics.values['render_device'] == device.gl_renderer

@@ -55,7 +55,7 @@ class Cell(Node):
 def cell(context, executor_of):
     def build(**params):
         values = {'resolution': 'VGA', 'disturbance_deg': [0.0] * 6, 'publish_images': False,
-                  'command_interface': 'position', 'lockstep': False,
+                  'command_interface': 'position',
                   'real_time_factor': 1.0, 'render_supersampling': 1,
                   'render_marker_supersampling': 1, 'command_timeout_s': 10.0}
         values.update(params)
@@ -152,7 +152,7 @@ def test_with_min_command_publishers_0_it_starts_uncommanded_and_holds_the_arm(
     from ibvs_model import forward_kinematics, paper
     sim = SimNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in {
         'resolution': 'VGA', 'publish_images': False, 'command_interface': 'position',
-        'lockstep': False, 'real_time_factor': 1.0, 'min_command_publishers': 0,
+        'real_time_factor': 1.0, 'min_command_publishers': 0,
         'start_at_target': True, 'disturbance_deg': [0.0] * 6}.items()])
     listener = Node('listener', context=context)
     states = []
@@ -168,14 +168,14 @@ def test_with_min_command_publishers_0_it_starts_uncommanded_and_holds_the_arm(
 
 @pytest.mark.parametrize('params, name', [
     ({'start_at_target': True, 'start_joints': [0.0] * 6}, 'start_at_target'),
-    ({'lockstep': True, 'command_interface': 'effort', 'camera_outage_s': [1.0, 0.5]},
+    ({'command_interface': 'effort', 'camera_outage_s': [1.0, 0.5]},
      'camera_outage_s'),
     ({'extra_joints': ['joint_3']}, 'extra_joints'),
     ({'extra_joints': ['track_1', 'track_1']}, 'extra_joints'),
     ({'joint_state_rate_hz': 0.0}, 'joint_state_rate_hz'),
 ])
 def test_what_a_mode_cannot_do_is_refused_naming_the_parameter(context, params, name):
-    values = {'command_interface': 'position', 'lockstep': False, 'publish_images': False,
+    values = {'command_interface': 'position', 'publish_images': False,
               'resolution': 'VGA'}
     values.update(params)
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):

@@ -2,8 +2,9 @@
 sim_node: one class per time mode, picked from a typed config checked before any topic.
 
 :class:`ibvs_sim.node_params.SimNodeConfig` is pure Python: its rules across parameters
-are checked without a node. The node starts the class of ``lockstep`` and opens the
-command topic of that mode only.
+are checked without a node. The node starts the class of the time mode that its
+``command_interface`` gives and opens the command topic of that mode only; ``lockstep`` and
+``renderer`` are retired, refused at start.
 """
 
 from ibvs_common import contract
@@ -16,16 +17,15 @@ from ibvs_sim.sim_node import PARAMS, SimNode
 import pytest
 from rclpy.parameter import Parameter
 
-FREE = {'lockstep': False, 'command_interface': 'position'}
+FREE = {'command_interface': 'position'}
 LIGHT = [Parameter('publish_images', value=False), Parameter('resolution', value='VGA')]
 
 
 def test_config_checks_the_rules_across_parameters():
     assert [p.name for p in PARAMS] == [p.name for p in SimNodeConfig.params()]
-    assert SimNodeConfig(**FREE).lockstep is False
+    assert SimNodeConfig(**FREE).lockstep is False and SimNodeConfig().lockstep is True
+    assert not {'lockstep', 'renderer'} & {p.name for p in PARAMS}
     for params, match in (
-            ({'lockstep': False}, "'lockstep' = False is invalid"),
-            ({'command_interface': 'position'}, "'lockstep' = True is invalid"),
             ({'target_features_source': 'taught', 'publish_images': False},
              "'target_features_source' = 'taught' is invalid"),
             ({'camera_outage_s': [1.0, 0.5]},
@@ -45,6 +45,15 @@ def test_config_checks_the_rules_across_parameters():
     assert SimNodeConfig(image_stamp_offset_s=-0.02, **FREE).image_stamp_offset_s == -0.02
     assert SimNodeConfig(joint_state_rate_hz=100.0).off_default(
         ('joint_state_rate_hz', 'real_time_factor')) == [('joint_state_rate_hz', 100.0)]
+
+
+@pytest.mark.parametrize('name, value, replacement', [
+    ('lockstep', False, 'the time mode follows from command_interface'),
+    ('renderer', 'opengl', 'the simulator renders with OpenGL')])
+def test_a_retired_parameter_stops_the_node_naming_what_replaces_it(
+        context, name, value, replacement):
+    with pytest.raises(ParameterError, match=f"parameter '{name}' is retired: {replacement}"):
+        SimNode(context=context, parameter_overrides=LIGHT + [Parameter(name, value=value)])
 
 
 def _subscribed(node):

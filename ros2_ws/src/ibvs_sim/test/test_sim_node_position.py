@@ -52,7 +52,7 @@ def cell(context, executor_of):
     def build(images=False, **params):
         values = {'resolution': 'VGA', 'disturbance_deg': [0.0] * 6,
                   'publish_images': images,
-                  'command_interface': 'position', 'lockstep': False,
+                  'command_interface': 'position',
                   'real_time_factor': 1.0, 'joints': REVERSED, 'render_supersampling': 1,
                   'render_marker_supersampling': 1}
         values.update(params)
@@ -142,12 +142,11 @@ def test_joint_trajectory_commands_are_mapped_by_name_and_bad_names_refused(cell
 
 
 @pytest.mark.parametrize('params, name', [
-    ({'lockstep': True}, 'lockstep'),
-    ({'command_interface': 'effort'}, 'lockstep'),
+    ({'lockstep': False}, 'lockstep'),  # retired: the interface gives the time mode
     ({'joints': REVERSED[:5] + ['joint_6']}, 'joints'),
 ])
 def test_bad_configurations_are_refused_naming_the_parameter(context, params, name):
-    values = {'command_interface': 'position', 'lockstep': False, 'publish_images': False,
+    values = {'command_interface': 'position', 'publish_images': False,
               'resolution': 'VGA'}
     values.update(params)
     with pytest.raises(ParameterError, match=f"parameter '{name}'"):

@@ -67,7 +67,7 @@ class FeatureConfig(ParamConfig):
     joint_history_s: float = param_field(JOINT_HISTORY_S)
     stamp_offset_window_s: float = param_field(STAMP_OFFSET_WINDOW_S)
     stamp_offset_initial_s: float = param_field(STAMP_OFFSET_INITIAL_S)
-    lockstep: bool = param_field(shared.LOCKSTEP)
+    command_interface: str = param_field(shared.COMMAND_INTERFACE)
     publish_debug_images: bool = param_field(PUBLISH_DEBUG_IMAGES)
     camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
@@ -84,7 +84,8 @@ class FeatureConfig(ParamConfig):
             raise ParameterError(
                 f"parameter 'stamp_offset_initial_s' = {self.stamp_offset_initial_s!r} is "
                 "invalid in lockstep: a frame's stamp names it there (the joint controller "
-                'waits for the q_feedback of that stamp); allowed: 0 (or lockstep false)')
+                'waits for the q_feedback of that stamp); allowed: 0 (or command_interface '
+                "'position')")
         reach_s = self.stamp_offset_window_s + stamp_offset.REACH_S
         if self.stamp_offset_window_s > 0.0 and reach_s > self.joint_history_s:
             raise ParameterError(
@@ -97,6 +98,11 @@ class FeatureConfig(ParamConfig):
     def detector_config(self) -> detector.DetectorConfig:
         """Return the detector's tuning of these values (ParameterError if it refuses them)."""
         return detector.DetectorConfig.from_parameters(self.values())
+
+    @property
+    def lockstep(self) -> bool:
+        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
+        return shared.lockstep(vars(self))
 
     @property
     def estimates_stamp_offset(self) -> bool:

@@ -34,9 +34,10 @@ def test_the_stamp_offsets_window_must_fit_in_the_joint_history():
 
 def test_the_stamp_offset_is_estimated_free_running_only():
     assert not FeatureConfig().estimates_stamp_offset  # lockstep: stamps name the frames
-    assert FeatureConfig(lockstep=False).estimates_stamp_offset
-    assert not FeatureConfig(lockstep=False, stamp_offset_window_s=0.0).estimates_stamp_offset
+    free = {'command_interface': 'position'}  # free-running: the interface gives it
+    assert FeatureConfig(**free).estimates_stamp_offset
+    assert not FeatureConfig(**free, stamp_offset_window_s=0.0).estimates_stamp_offset
     with pytest.raises(ParameterError, match="parameter 'stamp_offset_initial_s' = 0.03 is "
                        'invalid in lockstep'):
         FeatureConfig(stamp_offset_initial_s=0.03)
-    assert FeatureConfig(lockstep=False, stamp_offset_initial_s=0.03)
+    assert FeatureConfig(**free, stamp_offset_initial_s=0.03)
