@@ -39,7 +39,8 @@ from std_msgs.msg import Int8
 from .controllers import feature_error
 from .frame_lockstep import FrameLockstep
 from .minimum_watch import MinimumWatch
-from .node_params import AdaptiveFeedbackConfig, check_servo_law, LIVE_PARAMS, target_from
+from .node_params import (AdaptiveFeedbackConfig, check_servo_law, LIVE_PARAMS, still_speeds,
+                          target_from)
 from .prediction import Predictor
 from .servo_laws import law_class
 from .servo_status import ServoStatus
@@ -70,7 +71,9 @@ class AdaptiveFeedbackNode(Node):
         values = c.values()
         self.gain = check_servo_law(values)
         self.law = law_class(c.servo_law)
-        self.needs_status = self.law.needs_measured(values)
+        self.needs_status = (self.law.needs_measured(values)
+                             or (c.latency_compensation == 'internal_model'
+                                 and c.model_error_transport == 'joints'))
         self.pose = target_from(values)
         self.camera_ns = period_ns(c.camera_rate_hz)
         latency_ns, step_ns = seconds_to_ns(c.feedback_latency_s), period_ns(c.physics_rate_hz)
@@ -216,7 +219,9 @@ class AdaptiveFeedbackNode(Node):
             return
         try:
             model = CameraRobotModel(self._camera, IRB4600)
-            self._predictor = Predictor(self.config.latency_compensation, model, self.pose)
+            self._predictor = Predictor(self.config.latency_compensation, model, self.pose,
+                                        still_speeds(self.config.values()),
+                                        self.config.model_error_transport)
             self.feedback = self.law.create(
                 model, self.pose,
                 ns_to_seconds(self.camera_ns), gain=self.gain, p_target=self._p_target,
@@ -281,7 +286,7 @@ class AdaptiveFeedbackNode(Node):
         if got is None:
             return
         t_ns, status = got
-        rejection = self._lockstep.offer_status(t_ns, status.measured)
+        rejection = self._lockstep.offer_status(t_ns, status)
         if rejection is not None:
             self.diagnostics.reject(contract.FEATURE_STATUS, *rejection)
             return
@@ -297,7 +302,10 @@ class AdaptiveFeedbackNode(Node):
             self.waiting.progress()
             self._answer(*ready)
 
-    def _answer(self, t_ns, features, joints, measured=True):
+    def _answer(self, t_ns, features, joints, status=True):
+        # status: the frame's FeatureStatus, or True where the node takes none
+        measured = status is True or status.measured
+        shows_arm = status is True or (status.measured and status.blend_weight == 0.0)
         source = contract.FEATURES
         now_ns = self._lockstep.joints.newest
         if isinstance(features, InputError):
@@ -317,7 +325,7 @@ class AdaptiveFeedbackNode(Node):
                     q_action, qd_action = self._lockstep.action_joints()[1]
                     features, q, qd = self._predictor.inputs(
                         self.feedback.q_feedback, features, joints[0], joints[1], q_action,
-                        qd_action)
+                        qd_action, measured=shows_arm)
                 with self.diagnostics.timing.section('feedback_update'):
                     update = self.feedback.update(features, q, qd, measured=measured,
                                                   t=ns_to_seconds(t_ns))

@@ -78,6 +78,7 @@ class LoopConfig(ParamConfig):
     hold_speed_fraction: float = param_field(node_params.HOLD_SPEED_FRACTION)
     linearise_at: str = param_field(node_params.LINEARISE_AT)
     latency_compensation: str = param_field(node_params.LATENCY_COMPENSATION)
+    model_error_transport: str = param_field(node_params.MODEL_ERROR_TRANSPORT)
     switch_settle_s: float = param_field(node_params.SWITCH_SETTLE_S)
     feature_fallback: str = param_field(node_params.FEATURE_FALLBACK)
     windup_horizon_s: float = param_field(node_params.WINDUP_HORIZON_S)
@@ -155,7 +156,8 @@ def _answer(fb, frame, q, qd, predictor, lockstep, counts):
         counts['dropped'] += 1
     else:
         try:
-            p_hat, q_e, qd_e = predictor.inputs(fb.q_feedback, p_hat, q_e, qd_e, q, qd)
+            p_hat, q_e, qd_e = predictor.inputs(fb.q_feedback, p_hat, q_e, qd_e, q, qd,
+                                                measured=measured)
             q_feedback = fb.update(p_hat, q_e, qd_e, measured=measured,
                                    t=t_ns * 1e-9).q_feedback
         except ModelError:
@@ -292,7 +294,9 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     lockstep = FeedbackLockstep(cam_ns, latency_ns, dt_ns, initial=np.zeros(6))
     rng = np.random.default_rng(seed)
     drops = np.random.default_rng([seed, 1]) if frame_drop_probability > 0.0 else None
-    predictor = Predictor(config.latency_compensation, model, pose)
+    predictor = Predictor(config.latency_compensation, model, pose,
+                          node_params.still_speeds(asdict(config)),
+                          config.model_error_transport)
     next_frame = 0
     # Frames taken and not yet answered: (stamp, action time, p_hat, q, qd, measured, lost),
     # answered at their action time (feedback_action_ns), when their q_feedback starts to act.

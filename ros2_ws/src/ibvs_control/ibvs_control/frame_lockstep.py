@@ -79,9 +79,12 @@ class FrameLockstep:
         """Queue the frame at ``t_ns``; 'stale stamp' unless after the newest, 'buffer full'."""
         return self.frames.offer(t_ns, item)
 
-    def offer_status(self, t_ns: int, measured: bool) -> Optional[Rejection]:
+    def offer_status(self, t_ns: int, measured: Any) -> Optional[Rejection]:
         """
         Keep whether the frame at ``t_ns`` was measured; return why not, or None.
+
+        ``measured`` is returned with the frame by :meth:`pop_ready` as it was given: a
+        bool, or the frame's whole status where the caller needs more of it.
 
         A status of a frame already answered is dropped without a word (None).
         """

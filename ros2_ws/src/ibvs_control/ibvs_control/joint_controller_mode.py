@@ -54,6 +54,7 @@ class JointControllerConfig(ParamConfig):
     speed_margin: float = param_field(own.SPEED_MARGIN)
     feedforward_method: str = param_field(own.FEEDFORWARD_METHOD)
     acceleration_margin: float = param_field(own.ACCELERATION_MARGIN)
+    drive_acceleration_margin: float = param_field(own.DRIVE_ACCELERATION_MARGIN)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
     command_interface: str = param_field(shared.COMMAND_INTERFACE)
     command_rate_hz: float = param_field(shared.COMMAND_RATE_HZ)

@@ -121,6 +121,13 @@ LATENCY_COMPENSATION = Param(
     'q_feedback acts, s(t_e) + F(q(t_a)) - F(q(t_e)), with the encoders of both times; '
     "without latency the paper's law exactly) or 'none' (the paper's law as published, "
     "the frame's own encoder angles)", '-', choices=prediction.LATENCY_COMPENSATIONS)
+MODEL_ERROR_TRANSPORT = Param(
+    'model_error_transport', prediction.MODEL_ERROR_TRANSPORTS[0],
+    "latency_compensation 'internal_model': how a frame's disagreement with the model is "
+    "carried to the rest pose, 'image' (unchanged, s(t_e) + F(q_rest) - F(q_e)) or "
+    "'joints' (as the encoder offset that explains it, taken from frames with the arm "
+    'slower than hold_speed_fraction of its rated speeds and held through the slew)', '-',
+    choices=prediction.MODEL_ERROR_TRANSPORTS)
 HOLD_SPEED_FRACTION = Param('hold_speed_fraction', controllers.HOLD_SPEED_FRACTION,
                             'the feedback holds (does not integrate) while an encoder joint '
                             'moves faster than this fraction of the speed it is allowed (its '
@@ -136,6 +143,12 @@ SPEED_MARGIN = Param('speed_margin', controllers.SPEED_MARGIN, "'limited' actuat
 ACCELERATION_MARGIN = Param('acceleration_margin', controllers.ACCELERATION_MARGIN,
                             "'limited' actuators: share of the torque left after h(q, qdot) "
                             'that the governor may use', '-', low=0.0, high=1.0, low_open=True)
+DRIVE_ACCELERATION_MARGIN = Param(
+    'drive_acceleration_margin', 0.8,
+    "command_interface 'position': the share of the drive's acceleration limits the joint "
+    "controller's reference is planned with; the rest is the drive's position loop's, to "
+    'correct the arm with while it brakes (a plan at the very limits leaves it none: the arm '
+    'runs past its stop)', '-', low=0.0, high=1.0, low_open=True)
 DRY_RUN = Param(
     'dry_run', False,
     "command_interface 'position': compute the references as always but publish them on "
@@ -171,6 +184,20 @@ def allowed_joint_speeds(values: Mapping[str, Any], params: 'RobotParams' = IRB4
     if values.get('command_interface') != 'position':
         return rated
     return np.minimum(rated, np.radians(values['max_joint_speed_deg_s']))
+
+
+def still_speeds(values: Mapping[str, Any], params: 'RobotParams' = IRB4600
+                 ) -> NDArray[np.float64]:
+    """
+    Return the joint speeds (6,) rad/s above which a frame's stamp error shows, ``values``.
+
+    ``hold_speed_fraction`` times the rated qd_max, whatever the cap: what a frame's stamp
+    error puts in its disagreement with the model is the joint speed times the error, so
+    this is a speed of the arm's, not of the move's (the hold rule's, relative to the
+    speeds allowed, is :func:`allowed_joint_speeds`). Faster, the internal model keeps
+    its joint offset (:class:`.prediction.Predictor`).
+    """
+    return values['hold_speed_fraction'] * np.asarray(params.qd_max, dtype=float)
 
 
 #: The parameters a running feedback node takes from ``ros2 param set`` (checked as at start,
@@ -276,6 +303,7 @@ class AdaptiveFeedbackConfig(ParamConfig):
     physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
     feedback_latency_s: float = param_field(shared.FEEDBACK_LATENCY_S)
     latency_compensation: str = param_field(LATENCY_COMPENSATION)
+    model_error_transport: str = param_field(MODEL_ERROR_TRANSPORT)
     target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
     target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
     stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)

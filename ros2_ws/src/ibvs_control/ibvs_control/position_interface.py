@@ -150,21 +150,29 @@ class PositionShaper:
         return self.target(self._governor.sample(trajectory, trajectory.duration)[0])
 
 
-def shaper_for(values: Mapping[str, Any]) -> PositionShaper:
+def shaper_for(values: Mapping[str, Any], margins: bool = True) -> PositionShaper:
     """
     Return the joint controller's shaper for its parameters ``values`` (by name).
 
-    ``command_rate_hz``, ``speed_margin``, ``max_joint_speed_deg_s`` and
-    ``feedforward_method`` (:func:`.controllers.synchronised_move`), each its parameter's
-    default where ``values`` does not set it: the one place the position interface's
-    limits are put together, for the controller and for the bound (:func:`time_optimal_s`).
+    ``command_rate_hz``, ``speed_margin``, ``drive_acceleration_margin``,
+    ``max_joint_speed_deg_s`` and ``feedforward_method``
+    (:func:`.controllers.synchronised_move`), each its parameter's default where ``values``
+    does not set it: the one place the position interface's limits are put together, for
+    the controller and for the bound (:func:`time_optimal_s`). ``margins`` False leaves
+    the two margins out: the arm's own limits, the speed cap and the drive's.
     """
     def value(param):
-        return values.get(param.name, param.default)
+        return values.get(param.name, param.default) if margins else 1.0
+    margin = value(node_params.DRIVE_ACCELERATION_MARGIN)
     return PositionShaper(
-        value(shared.COMMAND_RATE_HZ), speed_margin=value(node_params.SPEED_MARGIN),
-        max_speed=math.radians(value(shared.MAX_JOINT_SPEED_DEG_S)),
-        synchronised=synchronised_move(value(node_params.FEEDFORWARD_METHOD)))
+        values.get(shared.COMMAND_RATE_HZ.name, shared.COMMAND_RATE_HZ.default),
+        speed_margin=value(node_params.SPEED_MARGIN),
+        acceleration_limits=margin * np.asarray(ACCELERATION_LIMITS),
+        max_speed=math.radians(values.get(shared.MAX_JOINT_SPEED_DEG_S.name,
+                                          shared.MAX_JOINT_SPEED_DEG_S.default)),
+        jerk_limits=margin * np.asarray(JERK_LIMITS),
+        synchronised=synchronised_move(values.get(node_params.FEEDFORWARD_METHOD.name,
+                                                  node_params.FEEDFORWARD_METHOD.default)))
 
 
 def time_optimal_s(q_start: ArrayLike, goal: ArrayLike, values: Mapping[str, Any]) -> float:
@@ -172,11 +180,13 @@ def time_optimal_s(q_start: ArrayLike, goal: ArrayLike, values: Mapping[str, Any
     Return the time-optimal bound (s) of a move through the position interface.
 
     The duration of Ruckig's move from ``q_start`` at rest to ``goal`` at rest (6,) under
-    the limits the joint controller's shaper has with ``values`` (:func:`shaper_for`), plus
-    the drive's dead time (:data:`ibvs_model.drive.EGM_DELAY_S`): no move of the arm from
-    there, with these limits, reaches the goal sooner.
+    the arm's own limits with ``values`` (:func:`shaper_for` without the margins: the speed
+    cap, the drive's speed, acceleration and jerk limits), plus the drive's dead time
+    (:data:`ibvs_model.drive.EGM_DELAY_S`): no move of the arm from there, with these
+    limits, reaches the goal sooner. The joint controller plans inside them (its margins),
+    and what that costs is in the bound's excess.
     """
-    shaper = shaper_for(values)
+    shaper = shaper_for(values, margins=False)
     shaper.start(q_start)
     return shaper.duration(goal) + EGM_DELAY_S
 

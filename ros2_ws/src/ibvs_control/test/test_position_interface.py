@@ -157,20 +157,25 @@ def test_the_reference_is_the_time_optimal_move_and_arrives_at_rest():
     assert arrived.max() - arrived.min() <= 1
 
 
-def test_the_bound_is_the_shapers_own_move_plus_the_drives_dead_time():
-    from ibvs_control.position_interface import time_optimal_s
+def test_the_bound_is_the_arms_own_move_plus_the_drives_dead_time():
+    from ibvs_control.position_interface import shaper_for, time_optimal_s
     from ibvs_model.drive import EGM_DELAY_S
     q0 = np.zeros(6)
     target = np.radians([159.7, 16.3, 38.5, -9.5, 8.2, 70.2])
     bounds = []
     for cap in (20.0, 60.0, 300.0):
-        values = {'max_joint_speed_deg_s': cap, 'command_rate_hz': 250.0, 'speed_margin': 0.9}
+        values = {'max_joint_speed_deg_s': cap, 'command_rate_hz': 250.0, 'speed_margin': 0.9,
+                  'drive_acceleration_margin': 0.7}
         bound = time_optimal_s(q0, target, values)
-        shaper = PositionShaper(250.0, speed_margin=0.9, max_speed=np.radians(cap))
-        shaper.start(q0)
-        assert bound == pytest.approx(shaper.duration(target) + EGM_DELAY_S, abs=1e-12)
+        # the arm's limits, not the controller's margins inside them
+        arm = PositionShaper(250.0, max_speed=np.radians(cap))
+        arm.start(q0)
+        assert bound == pytest.approx(arm.duration(target) + EGM_DELAY_S, abs=1e-12)
+        planned = shaper_for(values)
+        planned.start(q0)
+        assert planned.duration(target) + EGM_DELAY_S > bound
         # no joint covers its distance faster than at its speed limit from the start
-        speed = np.minimum(0.9 * np.asarray(SPEED_LIMITS), np.radians(cap))
+        speed = np.minimum(np.asarray(SPEED_LIMITS), np.radians(cap))
         assert bound > np.max(np.abs(target) / speed) + EGM_DELAY_S
         bounds.append(bound)
     assert bounds[0] > bounds[1] > bounds[2]  # a higher cap, a shorter move

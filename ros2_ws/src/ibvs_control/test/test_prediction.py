@@ -160,17 +160,59 @@ def test_the_internal_model_integrates_through_the_slew_at_any_latency():
     assert times[1] <= times[0] + 0.25
 
 
-def test_the_internal_model_predicts_to_the_rest_pose_the_references_head_for():
+def _internal_model(still_speeds=None, transport='joints'):
     from ibvs_control.controllers import target_branch
     from ibvs_control.prediction import Predictor
     model = default_model()
     pose = paper.target_pose()
     q_e = _q_start()
-    predictor = Predictor('internal_model', model, pose)
+    return model, Predictor('internal_model', model, pose, still_speeds, transport), q_e, \
+        target_branch(pose, q_e)
+
+
+@pytest.mark.parametrize('transport', ['image', 'joints'])
+def test_the_internal_model_predicts_to_the_rest_pose_the_references_head_for(transport):
+    model, predictor, q_e, q_target = _internal_model(transport=transport)
     q_fb = np.radians([0.1, -0.2, 0.05, 0.0, 0.1, 0.0])
     p_hat = model.features(q_e) + 0.5  # a mismatch the model does not explain
     features, q, qd = predictor.inputs(q_fb, p_hat, q_e, np.ones(6))
-    q_rest = target_branch(pose, q_e) + q_fb
-    np.testing.assert_allclose(q, q_rest)
-    np.testing.assert_allclose(features, model.features(q_rest) + 0.5, atol=1e-9)
+    np.testing.assert_allclose(q, q_target + q_fb)
     assert qd is None  # nothing to hold for
+    if transport == 'image':
+        np.testing.assert_allclose(features, model.features(q_target + q_fb) + 0.5, atol=1e-9)
+    # at the frame's own pose the prediction is the frame itself
+    at_frame, _, _ = predictor.inputs(q_e - q_target, p_hat, q_e, np.ones(6))
+    np.testing.assert_allclose(at_frame, p_hat, atol=1e-9)
+
+
+def test_an_encoder_offset_seen_at_the_start_is_carried_to_the_rest_pose():
+    # the arm is d_q off its encoders: the frame at the start shows F(q_e + d_q); predicted
+    # to the target it is F(q_rest + d_q) to first order, where carrying the image error
+    # unchanged (eq. P) is wrong by the two poses' Jacobians' difference
+    model, predictor, q_e, q_target = _internal_model()
+    d_q = np.radians([0.2, -0.5, 0.3, 0.4, -0.3, 0.0])
+    q_fb = np.zeros(6)
+    p_hat = model.features(q_e + d_q)
+    features, _, _ = predictor.inputs(q_fb, p_hat, q_e, np.zeros(6))
+    truth = model.features(q_target + q_fb + d_q)
+    in_the_image = predicted_features(model, p_hat, q_e, q_target + q_fb)
+    error = np.abs(features - truth).max()
+    assert error < 0.1 * np.abs(in_the_image - truth).max()
+    assert error < 0.5  # px
+
+
+def test_the_joint_offset_is_held_through_frames_that_do_not_show_the_arm_still():
+    still = np.full(6, 0.1)
+    model, predictor, q_e, q_target = _internal_model(still)
+    d_q = np.radians([0.2, -0.5, 0.3, 0.0, 0.0, 0.0])
+    predictor.inputs(np.zeros(6), model.features(q_e + d_q), q_e, np.zeros(6))
+    held = predictor.joint_offset.copy(), predictor.rest.copy()
+    q_fast = q_e + np.radians([5.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    other = model.features(q_fast) + 3.0  # what a late stamp or an estimate shows
+    for qd, measured in ((np.zeros(6), False), (np.full(6, 0.2), True)):
+        predictor.inputs(np.zeros(6), other, q_fast, qd, measured=measured)
+        np.testing.assert_array_equal(predictor.joint_offset, held[0])
+        np.testing.assert_array_equal(predictor.rest, held[1])
+    # a measured frame with the arm still takes them anew
+    predictor.inputs(np.zeros(6), other, q_fast, np.full(6, 0.05))
+    assert not np.array_equal(predictor.joint_offset, held[0])
