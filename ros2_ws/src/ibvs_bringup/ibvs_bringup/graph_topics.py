@@ -264,6 +264,12 @@ def expected_counts(nodes: Iterable[str], mode: str = 'effort',
     return {t: tuple(v) for t, v in out.items()}
 
 
+def _param_row(spec) -> str:
+    default = spec.default if not isinstance(spec.default, str) else repr(spec.default)
+    return (f'| `{spec.name}` | {default} | {spec.units or "-"} | '
+            f'{spec.allowed().replace("|", "/")} |')
+
+
 def node_tables(graph: Graph = GRAPH, rows: Iterable[Opened] | None = None) -> str:
     """
     Return docs/nodes.md's generated part: each node's topics and parameters (markdown).
@@ -271,10 +277,21 @@ def node_tables(graph: Graph = GRAPH, rows: Iterable[Opened] | None = None) -> s
     Topics: what the node records opening (:func:`opened`), as it names them (``ros2
     run``; :meth:`~ibvs_bringup.graph.Graph.remaps` says what ``ibvs run`` remaps), with
     the modes that open it where not all. Parameters: its module's ``PARAMS``, with their
-    defaults, units and allowed values (``ros2 param describe`` shows the same).
+    defaults, units and allowed values (``ros2 param describe`` shows the same); a parameter
+    that several nodes declare alike is in one table first, and each node names it.
     """
     rows = list(opened() if rows is None else rows)
-    out = []
+    params = {n.name: importlib.import_module(n.module).PARAMS for n in graph.nodes}
+    declared = {}
+    for specs in params.values():
+        for spec in specs:
+            declared.setdefault(spec.name, set()).add(_param_row(spec))
+    counts = {name: sum(name in {s.name for s in specs} for specs in params.values())
+              for name in declared}
+    shared = [name for name in declared if counts[name] > 1 and len(declared[name]) == 1]
+    out = ['### Parameters of several nodes', '', '| parameter | default | units | allowed |',
+           '|---|---|---|---|']
+    out += [next(iter(declared[name])) for name in shared] + ['']
     for n in graph.nodes:
         out += [f'### {n.name}', '', '| opens | topic | type | QoS | modes |',
                 '|---|---|---|---|---|']
@@ -283,12 +300,14 @@ def node_tables(graph: Graph = GRAPH, rows: Iterable[Opened] | None = None) -> s
                 modes = 'all' if set(r.modes) >= set(MODES) else ', '.join(r.modes)
                 out.append(f'| {r.direction} | `{r.topic}` | {r.msg_type} | {r.qos} | '
                            f'{modes} |')
-        out += ['', '| parameter | default | units | allowed |', '|---|---|---|---|']
-        for spec in importlib.import_module(n.module).PARAMS:
-            default = spec.default if not isinstance(spec.default, str) else repr(spec.default)
-            out.append(f'| `{spec.name}` | {default} | {spec.units or "-"} | '
-                       f'{spec.allowed().replace("|", "/")} |')
-        out.append('')
+        own = [spec for spec in params[n.name] if spec.name not in shared]
+        common = [f'`{spec.name}`' for spec in params[n.name] if spec.name in shared]
+        out += ['']
+        if common:
+            out += [f'Of several nodes: {", ".join(common)}.', '']
+        if own:
+            out += ['| parameter | default | units | allowed |', '|---|---|---|---|']
+            out += [_param_row(spec) for spec in own] + ['']
     return '\n'.join(out)
 
 
