@@ -31,7 +31,7 @@ def streams(bag_path, end_ns):
 
     Only what is stamped before ``end_ns``: the run stops asynchronously once sim time
     reaches its end, so how far past it a run goes depends on timing (the analysis too takes
-    only the steps before the end, :func:`ibvs_experiments.analysis.analyse_bag`).
+    only the steps before the end, :func:`ibvs_analysis.analysis.analyse_bag`).
     """
     feedback_t, feedback_q, path = [], [], ([], [], [], [])
     with AnyReader([Path(bag_path)],

@@ -9,15 +9,15 @@ few tenths of a pixel of image error. The feedback node reports the minimum on
 miss with the reason 'local minimum'.
 """
 
+from ibvs_analysis import study_table
 from ibvs_control import minimum_watch
-from ibvs_control.servo_laws import feedforward_overrides
-from ibvs_experiments import runner, study
+from ibvs_experiments import runner
 import pytest
 
 #: docs/servo_laws.md: ``ibvs run scenario1 --duration 6 -p servo_law:=ibvs ...``.
-OVERRIDES = {'servo_law': 'ibvs', 'actuators': 'limited', 'feedback_latency_s': 0.067,
-             'lambda_0': 6.0, 'latency_compensation': 'none',
-             **feedforward_overrides('ibvs')}  # as ibvs run sets them
+OVERRIDES = runner.with_servo_law({'servo_law': 'ibvs', 'actuators': 'limited',
+                                   'feedback_latency_s': 0.067, 'lambda_0': 6.0,
+                                   'latency_compensation': 'none'})  # as ibvs run sets them
 DURATION_S = 6.0
 
 
@@ -34,7 +34,7 @@ def test_a_run_held_in_the_local_minimum_reports_it_and_is_no_success(installed_
         <= minimum_watch.IMAGE_NEAR_PX
     assert metrics['miss_reason'].startswith('local minimum of the image error'), \
         metrics['miss_reason']
-    assert study.reason_category(metrics['miss_reason'], failed=False) == 'local minimum'
+    assert study_table.reason_category(metrics['miss_reason'], failed=False) == 'local minimum'
     # the status the joint controller published last, as its /diagnostics in the bag say
     assert metrics['final_servo_status'] == 'LOCAL_MINIMUM'
     logs = '\n'.join(p.read_text() for p in (tmp_path / 'run' / 'logs').glob('*'))

@@ -12,9 +12,10 @@ composed with /tf_static as a tf listener does, is checked against
 
 from pathlib import Path
 
+from ibvs_analysis import analysis, video
 from ibvs_common import contract
 from ibvs_common.conversions import stamp_ns
-from ibvs_experiments import analysis, runner, video
+from ibvs_experiments import runner
 from ibvs_model import abb_urdf, IRB4600
 import numpy as np
 import pytest

@@ -10,7 +10,8 @@ under 'teach failed', not as a stalled graph.
 
 import os
 
-from ibvs_experiments import runner, study, vsbench
+from ibvs_analysis import study_table
+from ibvs_experiments import runner, study, vsbench, vsbench_tasks
 import pytest
 
 #: The task whose markers are hidden at the target (vsbench-2, the paper's law).
@@ -20,7 +21,7 @@ TASK = 165
 @pytest.mark.slow
 def test_a_teach_that_measures_no_target_ends_the_run_as_a_failed_teach(
         installed_workspace, tmp_path):
-    bench = vsbench.load()
+    bench = vsbench_tasks.load()
     task = bench['tasks'][TASK]
     assert task['index'] == TASK
     overrides = vsbench.graph_overrides(task, 'paper', bench['conditions'],
@@ -36,4 +37,4 @@ def test_a_teach_that_measures_no_target_ends_the_run_as_a_failed_teach(
     assert record['exit_code'] == runner.EXIT_TEACH_FAILED, log
     assert 'run failed: teach failed at sim time 0.000 s: feature_node' in log, log
     assert 'stalled' not in log, log
-    assert study.miss_category(record) == 'teach failed', record['reason']
+    assert study_table.miss_category(record) == 'teach failed', record['reason']

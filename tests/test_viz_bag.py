@@ -12,9 +12,10 @@ import re
 import shutil
 import subprocess
 
+from ibvs_analysis import video
 from ibvs_common import contract
 from ibvs_common.conversions import pose_matrix, stamp_ns
-from ibvs_experiments import cli, runner, video
+from ibvs_experiments import cli, runner
 from ibvs_vision import overlay
 import numpy as np
 import pytest

@@ -20,7 +20,7 @@ setup(
     zip_safe=True,
     maintainer='IBVS stack maintainers',
     maintainer_email='maintainers@ibvs-stack.dev',
-    description='Runner, metrics, plots, studies, report, bench, video and the ibvs CLI.',
+    description='Runner, studies, report, benchmarks, cell, teach, calibrate and the ibvs CLI.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

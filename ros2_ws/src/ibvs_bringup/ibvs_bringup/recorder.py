@@ -15,7 +15,7 @@ the torque each step applied, in batches on /ibvs/joint_path, ten a second, whic
 recorder records instead. A subscriber in this process would have the simulator and the
 joint controller send each of their 1000 messages a second out of their process, where the
 lockstep needs none (docs/speed.md); the analysis reads either
-(:func:`ibvs_experiments.analysis.load_joints`).
+(:func:`ibvs_analysis.analysis.load_joints`).
 
 What ``ros2 bag play`` needs beyond the messages, as ``ros2 bag record`` writes it: each
 topic's ``offered_qos_profiles`` (the QoS of its publishers, read when its first message

@@ -17,7 +17,7 @@ of each frame put the tool at FK(q), which it compares with the target pose. The
 (:attr:`.servo_status.ServoStatus.LOCAL_MINIMUM`) once that has held on every measured
 frame for STALL_WINDOW_S with the loop at rest (the encoders' angles and the law's
 q_feedback each within STALL_RAD over the window). The run's metrics read the same rule
-with the true pose (ibvs_experiments.convergence: the miss reason 'local minimum').
+with the true pose (ibvs_analysis.convergence: the miss reason 'local minimum').
 
 The bounds, and why:
 
@@ -32,7 +32,7 @@ The bounds, and why:
   link lengths scaled, Figure 13; a calibration error with the model's target features),
   not a minimum the law is held in: such a run is a model's miss, not this one.
 - FAR_POSITION_M = 20 mm, FAR_AXIS_DEG = 5 deg: twenty and ten times the project's success
-  bound (1 mm, 0.5 deg; ibvs_experiments.convergence), and beyond what the model's own
+  bound (1 mm, 0.5 deg; ibvs_analysis.convergence), and beyond what the model's own
   errors make of a tool at the target: the paper's encoder offsets d_q (scenario 1) put
   FK(q) about 10 mm and 0.6 deg from the target when the tool is on it. The tool axis is
   the direction the features see worst (0.038 px per degree of tilt), so a minimum lies

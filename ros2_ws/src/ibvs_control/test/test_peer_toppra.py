@@ -27,7 +27,7 @@ CAPS = (20.0, 60.0, 300.0)
 
 def toppra_duration(q0, q1, speed, acceleration, gridpoints=2000):
     """Return TOPP-RA's time (s) along the straight joint line q0 -> q1, rest to rest."""
-    from toppra import algorithm, constraint
+    algorithm, constraint = ta.algorithm, ta.constraint
     path = ta.SplineInterpolator([0.0, 1.0], np.vstack([q0, q1]))
     constraints = [constraint.JointVelocityConstraint(np.vstack([-speed, speed]).T),
                    constraint.JointAccelerationConstraint(np.vstack([-acceleration,
@@ -49,7 +49,7 @@ def ruckig_duration(q0, q1, cap_deg_s, jerk):
 def test_the_bound_is_toppras_time_optimal_move_on_twenty_tasks():
     tasks = task_sampler.tasks(20, seed=7)
     unbinding = np.full(6, 1e7)  # rad/s^3: no jerk phase longer than a microsecond
-    agree = {cap: 0 for cap in CAPS}
+    agree = dict.fromkeys(CAPS, 0)
     for task in tasks:
         q0 = np.asarray(task['start_joints'], dtype=float)
         q1 = np.asarray(task['target_joints'], dtype=float)

@@ -27,7 +27,7 @@ def flange_path(result):
 
 def path_metrics(t, path, target):
     """
-    Return overshoot, lateral excursion and time to 1 mm, as ibvs_experiments.analysis does.
+    Return overshoot, lateral excursion and time to 1 mm, as ibvs_analysis.metrics does.
 
     Overshoot: the largest distance past the target along the start-target approach;
     lateral: the largest distance off the start-target line; time to 1 mm: after which

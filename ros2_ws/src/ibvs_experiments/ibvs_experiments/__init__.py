@@ -1,1 +1,1 @@
-"""Experiments on the node graph: run, analyse, study, report, bench (above ibvs_bringup)."""
+"""Experiments on the node graph: run, study, report, bench, the cell (above ibvs_analysis)."""

@@ -1,7 +1,7 @@
 """
 ``ibvs calibrate``: the camera pose {C} in ``base_link`` from the tool's own spheres.
 
-The maths is :mod:`.handeye`; this module gathers the measurements and writes the result.
+The maths is :mod:`ibvs_model.handeye`; this module gathers the measurements and writes the result.
 Three ways in (docs/real_cell.md, "Hand-eye calibration"):
 
 - the offline simulator (the default): the rendering simulator of ``ibvs run``
@@ -17,7 +17,7 @@ Three ways in (docs/real_cell.md, "Hand-eye calibration"):
   poses and held still at each, the feature node running: /joint_states (or a run's
   /ibvs/joint_path), /ibvs/features with /ibvs/feature_status (only frames measured, not
   estimated nor blending), the left and right camera_info; one measurement per still pose
-  (:func:`.handeye.stations`);
+  (:func:`ibvs_model.handeye.stations`);
 - ``--draw-poses FILE``: only writes the poses to visit (joint angles in degrees, YAML
   ``joints_deg``), drawn in view of the nominal camera, for a cell's operator or for
   ``--poses``.
@@ -36,11 +36,9 @@ from typing import Any
 from ibvs_common import contract
 from ibvs_common.params import ParameterError
 from ibvs_common.shared_params import CAMERA_POSE, camera_pose_from
-from ibvs_model import StereoCamera
+from ibvs_model import handeye, StereoCamera
 import numpy as np
 import yaml
-
-from . import handeye
 
 #: The first line of every file ``ibvs calibrate`` writes: the mark that lets it replace one.
 MARKER = '# written by ibvs calibrate'
@@ -225,16 +223,15 @@ def read_bag(bag: str | Path) -> dict[str, Any]:
     (its /ibvs/feature_status of the same stamp says mode and reason 'measured'),
     ``frames`` (all the /ibvs/features), ``joint_t``, ``joints`` (the arm's joints of each
     /joint_states by name, other joints ignored; a run's bag without them: its
-    /ibvs/joint_path, :func:`.analysis.load_joints`), ``intrinsics`` (from the first left
-    and right camera_info), ``nominal`` (4x4 or None: the recorded ``camera_pose``
+    /ibvs/joint_path, :func:`ibvs_analysis.analysis.load_joints`), ``intrinsics`` (from the
+    first left and right camera_info), ``nominal`` (4x4 or None: the recorded ``camera_pose``
     parameter, else the first /stereo/pose). A message that cannot be read is skipped.
     """
+    from ibvs_analysis import analysis
     from ibvs_common.conversions import (InputError, intrinsics_from_infos, pose_matrix,
                                          read_feature_status, read_features, read_joints)
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import get_typestore, Stores
-
-    from . import analysis
     bag = Path(bag)
     if not (bag / 'metadata.yaml').is_file():
         raise CalibrateError(f'no bag at {bag} (a folder with metadata.yaml)')
@@ -375,7 +372,7 @@ def _from_bag(args, overrides, out):
 
 
 def _report(result):
-    """Print the result (:func:`.handeye.describe`), a warning on stderr."""
+    """Print the result (:func:`ibvs_model.handeye.describe`), a warning on stderr."""
     for line in handeye.describe(result):
         print(line, file=sys.stderr if line.startswith('warning:') else sys.stdout)
 

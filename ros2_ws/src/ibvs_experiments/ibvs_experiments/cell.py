@@ -26,9 +26,9 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
    ``zed_camera_component_video_depth.cpp`` L258-261 and L391-395); then the command exits
    with :data:`EXIT_CHECK_FAILED` and nothing has started. Then one left and one right
    camera_info (:func:`wait_for_camera_info`) must be a rectified pair at one of the ZED 2's
-   native sizes (:func:`.cell_camera.camera_problems`: a downscaled 640 x 360, the
-   wrapper's ``general.pub_resolution: 'CUSTOM'``, is refused naming it; a camera that
-   sends none within :data:`CAMERA_INFO_TIMEOUT_S` is named in a warning, not refused).
+   native sizes (:func:`ibvs_bringup.cell_camera.camera_problems`: a downscaled 640 x
+   360, the wrapper's ``general.pub_resolution: 'CUSTOM'``, is refused naming it; a camera
+   that sends none within :data:`CAMERA_INFO_TIMEOUT_S` is named in a warning, not refused).
    With a teach (``--teach DIR``, :mod:`.teach`) this process publishes its pair latched
    before the check (which then finds it), takes its target (the cli sets it), and
    refuses another publisher of the pair (:func:`foreign_publishers`: a simulator that
@@ -36,26 +36,25 @@ node). docs/real_cell.md is the manual; this module docstring is the contract.
 3. **Run**: the recorder of ``ibvs run`` (:class:`ibvs_bringup.recorder.Recorder`) opens
    ``bag/`` in the session's folder, with the parameters, the teach record and, at the end,
    the session (exit codes, dry run) in its metadata, /joint_states included, on the wall
-   clock without sim time; ``ibvs analyse DIR/bag`` reads it (:mod:`.analysis`: a cell's
-   tool poses are the kinematics of /joint_states where the simulator's truth is not there).
-   Then the four processes start; a status line once a second (:class:`StatusBoard`): DRY
-   RUN first in a dry run (the joint controller's ``dry_run``: its references on
-   :func:`dry_run_topic`, none on the command topic), the joint controller's
-   ``/ibvs/servo_status`` code and name (:class:`ibvs_common.servo_codes.ServoStatus`),
-   the second publishers a node names on /diagnostics (``second_publishers``:
-   :class:`ibvs_common.kit.PublisherWatch`, which every node runs), the image error
-   (:meth:`StatusBoard.image_error`: |s - s*| of the features the loop used, /ibvs/features,
-   against the taught target's, /ibvs/target_features; without a taught target the feedback
-   node's own ``image_error_norm_px`` on /diagnostics) and the model's pose error
-   (:class:`PoseError`: the nominal kinematics of the newest /joint_states against the
-   target), the camera's stamp offset once the feature node has estimated one (its
-   ``stamp_offset_ms`` and ``stamp_offset_sd_ms`` on /diagnostics, and its state when it
+   clock without sim time; ``ibvs analyse DIR/bag`` reads it (:mod:`ibvs_analysis.analysis`:
+   a cell's tool poses are the kinematics of /joint_states where the simulator's truth is not
+   there). Then the four processes start; a status line once a second
+   (:class:`ibvs_analysis.cell_status.StatusBoard`): DRY RUN first in a dry run (the joint
+   controller's ``dry_run``: its references on :func:`dry_run_topic`, none on the command
+   topic), the joint controller's ``/ibvs/servo_status`` code and name
+   (:class:`ibvs_common.servo_codes.ServoStatus`), the second publishers a node names on
+   /diagnostics (``second_publishers``: :class:`ibvs_common.kit.PublisherWatch`, which every
+   node runs), the image error (:meth:`StatusBoard.image_error`: |s - s*| of the features the
+   loop used, /ibvs/features, against the taught target's, /ibvs/target_features; without a
+   taught target the feedback node's own ``image_error_norm_px`` on /diagnostics) and the
+   model's pose error (:class:`PoseError`: the nominal kinematics of the newest /joint_states
+   against the target), the camera's stamp offset once the feature node has estimated one
+   (its ``stamp_offset_ms`` and ``stamp_offset_sd_ms`` on /diagnostics, and its state when it
    holds: pass it as ``stamp_offset_initial_s`` next time), the frames used (its
-   ``/ibvs/frame_latency``, one per frame a command used) and
-   the last error any node reported there (a WARN or ERROR status, or a rejected input). A
-   new servo status or second publisher prints a line at once, without waiting for the
-   second. A node that exits ends the session (:data:`EXIT_NODE_DIED`), the others
-   stopped.
+   ``/ibvs/frame_latency``, one per frame a command used) and the last error any node
+   reported there (a WARN or ERROR status, or a rejected input). A new servo status or second
+   publisher prints a line at once, without waiting for the second. A node that exits ends
+   the session (:data:`EXIT_NODE_DIED`), the others stopped.
 4. **Stop**: one SIGINT (Ctrl-C; taken between two spins of the launcher's supervising
    loop, :func:`ibvs_bringup.launcher.supervise`, as ``ibvs run`` takes it, so that it
    never lands inside the recorder's message) stops every process together
@@ -70,40 +69,32 @@ a simulator there.
 
 The session's life (its domain, its rclpy, the supervising loop, the exit codes) is the
 launcher's (:mod:`ibvs_bringup.launcher`); the checks of steps 1 and 2 are
-:mod:`.cell_checks`', whose names are importable from here too.
+:mod:`ibvs_bringup.cell_checks`', whose names are importable from here too.
 """
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
-import math
 from pathlib import Path
 import sys
 import time
 from typing import Any, TYPE_CHECKING
 
+from ibvs_analysis.cell_status import PoseError, StatusBoard  # noqa: F401 (re-exported)
 from ibvs_bringup import launcher, scenario
-from ibvs_bringup.graph import GRAPH
-from ibvs_bringup.launcher import EXIT_CHECK_FAILED, EXIT_NODE_DIED  # noqa: F401 (re-exported)
-from ibvs_common import contract
-from ibvs_common.shared_params import target_from_parameters
-import numpy as np
-
-from .cell_checks import (  # noqa: F401 (re-exported: the names of ibvs cell's checks)
+from ibvs_bringup.cell_checks import (  # noqa: F401 (re-exported: the names of ibvs cell's checks)
     CAMERA_INFO_TIMEOUT_S, camera_topics, CELL_CONFIG, CELL_NODES, cell_parameters, CellError,
     check_seconds, CHECK_TIMEOUT_S, command_topic, config_path, Controller, CONTROLLERS,
     declared_by, DEFAULT_CAMERA, dry_run_topic, Endpoint, endpoints_of, Expectation,
     expectations, foreign_publishers, mismatch, problems, remap_args, remaps, simulator_only,
     TEACH_TOPICS, wait_for_camera_info, wait_for_topics, ZED_LEFT_RIGHT, ZED_NODE)
+from ibvs_bringup.graph import GRAPH
+from ibvs_bringup.launcher import EXIT_CHECK_FAILED, EXIT_NODE_DIED  # noqa: F401 (re-exported)
+from ibvs_common import contract
+from ibvs_common.shared_params import target_from_parameters
 
 if TYPE_CHECKING:
     from .teach import Recorded
 
-#: What the status line says of a holding code until /diagnostics says more (in the
-#: sim-time rehearsal a stopped /clock ages nothing: only the code tells it).
-HOLD_WORDS = {'HOLD_CLOCK_STOPPED': 'clock stopped',
-              'HOLD_CLOCK_JUMPED_BACK': 'clock jumped back',
-              'HOLD_SECOND_PUBLISHER': 'second publisher'}
 #: Wall time (s) between two status lines.
 STATUS_PERIOD_S = 1.0
 #: Wall time (s) the session spins between two looks of its supervising loop (node exits,
@@ -114,222 +105,6 @@ CELL_DIR = Path('results') / 'cell'
 #: What a session replaces of a previous one in its folder, by name, once its check passed
 #: (as ``ibvs run`` does): the bag and the metrics ``ibvs analyse`` wrote beside it.
 SESSION_RESULTS = ('bag', 'metrics.json')
-
-
-class PoseError:
-    """
-    The model's pose error of the tool: the nominal kinematics of /joint_states vs the target.
-
-    Called with the newest /joint_states as serialized bytes (the recorder's ``latest``),
-    returns (position error m, tool-axis error deg) as the analysis defines them
-    (:func:`.analysis.axis_angle_deg`), or (None, None) without a readable one. The
-    encoders' view: on a cell the only one; at the taught pose it is the target's own
-    (:mod:`.teach`), so it goes to zero as the image error does.
-    """
-
-    def __init__(self, target: Any) -> None:
-        """Keep the target T_E^O (4x4)."""
-        self.target = target
-
-    def __call__(self, raw: bytes | None) -> tuple[float | None, float | None]:
-        """Return the errors of the joint state ``raw`` (class docstring)."""
-        if raw is None:
-            return None, None
-        from ibvs_common.conversions import InputError, read_joints
-        from ibvs_model import forward_kinematics
-        from rclpy.serialization import deserialize_message
-        from sensor_msgs.msg import JointState
-
-        from .analysis import axis_angle_deg
-        try:
-            pose = forward_kinematics(read_joints(deserialize_message(raw, JointState)))
-        except (InputError, ValueError):
-            return None, None
-        position = float(math.dist(pose[:3, 3], self.target[:3, 3]))
-        return position, float(axis_angle_deg(pose[None, :3, :3], self.target[:3, :3])[0])
-
-
-@dataclass
-class StatusBoard:
-    """
-    What the status line says (module docstring, step 3), from the messages as they come.
-
-    Fed with plain values (:meth:`servo`, :meth:`frame_used`, :meth:`diagnostics`), so
-    that it needs no ROS; ``clock`` is the wall clock of ages.
-    """
-
-    clock: Callable[[], float] = time.monotonic
-    code: int | None = None
-    frames: set = field(default_factory=set)
-    last_error: str = ''
-    last_error_at: float | None = None
-    #: The joint controller's /diagnostics message (why it waits or holds).
-    detail: str = ''
-    #: Each node's second publishers, in its words (``second_publishers``), while any.
-    newcomers: dict = field(default_factory=dict)
-    #: Whether something the operator must see at once came since :meth:`take_news`: a
-    #: new servo status, a second publisher that came or went.
-    news: bool = False
-    #: A dry run (the joint controller's ``dry_run``): the line says so first.
-    dry_run: bool = False
-    #: The newest features the loop used (/ibvs/features) and the taught target's
-    #: (/ibvs/target_features), px (6,): the image error |s - s*| of the status line.
-    features_px: Any = None
-    target_px: Any = None
-    #: The feedback node's own error norm (its /diagnostics ``image_error_norm_px``: the
-    #: error it integrates, predicted to the rest pose), shown without a taught target.
-    feedback_error_px: float | None = None
-    #: The model's pose error (:class:`PoseError`): position (m), tool axis (deg).
-    position_error_m: float | None = None
-    axis_error_deg: float | None = None
-    #: The camera's stamp offset the feature node estimated (its /diagnostics
-    #: ``stamp_offset_ms`` and ``stamp_offset_sd_ms``, ibvs_vision.stamp_offset), and the
-    #: estimate's state when it holds or waits: shown once there is an estimate.
-    stamp_offset_ms: float | None = None
-    stamp_offset_sd_ms: float | None = None
-    stamp_offset_state: str = ''
-    _rejected: dict = field(default_factory=dict)
-
-    def __post_init__(self):
-        """Start the session's clock."""
-        self.started = self.clock()
-
-    def servo(self, code: int) -> None:
-        """Take a /ibvs/servo_status code."""
-        self.news = self.news or int(code) != self.code
-        self.code = int(code)
-
-    def take(self, attr: str, msg: Any) -> None:
-        """Take a features message as ``attr`` (:attr:`features_px`, :attr:`target_px`)."""
-        from ibvs_common.conversions import InputError, read_features
-        try:
-            setattr(self, attr, read_features(msg))
-        except InputError:
-            pass  # the nodes reject and count it: the last error says so
-
-    def take_news(self) -> bool:
-        """Return whether there is news (:attr:`news`), and clear it."""
-        news, self.news = self.news, False
-        return news
-
-    def image_error(self) -> tuple[float | None, str]:
-        """
-        Return the image error (px) and its words: |s - s*| of the features the loop used.
-
-        s* is the taught target's (/ibvs/target_features); without one (a model target) the
-        feedback node's own error norm, said so; (None, '') before either.
-        """
-        if self.features_px is not None and self.target_px is not None:
-            from ibvs_control.controllers import feature_error
-            return float(np.linalg.norm(feature_error(self.features_px, self.target_px))), ''
-        if self.feedback_error_px is not None:
-            return self.feedback_error_px, " (the feedback's)"
-        return None, ''
-
-    def pose_error(self, position_m: float | None, axis_deg: float | None) -> None:
-        """Take the model's pose error (:class:`PoseError`; None: none known yet)."""
-        if position_m is not None:
-            self.position_error_m, self.axis_error_deg = position_m, axis_deg
-
-    def frame_used(self, frame_stamp_ns: int) -> None:
-        """Take a /ibvs/frame_latency: the frame of that stamp was used by a command."""
-        self.frames.add(int(frame_stamp_ns))
-
-    def diagnostics(self, name: str, level: int, message: str,
-                    values: Mapping[str, str]) -> None:
-        """
-        Take one DiagnosticStatus (``name`` '<node>: <what>', level 0 OK, 1 WARN, 2 ERROR).
-
-        A WARN or ERROR is the last error; so is a rejected input (a ``rejected[...]``
-        count that grew, ibvs_common.diagnostics).
-        """
-        node = name.partition(': ')[0]
-        if node == 'joint_controller_node' and 'servo_status' in values:
-            self.detail = message
-        if node == 'adaptive_feedback_node' and 'image_error_norm_px' in values:
-            try:
-                self.feedback_error_px = float(values['image_error_norm_px'])
-            except ValueError:
-                pass
-        if node == 'feature_node' and 'stamp_offset_state' in values:
-            self.stamp_offset_state = values['stamp_offset_state']
-            try:
-                self.stamp_offset_ms = float(values.get('stamp_offset_ms', ''))
-                self.stamp_offset_sd_ms = float(values.get('stamp_offset_sd_ms', ''))
-            except ValueError:
-                pass  # 'none': no estimate yet
-        if 'second_publishers' in values:
-            words = values['second_publishers']
-            words = '' if words == 'none' else words
-            if words != self.newcomers.get(node, ''):
-                self.news = True
-            if words:
-                self.newcomers[node] = words
-            else:
-                self.newcomers.pop(node, None)
-        for key, count in values.items():
-            if not key.startswith('rejected['):
-                continue
-            try:
-                count = int(count)
-            except ValueError:
-                continue
-            if count > self._rejected.get((node, key), 0):
-                self._error(f'{node} {key[len("rejected["):-1]} ({count} so far)')
-            self._rejected[(node, key)] = count
-        if level >= 1 and message:
-            self._error(f'{node}: {message}')
-
-    def _error(self, text):
-        self.last_error, self.last_error_at = text, self.clock()
-
-    def line(self) -> str:
-        """Return the status line now."""
-        from ibvs_common.servo_codes import ServoStatus
-        now = self.clock()
-        if self.code is None:
-            servo = 'servo: no status yet'
-        else:
-            try:
-                name = ServoStatus(self.code).name
-                servo = f'servo {self.code} {name}'
-            except ValueError:
-                name, servo = None, f'servo {self.code} (unknown code)'
-            words = HOLD_WORDS.get(name)
-            if name == 'HOLD_SECOND_PUBLISHER' and self.newcomers:
-                servo += f' ({words})'  # who: named next
-            elif words is not None and not self.detail.startswith(words):
-                servo += f' ({words})'  # the code comes at once, /diagnostics once a second
-            elif self.detail and self.detail != 'ok':
-                servo += f' ({self.detail})'
-        error = (f'{self.last_error} ({now - self.last_error_at:.0f} s ago)'
-                 if self.last_error_at is not None else 'none')
-        seen = {}  # each topic's words once, naming who saw them
-        for node, words in sorted(self.newcomers.items()):
-            for item in words.split('; '):
-                seen.setdefault(item, []).append(node)
-        second = ''.join(f' | {words} (seen by {", ".join(nodes)})'
-                         for words, nodes in seen.items())
-        errors = ''
-        image, whose = self.image_error()
-        if image is not None:
-            errors += f' | image error {image:.3f} px{whose}'
-        if self.position_error_m is not None:
-            errors += (f' | pose error {self.position_error_m * 1e3:.3f} mm, '
-                       f'{self.axis_error_deg:.3f} deg')
-        if self.stamp_offset_ms is not None:
-            held = '' if self.stamp_offset_state == 'estimating' else \
-                f' ({self.stamp_offset_state})'
-            errors += (f' | stamp offset {self.stamp_offset_ms:.1f} +- '
-                       f'{self.stamp_offset_sd_ms:.1f} ms{held}')
-        dry = 'DRY RUN | ' if self.dry_run else ''
-        return (f'[{now - self.started:6.0f} s] {dry}{servo}{second}{errors} | frames used '
-                f'{len(self.frames)} | last error: {error}')
-
-
-def session_dir(root: Path = CELL_DIR) -> Path:
-    """Return a new folder for a session's parameters and logs: ``root/<date-time>``."""
-    return root / time.strftime('%Y%m%d-%H%M%S')
 
 
 @contextmanager
@@ -382,7 +157,7 @@ def run_cell(params: Mapping[str, Any], out_dir: str | Path, controller: str = '
     from rclpy.executors import SingleThreadedExecutor
     import yaml
 
-    from . import analysis
+    from ibvs_analysis import analysis
 
     out_dir = Path(out_dir)
     node_remaps = remaps(controller, camera_name, controller_name)
@@ -483,7 +258,7 @@ def _recorder(ros: 'launcher.RosSession', bag: Path, params: Mapping[str, Any],
     from ibvs_bringup.recorder import Recorder
     import yaml
 
-    from . import analysis
+    from ibvs_analysis import analysis
 
     custom = {analysis.PARAMS_KEY: yaml.safe_dump(dict(params))}
     if teach is not None:

@@ -9,9 +9,9 @@ Commands:
   ``-p`` values and ``--duration`` (:func:`run_folder`) unless ``-o`` names one;
   ``-p servo_law:=ibvs`` (or ``pbvs``) also sets ``feedforward_method:=hold`` unless given
   (those laws have no feedforward), ``servo_law:=switching`` sets ``feedforward_ratio:=2``
-  (:func:`ibvs_control.servo_laws.feedforward_overrides`);
+  (:func:`.runner.with_servo_law`);
   ``--images`` records the camera images, ``--overlays`` the feature node's overlay images,
-  ``--video`` writes the run's film ``video.mp4`` (:mod:`ibvs_experiments.video`: its
+  ``--video`` writes the run's film ``video.mp4`` (:mod:`ibvs_analysis.video`: its
   camera images rendered again from the recorded joint states unless recorded);
 - ``analyse <bag> [-o DIR]``: metrics and figures again, from a recorded bag (exit code 2
   when there is none or it holds too little to analyse, 1 when the analysis fails);
@@ -62,11 +62,12 @@ import tempfile
 import time
 from typing import Any
 
+from ibvs_analysis import analysis, results
 from ibvs_bringup import domains, graph_params, scenario
 from ibvs_bringup.recorder import BagUnreadable, recover
 from rosbags.rosbag2 import ReaderError
 
-from . import analysis, cell, output_dir, runner, study_spec
+from . import cell, output_dir, runner, study_spec
 
 #: Where ``ibvs run`` writes without ``-o``: a folder per command line (:func:`run_folder`),
 #: apart from ``make demo``'s ``results/scenario1`` and the studies' ``results/studies``.
@@ -85,19 +86,6 @@ def _print_summary(metrics, out=sys.stdout):
         value = metrics.get(key)
         text = f'{value:.6g}' if isinstance(value, float) else str(value)
         print(f'  {key:28s} {text}', file=out)
-
-
-def with_servo_law(overrides: dict[str, Any]) -> dict[str, Any]:
-    """Return ``overrides`` with the feedforward parameters of its servo_law added."""
-    law = overrides.get('servo_law')
-    if law is None:
-        return overrides
-    # Here, not at the top: ibvs_control pulls in scipy.signal, seconds of start-up that a
-    # run without servo_law does not need.
-    from ibvs_control.servo_laws import feedforward_overrides
-    for key, value in feedforward_overrides(law).items():
-        overrides.setdefault(key, value)
-    return overrides
 
 
 def run_folder(scenario_name: str | Path, params: Sequence[str] = (),
@@ -170,7 +158,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     # The simulator owns time: the scenario file's and the -p's use_sim_time must agree.
     scenario.check_clock({**scenario.load_parameters(args.scenario), **overrides},
                          simulated=True)
-    overrides = with_servo_law(overrides)
+    overrides = runner.with_servo_law(overrides)
     # Every check before any node (runner.resolve): a refused run leaves no output directory.
     runner.resolve(args.scenario, overrides, args.duration)
     out = Path(args.out or run_folder(args.scenario, args.param, args.duration))
@@ -255,7 +243,7 @@ def cmd_cell(args: argparse.Namespace) -> int:
     except (cell.CellError, teach.TeachError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    out = Path(args.out) if args.out else cell.session_dir()
+    out = Path(args.out) if args.out else output_dir.session_dir(cell.CELL_DIR)
     if taught is not None:
         print(f'--teach {args.teach}: target_position {params["target_position"]}, '
               f'target_rotation {params["target_rotation"]} (its {teach.TARGET_FILE}: the '
@@ -288,7 +276,7 @@ def cmd_teach(args: argparse.Namespace) -> int:
 
 def cmd_video(args: argparse.Namespace) -> int:
     """Write the film of a run: both cameras (recorded or rendered again) beside a 3D view."""
-    from . import video
+    from ibvs_analysis import video
     try:
         time_map = video.TimeMap.parse(args.time_map) if args.time_map else \
             video.DEFAULT_TIME_MAP
@@ -312,7 +300,7 @@ def cmd_analyse(args: argparse.Namespace) -> int:
     try:
         if recover(bag):
             print(f'{bag} was not closed (its recorder was killed): recovered what it holds')
-        metrics = runner.write_results(bag, out)
+        metrics = results.write_results(bag, out)
     except (BagUnreadable, analysis.NotAnalysable, ReaderError) as exc:
         print(f'error: nothing to analyse: {exc}', file=sys.stderr)
         return 2
@@ -392,16 +380,8 @@ def plain_text(doc: str) -> str:
     return re.sub(r':\w+:`~?([^`]+)`', r'\1', doc).replace('``', "'")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Parse the command line and run the command."""
-    try:
-        study_defaults = _study_defaults()
-    except domains.DomainError as exc:  # a broken IBVS_ROS_DOMAINS: no command can run
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    parser = argparse.ArgumentParser(prog='ibvs', description=plain_text(__doc__),
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest='command', required=True)
+def _run_parsers(sub: Any) -> None:
+    """Add ``ibvs run`` and ``ibvs demo`` to the subcommands ``sub``."""
     for name, func in (('run', cmd_run), ('demo', cmd_demo)):
         p = sub.add_parser(name, help=func.__doc__)
         if name == 'run':
@@ -431,6 +411,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             p.add_argument('--no-video', action='store_true',
                            help='no film (the demo writes <out>/video.mp4 by default)')
         p.set_defaults(func=func)
+
+
+def _cell_parser(sub: Any) -> None:
+    """Add ``ibvs cell`` to the subcommands ``sub``."""
     p = sub.add_parser('cell', help=cmd_cell.__doc__)
     p.add_argument('--controller', choices=tuple(cell.CONTROLLERS), default='forward_command',
                    help="the arm's position controller: forward_command (abb_ros2's "
@@ -459,7 +443,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                    '/ibvs/dry_run/joint_trajectory), nothing on the command topic; the arm '
                    'stays where it is and no controller need be there')
     p.set_defaults(func=cmd_cell)
-    from . import calibrate, handeye  # their defaults (no ROS, no seconds of start-up)
+
+
+def _calibrate_parser(sub: Any) -> None:
+    """Add ``ibvs calibrate`` to the subcommands ``sub``."""
+    from ibvs_model import handeye
+
+    from . import calibrate  # its defaults (no ROS, no seconds of start-up)
     p = sub.add_parser('calibrate', help=cmd_calibrate.__doc__)
     p.add_argument('--bag', help='a recording of the arm held still at each pose while the '
                    'feature node ran (/joint_states, /ibvs/features, /ibvs/feature_status, '
@@ -485,6 +475,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--force', action='store_true',
                    help='replace an output file that ibvs calibrate did not write')
     p.set_defaults(func=cmd_calibrate)
+
+
+def _teach_parser(sub: Any) -> None:
+    """Add ``ibvs teach`` to the subcommands ``sub``."""
+    from ibvs_model import handeye
+
     from . import teach
     p = sub.add_parser('teach', help=cmd_teach.__doc__)
     p.add_argument('-o', '--out', help='the teach folder: left.png, right.png, teach.yaml, '
@@ -507,6 +503,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    'latched on /stereo/teach/{left,right}/image_raw until Ctrl-C, for a graph '
                    'started by hand (ibvs cell --teach DIR publishes it itself)')
     p.set_defaults(func=cmd_teach)
+
+
+def _other_parsers(sub: Any, study_defaults: dict[str, Any]) -> None:
+    """Add ``ibvs video``, ``analyse``, ``study``, ``report`` and ``vsbench`` to ``sub``."""
     p = sub.add_parser('video', help=cmd_video.__doc__)
     p.add_argument('run_dir', help='a run directory (with bag/)')
     p.add_argument('-o', '--out', help='the MP4 file (default RUN_DIR/video.mp4)')
@@ -552,11 +552,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument('--parallel', type=int,
                        help='runs at once on the local Ray (default: one per core, '
                        f"{study_defaults['parallel']} here)")
+
+
+def command_parser(study_defaults: dict[str, Any]) -> argparse.ArgumentParser:
+    """Return the ``ibvs`` command line's parser (``study_defaults``: :func:`_study_defaults`)."""
+    parser = argparse.ArgumentParser(prog='ibvs', description=plain_text(__doc__),
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest='command', required=True)
+    _run_parsers(sub)
+    _cell_parser(sub)
+    _calibrate_parser(sub)
+    _teach_parser(sub)
+    _other_parsers(sub, study_defaults)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse the command line and run the command."""
+    try:
+        study_defaults = _study_defaults()
+    except domains.DomainError as exc:  # a broken IBVS_ROS_DOMAINS: no command can run
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ['vsbench']:
         args = argparse.Namespace(func=cmd_vsbench, vsbench_args=argv[1:])
     else:
-        args = parser.parse_args(argv)
+        args = command_parser(study_defaults).parse_args(argv)
     try:
         return args.func(args)
     except (scenario.ScenarioError, study_spec.StudyError, FileNotFoundError,

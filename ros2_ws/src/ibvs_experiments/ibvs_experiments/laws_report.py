@@ -8,11 +8,12 @@ ordinary ``ibvs run`` into its own folder, as studies on Ray with the report's o
 (:func:`specs`) or one at a time (:func:`run_all`); this module only reads the folders back
 (:func:`read_run`), so the runs may come from any scheduler.
 
-Per run (:class:`LawRun`, the metrics of :mod:`.analysis` plus the joint speeds of the bag):
-final position and tool-axis error, time to 1 mm (after which the tool stays within 1 mm),
-overshoot past the target along the approach, peak joint speed (rad/s, and as a multiple of
-the IRB 4600's rated speed qd_max: 1 is the real arm's limit), and converged: the project's
-one success criterion, :data:`.convergence.SUCCESS` (1 mm and 0.5 deg at the end).
+Per run (:class:`LawRun`, the metrics of :mod:`ibvs_analysis.analysis` plus the joint speeds
+of the bag): final position and tool-axis error, time to 1 mm (after which the tool stays
+within 1 mm), overshoot past the target along the approach, peak joint speed (rad/s, and as
+a multiple of the IRB 4600's rated speed qd_max: 1 is the real arm's limit), and converged:
+the project's one success criterion, :data:`ibvs_analysis.convergence.SUCCESS` (1 mm and
+0.5 deg at the end).
 
 ``python -m ibvs_experiments.laws_report DIR`` writes ``DIR/laws.md`` and per law one figure
 of the tool's paths in 3-D and one of the features' paths in the images from the run folders
@@ -28,7 +29,9 @@ import json
 from pathlib import Path
 from typing import Any, TYPE_CHECKING
 
-from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
+from ibvs_analysis import analysis
+from ibvs_analysis.convergence import miss_reason, SUCCESS
+from ibvs_control.servo_laws import SERVO_LAWS
 from ibvs_model import IRB4600
 import matplotlib
 
@@ -38,9 +41,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from numpy.typing import ArrayLike, NDArray  # noqa: E402
 import yaml  # noqa: E402
-
-from . import analysis  # noqa: E402
-from .convergence import miss_reason, SUCCESS  # noqa: E402
 
 if TYPE_CHECKING:
     from ibvs_experiments.calibration_sweep import SweepRun
@@ -82,13 +82,14 @@ class LawRun:
 
     @property
     def converged(self) -> bool:
-        """Return True when the run ended within :data:`.convergence.SUCCESS`."""
+        """Return True when the run ended within :data:`ibvs_analysis.convergence.SUCCESS`."""
         return SUCCESS.final(self.metrics)
 
 
 def overrides_for(law: str, case: str) -> dict[str, Any]:
-    """Return the parameter overrides of one run (the law's feedforward ones included)."""
-    return {**CASES[case], 'servo_law': law, **feedforward_overrides(law)}
+    """Return the parameter overrides of one run (:func:`.runner.with_servo_law`'s)."""
+    from .runner import with_servo_law
+    return with_servo_law({**CASES[case], 'servo_law': law})
 
 
 def plan(out_dir: str | Path, laws: Iterable[str] = SERVO_LAWS,
@@ -200,7 +201,7 @@ def read_run(run_dir: str | Path) -> 'LawRun':
         params = {**loaded.get('/**', {}).get('ros__parameters', {}), **params}
     params.setdefault('scenario_name', f"scenario{params['scenario']}" if 'scenario' in params
                       else run_dir.name)
-    from .runner import target_features
+    from ibvs_analysis.results import target_features
     size = None if data.camera is None else (data.camera.intrinsics.width,
                                              data.camera.intrinsics.height)
     return summarise(params, metrics, joint_speeds(run_dir / 'bag'), data.position,
@@ -222,7 +223,7 @@ def _ordered(runs):
 
 
 def _miss_kind(metrics):
-    """Return the first words of :func:`.convergence.miss_reason` ('stalled', ...)."""
+    """Return the first words of :func:`ibvs_analysis.convergence.miss_reason` ('stalled', ...)."""
     reason = miss_reason(metrics) or ''
     return reason.split(':')[0].split(' (')[0].split(';')[0]
 
@@ -278,12 +279,12 @@ def image_figure(runs: Sequence['LawRun'], law: str, path: str | Path) -> 'Figur
     Plot the image-plane paths of ``law``'s runs: a row per scenario, left and right image.
 
     Each marker's measured or estimated features p_hat (colour per marker, as
-    :data:`.plots.MARKER_COLOURS`; line style per case), its start (o) and its target p_bar
-    (*), and the image border; estimated features out of view are drawn too (Corke's and
-    ViSP's IBVS examples plot the same: the feature paths in the image). Returns the
-    figure, saved and closed.
+    :data:`ibvs_analysis.plots.MARKER_COLOURS`; line style per case), its start (o) and its
+    target p_bar (*), and the image border; estimated features out of view are drawn too
+    (Corke's and ViSP's IBVS examples plot the same: the feature paths in the image).
+    Returns the figure, saved and closed.
     """
-    from .plots import MARKER_COLOURS
+    from ibvs_analysis.plots import MARKER_COLOURS
     names = [name for name in SCENARIOS
              if any(r.law == law and r.scenario == name for r in runs)]
     fig, axes = plt.subplots(max(len(names), 1), 2, figsize=(12, 3.8 * max(len(names), 1)),
@@ -337,8 +338,8 @@ def calibration_figure(runs: 'Sequence[SweepRun]', path: str | Path) -> 'Figure'
     Columns: against the camera position error (mm, no focal error) and against the focal
     length error (%, no position error); rows: the true flange's final position error
     (mm) and final tool-axis error (deg), each with the success criterion's tolerance
-    (:data:`.convergence.SUCCESS`, dotted), and the time to 1 mm (s; x at the top of the
-    panel: not within 1 mm at the end). One colour and marker per law, one line style per
+    (:data:`ibvs_analysis.convergence.SUCCESS`, dotted), and the time to 1 mm (s; x at the top
+    of the panel: not within 1 mm at the end). One colour and marker per law, one line style per
     target source (model solid, taught dashed). Points with both errors are not drawn.
     Returns the figure, saved and closed.
     """
@@ -440,7 +441,7 @@ def section(runs: Sequence['LawRun'], out_dir: str | Path, figure_prefix: str = 
              f"{CASES['limited']['lambda_0']:g} / s for ibvs and pbvs). Source: each run's "
              'bag (graph runs of the law studies, `studies/laws_*`). Converged: the success '
              f'criterion, within {SUCCESS.describe()} at the end '
-             '(`ibvs_experiments.convergence.SUCCESS`); a miss names its kind (timed out, '
+             '(`ibvs_analysis.convergence.SUCCESS`); a miss names its kind (timed out, '
              'stalled, features lost). Peak joint speed: the largest |qdot| over joints and '
              "time, and as a multiple of the IRB 4600's rated speed of that joint (1: the "
              "real arm's limit; ideal actuators are not held to it).", '']

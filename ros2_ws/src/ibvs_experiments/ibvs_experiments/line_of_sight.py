@@ -19,7 +19,7 @@ from ibvs_model import default_model
 import numpy as np
 from numpy.typing import ArrayLike
 
-#: The resolution the check renders at: the graph's (``vsbench.GRAPH_RESOLUTION``).
+#: The resolution the check renders at: the graph's (``vsbench_tasks.GRAPH_RESOLUTION``).
 RESOLUTION = 'HD720'
 
 

@@ -18,6 +18,9 @@ same rule, :func:`claim`:
   it has removed anything.
 - A run then removes, of an earlier run's files, only those it writes itself, by name
   (:meth:`Claim.remove`): a link among them is removed, never followed.
+
+Without ``-o``, ``ibvs cell`` and ``ibvs teach`` write into a new folder named after the
+time they started (:func:`session_dir`).
 """
 
 from collections.abc import Iterable, Sequence
@@ -29,6 +32,7 @@ import os
 from pathlib import Path
 import shutil
 import sys
+import time
 from typing import BinaryIO
 
 #: The marker (and lock) file of a folder written by ``ibvs run`` or ``ibvs cell``.
@@ -152,3 +156,8 @@ def claim(path: str | Path, companions: Sequence[str] = (),
     lock.write((json.dumps(said) + '\n').encode())
     lock.flush()
     return Claim(path, created, lock)
+
+
+def session_dir(root: Path) -> Path:
+    """Return a new folder for a session's parameters and logs: ``root/<date-time>``."""
+    return root / time.strftime('%Y%m%d-%H%M%S')

@@ -17,6 +17,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ibvs_analysis import study_table
+from ibvs_analysis.convergence import SUCCESS
 from ibvs_control.servo_laws import SERVO_LAWS
 import matplotlib
 
@@ -25,7 +27,6 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 
 from . import laws_report, study, study_spec  # noqa: E402
-from .convergence import SUCCESS  # noqa: E402
 
 SCENARIO_STUDIES = ('scenario1', 'scenario2', 'scenario3')
 SWEEP_STUDY = 'fig13_link_lengths'
@@ -209,7 +210,7 @@ def sweep_figure(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
 
     With the paper's bound, 1 % of the distance to go (:data:`PAPER_SHARE` of the runs'
     initial position error: 25.6 mm from scenario 1's start), and the success criterion's
-    1 mm (:data:`.convergence.SUCCESS`); a point outside it is drawn open.
+    1 mm (:data:`ibvs_analysis.convergence.SUCCESS`); a point outside it is drawn open.
     """
     fig, ax = plt.subplots(figsize=(7, 4))
     for i, (link, marker) in enumerate((('L2', 'o'), ('L4', 's'))):
@@ -386,6 +387,40 @@ class ReportRunsFailed(RuntimeError):
         self.failed = failed
 
 
+def _run_studies(out_dir: Path, quick: bool, laws: bool, address: str | None,
+                 parallel: int | None, domains: tuple[int, int], retry_failed: bool
+                 ) -> tuple[list, list, dict, 'ModelOnlySweeps | None']:
+    """
+    Run the report's studies (:func:`build_report`); return their specs, records and sweeps.
+
+    Returns the report's specs, the law studies', every study's records by name (the shared
+    runs filled in) and the model-only sweeps (None without ``laws``), every study's table
+    written; raises :class:`ReportRunsFailed` when a run failed.
+    """
+    specs = load_specs(quick)
+    law_specs = laws_report.specs() if laws else []
+    to_run, shared = shared_runs(specs + law_specs)
+    if shared:
+        print(f'{len(shared)} run(s) that two studies name run once: '
+              + ', '.join(f'{a}#{i} = {b}#{j}' for (a, i), (b, j) in shared.items()),
+              flush=True)
+    model_only = ModelOnlySweeps() if laws else None
+    ran = study.run_studies(to_run, out_dir / 'studies', address=address,
+                            parallel=parallel, domains=domains, retry_failed=retry_failed,
+                            jobs=model_only.jobs() if laws else (),
+                            on_record=model_only.keep_law_run if laws else None)
+    records = with_shared(specs + law_specs, ran, shared)
+    for spec in specs + law_specs:
+        if spec not in to_run:
+            study_table.write_results(spec, records[spec.name], out_dir / 'studies' / spec.name)
+    failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
+              for rs in records.values() for r in rs if r['status'] != 'ok'
+              and 'same_as' not in r]
+    if failed:
+        raise ReportRunsFailed(failed)
+    return specs, law_specs, records, model_only
+
+
 def build_report(out_dir: str | Path, quick: bool = False, address: str | None = None,
                  parallel: int | None = None,
                  domains: tuple[int, int] = study.DOMAIN_IDS,
@@ -402,27 +437,8 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     laws = not quick if laws is None else laws
-    specs = load_specs(quick)
-    law_specs = laws_report.specs() if laws else []
-    to_run, shared = shared_runs(specs + law_specs)
-    if shared:
-        print(f'{len(shared)} run(s) that two studies name run once: '
-              + ', '.join(f'{a}#{i} = {b}#{j}' for (a, i), (b, j) in shared.items()),
-              flush=True)
-    model_only = ModelOnlySweeps() if laws else None
-    ran = study.run_studies(to_run, out_dir / 'studies', address=address,
-                            parallel=parallel, domains=domains, retry_failed=retry_failed,
-                            jobs=model_only.jobs() if laws else (),
-                            on_record=model_only.keep_law_run if laws else None)
-    records = with_shared(specs + law_specs, ran, shared)
-    for spec in specs + law_specs:
-        if spec not in to_run:
-            study.write_results(spec, records[spec.name], out_dir / 'studies' / spec.name)
-    failed = [f"{r['study']}#{r['index']}: {r.get('reason', '')}"
-              for rs in records.values() for r in rs if r['status'] != 'ok'
-              and 'same_as' not in r]
-    if failed:
-        raise ReportRunsFailed(failed)
+    specs, law_specs, records, model_only = _run_studies(
+        out_dir, quick, laws, address, parallel, domains, retry_failed)
     scenarios = {name: records[name][0]['metrics'] for name in SCENARIO_STUDIES}
     run_dirs = {name: Path(records[name][0]['run_dir']).relative_to(out_dir)
                 for name in SCENARIO_STUDIES}
@@ -455,7 +471,7 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
         'the paper: at F^-1(p_hat)), its trust region clips each decoupled channel on its '
         'own, and the robot stands on a 0.5 m riser (`mount_height_m`), so that a tool below '
         'its base plane is not hidden by the floor. Success, wherever the report says it: '
-        f'within {SUCCESS.describe()} at the end (`ibvs_experiments.convergence.SUCCESS`). '
+        f'within {SUCCESS.describe()} at the end (`ibvs_analysis.convergence.SUCCESS`). '
         'Machine timings are in a section of their own at the end (they measure the '
         'machine, not the loop).',
         '',
@@ -478,6 +494,24 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
         'glossary.',
         '',
     ]
+    lines += _scenario_lines(scenarios, run_dirs)
+    lines += _sweep_lines(rows)
+    lines += _studies_lines(specs + law_specs, specs, records, out_dir)
+    lines += ['']
+    if laws:
+        lines += laws_report.section(law_runs, out_dir / 'laws', 'laws/')
+        lines += laws_report.model_only_section(
+            model_only.calibration(), model_only.noise(), out_dir / 'laws', 'laws/')
+    lines += timings_section(scenarios)
+    path = out_dir / 'report.md'
+    path.write_text('\n'.join(lines))
+    return path
+
+
+def _scenario_lines(scenarios: Mapping[str, Mapping[str, Any]],
+                    run_dirs: Mapping[str, Path]) -> list[str]:
+    """Return the report's lines of each scenario: its metrics and its run's figures."""
+    lines = []
     for name, metrics in scenarios.items():
         lines += [f'### {name}', '', '| metric | value |', '|---|---|']
         lines += [f'| {k} | {_value(v)} |' for k, v in metrics.items()
@@ -488,12 +522,17 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
                   f'![trajectory]({run_dirs[name]}/trajectory_3d.png)',
                   f'![image plane]({run_dirs[name]}/image_plane.png)',
                   f'![features]({run_dirs[name]}/feature_timeline.png)', '']
+    return lines
+
+
+def _sweep_lines(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Return the report's section of the robustness sweep (Figure 13): table and verdict."""
     bound = PAPER_SHARE * min(r['metrics']['initial_position_error_m'] for r in rows)
-    lines += ['## Robustness sweep (scenario 1, Figure 13)', '',
-              'Source: graph runs (bags), ideal actuators.', '',
-              '| link | factor | final position error [mm] | final axis error [deg] | '
-              'lowest tool z [m] | success |',
-              '|---|---|---|---|---|---|']
+    lines = ['## Robustness sweep (scenario 1, Figure 13)', '',
+             'Source: graph runs (bags), ideal actuators.', '',
+             '| link | factor | final position error [mm] | final axis error [deg] | '
+             'lowest tool z [m] | success |',
+             '|---|---|---|---|---|---|']
     lines += [f"| {r['link']} | {100 * r['scale']:.0f} % | "
               f'{1e3 * r["final_position_error_m"]:.4f} | '
               f"{r['metrics']['final_tool_axis_error_deg']:.4f} | "
@@ -505,11 +544,18 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
     lines += [f"Every sweep point within the paper's 1 % of the distance to go "
               f"({1e3 * bound:.1f} mm): {'yes' if within else 'NO'}; within "
               f'{SUCCESS.describe()}: {successes} of {len(rows)}.', '']
-    lines += ['## Studies', '',
-              'Each study of this report, with its table (CSV beside it) and figures; '
-              '`ros2 run ibvs_experiments ibvs study <name>` runs one on its own. Source: '
-              'graph runs (bags).', '']
-    for spec in specs + law_specs:
+    return lines
+
+
+def _studies_lines(all_specs: Sequence[Any], specs: Sequence[Any],
+                   records: Mapping[str, Sequence[Mapping[str, Any]]], out_dir: Path
+                   ) -> list[str]:
+    """Return the report's list of its studies (``all_specs``), the extra ones' figures."""
+    lines = ['## Studies', '',
+             'Each study of this report, with its table (CSV beside it) and figures; '
+             '`ros2 run ibvs_experiments ibvs study <name>` runs one on its own. Source: '
+             'graph runs (bags).', '']
+    for spec in all_specs:
         same = sum('same_as' in r for r in records[spec.name])
         lines += [f'- [{spec.name}](studies/{spec.name}/table.md): {len(records[spec.name])} '
                   f'run(s)' + (f', {same} of them made by another study' if same else '')
@@ -519,15 +565,7 @@ def build_report(out_dir: str | Path, quick: bool = False, address: str | None =
         lines += ['', f'### {name}', '', spec.description, '']
         lines += [f'![{p.stem}](studies/{name}/{p.name})'
                   for p in sorted((out_dir / 'studies' / name).glob('*.png'))]
-    lines += ['']
-    if laws:
-        lines += laws_report.section(law_runs, out_dir / 'laws', 'laws/')
-        lines += laws_report.model_only_section(
-            model_only.calibration(), model_only.noise(), out_dir / 'laws', 'laws/')
-    lines += timings_section(scenarios)
-    path = out_dir / 'report.md'
-    path.write_text('\n'.join(lines))
-    return path
+    return lines
 
 
 #: The paper's Figure 13 bound: the steady-state error under 1 % of the distance to go.

@@ -3,7 +3,7 @@ Run one scenario through the node graph: prepare it, launch it, analyse it.
 
 ``ibvs run``'s side of a run: the scenario's checked parameters (:func:`resolve`), its
 output folder and parameters file (:func:`prepare`), and its metrics and figures
-(:func:`write_results`); the run's life in between is the launcher's
+(:func:`ibvs_analysis.results.write_results`); the run's life in between is the launcher's
 (:mod:`ibvs_bringup.launcher`: the domain, the session, the start, the supervising loop, the
 stop, the shared memory), told the project's success as callables (:data:`SUCCESS`).
 
@@ -34,10 +34,12 @@ The launcher's names that this module's clients and tests use (:class:`Monitor`,
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-import json
 from pathlib import Path
 from typing import Any
 
+from ibvs_analysis import analysis, convergence
+from ibvs_analysis.metrics import axis_angle_deg
+from ibvs_analysis.results import write_results
 from ibvs_bringup import domains, graph_params, launcher, scenario
 from ibvs_bringup.graph import GRAPH, Graph
 from ibvs_bringup.job_control import (interruptible, JobStops,  # noqa: F401 (re-exported)
@@ -48,15 +50,13 @@ from ibvs_bringup.launcher import (clean_shm, EXIT_NODE_DIED,  # noqa: F401 (re-
 from ibvs_bringup.monitor import (HEARTBEAT_S, last_waiting_line,  # noqa: F401 (re-exported)
                                   Monitor, RunStalled, SILENT, STALL_S, START_TIMEOUT_S,
                                   stopped_processes, TeachFailed)
-from ibvs_bringup.recorder import recover
 from ibvs_bringup.supervision import NodeDied  # noqa: F401 (re-exported)
 from ibvs_common.shared_params import target_from_parameters
-from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np
 from numpy.typing import NDArray
 import yaml
 
-from . import analysis, convergence, output_dir
+from . import output_dir
 
 #: What a run into a previous run's folder removes of it first (:func:`prepare`): the
 #: entries it writes anew whole; the rest it writes (params.yaml, logs/<process>.log, the
@@ -68,12 +68,12 @@ def tool_errors(pose: NDArray[np.float64],
                 target: NDArray[np.float64]) -> tuple[float, float]:
     """Return the tool's position error (m) and tool-axis error (deg) of ``pose`` (4x4)."""
     return (float(np.linalg.norm(pose[:3, 3] - target[:3, 3])),
-            float(analysis.axis_angle_deg(pose[None, :3, :3], target[:3, :3])[0]))
+            float(axis_angle_deg(pose[None, :3, :3], target[:3, :3])[0]))
 
 
 #: What the launcher is told of a run's success (:class:`ibvs_bringup.launcher.Success`):
-#: the tool's errors as the analysis defines them, :data:`.convergence.HOLD` to end a run
-#: early on, :data:`.convergence.SUCCESS` at its sim time limit.
+#: the tool's errors as the analysis defines them, :data:`ibvs_analysis.convergence.HOLD`
+#: to end a run early on, :data:`ibvs_analysis.convergence.SUCCESS` at its sim time limit.
 SUCCESS = launcher.Success(tool_errors, convergence.HOLD.within, convergence.SUCCESS.within)
 
 
@@ -110,14 +110,15 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
     ``figures=False`` writes the bag and metrics only (``ibvs analyse`` draws the figures
     later): a study's runs save the seconds of matplotlib each.
     ``on_metrics(metrics)``: called as soon as ``metrics.json`` is written, before the
-    figures (:func:`write_results`).
+    figures (:func:`ibvs_analysis.results.write_results`).
 
     ``record_overlays`` records the feature node's overlay images (/ibvs/debug/*/image,
     which it then draws for every frame; ``ibvs video`` makes a film of them).
 
     ``duration_s`` is the sim time limit (default: the scenario file's ``run_duration_s``,
     else 3 s). With ``converge_hold_s`` the run ends early once the tool has stayed within
-    0.1 mm and 0.01 deg of the target for that long (sim time: :data:`.convergence.HOLD`). Raises
+    0.1 mm and 0.01 deg of the target for that long (sim time:
+    :data:`ibvs_analysis.convergence.HOLD`). Raises
     :class:`scenario.ScenarioError` for a parameter no node declares or out of its range
     (:func:`graph_params.check`) or a configuration that cannot make progress (before
     starting anything), :class:`domains.DomainBusy` if its ROS domain is another run's
@@ -140,7 +141,7 @@ def run_scenario(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | 
 
     The parts, in order: :func:`prepare`, the launcher's
     :func:`~ibvs_bringup.launcher.run_graph` (:func:`start`, :func:`watch`, :func:`stop`),
-    :func:`write_results`.
+    :func:`ibvs_analysis.results.write_results`.
     """
     domains.domain_id()
     domains.pool()
@@ -176,6 +177,27 @@ def _run_prepared(run, record_images, wall_timeout_s, converge_hold_s, progress,
                             on_metrics)
     return RunResult(run.out_dir, run.bag_path, metrics, outcome.converged, ran.recording,
                      outcome.interrupted)
+
+
+def with_servo_law(overrides: dict[str, Any]) -> dict[str, Any]:
+    """
+    Return ``overrides`` with the feedforward parameters of its servo_law added.
+
+    The one place a law's feedforward (:func:`ibvs_control.servo_laws.feedforward_overrides`:
+    ``feedforward_method: hold`` for ibvs and pbvs, ``feedforward_ratio`` for switching)
+    joins a run's parameters: ``ibvs run``, the law study and the benchmark's graph runs
+    take it from here. A value ``overrides`` gives is kept; without ``servo_law`` nothing is
+    added. ``overrides`` itself is completed and returned.
+    """
+    law = overrides.get('servo_law')
+    if law is None:
+        return overrides
+    # Here, not at the top: ibvs_control pulls in scipy.signal, seconds of start-up that a
+    # run without servo_law does not need.
+    from ibvs_control.servo_laws import feedforward_overrides
+    for key, value in feedforward_overrides(law).items():
+        overrides.setdefault(key, value)
+    return overrides
 
 
 def resolve(name: str, overrides: Mapping[str, Any] | None = None,
@@ -236,51 +258,3 @@ def prepare(name: str, out_dir: str | Path, overrides: Mapping[str, Any] | None 
     bag_path = out_dir / 'bag'
     return Prepared(params, duration_s, out_dir, log_dir, params_file, bag_path,
                     target_from_parameters(params), claimed)
-
-
-def target_features(run: analysis.RunData) -> NDArray[np.float64] | None:
-    """
-    Return the target features the controller servoed to, for the feature figures.
-
-    A taught run (``target_features_source: taught``): the features the feature node
-    measured on the teach pair (:attr:`.analysis.RunData.taught_target`), which the
-    controller used; F(q_target) would differ from them by the camera model's errors (a
-    constant error in ``feature_error.png`` the controller never saw). Otherwise F(q_target)
-    with the recorded camera and the nominal robot (None without a camera).
-    """
-    if run.params.get('target_features_source') == 'taught' and \
-            run.taught_target is not None:
-        return run.taught_target
-    if run.camera is None:
-        return None
-    q = inverse_kinematics(run.target)
-    return CameraRobotModel(run.camera, IRB4600).features(q)
-
-
-def write_results(bag_path: str | Path, out_dir: str | Path,
-                  wall_duration_s: float | None = None, figures: bool = True,
-                  on_metrics: Callable[[dict[str, Any]], None] | None = None
-                  ) -> dict[str, Any]:
-    """
-    Analyse a bag: write ``metrics.json`` and the figures into ``out_dir``; return metrics.
-
-    ``on_metrics(metrics)`` is called once ``metrics.json`` is written, before the figures
-    (matplotlib takes seconds): ``ibvs run`` prints the metrics then.
-    """
-    out_dir = Path(out_dir)
-    recover(bag_path)  # the bag of a runner that was killed: readable again
-    run, metrics = analysis.analyse_bag(bag_path)
-    if wall_duration_s is not None:
-        metrics['wall_duration_s'] = wall_duration_s
-        metrics['real_time_factor'] = metrics['sim_duration_s'] / wall_duration_s
-    metrics['bag'] = str(bag_path)
-    (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
-    if on_metrics is not None:
-        on_metrics(metrics)
-    if not figures:
-        return metrics
-    from . import plots  # here: matplotlib costs seconds of start-up
-    plots.write_all(run, out_dir, target_features(run))
-    if len(run.joints[0]):  # read and limited once, by analyse_bag
-        plots.joints(run.joints, run.joint_limits, out_dir / 'joints.png', plots.title_of(run))
-    return metrics

@@ -4,11 +4,12 @@
 With the tool held at the target (on a cell the operator jogs the arm there; in the
 rehearsal the simulator starts there, ``sim_node -p start_at_target:=true``), ``ibvs teach
 [-o DIR]`` takes from the camera's topics (the ZED wrapper's, as ``ibvs cell`` names them,
-:func:`.cell.camera_topics`) ``teach_frames`` consecutive stereo pairs (a left and a right
-image of one stamp) while every arm joint of /joint_states stays within
-``--still-tol-deg`` (:data:`.handeye.STILL_TOL_RAD`, the calibration's rule of a still arm)
-over their span, and averages them pixel by pixel (:class:`ibvs_common.teach.FrameMean`, the
-rule of the simulator's own teach pair). A joint that moves starts the frames again.
+:func:`ibvs_bringup.cell_checks.camera_topics`) ``teach_frames`` consecutive stereo pairs (a
+left and a right image of one stamp) while every arm joint of /joint_states stays within
+``--still-tol-deg`` (:data:`ibvs_model.handeye.STILL_TOL_RAD`, the calibration's rule of a
+still arm) over their span, and averages them pixel by pixel
+(:class:`ibvs_common.teach.FrameMean`, the rule of the simulator's own teach pair). A joint
+that moves starts the frames again.
 
 It writes the folder (:func:`.output_dir.claim`: a new or empty folder, or one that an
 ``ibvs`` command wrote; never another) with:
@@ -18,7 +19,7 @@ It writes the folder (:func:`.output_dir.claim`: a new or empty folder, or one t
   span, and their spread), the stamps of the first and last frame, the frames averaged,
   each lens's camera_info, the camera's topics and encoding, the target (below) and, where
   the simulator's /ibvs/tool_path is there (a rehearsal), the true flange pose
-  ``true_tool_pose`` (:data:`.analysis.TRUE_TOOL_POSE_KEY`);
+  ``true_tool_pose`` (:data:`ibvs_analysis.analysis.TRUE_TOOL_POSE_KEY`);
 - ``target.yaml`` (:data:`TARGET_FILE`): a parameter file of ``target_position`` and
   ``target_rotation``, the nominal forward kinematics of the recorded joints. That is the
   pose the encoders will read when the images match the taught ones: the cell's target
@@ -43,13 +44,13 @@ import sys
 import time
 from typing import Any
 
+from ibvs_bringup.cell_checks import camera_topics, CellError
 from ibvs_common import contract
 from ibvs_common.teach import FrameMean, TEACH_FRAMES
+from ibvs_model import handeye
 import numpy as np
 from numpy.typing import NDArray
 import yaml
-
-from . import cell, handeye
 
 #: The record's file and the target's parameter file in a teach folder.
 RECORD = 'teach.yaml'
@@ -203,7 +204,7 @@ def info_dict(msg: Any) -> dict[str, Any]:
 def record_of(taught: Taught, infos: Mapping[str, Any], topics: Mapping[str, str],
               encoding: str) -> dict[str, Any]:
     """Return the teach record (:data:`RECORD`'s content) of ``taught``."""
-    from .analysis import TRUE_TOOL_POSE_KEY
+    from ibvs_analysis.analysis import TRUE_TOOL_POSE_KEY
     out = {
         'frames': len(taught.stamps),
         'first_stamp_ns': int(taught.stamps[0]), 'last_stamp_ns': int(taught.stamps[-1]),
@@ -359,7 +360,7 @@ def collect(camera_name: str, frames: int, timeout_s: float, still_tol_rad: floa
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import CameraInfo, Image, JointState
 
-    zed = cell.camera_topics(camera_name)
+    zed = camera_topics(camera_name)
     topics = {'left': zed[contract.LEFT_IMAGE], 'right': zed[contract.RIGHT_IMAGE]}
     info_topics = {'left': zed[contract.LEFT_INFO], 'right': zed[contract.RIGHT_INFO]}
     collector = Collector(frames, still_tol_rad)
@@ -437,7 +438,7 @@ def record_teach(args: argparse.Namespace) -> int:
     """Record a teach (module docstring) into ``args.out``; return the exit code."""
     from . import output_dir, runner
     frames = TEACH_FRAMES.check(args.teach_frames)
-    out = Path(args.out) if args.out else cell.session_dir(TEACH_DIR)
+    out = Path(args.out) if args.out else output_dir.session_dir(TEACH_DIR)
     _domain()
     with runner.interruptible(deferred=True) as stop:
         claim = output_dir.claim(out)  # before the frames: a refused folder costs nothing
@@ -514,6 +515,6 @@ def main(args: argparse.Namespace) -> int:
         if args.publish:
             return publish(args)
         return record_teach(args)
-    except (TeachError, ParameterError, cell.CellError, output_dir.OutputRefused) as exc:
+    except (TeachError, ParameterError, CellError, output_dir.OutputRefused) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2

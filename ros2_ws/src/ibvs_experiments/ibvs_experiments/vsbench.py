@@ -1,16 +1,17 @@
 """
 ``make vsbench``: the workspace benchmark (500 seeded tasks, three servo laws).
 
-The benchmark is data (:func:`definition`, committed as ``benchmarks/vsbench-2.json``):
+The benchmark is data (:mod:`.vsbench_tasks`, committed as ``benchmarks/vsbench-2.json``):
 500 tasks of the workspace sampler (:func:`ibvs_model.task_sampler.tasks`, version
 ``workspace-2``, seed :data:`TASK_SEED`), each with its own drawn imperfections (camera
 calibration error within +-3 mm per axis, +-0.3 deg per axis, focal length within
 +-0.5 %, and the ``camera_seed`` of its image noise and lost frames: seed
-:data:`IMPERFECTION_SEED`) and the conditions every run shares (:data:`CONDITIONS`: limited
-actuators, 67 ms latency, image noise 0.01, 5 % lost frames, a taught target, the safety
-envelope on). Anyone can run their law on the same 500 tasks from the file alone.
+:data:`.vsbench_tasks.IMPERFECTION_SEED`) and the conditions every run shares
+(:data:`CONDITIONS`: limited actuators, 67 ms latency, image noise 0.01, 5 % lost frames, a
+taught target, the safety envelope on). Anyone can run their law on the same 500 tasks from
+the file alone.
 
-Two ways through the tasks, the same success rule (:data:`.convergence.SUCCESS`):
+Two ways through the tasks, the same success rule (:data:`ibvs_analysis.convergence.SUCCESS`):
 
 - the model loop (:func:`ibvs_control.closed_loop.simulate`, no ROS, seconds per run) for
   every task and law, in a process pool (:func:`screen`): the calibration error as the
@@ -25,17 +26,15 @@ Per run (:func:`run_metrics`): success and why not (:func:`miss_class`), time to
 overshoot, path-length ratio (tool path / straight start-target distance), peak joint
 speed / rated speed, the envelope's interventions, the smallest distance to a joint limit
 and the smallest self and scene clearance (capsules) with the violations (samples past a
-limit, clearances <= 0). Per law (:func:`summarise`): the success rate with its 95 % Wilson
-interval (``scipy.stats.binomtest(...).proportion_ci(method='wilson')``) and whether model
-and graph agree on their common tasks (:func:`agreement`). ``results/vsbench.md``, a CSV
-and JSON of every run, and figures of success against start distance and start angle.
+limit, clearances <= 0). Per law (:mod:`.vsbench_report`): the success rate with its 95 %
+Wilson interval (``scipy.stats.binomtest(...).proportion_ci(method='wilson')``) and whether
+model and graph agree on their common tasks. ``results/vsbench.md``, a CSV and JSON of
+every run, and figures of success against start distance and start angle.
 """
 
 import argparse
-from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
-import csv
 import json
 import math
 import os
@@ -44,58 +43,26 @@ import sys
 import time
 from typing import Any
 
+from ibvs_analysis import analysis
+from ibvs_analysis.convergence import SUCCESS
+from ibvs_analysis.metrics import compute_metrics
+from ibvs_analysis.study_table import reason_category
 from ibvs_control.closed_loop import LoopConfig, simulate
 from ibvs_control.envelope import Intervention
 from ibvs_control.prediction import LATENCY_COMPENSATIONS
-from ibvs_control.servo_laws import feedforward_overrides
 from ibvs_model import (CameraRobotModel, default_model, forward_kinematics_batch, IRB4600,
                         pose_from, StereoCamera, task_sampler)
 from ibvs_model.capsules import Cell, clearances
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
 
-from . import analysis, study
-from .convergence import SUCCESS
-from .laws_report import CASES
-from .study import default_parallel, reason_category
+from . import study
+from .runner import with_servo_law
+from .study import default_parallel
+from .vsbench_report import timing_lines, write_results
+from .vsbench_tasks import (BENCHMARK_FILE, CONDITIONS, DURATION_S, GRAPH_RESOLUTION, LAWS,
+                            load, NAME, TASK_SEED, TASKS, VERSION, write_definition)
 
-#: The benchmark's name and version: change the version with anything that changes the file.
-NAME = 'vsbench'
-VERSION = 'vsbench-2'
-#: How many tasks, and the seeds of the tasks and of their imperfections.
-TASKS = 500
-TASK_SEED = 1
-IMPERFECTION_SEED = 38
-#: The laws compared: the paper's, the switching law and classic IBVS (with the envelope,
-#: ViSP's joint-limit avoidance).
-LAWS = ('paper', 'switching', 'ibvs')
-#: Calibration error bounds, uniform per axis: camera position (m), orientation (deg), and
-#: the factor on f_u and f_v (1 +- 0.005).
-POSITION_ERROR_M = 0.003
-ROTATION_ERROR_DEG = 0.3
-FOCAL_ERROR = 0.005
-#: The conditions of every run (node parameters): real-cell conditions (image noise, lost
-#: frames, a taught target) on the law study's limited case (:data:`.laws_report.CASES`:
-#: limited actuators, 67 ms of latency), no joint disturbance d_q (a real encoder reads the
-#: joint: the calibration error is the cell's imperfection), the safety envelope on, the
-#: target taught on the mean of 10 frames (a third of a second of the tool held still: one
-#: frame's noise left 1-1.6 mm of depth error on 8 of the 500 targets in the model loop),
-#: and the feedback designed for the camera's latency as the nodes default to it
-#: (``latency_compensation: encoders``; ``--latency-compensation none`` runs the laws as
-#: published).
-CONDITIONS = {**CASES['limited'], 'image_noise_stddev': 0.01, 'frame_drop_probability': 0.05,
-              'target_features_source': 'taught', 'teach_frames': 10, 'safety_envelope': True,
-              'disturbance_deg': [0.0] * 6, 'latency_compensation': 'encoders'}
-#: Sim time of a run (s): the law study's limited runs need up to 3 s from the paper's
-#: starts; the tasks start up to 20 deg per joint away.
-DURATION_S = 6.0
-#: The image size of both loops: HD720, the real cell's mode (at VGA the feature noise, 2.2
-#: times HD720's at half the focal length, decides the runs more than the law does, and the
-#: model loop is harsher than the graph; docs/vsbench.md).
-GRAPH_RESOLUTION = 'HD720'
-#: The graph's base scenario (the rest of its parameters: rates, gains).
-SCENARIO = 'scenario1'
 #: The feature noise (px, standard deviation per value and frame) the detector gives with
 #: image noise 0.01, per image size: :func:`measure_feature_noise` on the first 8 tasks'
 #: targets, 20 noise draws each (RMS over the six values of the per-pose standard
@@ -109,85 +76,6 @@ FEATURE_NOISE_PX = {'VGA': 0.017, 'HD720': 0.0076}
 ACCELERATION_LIMITS = (57.0, 24.0, 120.0, 14000.0, 56000.0, 1.0e6)
 #: Joint-limit distance (rad) under which a stalled run is classed 'limit'.
 LIMIT_CLASS_RAD = 0.1
-#: Where the committed benchmark file lies (source tree and install share).
-BENCHMARK_FILE = f'{VERSION}.json'
-
-
-def benchmark_path() -> Path:
-    """Return the benchmark file: the source tree's, else the installed share's."""
-    here = Path(__file__).resolve().parent.parent / 'benchmarks' / BENCHMARK_FILE
-    if here.exists():
-        return here
-    from ament_index_python.packages import get_package_share_directory
-    return Path(get_package_share_directory('ibvs_experiments')) / 'benchmarks' / \
-        BENCHMARK_FILE
-
-
-def imperfections(n: int, seed: int = IMPERFECTION_SEED) -> list[dict[str, Any]]:
-    """
-    Return the drawn imperfections of the first tasks: node parameters, one stream.
-
-    Per task: ``camera_pose_error_xyz_m`` (3 uniform in +-:data:`POSITION_ERROR_M`),
-    ``camera_pose_error_rpy_deg`` (3 uniform in +-:data:`ROTATION_ERROR_DEG`),
-    ``focal_length_error`` (uniform in 1 +- :data:`FOCAL_ERROR`) and ``camera_seed``
-    (an integer in [0, 2^31 - 1)); draw k is the same for any n > k.
-    """
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        xyz = rng.uniform(-POSITION_ERROR_M, POSITION_ERROR_M, 3)
-        rpy = rng.uniform(-ROTATION_ERROR_DEG, ROTATION_ERROR_DEG, 3)
-        focal = 1.0 + rng.uniform(-FOCAL_ERROR, FOCAL_ERROR)
-        out.append({'camera_pose_error_xyz_m': [float(v) for v in xyz],
-                    'camera_pose_error_rpy_deg': [float(v) for v in rpy],
-                    'focal_length_error': float(focal),
-                    'camera_seed': int(rng.integers(0, 2 ** 31 - 1))})
-    return out
-
-
-def definition(n: int = TASKS) -> dict[str, Any]:
-    """Return the benchmark (module docstring) with its first ``n`` tasks, as JSON data."""
-    tally = Counter()
-    tasks = task_sampler.tasks(n, TASK_SEED, tally=tally)
-    return {
-        'name': NAME, 'version': VERSION,
-        'success': SUCCESS.describe(),
-        'laws': list(LAWS),
-        'conditions': dict(CONDITIONS),
-        'duration_s': DURATION_S,
-        'graph': {'scenario': SCENARIO, 'resolution': GRAPH_RESOLUTION, 'mode': 'lockstep'},
-        'tasks_definition': {**task_sampler.describe(), 'n': n, 'seed': TASK_SEED,
-                             'draws': dict(sorted(tally.items()))},
-        'imperfections_definition': {
-            'seed': IMPERFECTION_SEED, 'camera_pose_error_xyz_m': POSITION_ERROR_M,
-            'camera_pose_error_rpy_deg': ROTATION_ERROR_DEG,
-            'focal_length_error': FOCAL_ERROR, 'draw': 'uniform per element, task by task'},
-        'tasks': [{**task, **imperfection} for task, imperfection
-                  in zip(tasks, imperfections(n))],
-    }
-
-
-def dumps(data: Mapping[str, Any]) -> str:
-    """Return the benchmark file's text: JSON, the header indented, one line per task."""
-    head = json.dumps({k: v for k, v in data.items() if k != 'tasks'}, indent=1)
-    tasks = ',\n'.join('  ' + json.dumps(task) for task in data['tasks'])
-    return head[:-2] + ',\n "tasks": [\n' + tasks + '\n ]\n}\n'
-
-
-def write_definition(path: str | Path, n: int = TASKS) -> dict[str, Any]:
-    """Write :func:`definition` to ``path`` and return it."""
-    data = definition(n)
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_text(dumps(data))
-    return data
-
-
-def load(path: str | Path | None = None) -> dict[str, Any]:
-    """Return the benchmark file (default :func:`benchmark_path`), checked for its version."""
-    data = json.loads(Path(path or benchmark_path()).read_text())
-    if data.get('version') != VERSION:
-        raise ValueError(f"{path}: version {data.get('version')!r}, expected {VERSION!r}")
-    return data
 
 
 # ----------------------------------------------------------------------------- the model loop
@@ -327,8 +215,8 @@ def run_metrics(task: Mapping[str, Any], law: str, t: ArrayLike, q: ArrayLike,
     """
     Return one run's row from its true joint angles ``q`` (N, 6) at times ``t`` (s).
 
-    The tool's metrics are :func:`.analysis.compute_metrics`' (or ``metrics``, a graph
-    run's own, for the errors, time to 1 mm and overshoot); the rest from ``q``: path
+    The tool's metrics are :func:`ibvs_analysis.metrics.compute_metrics`' (or ``metrics``, a
+    graph run's own, for the errors, time to 1 mm and overshoot); the rest from ``q``: path
     length / straight distance, peak joint speed / ``qd_max``, the smallest distance to a
     joint limit (rad) and the samples past one, and every ``every``-th sample's self and
     scene clearance (m, :func:`ibvs_model.capsules.clearances`) and those <= 0.
@@ -338,8 +226,8 @@ def run_metrics(task: Mapping[str, Any], law: str, t: ArrayLike, q: ArrayLike,
     poses = forward_kinematics_batch(q, IRB4600)
     target = target_pose(task)
     if metrics is None:
-        metrics = analysis.compute_metrics(t, poses[:, :3, 3], poses[:, :3, :3], target,
-                                           np.asarray(mode_t, dtype=float), list(modes))
+        metrics = compute_metrics(t, poses[:, :3, 3], poses[:, :3, :3], target,
+                                  np.asarray(mode_t, dtype=float), list(modes))
     position = poses[:, :3, 3]
     straight = float(np.linalg.norm(target[:3, 3] - position[0]))
     path = float(np.linalg.norm(np.diff(position, axis=0), axis=1).sum())
@@ -386,9 +274,10 @@ def miss_class(row: Mapping[str, Any], last_limit_distance: float) -> str:
     'collision' (a clearance reached 0, or the envelope halted for one), 'limit' (stalled
     within :data:`LIMIT_CLASS_RAD` of a joint limit in the last 0.5 s), 'singular' (the
     envelope halted for a singularity and the run stalled), else the study's category of
-    :func:`.convergence.miss_reason`'s words (:func:`.study.reason_category`): 'lost
-    features', 'local minimum' (a graph run's: the model loop records no image error),
-    'stalled', 'timed out', 'no final pose'.
+    :func:`ibvs_analysis.convergence.miss_reason`'s words
+    (:func:`ibvs_analysis.study_table.reason_category`): 'lost features', 'local minimum' (a
+    graph run's: the model loop records no image error), 'stalled', 'timed out', 'no final
+    pose'.
     """
     if row['success']:
         return ''
@@ -454,10 +343,9 @@ def screen(tasks: Sequence[Mapping[str, Any]], laws: Iterable[str] = LAWS,
 
 def graph_overrides(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any],
                     resolution: str = GRAPH_RESOLUTION) -> dict[str, Any]:
-    """Return the ``ibvs run`` parameters of one graph run."""
-    return {**conditions, 'resolution': resolution, 'servo_law': law,
-            **feedforward_overrides(law),
-            'start_joints': list(task['start_joints']),
+    """Return the ``ibvs run`` parameters of one graph run (:func:`.runner.with_servo_law`'s)."""
+    run = with_servo_law({**conditions, 'resolution': resolution, 'servo_law': law})
+    return {**run, 'start_joints': list(task['start_joints']),
             'target_position': list(task['target_position']),
             'target_rotation': list(task['target_rotation']),
             'camera_pose_error_xyz_m': list(task['camera_pose_error_xyz_m']),
@@ -488,38 +376,6 @@ def graph_spec(bench: Mapping[str, Any], n_tasks: int, laws: Iterable[str] = LAW
                             f'through the graph at {resolution}')
 
 
-#: The feedback node's /diagnostics key of the envelope's counts (adaptive_feedback_node).
-INTERVENTIONS_KEY = 'envelope_interventions'
-
-
-def graph_interventions(bag_path: str | Path) -> dict[int, int] | None:
-    """
-    Return the envelope's counts at the end of a graph run: {code: frames}, from its bag.
-
-    The last ``envelope_interventions`` value on /diagnostics ('NAME n, NAME n' or 'none');
-    None when the bag has none (the envelope off, or no frame answered).
-    """
-    from ibvs_common import contract
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import get_typestore, Stores
-    last = None
-    with AnyReader([Path(bag_path)], default_typestore=get_typestore(Stores.ROS2_JAZZY)
-                   ) as reader:
-        conns = [c for c in reader.connections if c.topic == contract.DIAGNOSTICS]
-        for conn, _, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            last = next((kv.value for status in msg.status for kv in status.values
-                         if kv.key == INTERVENTIONS_KEY), last)
-    if last is None:
-        return None
-    out = {}
-    for item in last.split(','):
-        parts = item.split()
-        if len(parts) == 2 and parts[0] in Intervention.__members__:
-            out[int(Intervention[parts[0]])] = int(parts[1])
-    return out
-
-
 def graph_row(task: Mapping[str, Any], law: str, record: Mapping[str, Any]) -> dict[str, Any]:
     """Return a graph run's row from its study record (its metrics.json and bag)."""
     run_dir = Path(record['run_dir'])
@@ -532,7 +388,7 @@ def graph_row(task: Mapping[str, Any], law: str, record: Mapping[str, Any]) -> d
     metrics = json.loads((run_dir / 'metrics.json').read_text())
     t, q, *_ = analysis.load_joints(run_dir / 'bag')
     row = run_metrics(task, law, t, q, metrics=metrics,
-                      interventions=graph_interventions(run_dir / 'bag'))
+                      interventions=analysis.envelope_interventions(run_dir / 'bag'))
     row.update(source='graph', wall_s=wall)
     return row
 
@@ -549,266 +405,6 @@ def run_graph(bench: Mapping[str, Any], n_tasks: int, out_dir: Path,
     records = study.run_studies([spec], out_dir, parallel=parallel, out=out)[spec.name]
     pairs = [(task, law) for task in bench['tasks'][:n_tasks] for law in laws]
     return [graph_row(task, law, record) for (task, law), record in zip(pairs, records)]
-
-
-# ----------------------------------------------------------------------------- the summary
-
-def wilson(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """Return the Wilson interval of a rate (scipy's ``binomtest``); (nan, nan) for n = 0."""
-    if n == 0:
-        return float('nan'), float('nan')
-    ci = stats.binomtest(int(successes), int(n)).proportion_ci(confidence, method='wilson')
-    return float(ci.low), float(ci.high)
-
-
-def _median(rows, key, only=None):
-    values = [float(r[key]) for r in rows
-              if r.get(key) is not None and (only is None or only(r))
-              and math.isfinite(float(r[key]))]
-    return float(np.median(values)) if values else float('nan')
-
-
-def summarise(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """
-    Return per (source, law): runs, successes, rate and its 95 % Wilson interval, medians.
-
-    Medians over the successful runs for time to 1 mm; over all finished runs for overshoot,
-    path-length ratio and peak speed ratio; sums of interventions and violations, and the
-    smallest limit distance and clearances; the count of each miss class.
-    """
-    out = []
-    keys = dict.fromkeys((r['source'], r['law']) for r in rows)
-    for source, law in keys:
-        group = [r for r in rows if r['source'] == source and r['law'] == law]
-        done = [r for r in group if 'min_limit_distance_rad' in r]
-        wins = sum(bool(r['success']) for r in group)
-        low, high = wilson(wins, len(group))
-        classes = {}
-        for r in group:
-            if not r['success']:
-                classes[r['miss_reason']] = classes.get(r['miss_reason'], 0) + 1
-        out.append({
-            'source': source, 'law': law, 'runs': len(group), 'successes': wins,
-            'rate': wins / len(group) if group else float('nan'), 'ci_low': low,
-            'ci_high': high,
-            'time_to_1mm_s': _median(group, 'time_to_1mm_s', lambda r: r['success']),
-            'overshoot_m': _median(done, 'overshoot_m'),
-            'path_length_ratio': _median(done, 'path_length_ratio'),
-            'peak_speed_ratio': _median(done, 'peak_speed_ratio'),
-            'peak_speed_ratio_max': max((r['peak_speed_ratio'] for r in done),
-                                        default=float('nan')),
-            'interventions': sum(r.get('interventions', 0) for r in done),
-            'runs_with_interventions': sum(bool(r.get('interventions')) for r in done),
-            'limit_violations': sum(r['limit_violations'] for r in done),
-            'collisions': sum(r['collisions'] for r in done),
-            'min_limit_distance_rad': min((r['min_limit_distance_rad'] for r in done),
-                                          default=float('nan')),
-            'min_self_clearance_m': min((r['min_self_clearance_m'] for r in done),
-                                        default=float('nan')),
-            'min_scene_clearance_m': min((r['min_scene_clearance_m'] for r in done),
-                                         default=float('nan')),
-            'miss_classes': classes,
-        })
-    return out
-
-
-def agreement(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """
-    Return per law, on the tasks both sources ran: each rate, interval, and whether they agree.
-
-    Agree: each source's rate lies within the other's 95 % Wilson interval.
-    """
-    out = []
-    for law in dict.fromkeys(r['law'] for r in rows):
-        by = {s: {r['task']: r for r in rows if r['law'] == law and r['source'] == s}
-              for s in ('model', 'graph')}
-        common = sorted(set(by['model']) & set(by['graph']))
-        if not common:
-            continue
-        entry = {'law': law, 'tasks': len(common)}
-        for source in ('model', 'graph'):
-            wins = sum(bool(by[source][t]['success']) for t in common)
-            entry[source] = {'successes': wins, 'rate': wins / len(common),
-                             'ci': wilson(wins, len(common))}
-        m, g = entry['model'], entry['graph']
-        entry['agree'] = bool(g['ci'][0] <= m['rate'] <= g['ci'][1]
-                              and m['ci'][0] <= g['rate'] <= m['ci'][1])
-        entry['same_verdict'] = sum(bool(by['model'][t]['success'])
-                                    == bool(by['graph'][t]['success']) for t in common)
-        out.append(entry)
-    return out
-
-
-# ------------------------------------------------------------------------------ the report
-
-CSV_COLUMNS = ('source', 'task', 'index', 'law', 'success', 'miss_reason',
-               'final_position_error_m', 'final_tool_axis_error_deg', 'time_to_1mm_s',
-               'overshoot_m', 'path_length_ratio', 'peak_speed_ratio', 'interventions',
-               'min_limit_distance_rad', 'limit_violations', 'min_self_clearance_m',
-               'min_scene_clearance_m', 'collisions', 'start_distance_m', 'start_angle_deg',
-               'observability', 'dropped_frames', 'wall_s', 'miss_reason_text')
-
-
-def _fmt(value, scale=1.0, digits=3):
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return '-'
-    return f'{value * scale:.{digits}g}'
-
-
-def summary_table(summary: Sequence[Mapping[str, Any]]) -> list[str]:
-    """Return the markdown lines of :func:`summarise`."""
-    lines = ['| source | law | runs | success | 95 % interval | time to 1 mm [s] | '
-             'overshoot [mm] | path ratio | peak speed / rated (median, max) | '
-             'interventions (runs) | min limit distance [deg] | limit violations | '
-             'min clearance self / scene [mm] | collisions | misses |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|']
-    for s in summary:
-        misses = ', '.join(f'{k} {v}' for k, v in sorted(s['miss_classes'].items())) or '-'
-        lines.append(
-            f"| {s['source']} | {s['law']} | {s['runs']} | {s['successes']} "
-            f"({_fmt(s['rate'], 100, 4)} %) | {_fmt(s['ci_low'], 100, 3)}-"
-            f"{_fmt(s['ci_high'], 100, 3)} % | {_fmt(s['time_to_1mm_s'])} | "
-            f"{_fmt(s['overshoot_m'], 1e3)} | {_fmt(s['path_length_ratio'])} | "
-            f"{_fmt(s['peak_speed_ratio'])}, {_fmt(s['peak_speed_ratio_max'])} | "
-            f"{s['interventions']} ({s['runs_with_interventions']}) | "
-            f"{_fmt(s['min_limit_distance_rad'], 180 / math.pi)} | {s['limit_violations']} | "
-            f"{_fmt(s['min_self_clearance_m'], 1e3)} / {_fmt(s['min_scene_clearance_m'], 1e3)}"
-            f" | {s['collisions']} | {misses} |")
-    return lines
-
-
-def agreement_table(entries: Sequence[Mapping[str, Any]]) -> list[str]:
-    """Return the markdown lines of :func:`agreement`."""
-    lines = ['| law | common tasks | model | graph | agree | same verdict |',
-             '|---|---|---|---|---|---|']
-    for e in entries:
-        cells = [f"{e[s]['successes']} ({100 * e[s]['rate']:.3g} %, "
-                 f"{100 * e[s]['ci'][0]:.3g}-{100 * e[s]['ci'][1]:.3g} %)"
-                 for s in ('model', 'graph')]
-        lines.append(f"| {e['law']} | {e['tasks']} | {cells[0]} | {cells[1]} | "
-                     f"{'yes' if e['agree'] else 'no'} | {e['same_verdict']} of "
-                     f"{e['tasks']} |")
-    return lines
-
-
-def write_figures(rows: Sequence[Mapping[str, Any]], out_dir: Path) -> list[Path]:
-    """Draw success against start distance and start angle, per source; failures marked."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    paths = []
-    laws = list(dict.fromkeys(r['law'] for r in rows))
-    sources = [s for s in ('model', 'graph') if any(r['source'] == s for r in rows)]
-    for key, label, scale in (('start_distance_m', 'start distance [m]', 1.0),
-                              ('start_angle_deg', 'start angle (tool axis) [deg]', 1.0)):
-        fig, axes = plt.subplots(len(sources), 1, figsize=(8, 2.2 + 2.0 * len(sources)),
-                                 squeeze=False)
-        for ax, source in zip(axes[:, 0], sources):
-            for i, law in enumerate(laws):
-                group = [r for r in rows if r['source'] == source and r['law'] == law
-                         and key in r]
-                ok = [r[key] * scale for r in group if r['success']]
-                bad = [r[key] * scale for r in group if not r['success']]
-                ax.scatter(ok, [i] * len(ok), marker='o', s=14, color='tab:green',
-                           label='success' if i == 0 else None)
-                ax.scatter(bad, [i] * len(bad), marker='x', s=30, color='tab:red',
-                           label='miss' if i == 0 else None)
-            ax.set_yticks(range(len(laws)), laws)
-            ax.set_ylim(-0.6, len(laws) - 0.4)
-            ax.set_title(f'{source} loop: success against {label}')
-            ax.set_xlabel(label)
-            ax.grid(True, axis='x', alpha=0.3)
-            ax.legend(loc='upper right', fontsize=8)
-        fig.tight_layout()
-        path = out_dir / f'vsbench_success_vs_{key.rsplit("_", 1)[0]}.png'
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        paths.append(path)
-    return paths
-
-
-def _teach_noise(conditions: Mapping[str, Any]) -> str:
-    """Return the report's words for the noise of the taught target under ``conditions``."""
-    frames = int(conditions.get('teach_frames', 1))
-    if frames <= 1:
-        return 'the taught target'
-    return f'the taught target divided by sqrt({frames}), the mean of its {frames} frames'
-
-
-def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
-                  meta: Mapping[str, Any]) -> Path:
-    """Write ``vsbench.md``, ``vsbench_runs.csv``, ``vsbench.json`` and the figures."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    summary = summarise(rows)
-    agree = agreement(rows)
-    with open(out_dir / 'vsbench_runs.csv', 'w', newline='') as f:
-        writer = csv.DictWriter(f, fieldnames=list(CSV_COLUMNS), extrasaction='ignore')
-        writer.writeheader()
-        for r in rows:
-            writer.writerow(r)
-    (out_dir / 'vsbench.json').write_text(json.dumps(
-        {'meta': dict(meta), 'summary': summary, 'agreement': agree, 'runs': list(rows)},
-        indent=1, default=float) + '\n')
-    figures = write_figures(rows, out_dir)
-    lines = [f"# {meta.get('version', VERSION)}: the workspace benchmark", '',
-             f"{meta.get('scope', '')}", '',
-             f"Success: {SUCCESS.describe()} at the end of {meta.get('duration_s')} s of sim "
-             f"time. Conditions (every run): `{json.dumps(meta.get('conditions'))}`; per task "
-             'its drawn calibration error and camera seed (the benchmark file). Model loop: '
-             f"feature noise {meta.get('feature_noise_px')} px per value (measured, every "
-             f'frame and {_teach_noise(meta.get("conditions") or {})}), lost frames held. '
-             'Graph: '
-             f"lockstep, `{SCENARIO}`'s rates and gains. Both at {meta.get('resolution')}.",
-             '',
-             '## Success per law', ''] + summary_table(summary)
-    if agree:
-        lines += ['', '## Model loop against the graph (the tasks both ran)', '',
-                  "Agree: each rate lies within the other's 95 % Wilson interval.", '']
-        lines += agreement_table(agree)
-    lines += ['', '## Figures', ''] + [f'![{p.stem}]({p.name})' for p in figures]
-    misses = [r for r in rows if not r['success']]
-    if misses:
-        lines += ['', '## Misses', '', '| source | task | law | class | why |',
-                  '|---|---|---|---|---|']
-        lines += [f"| {r['source']} | {r['task']} | {r['law']} | {r['miss_reason']} | "
-                  f"{r.get('miss_reason_text', '')} |" for r in misses[:60]]
-        if len(misses) > 60:
-            lines.append(f'| ... | {len(misses) - 60} more in vsbench_runs.csv | | | |')
-    timing = meta.get('timing')
-    if timing:
-        lines += ['', '## Time', ''] + [f'- {line}' for line in timing]
-    path = out_dir / 'vsbench.md'
-    path.write_text('\n'.join(lines) + '\n')
-    return path
-
-
-def timing_lines(rows: Sequence[Mapping[str, Any]], walls: Mapping[str, float],
-                 workers: Mapping[str, int], tasks: int = TASKS, graph_tasks: int = 100,
-                 laws: int = len(LAWS)) -> list[str]:
-    """
-    Return the measured times and the extrapolation to the full benchmark (as words).
-
-    Full time = runs x mean wall time per run / runs at once, per stage:
-    ``tasks x laws x t_model / workers + graph_tasks x laws x t_graph / parallel``.
-    """
-    out = []
-    total = 0.0
-    for source, n in (('model', tasks), ('graph', graph_tasks)):
-        group = [float(r['wall_s']) for r in rows if r['source'] == source and r.get('wall_s')]
-        if not group:
-            continue
-        per_run = float(np.mean(group))
-        full = n * laws * per_run / max(1, workers[source])
-        total += full
-        out.append(f'{source}: {len(group)} runs in {walls.get(source, float("nan")):.0f} s '
-                   f'wall ({workers[source]} at once), {per_run:.2f} s per run (mean, '
-                   f'median {np.median(group):.2f} s); full: {n} x {laws} x {per_run:.2f} s / '
-                   f'{workers[source]} = {full / 60:.1f} min')
-    if out:
-        out.append(f'full benchmark, extrapolated: {total / 60:.1f} min '
-                   f'({"within" if total <= 7200 else "over"} two hours)')
-    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -2,8 +2,8 @@
 
 from ibvs_bringup import scenario
 from ibvs_common.shared_params import camera_pose_from
-from ibvs_experiments import calibrate, cli, handeye
-from ibvs_model import default_camera, StereoCamera
+from ibvs_experiments import calibrate, cli
+from ibvs_model import default_camera, handeye, StereoCamera
 from ibvs_sim.camera_effects import calibrated_pose
 from ibvs_testing.fixtures import spin_until
 import numpy as np

@@ -2,9 +2,9 @@
 
 import dataclasses
 
+from ibvs_analysis.metrics import compute_metrics
 from ibvs_control.servo_laws import SERVO_LAWS
 from ibvs_experiments import laws_report
-from ibvs_experiments.analysis import compute_metrics
 from ibvs_model import IRB4600
 import numpy as np
 import pytest

@@ -73,9 +73,9 @@ def test_every_node_rule_is_checked_before_start_and_scenario1_keeps_them():
 
 
 def test_a_servo_law_with_its_feedforward_passes():
-    from ibvs_control.servo_laws import feedforward_overrides, SERVO_LAWS
+    from ibvs_control.servo_laws import SERVO_LAWS
     for law in SERVO_LAWS:
-        runner.resolve('scenario1', {'servo_law': law, **feedforward_overrides(law)})
+        runner.resolve('scenario1', runner.with_servo_law({'servo_law': law}))
 
 
 @pytest.mark.parametrize('interface, camera, physics', list(itertools.product(

@@ -130,20 +130,20 @@ def test_the_metrics_are_handed_over_before_the_figures_are_drawn(monkeypatch, t
     order = []
     run_data = type('Run', (), {'params': {}, 'run_info': {}, 'joints': ([],),
                                 'joint_limits': None})()
-    monkeypatch.setattr(runner.analysis, 'analyse_bag',
+    from ibvs_analysis import plots, results
+    monkeypatch.setattr(results.analysis, 'analyse_bag',
                         lambda bag: (run_data, {'sim_duration_s': 1.0}))
-    monkeypatch.setattr(runner, 'target_features', lambda run: None)
-    from ibvs_experiments import plots
+    monkeypatch.setattr(results, 'target_features', lambda run: None)
     monkeypatch.setattr(plots, 'write_all', lambda *a: order.append('figures'))
 
     def on_metrics(metrics):
         assert (tmp_path / 'metrics.json').is_file()
         order.append(('metrics', metrics['real_time_factor']))
 
-    runner.write_results(tmp_path / 'bag', tmp_path, 2.0, True, on_metrics)
+    results.write_results(tmp_path / 'bag', tmp_path, 2.0, True, on_metrics)
     assert order == [('metrics', 0.5), 'figures']
     order.clear()
-    runner.write_results(tmp_path / 'bag', tmp_path, 2.0, False, on_metrics)
+    results.write_results(tmp_path / 'bag', tmp_path, 2.0, False, on_metrics)
     assert order == [('metrics', 0.5)]
 
 

@@ -3,7 +3,7 @@
 import json
 import math
 
-from ibvs_experiments import vsbench
+from ibvs_experiments import vsbench, vsbench_report, vsbench_tasks
 from ibvs_model import IRB4600
 import numpy as np
 import pytest
@@ -31,28 +31,28 @@ def test_the_committed_benchmark_file_is_what_its_definition_writes():
     # libm, whose last bits differ between machines and builds: every text and integer must
     # be the same, every float the same to 1e-9 relative (the seeds and draws that decide a
     # task are integers or come out of numpy's generator, identical everywhere).
-    path = vsbench.benchmark_path()
-    written = vsbench.dumps(vsbench.definition(vsbench.TASKS))
+    path = vsbench_tasks.benchmark_path()
+    written = vsbench_tasks.dumps(vsbench_tasks.definition(vsbench_tasks.TASKS))
     _same(json.loads(path.read_text()), json.loads(written))
-    data = vsbench.load(path)
-    assert len(data['tasks']) == vsbench.TASKS
-    assert len({t['id'] for t in data['tasks']}) == vsbench.TASKS
+    data = vsbench_tasks.load(path)
+    assert len(data['tasks']) == vsbench_tasks.TASKS
+    assert len({t['id'] for t in data['tasks']}) == vsbench_tasks.TASKS
 
 
 def test_a_shorter_definition_is_a_prefix_of_the_longer_one():
-    assert vsbench.definition(7)['tasks'] == vsbench.definition(12)['tasks'][:7]
+    assert vsbench_tasks.definition(7)['tasks'] == vsbench_tasks.definition(12)['tasks'][:7]
 
 
 def test_the_imperfections_stay_within_their_bounds():
-    draws = vsbench.imperfections(400)
+    draws = vsbench_tasks.imperfections(400)
     xyz = np.array([d['camera_pose_error_xyz_m'] for d in draws])
     rpy = np.array([d['camera_pose_error_rpy_deg'] for d in draws])
     focal = np.array([d['focal_length_error'] for d in draws])
-    assert np.abs(xyz).max() <= vsbench.POSITION_ERROR_M
-    assert np.abs(rpy).max() <= vsbench.ROTATION_ERROR_DEG
-    assert np.abs(focal - 1.0).max() <= vsbench.FOCAL_ERROR
+    assert np.abs(xyz).max() <= vsbench_tasks.POSITION_ERROR_M
+    assert np.abs(rpy).max() <= vsbench_tasks.ROTATION_ERROR_DEG
+    assert np.abs(focal - 1.0).max() <= vsbench_tasks.FOCAL_ERROR
     # uniform over the whole range, not a corner of it
-    assert np.abs(xyz).max() > 0.9 * vsbench.POSITION_ERROR_M
+    assert np.abs(xyz).max() > 0.9 * vsbench_tasks.POSITION_ERROR_M
     assert all(isinstance(d['camera_seed'], int) for d in draws)
     assert len({d['camera_seed'] for d in draws}) == len(draws)
 
@@ -61,7 +61,7 @@ def test_a_file_of_another_version_is_refused(tmp_path):
     path = tmp_path / 'b.json'
     path.write_text('{"version": "vsbench-0", "tasks": []}')
     with pytest.raises(ValueError, match='vsbench-0'):
-        vsbench.load(path)
+        vsbench_tasks.load(path)
 
 
 @pytest.mark.parametrize('seed', range(5))
@@ -70,14 +70,14 @@ def test_the_wilson_interval_is_scipys_and_holds_the_rate(seed):
     for _ in range(40):
         n = int(rng.integers(1, 600))
         k = int(rng.integers(0, n + 1))
-        low, high = vsbench.wilson(k, n)
+        low, high = vsbench_report.wilson(k, n)
         ci = stats.binomtest(k, n).proportion_ci(0.95, method='wilson')
         assert (low, high) == (ci.low, ci.high)
         assert 0.0 <= low <= k / n <= high <= 1.0
         # more runs at the same rate: a narrower interval
-        low2, high2 = vsbench.wilson(4 * k, 4 * n)
+        low2, high2 = vsbench_report.wilson(4 * k, 4 * n)
         assert high2 - low2 < high - low
-    assert all(math.isnan(v) for v in vsbench.wilson(0, 0))
+    assert all(math.isnan(v) for v in vsbench_report.wilson(0, 0))
 
 
 def _row(task, law, success, source='model', **extra):
@@ -95,12 +95,12 @@ def test_the_summary_counts_each_law_and_takes_its_interval_from_scipy(seed):
     rows = [_row(f't{i}', law, bool(rng.random() < p), source)
             for source in ('model', 'graph') for law, p in (('paper', 0.9), ('ibvs', 0.3))
             for i in range(int(rng.integers(1, 80)))]
-    for s in vsbench.summarise(rows):
+    for s in vsbench_report.summarise(rows):
         group = [r for r in rows if r['source'] == s['source'] and r['law'] == s['law']]
         wins = sum(r['success'] for r in group)
         assert (s['runs'], s['successes']) == (len(group), wins)
         assert s['rate'] == wins / len(group)
-        assert (s['ci_low'], s['ci_high']) == vsbench.wilson(wins, len(group))
+        assert (s['ci_low'], s['ci_high']) == vsbench_report.wilson(wins, len(group))
         assert sum(s['miss_classes'].values()) == len(group) - wins
         assert s['interventions'] == 2 * len(group)
 
@@ -108,19 +108,19 @@ def test_the_summary_counts_each_law_and_takes_its_interval_from_scipy(seed):
 def test_model_and_graph_agree_when_they_match_and_not_when_they_are_far_apart():
     same = [_row(f't{i}', 'paper', i % 10 != 0, s) for s in ('model', 'graph')
             for i in range(100)]
-    (entry,) = vsbench.agreement(same)
+    (entry,) = vsbench_report.agreement(same)
     assert entry['agree'] and entry['same_verdict'] == 100 and entry['tasks'] == 100
     apart = [_row(f't{i}', 'paper', s == 'model' or i < 20, s) for s in ('model', 'graph')
              for i in range(100)]
-    (entry,) = vsbench.agreement(apart)
+    (entry,) = vsbench_report.agreement(apart)
     assert not entry['agree'] and entry['graph']['successes'] == 20
     # only the tasks both ran are compared
     extra = same + [_row('only-model', 'paper', False, 'model')]
-    assert vsbench.agreement(extra)[0]['tasks'] == 100
+    assert vsbench_report.agreement(extra)[0]['tasks'] == 100
 
 
 def test_run_metrics_count_limit_violations_and_path_length():
-    task = vsbench.load()['tasks'][0]
+    task = vsbench_tasks.load()['tasks'][0]
     q0, q1 = np.array(task['start_joints']), np.array(task['target_joints'])
     s = np.linspace(0.0, 1.0, 200)[:, None]
     q = q0 + s * (q1 - q0)
@@ -139,7 +139,7 @@ def test_run_metrics_count_limit_violations_and_path_length():
 
 
 def test_graph_overrides_carry_the_task_and_its_imperfections():
-    bench = vsbench.load()
+    bench = vsbench_tasks.load()
     spec = vsbench.graph_spec(bench, 2, ('paper', 'ibvs'))
     runs = spec.runs()
     assert len(runs) == 4
@@ -160,9 +160,9 @@ def test_scenario3_start_reaches_shifted_targets_without_the_over_the_head_branc
     # synchronised move along the straight joint-space line to it: the tool passes the
     # target only as far as that line's own bend does, never further (the feedback, designed
     # for the 67 ms latency, adds nothing to it).
+    from ibvs_analysis.metrics import compute_metrics
     from ibvs_control.closed_loop import LoopConfig, simulate
     from ibvs_model import forward_kinematics_batch, IRB4600, paper
-    from ibvs_experiments.analysis import compute_metrics
     rng = np.random.default_rng(38)
     for k in range(6):
         shift = rng.normal(size=3)
@@ -201,8 +201,8 @@ def test_the_model_loops_acceleration_limits_are_the_first_targets_rounded_down(
 def test_the_sampler_margins_are_those_of_their_sources():
     # ibvs_model cannot import ibvs_control or ibvs_experiments: its two measured margins
     # are copies, tied here to what they stand for (task_sampler's module docstring).
+    from ibvs_analysis.convergence import SUCCESS
     from ibvs_control.envelope import LOWER_SINGULARITY_THRESHOLD
-    from ibvs_experiments.convergence import SUCCESS
     from ibvs_model.task_sampler import Margins
     margins = Margins()
     assert margins.max_condition_number == LOWER_SINGULARITY_THRESHOLD

@@ -7,7 +7,7 @@ shaft and spheres, their colours: :mod:`.urdf`, :mod:`.mass_model`), the detecto
 (ibvs_vision.detector: the marker radius and colours it looks for) and the viewers read
 :data:`TOOL`, under the names :mod:`.scene` and :mod:`.mass_model` give them.
 docs/tool.md draws it with the detector's tolerances (``python -m
-ibvs_experiments.tool_figure docs/tool.png``).
+ibvs_analysis.tool_figure docs/tool.png``).
 
 The paper fixes the tool's length (L_tool, Table 2) and where the two circular fiducials
 sit on it (section 3.1: P1 = [0, 0, 0]{E}, the flange centre; P2 = [0, 0, L_tool / 2]{E},

@@ -6,10 +6,10 @@ and its bag's times the wall clock's (no /clock). A rehearsal's bag that carries
 record has the true tool pose where the tool was taught as its target.
 """
 
+from ibvs_analysis import analysis
 from ibvs_bringup.recorder import Recorder
 from ibvs_common import contract
 from ibvs_common.conversions import joint_state, path_msg
-from ibvs_experiments import analysis
 from ibvs_model import forward_kinematics, inverse_kinematics, paper
 from ibvs_testing.fixtures import spin_until
 from nav_msgs.msg import Path

@@ -29,7 +29,8 @@ from typing import Any
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np
 
-from .analysis import axis_angle_deg, load_joints, load_run
+from .analysis import load_joints, load_run
+from .metrics import axis_angle_deg
 
 #: Samples of the run used (s of sim time between them), and points along the path.
 SAMPLE_S = 0.01
@@ -134,8 +135,8 @@ def plot(numbers: dict[str, Any], series: dict[str, np.ndarray], path: Path) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m ibvs_experiments.local_minimum BAG [-o DIR]``."""
-    parser = argparse.ArgumentParser(prog='python -m ibvs_experiments.local_minimum',
+    """``python -m ibvs_analysis.local_minimum BAG [-o DIR]``."""
+    parser = argparse.ArgumentParser(prog='python -m ibvs_analysis.local_minimum',
                                      description=__doc__.strip().splitlines()[0])
     parser.add_argument('bag', help="a run's bag folder")
     parser.add_argument('-o', '--out', default='results', help='where the PNG and JSON go')

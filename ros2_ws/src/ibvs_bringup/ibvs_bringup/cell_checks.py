@@ -1,12 +1,13 @@
 """
 What ``ibvs cell`` checks before any node starts: its parameters, names and topics.
 
-The pure parts of :mod:`.cell` (its module docstring, steps 1 and 2, is the contract): the
-cell's parameters (:func:`cell_parameters`), the names of the camera's and the controller's
-topics and the nodes' remappings to them (:func:`camera_topics`, :func:`command_topic`,
-:func:`remaps`), what each topic must offer (:func:`expectations`) and what is wrong with
-what the graph shows (:func:`problems`, :func:`wait_for_topics`, :func:`wait_for_camera_info`,
-:func:`foreign_publishers`). :mod:`.cell` re-exports every name.
+The checks of ``ibvs cell`` (ibvs_experiments.cell, whose module docstring, steps 1 and 2,
+is the contract) before it brings up the cell's nodes: the cell's parameters
+(:func:`cell_parameters`), the names of the camera's and the controller's topics and the
+nodes' remappings to them (:func:`camera_topics`, :func:`command_topic`, :func:`remaps`),
+what each topic must offer (:func:`expectations`) and what is wrong with what the graph
+shows (:func:`problems`, :func:`wait_for_topics`, :func:`wait_for_camera_info`,
+:func:`foreign_publishers`). ``ibvs cell`` re-exports every name.
 """
 
 import argparse

@@ -1,8 +1,8 @@
 """
 The tool a cell needs, drawn with what the detector accepts: docs/tool.md's figure.
 
-``python -m ibvs_experiments.tool_figure docs/tool.png``. Every number comes from the code
-that uses it: the tool (:data:`ibvs_model.tool.TOOL`; the fiducial points of the model,
+``python -m ibvs_analysis.tool_figure docs/tool.png`` (docs/tool.md). Every number comes from the code that uses it: the
+tool (:data:`ibvs_model.tool.TOOL`; the fiducial points of the model,
 :attr:`ibvs_model.robot.RobotParams.fiducials_E`) and the detector's defaults
 (:class:`ibvs_vision.detector.config.DetectorConfig`; the colour scores of
 :mod:`ibvs_vision.detector.colour`), gathered by :func:`facts`, which docs/tool.md's test
@@ -164,8 +164,8 @@ def draw(path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m ibvs_experiments.tool_figure PATH``: write the figure."""
-    parser = argparse.ArgumentParser(prog='python -m ibvs_experiments.tool_figure',
+    """``python -m ibvs_analysis.tool_figure PATH``: write the figure."""
+    parser = argparse.ArgumentParser(prog='python -m ibvs_analysis.tool_figure',
                                      description=__doc__.strip().splitlines()[0])
     parser.add_argument('path', help='the PNG to write (docs/tool.png)')
     args = parser.parse_args(argv)

@@ -3,8 +3,8 @@
 import json
 from pathlib import Path
 
+from ibvs_analysis import local_minimum
 from ibvs_control.closed_loop import LoopConfig, simulate
-from ibvs_experiments import local_minimum
 from ibvs_model import default_model, inverse_kinematics, IRB4600, paper
 import numpy as np
 

@@ -81,7 +81,7 @@ SUCCESS = Convergence(1e-3, 0.5)
 #: for that long (sim time): ten times tighter than :data:`SUCCESS` in position and fifty
 #: times in angle, so that a run cut short has settled well inside it. A stopping rule.
 HOLD = Convergence(1e-4, 0.01)
-#: ``time_to_1mm_s`` (:mod:`ibvs_experiments.analysis`): the first time after which the
+#: ``time_to_1mm_s`` (:mod:`.metrics`): the first time after which the
 #: position error stays within :data:`SUCCESS`'s 1 mm (the paper's "1 mm" milestone).
 REACHED = Convergence(SUCCESS.position_m)
 #: A run whose position or axis error in its last 0.5 s fell by less than this share of the

@@ -1,6 +1,6 @@
 """analysis.feature_errors: measured features against the true projection."""
 
-from ibvs_experiments.analysis import feature_errors, RunData
+from ibvs_analysis.analysis import feature_errors, RunData
 from ibvs_model import (forward_kinematics, inverse_kinematics, IRB4600, look_at, paper,
                         StereoCamera, StereoIntrinsics)
 import numpy as np

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from ibvs_experiments import tool_figure
+from ibvs_analysis import tool_figure
 from ibvs_model import IRB4600, RobotParams
 from ibvs_model.mass_model import tool_shapes
 from ibvs_model.tool import TOOL, Tool
@@ -63,7 +63,7 @@ def test_the_page_states_the_numbers_the_code_uses():
                   f"within {f['radius_tolerance'] * 100:g} %", f"within {f['min_roundness']:g}",
                   f"{f['rod_radius_mm']:g} mm of radius",
                   f"within {f['epipolar_tolerance_px']:g} px", 'tool.png',
-                  'python -m ibvs_experiments.tool_figure docs/tool.png'):
+                  'python -m ibvs_analysis.tool_figure docs/tool.png'):
         assert words in text, words
     for c in f['colours']:
         assert f"sRGB {c['rgb']}" in text

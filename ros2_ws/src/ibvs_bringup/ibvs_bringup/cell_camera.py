@@ -1,8 +1,8 @@
 """
 What ``ibvs cell`` checks of the camera_info it receives before any node starts (no ROS).
 
-The topic check (:func:`.cell.wait_for_topics`) finds the ZED wrapper's topics; what is on
-them can still be another camera than the cell's. zed-ros2-wrapper's defaults change it:
+The topic check (:func:`.cell_checks.wait_for_topics`) finds the ZED wrapper's topics; what
+is on them can still be another camera than the cell's. zed-ros2-wrapper's defaults change it:
 up to v5.2.2 ``general.pub_resolution: 'CUSTOM'`` with ``general.pub_downscale_factor:
 2.0`` publishes HD720 as 640 x 360 (NATIVE the default from v5.3.1;
 ``zed_wrapper/config/common_stereo.yaml`` L28-39 at 33dfefa), which halves the focal

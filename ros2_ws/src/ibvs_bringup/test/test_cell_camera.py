@@ -1,7 +1,7 @@
-"""What ibvs cell checks of the camera_info it receives (ibvs_experiments.cell_camera)."""
+"""What ibvs cell checks of the camera_info it receives (ibvs_bringup.cell_camera)."""
 
+from ibvs_bringup.cell_camera import camera_problems, native_mode
 from ibvs_common.conversions import camera_infos
-from ibvs_experiments.cell_camera import camera_problems, native_mode
 from ibvs_model.camera import StereoIntrinsics
 
 LEFT = '/zed/zed_node/left/color/rect/camera_info'

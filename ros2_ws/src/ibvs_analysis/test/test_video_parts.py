@@ -2,7 +2,7 @@
 
 import math
 
-from ibvs_experiments import video
+from ibvs_analysis import video
 import numpy as np
 import pytest
 

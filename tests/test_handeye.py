@@ -2,8 +2,7 @@
 
 import math
 
-from ibvs_experiments import handeye
-from ibvs_model import default_camera, StereoCamera
+from ibvs_model import default_camera, handeye, StereoCamera
 from ibvs_sim.camera_effects import calibrated_pose
 import numpy as np
 import pytest

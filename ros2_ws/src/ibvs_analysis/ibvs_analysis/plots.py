@@ -15,7 +15,7 @@ Figures of one run, in the style of the paper's Figures 10-12, and more.
 - ``feature_error.png``: each marker's image error |p_I - p_bar| (px) against time, log
   axis, coloured by the frame's mode; p_bar is the target the controller used: the taught
   features in a taught run (``target_features_source: taught``), else F(q_target)
-  (:func:`ibvs_experiments.runner.target_features`);
+  (:func:`.results.target_features`);
 - ``joints.png`` (with :func:`joints`): joint angles, speeds and torques against their
   limits.
 """
@@ -55,7 +55,7 @@ def transient_window(run: 'RunData') -> float:
     """
     t = run.t - run.t[0]
     error = np.linalg.norm(run.position - run.target[:3, 3], axis=1)
-    from .analysis import _settle_time  # the rule of settling_time_2pct_s
+    from .metrics import _settle_time  # the rule of settling_time_2pct_s
     settle = _settle_time(t, error <= 0.02 * error[0])
     if settle is None:
         return float(t[-1])
@@ -202,7 +202,7 @@ def feature_timeline(run: 'RunData', path: str | Path) -> None:
 
 def error_vs_time(run: 'RunData', path: str | Path) -> None:
     """Plot the position and tool-axis error norms, log axis, with the transient inset."""
-    from .analysis import axis_angle_deg
+    from .metrics import axis_angle_deg
     t = run.t - run.t[0]
     errors = (np.linalg.norm(run.position - run.target[:3, 3], axis=1) * 1e3,
               axis_angle_deg(run.rotation, run.target[:3, :3]))

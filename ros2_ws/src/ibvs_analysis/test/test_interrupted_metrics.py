@@ -1,6 +1,6 @@
 """A run that SIGINT stopped is no success, however close to the target it was."""
 
-from ibvs_experiments import analysis
+from ibvs_analysis.metrics import compute_metrics, interrupted_outcome
 import numpy as np
 
 
@@ -12,14 +12,14 @@ def converged_metrics():
     rotation = np.repeat(np.eye(3)[None], len(t), axis=0)
     tf = np.eye(4)
     tf[:3, 3] = target
-    metrics = analysis.compute_metrics(t, position, rotation, tf)
+    metrics = compute_metrics(t, position, rotation, tf)
     assert metrics['success'] and metrics['miss_reason'] is None
     return metrics
 
 
 def test_an_interrupted_run_misses_and_says_why():
-    metrics = analysis.interrupted_outcome(converged_metrics(), {'interrupted': True,
-                                                                 'duration_s': 3.0})
+    metrics = interrupted_outcome(converged_metrics(), {'interrupted': True,
+                                                        'duration_s': 3.0})
     assert metrics['success'] is False
     assert metrics['miss_reason'].startswith('interrupted (SIGINT) at 0.999 s of sim time: ')
     assert 'final ' in metrics['miss_reason'] and ' deg' in metrics['miss_reason']
@@ -27,5 +27,5 @@ def test_an_interrupted_run_misses_and_says_why():
 
 def test_a_run_that_ran_its_time_keeps_its_outcome():
     for run_info in ({}, {'interrupted': False}):
-        assert analysis.interrupted_outcome(converged_metrics(), run_info) == \
+        assert interrupted_outcome(converged_metrics(), run_info) == \
             converged_metrics()

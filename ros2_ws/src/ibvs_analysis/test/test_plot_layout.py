@@ -2,7 +2,7 @@
 
 from types import SimpleNamespace
 
-from ibvs_experiments import plots
+from ibvs_analysis import plots
 import matplotlib.pyplot as plt
 import numpy as np
 

@@ -503,8 +503,9 @@ class Film:
 
     def __init__(self, run_dir: str | Path, time_map: TimeMap = DEFAULT_TIME_MAP) -> None:
         """Read the run's tool poses, target features and duration from its bag."""
-        from .analysis import axis_angle_deg, load_run
-        from .runner import target_features
+        from .analysis import load_run
+        from .metrics import axis_angle_deg
+        from .results import target_features
         run = load_run(Path(run_dir) / 'bag')
         self.time_map = time_map
         self.t_ns = np.round(run.t * 1e9).astype(np.int64)

@@ -1,6 +1,6 @@
 """feature_error.png of a taught run compares against the taught target the controller used."""
 
-from ibvs_experiments import analysis, runner
+from ibvs_analysis import analysis, results
 import numpy as np
 
 
@@ -20,8 +20,8 @@ def test_the_last_taught_value_on_diagnostics_is_read():
 
 def test_a_taught_run_is_compared_with_its_taught_target():
     taught = np.arange(6.0)
-    assert runner.target_features(_run('taught', taught)) is taught
+    assert results.target_features(_run('taught', taught)) is taught
     # A model run (and a taught one without the value: an older bag) keep F(q_target),
     # which needs the recorded camera: none here.
-    assert runner.target_features(_run('model', taught)) is None
-    assert runner.target_features(_run('taught', None)) is None
+    assert results.target_features(_run('model', taught)) is None
+    assert results.target_features(_run('taught', None)) is None

@@ -1,6 +1,6 @@
 """The free-running metrics from their records (pure; no bag, no rclpy)."""
 
-from ibvs_experiments.analysis import free_running_metrics
+from ibvs_analysis.metrics import free_running_metrics
 import numpy as np
 import pytest
 
@@ -43,7 +43,7 @@ def test_a_lockstep_run_gains_no_keys():
 
 def test_the_render_device_comes_from_the_simulators_diagnostics():
     """render_device and render_hardware, from /diagnostics strings."""
-    from ibvs_experiments.analysis import render_metrics
+    from ibvs_analysis.metrics import render_metrics
     assert render_metrics({'render_device': 'llvmpipe (LLVM 15.0.6, 256 bits)',
                            'render_hardware': 'False'}) == {
         'render_device': 'llvmpipe (LLVM 15.0.6, 256 bits)', 'render_hardware': False}

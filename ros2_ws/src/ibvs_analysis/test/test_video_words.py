@@ -1,6 +1,6 @@
 """The film's progress and its summary count the same things by the same names."""
 
-from ibvs_experiments import video
+from ibvs_analysis import video
 import numpy as np
 
 

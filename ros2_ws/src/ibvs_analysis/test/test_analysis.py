@@ -1,14 +1,14 @@
 """
 Metrics of a run, on responses whose settling time and overshoot are known in closed form.
 
-And the joint series of a bag (:func:`ibvs_experiments.analysis.load_joints`), recorded by
+And the joint series of a bag (:func:`ibvs_analysis.analysis.load_joints`), recorded by
 the recorder as a run records them.
 """
 
 import math
 
+from ibvs_analysis import analysis, metrics
 from ibvs_bringup import scenario
-from ibvs_experiments import analysis
 from ibvs_testing.fixtures import spin_until
 import numpy as np
 import pytest
@@ -35,7 +35,7 @@ def test_butterworth_step_overshoot_and_settling():
     t = np.arange(0.0, 3.0, 1e-4)
     start, target = np.array([1.0, 0.2, 1.0]), np.array([-1.0, 0.2, 0.3])
     position, rotation, tf = make_run(second_order_step(t, zeta, wn), t, start, target)
-    m = analysis.compute_metrics(t, position, rotation, tf)
+    m = metrics.compute_metrics(t, position, rotation, tf)
     step = np.abs(target - start)
     expected_overshoot = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2)) * step.max()
     assert m['max_overshoot_m'] == pytest.approx(
@@ -61,12 +61,12 @@ def test_monotone_approach_has_no_overshoot_and_never_settling_is_none():
     t = np.linspace(0.0, 1.0, 1001)
     y = 1 - np.exp(-5 * t)
     position, rotation, tf = make_run(y, t, np.zeros(3), np.array([0.0, 0.0, 1.0]))
-    m = analysis.compute_metrics(t, position, rotation, tf)
+    m = metrics.compute_metrics(t, position, rotation, tf)
     assert m['max_overshoot_m'] == 0.0
     assert m['time_to_1mm_s'] is None
     # A sideways swing is not an overshoot: it is the lateral excursion.
     swing = position + np.outer(np.sin(np.pi * t), [0.3, 0.0, 0.0])
-    m = analysis.compute_metrics(t, swing, rotation, tf)
+    m = metrics.compute_metrics(t, swing, rotation, tf)
     assert m['max_overshoot_m'] == 0.0
     assert m['max_lateral_excursion_m'] == pytest.approx(0.3, rel=1e-6)
     assert m['overshoot_xyz_m'][0] == pytest.approx(0.3, rel=1e-6)  # e(1 s) = exp(-5) m = 6.7 mm
@@ -78,21 +78,21 @@ def test_tool_axis_error_is_accurate_for_small_angles():
     for angle in (1e-9, 1e-5, 0.1, 3.0):
         c, s = math.cos(angle), math.sin(angle)
         rot = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])[None]
-        assert analysis.axis_angle_deg(rot, target)[0] == pytest.approx(math.degrees(angle),
-                                                                        rel=1e-6)
+        assert metrics.axis_angle_deg(rot, target)[0] == pytest.approx(math.degrees(angle),
+                                                                       rel=1e-6)
 
 
 def test_estimated_time_holds_each_mode_until_the_next_frame():
-    assert analysis.estimated_time(np.array([0.0, 0.1, 0.2]),
-                                   ['estimated', 'blending', 'measured'], 0.5) \
+    assert metrics.estimated_time(np.array([0.0, 0.1, 0.2]),
+                                  ['estimated', 'blending', 'measured'], 0.5) \
         == pytest.approx(0.2)
-    assert analysis.estimated_time(np.array([0.0]), ['estimated'], 1.5) == pytest.approx(1.5)
-    assert analysis.estimated_time(np.zeros(0), [], 1.0) == 0.0
+    assert metrics.estimated_time(np.array([0.0]), ['estimated'], 1.5) == pytest.approx(1.5)
+    assert metrics.estimated_time(np.zeros(0), [], 1.0) == 0.0
 
 
 def test_too_short_run_is_rejected():
     with pytest.raises(ValueError, match='two tool poses'):
-        analysis.compute_metrics([0.0], np.zeros((1, 3)), np.eye(3)[None], np.eye(4))
+        metrics.compute_metrics([0.0], np.zeros((1, 3)), np.eye(3)[None], np.eye(4))
 
 
 def test_scenario_overrides_and_parameter_files(tmp_path):
@@ -124,7 +124,7 @@ def test_mean_and_max_error_over_the_last_half_second():
     rotation = np.zeros((t.size, 3, 3))
     rotation[:, 0, 0] = 1.0
     rotation[:, 1, 1], rotation[:, 1, 2], rotation[:, 2, 1], rotation[:, 2, 2] = c, -s, s, c
-    m = analysis.compute_metrics(t, position, rotation, target)
+    m = metrics.compute_metrics(t, position, rotation, target)
     last = t >= t[-1] - 0.5
     assert m['final_position_error_m'] == pytest.approx(0.0, abs=1e-15)
     assert m['max_position_error_last_0_5s_m'] == pytest.approx(0.003, rel=1e-6)
@@ -136,42 +136,8 @@ def test_mean_and_max_error_over_the_last_half_second():
     # the ripple: from the sine's zero to its peak
     assert m['position_error_ripple_last_0_5s_m'] == pytest.approx(0.003, rel=1e-6)
     # a run shorter than the window: the whole run
-    short = analysis.compute_metrics(t[:100], position[:100], rotation[:100], target)
+    short = metrics.compute_metrics(t[:100], position[:100], rotation[:100], target)
     assert short['max_position_error_last_0_5s_m'] == pytest.approx(0.01)
-
-
-def test_report_verdicts_follow_the_papers_words():
-    from ibvs_experiments.report import claims
-    good = {'time_to_1mm_s': 0.25, 'settling_time_2pct_s': 0.2, 'max_overshoot_m': 0.002,
-            'final_position_error_m': 2e-4, 'final_tool_axis_error_deg': 0.05,
-            'time_estimated_s': 0.3, 'initial_position_error_m': 2.5,
-            'peak_joint_speed_ratio': 32.74, 'peak_joint_torque_ratio': 6.3e3}
-    worst = {'link': 'L2', 'scale': 0.5, 'final_position_error_m': 3e-4,
-             'metrics': {'initial_position_error_m': 2.5}}
-    rows = claims(good, good, good, worst)
-    assert all(row[-1].startswith('met') for row in rows)
-    # each claim names its actuators and how hard they were driven
-    assert rows[0][3] == ('ideal (unlimited): peak joint speed 32.7x rated, torque 6.3e+03x '
-                          'the estimated limit')
-    assert "not run with the IRB 4600's limits" in rows[0][-1]
-    bad = dict(good, max_overshoot_m=0.045, time_to_1mm_s=None, settling_time_2pct_s=0.5)
-    verdicts = [row[-1] for row in claims(bad, bad, good, dict(
-        worst, final_position_error_m=0.03))]
-    assert [v.split(' (')[0].split(';')[0] for v in verdicts] == [
-        'not met', 'not met', 'met', 'not met', 'met', 'not met']
-    # met with ideal actuators only: the verdict says so, with the limited run's numbers
-    slow = dict(good, time_to_1mm_s=1.9, settling_time_2pct_s=0.9, max_overshoot_m=0.001,
-                final_tool_axis_error_deg=0.6, peak_joint_speed_ratio=1.0)
-    rows = claims(good, good, good, worst, {'scenario1': slow, 'scenario2': good})
-    assert rows[0][-1] == ("met with ideal actuators (2 % settling); with the IRB 4600's "
-                           'limits: not met (2 % settling 0.900 s, within 1 mm from 1.900 s)')
-    assert "IRB 4600's limits, 0.067 s latency: peak joint speed 1x rated" in rows[0][3]
-    assert rows[1][-1].startswith('met (at most 5 mm read as small), with ideal actuators '
-                                  "and with the IRB 4600's limits")
-    assert rows[2][-1].startswith('met with ideal actuators (within 1 mm and 0.5 deg); with '
-                                  "the IRB 4600's limits: not met")
-    assert rows[3][-1].startswith('met (within 1 mm in under 1 s), with ideal')
-    assert "not run with the IRB 4600's limits" in rows[4][-1]
 
 
 @pytest.fixture
@@ -252,9 +218,9 @@ def test_the_final_image_error_is_the_last_frames_against_the_controllers_target
     off = p_bar + np.array([0.3, 0.0, 0.0, 0.0, 0.0, 0.4])  # 0.5 px off
     features = np.vstack([p_bar + 10.0, off])  # the last frame counts
     # the model's target: the fiducials at the target pose through the run's camera
-    assert analysis.final_image_error(features, None, model.camera, target) == \
+    assert metrics.final_image_error(features, None, model.camera, target) == \
         pytest.approx(0.5, abs=1e-6)
     # a taught target: the features the feature node measured on the teach pair
-    assert analysis.final_image_error(features, off, model.camera, target) == 0.0
-    assert analysis.final_image_error(features, None, None, target) is None
-    assert analysis.final_image_error(np.zeros((0, 6)), off, model.camera, target) is None
+    assert metrics.final_image_error(features, off, model.camera, target) == 0.0
+    assert metrics.final_image_error(features, None, None, target) is None
+    assert metrics.final_image_error(np.zeros((0, 6)), off, model.camera, target) is None

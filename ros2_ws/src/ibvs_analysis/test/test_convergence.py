@@ -1,15 +1,19 @@
-"""The one success criterion (ibvs_experiments.convergence) and why a run misses it."""
+"""The one success criterion (ibvs_analysis.convergence) and why a run misses it."""
 
 from pathlib import Path
 import re
+from types import SimpleNamespace
 
-from ibvs_experiments import convergence, study
-from ibvs_experiments.analysis import compute_metrics
+from ibvs_analysis import convergence, study_table
+from ibvs_analysis.metrics import compute_metrics
 import numpy as np
 import pytest
 
 SRC = Path(__file__).resolve().parents[2]
 DOCS = Path(__file__).resolve().parents[4] / 'docs'
+#: A study as its table reads it (ibvs_experiments.study_spec.Spec): nothing swept.
+SPEC = SimpleNamespace(name='s', scenario='scenario1', description='', draws=None,
+                       swept_names=lambda: [])
 
 
 def run_metrics(end_error_m=0.0, axis_deg=0.0, approach_s=0.5, duration_s=2.0, modes=None,
@@ -81,12 +85,12 @@ def test_metrics_say_success_and_why_not():
 
 
 def test_a_study_row_records_why_a_run_missed():
-    spec = study.study_spec.Spec(name='s', scenario='scenario1')
+    spec = SPEC
     ok = {'index': 0, 'swept': {}, 'status': 'ok', 'run_dir': 'a',
           'metrics': run_metrics(end_error_m=0.005)}
     failed = {'index': 1, 'swept': {}, 'status': 'failed', 'run_dir': 'b', 'metrics': None,
               'reason': 'run stalled: no sim-time progress for 60 s of wall time'}
-    rows = study.table_rows(spec, [ok, failed])
+    rows = study_table.table_rows(spec, [ok, failed])
     assert [r['success'] for r in rows] == [False, False]
     assert rows[0]['reason'].startswith('stalled at 2 s: final 5 mm')
     assert rows[1]['reason'] == 'run failed: run stalled: no sim-time progress for 60 s of ' \
@@ -101,30 +105,30 @@ def test_miss_reason_sorts_each_kind_of_miss_into_its_category():
     def failed(reason):
         return {'status': 'failed', 'metrics': None, 'reason': reason}
 
-    assert study.miss_category(finished(end_error_m=0.0)) == ''
-    assert study.miss_category(finished(end_error_m=0.005)) == 'stalled'
-    assert study.miss_category(finished(approach_s=4.0)) == 'timed out'
-    assert study.miss_category(finished(
+    assert study_table.miss_category(finished(end_error_m=0.0)) == ''
+    assert study_table.miss_category(finished(end_error_m=0.005)) == 'stalled'
+    assert study_table.miss_category(finished(approach_s=4.0)) == 'timed out'
+    assert study_table.miss_category(finished(
         end_error_m=0.01, modes=lambda x: 'measured' if x < 1.0 else 'estimated')) == \
         'lost features'
-    assert study.miss_category(failed("error: parameter 'omega_n' = 30.0 is invalid: ...; "
-                                      'exited with code 2')) == 'refused'
-    assert study.miss_category(failed('run failed: node sim_node died (exit -11)')) == \
+    assert study_table.miss_category(failed("error: parameter 'omega_n' = 30.0 is invalid: "
+                                            '...; exited with code 2')) == 'refused'
+    assert study_table.miss_category(failed('run failed: node sim_node died (exit -11)')) == \
         'node died'
-    assert study.miss_category(failed('run stalled: no sim-time progress')) == \
+    assert study_table.miss_category(failed('run stalled: no sim-time progress')) == \
         'graph stalled'
-    assert study.miss_category(failed('something else')) == 'failed'
+    assert study_table.miss_category(failed('something else')) == 'failed'
     # The table shows the free-running columns only where a run has them.
-    spec = study.study_spec.Spec(name='s', scenario='scenario1')
+    spec = SPEC
     free = {'index': 0, 'swept': {}, 'status': 'ok', 'run_dir': 'a',
             'metrics': {**run_metrics(end_error_m=0.0), 'frame_latency_mean_s': 0.05,
                         'real_time_factor_held_min': 0.9, 'frames_used': 12}}
     lockstep = {'index': 1, 'swept': {}, 'status': 'ok', 'run_dir': 'b',
                 'metrics': run_metrics(end_error_m=0.0)}
-    rows = study.table_rows(spec, [free, lockstep])
+    rows = study_table.table_rows(spec, [free, lockstep])
     assert rows[0]['frame_latency_mean_s'] == 0.05 and rows[1]['frames_used'] is None
     assert 'stale_holds' not in rows[0]
-    assert 'frame_latency_mean_s' not in study.table_rows(spec, [lockstep])[0]
+    assert 'frame_latency_mean_s' not in study_table.table_rows(spec, [lockstep])[0]
 
 
 def test_a_stall_with_a_small_image_error_far_off_is_a_local_minimum():
@@ -135,7 +139,7 @@ def test_a_stall_with_a_small_image_error_far_off_is_a_local_minimum():
     assert reason.startswith('local minimum of the image error at 2 s: image error 0.41 px, '
                              'yet the tool is 25.0 mm and 45.0 deg from the target; final '), \
         reason
-    assert study.reason_category(reason, failed=False) == 'local minimum'
+    assert study_table.reason_category(reason, failed=False) == 'local minimum'
     # the image says far too, or the features sit on their target: another stall
     for image_px in (5.0, 0.01, None):
         reason = run_metrics(end_error_m=0.025, axis_deg=45.0, image_px=image_px)['miss_reason']
