@@ -1,8 +1,8 @@
 """
 The tool a cell needs, drawn with what the detector accepts: docs/tool.md's figure.
 
-``python -m ibvs_analysis.tool_figure docs/tool.png`` (docs/tool.md). Every number comes from the code that uses it: the
-tool (:data:`ibvs_model.tool.TOOL`; the fiducial points of the model,
+``python -m ibvs_analysis.tool_figure docs/tool.png`` (docs/tool.md). Every number comes from
+the code that uses it: the tool (:data:`ibvs_model.tool.TOOL`; the fiducial points of the model,
 :attr:`ibvs_model.robot.RobotParams.fiducials_E`) and the detector's defaults
 (:class:`ibvs_vision.detector.config.DetectorConfig`; the colour scores of
 :mod:`ibvs_vision.detector.colour`), gathered by :func:`facts`, which docs/tool.md's test
