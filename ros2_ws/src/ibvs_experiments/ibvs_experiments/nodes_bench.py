@@ -21,7 +21,23 @@ measures that with the real nodes and no simulator:
    takes the joint state of exactly its stamp; so each frame is stamped so and gets a joint
    state of its stamp just before it (a camera triggered by the arm's clock). The bag is
    replayed again from its start when it ends, as long as asked. /stereo/pose and the teach
-   images are published once, latched.
+   images are published once, latched. Frame k of the replay is the bag's frame k with the
+   joint path at its exposure (its stamp less the recorded run's ``image_stamp_offset_s``),
+   the replay's stamps being the exposures (the nodes start from no stamp offset, and the
+   feature node's estimate stays within a millisecond of it). At another camera rate than
+   the bag's (a ZED 2 gives 60 Hz at HD720 too) the bag plays that much faster, each frame
+   in turn and the joint path (angles and speeds) scaled in time alike: what the camera
+   would see of a move that much faster; the nodes get that rate as their
+   ``camera_rate_hz``.
+2a. **The parts of a run** (:func:`segment`): a real-cell run slews to the markers' view
+   first (2 s of scenario 1, where a frame rarely holds both markers and the feature node
+   searches the whole images and falls back to the model) and then servoes with both
+   markers in view, where it spends the rest of the run and where the detector searches
+   windows around the predicted markers. Each frame is classified by the detector itself
+   (:func:`detectable_frames`: a full search of the pair, no budget), and 'servo' replays
+   the frames from the start of the longest run of detectable frames to its end, 'lost'
+   the frames before it, 'all' the whole bag: the hot path and the lost-marker path,
+   measured apart.
 3. **The nodes**: the four nodes of ``docs/real_cell.md`` "By hand", each its own process
    (``ros2 run``), with the bag's parameters but ``use_sim_time: false``, the ZED wrapper's
    topics remapped as the graph remaps them, DDS between them and to this process.
@@ -35,11 +51,14 @@ frames used; the frames sent and used (a frame the nodes skip has no command of 
 and the CPU time each node's process takes (user + system, /proc), per wall second and per
 frame sent, and this process's (the stand-in camera and driver). The latency counts the
 transfer of both images from this process to the feature node (DDS), which a camera driver
-in a process of its own costs too.
+in a process of its own costs too. Before each replay, where the feature node's CPU goes a
+frame (:func:`frame_split`: rclpy's deserialisation, the detector's stages, the node's own
+handling of the messages), measured in a process of its own (``python -m
+ibvs_experiments.nodes_bench split``).
 """
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import os
 from pathlib import Path
 import threading
@@ -54,6 +73,12 @@ import numpy as np
 WARMUP_S = 1.0
 #: How long the nodes may take to subscribe (wall s) before the replay gives up.
 START_TIMEOUT_S = 60.0
+#: The parts of a recording that can be replayed (module docstring, step 2a).
+SEGMENTS = ('servo', 'lost', 'all')
+#: The fewest frames a segment replays: less is not a part of the run worth a measurement.
+MIN_SEGMENT_FRAMES = 15
+#: detectable_frames of each bag measured in this process, by its path.
+_DETECTABLE = {}
 
 
 @dataclass
@@ -72,6 +97,19 @@ class Recording:
     params: dict
     #: The images' (width, height).
     size: tuple
+    #: The bag's camera rate (Hz): its frames are this far apart.
+    rate_hz: float = 30.0
+    #: Where the first frame's exposure is on the joint path (s from its start): the
+    #: replay sends the joint states from there on with it.
+    joint_offset_s: float = 0.0
+    #: Each frame's exposure on the joint path (s from its start): its stamp less the
+    #: recorded run's ``image_stamp_offset_s`` (the simulated camera's; 0 when none).
+    exposures_s: np.ndarray | None = None
+    #: The part of the bag (SEGMENTS) and its first frame's index in the bag.
+    segment: str = 'all'
+    first_frame: int = 0
+    #: The bag it was read from.
+    bag: str = ''
 
 
 def read_recording(bag_path: str | Path) -> Recording:
@@ -84,7 +122,7 @@ def read_recording(bag_path: str | Path) -> Recording:
     from sensor_msgs.msg import CameraInfo, Image
     import yaml
 
-    from . import analysis
+    from ibvs_analysis import analysis
 
     bag_path = Path(bag_path)
     meta = yaml.safe_load((bag_path / 'metadata.yaml').read_text())
@@ -106,8 +144,9 @@ def read_recording(bag_path: str | Path) -> Recording:
                 by_stamp.setdefault(stamp, {})[conn.topic] = msg
             else:
                 latched.setdefault(conn.topic, msg)
-    frames = [tuple(parts[t] for t in camera) for _, parts in sorted(by_stamp.items())
-              if len(parts) == len(camera)]
+    complete = [(stamp, parts) for stamp, parts in sorted(by_stamp.items())
+                if len(parts) == len(camera)]
+    frames = [tuple(parts[t] for t in camera) for _, parts in complete]
     if not frames:
         raise ValueError(f'{bag_path}: no stereo frame on the ZED wrapper topics (record a '
                          'real-cell run with --images)')
@@ -118,7 +157,92 @@ def read_recording(bag_path: str | Path) -> Recording:
     if len(joint_t) < 2:
         raise ValueError(f'{bag_path}: no joint path')
     size = (int(frames[0][0].width), int(frames[0][0].height))
-    return Recording(frames, joint_t - joint_t[0], joint_q, joint_qd, latched, params, size)
+    # Each frame's exposure on the joint path: its stamp less the simulated camera's offset.
+    exposures = np.array([stamp for stamp, _ in complete]) * 1e-9 \
+        - float(params.get('image_stamp_offset_s', 0.0)) - joint_t[0]
+    return Recording(frames, joint_t - joint_t[0], joint_q, joint_qd, latched, params, size,
+                     rate_hz=float(params.get('camera_rate_hz', 30.0)),
+                     joint_offset_s=float(exposures[0]), exposures_s=exposures,
+                     bag=str(bag_path))
+
+
+def detectable_frames(recording: Recording) -> np.ndarray:
+    """
+    Return whether the detector measures both markers in each frame of ``recording``.
+
+    A full search of each pair (no prediction, no budget), OpenCV on one thread, with the
+    camera of the bag's camera_info and /stereo/pose: what the frame holds, whatever the
+    nodes' state when it comes.
+    """
+    import cv2
+    from ibvs_common import contract
+    from ibvs_common.conversions import camera_from_msgs
+    from ibvs_vision.detector import StereoDetector
+    from ibvs_vision.imageconv import image_array
+
+    left_info, right_info = recording.frames[0][2:4]
+    camera = camera_from_msgs(left_info, right_info, recording.latched[contract.STEREO_POSE])
+    detector = StereoDetector(camera.intrinsics)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        out = []
+        for left, right, *_ in recording.frames:
+            (left, encoding), (right, _) = image_array(left), image_array(right)
+            out.append(detector.detect(left, right, encoding).ok)
+    finally:
+        cv2.setNumThreads(threads)
+    return np.array(out, dtype=bool)
+
+
+def segment_bounds(detectable: Sequence[bool], which: str) -> tuple[int, int]:
+    """
+    Return the frames [start, end) of part ``which`` of a run (module docstring, step 2a).
+
+    ``detectable``: whether each frame is (:func:`detectable_frames`). 'servo': the longest
+    run of detectable frames (the first of equal ones); 'lost': the frames before it;
+    'all': every frame. A part with no frame gives (start, start).
+    """
+    n = len(detectable)
+    if which == 'all':
+        return 0, n
+    if which not in SEGMENTS:
+        raise ValueError(f'segment {which!r}: expected one of {SEGMENTS}')
+    best, start = (0, 0), None
+    for i, ok in enumerate(list(detectable) + [False]):
+        if ok and start is None:
+            start = i
+        elif not ok and start is not None:
+            if i - start > best[1] - best[0]:
+                best = (start, i)
+            start = None
+    return best if which == 'servo' else (0, best[0])
+
+
+def segment(recording: Recording, which: str,
+            detectable: Sequence[bool] | None = None) -> Recording:
+    """
+    Return part ``which`` of ``recording`` (:data:`SEGMENTS`, :func:`segment_bounds`).
+
+    Its frames, and its joint path from the first of them on; ``detectable`` as
+    :func:`detectable_frames` returns it (computed when None). ValueError when the part has
+    fewer than MIN_SEGMENT_FRAMES frames.
+    """
+    if which == 'all':
+        return recording
+    if detectable is None:
+        detectable = detectable_frames(recording)
+    start, end = segment_bounds(detectable, which)
+    if end - start < MIN_SEGMENT_FRAMES:
+        raise ValueError(f'the bag has {end - start} frames of its {which!r} part (fewer than '
+                         f'{MIN_SEGMENT_FRAMES}; {int(np.sum(detectable))} of '
+                         f'{len(detectable)} frames detectable): record a longer run')
+    exposures = recording.exposures_s
+    return replace(recording, frames=recording.frames[start:end],
+                   exposures_s=None if exposures is None else exposures[start:end],
+                   joint_offset_s=recording.joint_offset_s + start / recording.rate_hz
+                   if exposures is None else float(exposures[start]),
+                   segment=which, first_frame=start)
 
 
 def process_cpu_s(group: int) -> float:
@@ -143,12 +267,22 @@ def latency_stats(sent: dict[int, int], commands: Sequence[tuple[int, int]],
     Return the frame-to-command latency (ms) of the frames sent at or after ``since_ns``.
 
     ``sent``: frame stamp -> wall time its first image was published (ns); ``commands``:
-    (command stamp, frame stamp) of each /ibvs/frame_latency. A frame counts once, with its
-    first command.
+    (command stamp, frame's exposure) of each /ibvs/frame_latency. The exposure is the
+    frame's stamp less the feature node's stamp offset applied, which its estimate moves
+    by fractions of a millisecond about the replay's zero (:func:`_node_params`): a command
+    is the frame's whose stamp is nearest, within half the frames' spacing. A frame counts
+    once, with its first command.
     """
+    stamps = np.array(sorted(sent), dtype=np.int64)
+    tolerance = int(np.diff(stamps).min()) // 2 if stamps.size > 1 else 0
     first = {}
-    for command_ns, frame_ns in commands:
-        if frame_ns in sent and sent[frame_ns] >= since_ns:
+    for command_ns, exposure_ns in commands:
+        i = int(np.searchsorted(stamps, exposure_ns))
+        near = [int(stamps[j]) for j in (i - 1, i) if 0 <= j < stamps.size]
+        if not near:
+            continue
+        frame_ns = min(near, key=lambda t: abs(t - exposure_ns))
+        if abs(frame_ns - exposure_ns) <= tolerance and sent[frame_ns] >= since_ns:
             first[frame_ns] = min(first.get(frame_ns, command_ns), command_ns)
     delays = np.array([(c - sent[f]) * 1e-6 for f, c in first.items()])
     frames = sum(1 for t in sent.values() if t >= since_ns)
@@ -174,6 +308,10 @@ class Replayer:
         self.recording = recording
         self.joint_period_ns = round(1e9 / joint_rate_hz)
         self.frame_period_ns = round(1e9 / camera_rate_hz)
+        #: The bag's frame period (ns), and how much faster than recorded it plays: each of
+        #: its frames in turn at the camera rate (module docstring).
+        self.recorded_period_ns = round(1e9 / recording.rate_hz)
+        self.speed = camera_rate_hz / recording.rate_hz
         self.step_ns = round(1e9 / physics_rate_hz)
         self.names = list(JOINT_NAMES)
         self.joint_pub = node.create_publisher(JointState, contract.JOINT_STATES,
@@ -203,11 +341,15 @@ class Replayer:
         from ibvs_common.timing import frame_stamp_ns
 
         rec = self.recording
-        cycle_ns = len(rec.frames) * self.frame_period_ns
+        cycle_ns = len(rec.frames) * self.recorded_period_ns
         joint_ns, frame_ns = self.joint_period_ns, self.frame_period_ns
-        start = (time.time_ns() // joint_ns + 1) * joint_ns
+        # The first frame's stamp is the start: frame k is the bag's frame k, shown with the
+        # bag's joint path at k recorded frame periods into it (module docstring).
+        frame_n = -(-(time.time_ns() + joint_ns) // frame_ns)
+        first_n = frame_n
+        start = frame_stamp_ns(frame_n, frame_ns, self.step_ns)
         end = start + int(duration_s * 1e9)
-        joint_k, frame_n = 0, -(-start // frame_ns)
+        joint_k = 0
         last = None
         while not stop.is_set():
             next_joint = start + joint_k * joint_ns
@@ -218,7 +360,7 @@ class Replayer:
             wait = (due - time.time_ns()) * 1e-9
             if wait > 0:
                 time.sleep(wait)
-            if next_joint <= next_frame:
+            if next_joint < next_frame:
                 self._joint(next_joint, start, cycle_ns)
                 last = next_joint
                 joint_k += 1
@@ -226,7 +368,9 @@ class Replayer:
             if last != next_frame:  # the arm's sample at the exposure (module docstring)
                 self._joint(next_frame, start, cycle_ns)
                 last = next_frame
-            parts = rec.frames[(frame_n - start // frame_ns) % len(rec.frames)]
+            if next_joint == next_frame:
+                joint_k += 1
+            parts = rec.frames[(frame_n - first_n) % len(rec.frames)]
             stamp = self._time(next_frame)
             for msg in parts:
                 msg.header.stamp = stamp
@@ -242,34 +386,41 @@ class Replayer:
     def _joint(self, t_ns, start, cycle_ns):
         """Publish the recorded joint state of ``t_ns - start`` into the cycle, stamped t_ns."""
         rec = self.recording
-        into = ((t_ns - start) % cycle_ns) * 1e-9
+        into = (round((t_ns - start) * self.speed) % cycle_ns) * 1e-9 + rec.joint_offset_s
         i = max(int(np.searchsorted(rec.joint_t, into, side='right')) - 1, 0)
         msg = self._joint_state(name=self.names, position=[float(v) for v in rec.joint_q[i]],
-                                velocity=[float(v) for v in rec.joint_qd[i]])
+                                velocity=[float(v) * self.speed for v in rec.joint_qd[i]])
         msg.header.stamp = self._time(t_ns)
         self.joint_pub.publish(msg)
 
 
-def _node_params(recording: Recording, path: Path) -> Path:
-    """Write the nodes' parameters: the recorded run's, on the wall clock."""
+def _node_params(recording: Recording, path: Path, camera_rate_hz: float) -> Path:
+    """Write the nodes' parameters: the recorded run's, on the wall clock, at a camera rate."""
     from ibvs_bringup import scenario
     params = {k: v for k, v in recording.params.items() if k not in scenario.RUNNER_ONLY}
     params['use_sim_time'] = False
+    params['camera_rate_hz'] = float(camera_rate_hz)
+    # The replay stamps each frame at its exposure (a camera triggered by the arm's clock):
+    # no stamp offset to start from; the feature node still estimates it, as on a cell.
+    params['stamp_offset_initial_s'] = 0.0
     return scenario.write_parameters(params, path)
 
 
-def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
-           progress: Callable[[str], None] = print) -> dict[str, Any]:
+def replay(bag_path: str | Path | Recording, duration_s: float, out_dir: str | Path,
+           progress: Callable[[str], None] = print,
+           camera_rate_hz: float | None = None) -> dict[str, Any]:
     """
     Replay a real-cell bag into the nodes alone for ``duration_s`` of wall time; measure.
 
-    Returns the measurements of the module docstring: latency (ms), frames sent and used,
-    each node's CPU and this process's, the images' size, the wall time replayed.
+    ``bag_path``: the bag, or a :class:`Recording` read from one (a :func:`segment` of it);
+    ``camera_rate_hz``: the camera rate replayed at (None: the bag's). Returns the
+    measurements of the module docstring: latency (ms), frames sent and used, each node's
+    CPU and this process's, the images' size, the wall time replayed.
     """
     from ibvs_bringup import domains
     from ibvs_bringup.graph import GRAPH
 
-    from .cell import CELL_NODES
+    from ibvs_bringup.cell_checks import CELL_NODES
     from ibvs_bringup.supervision import NodeProcess, stop_all
     from ibvs_common import contract, dds
     from ibvs_common.conversions import stamp_ns
@@ -277,13 +428,14 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import TimeReference
 
-    recording = read_recording(bag_path)
+    recording = bag_path if isinstance(bag_path, Recording) else read_recording(bag_path)
+    bag_path = recording.bag if isinstance(bag_path, Recording) else bag_path
     out_dir = Path(out_dir)
     log_dir = out_dir / 'logs'
     log_dir.mkdir(parents=True, exist_ok=True)
-    params_file = _node_params(recording, out_dir / 'params.yaml')
+    camera_rate = float(camera_rate_hz or recording.rate_hz)
+    params_file = _node_params(recording, out_dir / 'params.yaml', camera_rate)
     joint_rate = float(recording.params.get('command_rate_hz', 250.0))
-    camera_rate = float(recording.params.get('camera_rate_hz', 30.0))
     physics_rate = float(recording.params.get('physics_rate_hz', 1000.0))
     with domains.held() as (domain, _):
         dds.configure()
@@ -308,8 +460,9 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
                           for arg in ('-r', f'{topic}:={remapped}')]
                 procs.append(NodeProcess(spec.package, name, params_file, log_dir, remaps))
             progress(f'  nodes alone: ROS_DOMAIN_ID {domain}, {", ".join(CELL_NODES)} started, '
-                     f'replaying {bag_path} ({len(recording.frames)} frames, '
-                     f'{recording.size[0]} x {recording.size[1]})')
+                     f'replaying {bag_path} (part {recording.segment!r}: '
+                     f'{len(recording.frames)} frames from frame {recording.first_frame}, '
+                     f'{recording.size[0]} x {recording.size[1]}, at {camera_rate:g} Hz)')
             deadline = time.monotonic() + START_TIMEOUT_S
             wanted = {'joint_states': len(CELL_NODES), 'image': 1, 'camera_info': 2}
             while any(replayer.readers()[k] < n for k, n in wanted.items()):
@@ -354,9 +507,187 @@ def replay(bag_path: str | Path, duration_s: float, out_dir: str | Path,
         'ms_per_frame': (after[1] - cpu[1]) / frames * 1e3}
     result.update(width=recording.size[0], height=recording.size[1], replay_s=duration_s,
                   measured_s=window_s, warmup_s=WARMUP_S, first_command_s=started_s,
-                  bag=str(bag_path),
+                  bag=str(bag_path), camera_rate_hz=camera_rate, segment=recording.segment,
+                  segment_frames=len(recording.frames), first_frame=recording.first_frame,
                   exit_codes=codes, load_average=f'{os.getloadavg()[0]:.2f}')
     return result
+
+
+def frame_split(recording: Recording, camera_rate_hz: float | None = None,
+                frames: int = 120) -> dict[str, float]:
+    """
+    Return where the feature node's CPU goes a frame (ms), fed ``recording`` in this process.
+
+    A feature node of the recording's parameters (on the wall clock, as :func:`replay`
+    gives them) is built in this process and its callbacks are called with the messages
+    the replay would publish (the joint states at the command rate, each frame with a
+    joint state of its stamp, ``frames`` frames at ``camera_rate_hz`` after as many again
+    to start), each message deserialised from its bytes first as rclpy does for a
+    subscription. Timed on this thread (CPU time): the deserialisation, the detection by
+    its stages (:attr:`ibvs_vision.detector.StereoDetector.timings`, their wall time, and
+    the rest of it) and the node's own handling of the messages (everything else its
+    callbacks do: reading, pairing, the model's estimate, the stamp offset, publishing).
+    What it leaves out: DDS's own threads and the executor. This process's malloc keeps
+    the memory it frees, as a node's does (:func:`ibvs_common.process.keep_freed_memory`).
+    """
+    import rclpy
+    from rclpy.parameter import Parameter
+    from rclpy.serialization import deserialize_message, serialize_message
+    from ibvs_bringup import domains, scenario
+    from ibvs_common import contract, process
+    from ibvs_common.conversions import ns_stamp
+    from ibvs_model.urdf import JOINT_NAMES
+    from ibvs_vision.feature_node import FeatureNode, PARAMS
+    from sensor_msgs.msg import CameraInfo, Image, JointState
+
+    process.keep_freed_memory()
+    rate = float(camera_rate_hz or recording.rate_hz)
+    params = {k: v for k, v in recording.params.items() if k not in scenario.RUNNER_ONLY}
+    params.update(use_sim_time=False, camera_rate_hz=rate, stamp_offset_initial_s=0.0)
+    names = {p.name for p in PARAMS} | {'use_sim_time'}
+    frame_ns, joint_ns = round(1e9 / rate), round(1e9 / float(params.get(
+        'command_rate_hz', 250.0)))
+    recorded_ns = round(1e9 / recording.rate_hz)
+    cycle_ns = len(recording.frames) * recorded_ns
+    total = 2 * frames
+    start = (time.time_ns() - int((total / rate + 2.0) * 1e9)) // 1_000_000 * 1_000_000
+    times = {'deserialise': 0.0, 'callbacks': 0.0, 'detection (CPU)': 0.0}
+
+    def joint_bytes(t_ns):
+        into = ((t_ns - start) % cycle_ns) * 1e-9 + recording.joint_offset_s
+        i = max(int(np.searchsorted(recording.joint_t, into, side='right')) - 1, 0)
+        msg = JointState(name=list(JOINT_NAMES),
+                         position=[float(v) for v in recording.joint_q[i]],
+                         velocity=[float(v) for v in recording.joint_qd[i]])
+        msg.header.stamp = ns_stamp(t_ns)
+        return serialize_message(msg)
+
+    def take(data, kind):
+        c = time.thread_time()
+        msg = deserialize_message(data, kind)
+        times['deserialise'] += time.thread_time() - c
+        return msg
+
+    def call(callback, *args):
+        c = time.thread_time()
+        callback(*args)
+        times['callbacks'] += time.thread_time() - c
+
+    with domains.held():
+        context = rclpy.context.Context()
+        rclpy.init(context=context)
+        try:
+            node = FeatureNode(context=context, parameter_overrides=[
+                Parameter(k, value=v) for k, v in params.items() if k in names])
+            for topic, msg in recording.latched.items():
+                if topic == contract.STEREO_POSE:
+                    node.camera_input.on_pose(msg)
+                elif topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
+                    side = 'left' if topic == contract.TEACH_LEFT_IMAGE else 'right'
+                    node._on_teach(side, msg)
+            for side, info in zip(('left', 'right'), recording.frames[0][2:4]):
+                node.camera_input.on_info(side, info)  # the camera model, the detector
+            detect = node._detector.detect
+
+            def timed_detect(*args, **kwargs):
+                c = time.thread_time()
+                try:
+                    return detect(*args, **kwargs)
+                finally:
+                    times['detection (CPU)'] += time.thread_time() - c
+            node._detector.detect = timed_detect
+            joint_t = start
+            for n in range(total):
+                if n == frames:  # started: from here on, measured
+                    times = dict.fromkeys(times, 0.0)
+                    node._detector.timings = {}
+                t_ns = start + n * frame_ns // 1_000_000 * 1_000_000
+                while joint_t < t_ns:
+                    call(node._on_joints, take(joint_bytes(joint_t), JointState))
+                    joint_t += joint_ns
+                call(node._on_joints, take(joint_bytes(t_ns), JointState))
+                parts = recording.frames[(n * frame_ns // recorded_ns) % len(recording.frames)]
+                stamp = ns_stamp(t_ns)
+                for msg in parts:
+                    msg.header.stamp = stamp
+                data = [serialize_message(m) for m in parts]
+                left, right = take(data[0], Image), take(data[1], Image)
+                infos = take(data[2], CameraInfo), take(data[3], CameraInfo)
+                call(node._on_image, 'left', left)
+                call(node._on_image, 'right', right)
+                call(node.camera_input.on_info, 'left', infos[0])
+                call(node.camera_input.on_info, 'right', infos[1])
+            stages = node._detector.timings
+            measured = node._diag.values.get('frames_measured', 0)
+            node.destroy_node()
+        finally:
+            context.try_shutdown()
+    out = {'deserialisation (rclpy: 2 images, 2 camera_info, the joint states)':
+           times['deserialise'] / frames * 1e3}
+    staged = 0.0
+    for stage, seconds in sorted(stages.items()):
+        out[f'detection: {stage}'] = seconds / frames * 1e3
+        staged += seconds
+    out['detection: the rest'] = max(times['detection (CPU)'] - staged, 0.0) / frames * 1e3
+    out['message handling (the callbacks less the detection)'] = \
+        (times['callbacks'] - times['detection (CPU)']) / frames * 1e3
+    out['total'] = (times['deserialise'] + times['callbacks']) / frames * 1e3
+    out['frames'] = frames
+    out['frames measured (of all)'] = measured
+    return out
+
+
+def frame_split_apart(bag: str | Path, which: str, camera_rate_hz: float | None,
+                      detectable: Sequence[bool] | None, frames: int = 120
+                      ) -> dict[str, float]:
+    """
+    Return :func:`frame_split` of part ``which`` of ``bag``, measured in a process of its own.
+
+    A feature node in the replaying process would share its executor's and its threads'
+    time and memory with the stand-in camera, and the replay after it would not be the one
+    measured; a process of its own (``python -m ibvs_experiments.nodes_bench split``) is
+    as the node's is. ``detectable``: :func:`detectable_frames` of the bag (None for
+    'all').
+    """
+    import json
+    import subprocess
+    import sys
+
+    marks = ''.join('1' if ok else '0' for ok in detectable) if detectable is not None else ''
+    done = subprocess.run(
+        [sys.executable, '-m', 'ibvs_experiments.nodes_bench', 'split', str(bag), which,
+         str(camera_rate_hz or 0.0), str(frames), marks or '-'],
+        capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``split BAG PART RATE FRAMES DETECTABLE``: print :func:`frame_split` as JSON."""
+    import json
+    import sys
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) != 6 or args[0] != 'split':
+        print('usage: python -m ibvs_experiments.nodes_bench split BAG PART RATE FRAMES '
+              "DETECTABLE (one 0 or 1 a frame, '-' for none)", file=sys.stderr)
+        return 2
+    _, bag, which, rate, frames, marks = args
+    recording = read_recording(bag)
+    detectable = None if marks == '-' else [c == '1' for c in marks]
+    part = segment(recording, which, detectable)
+    print(json.dumps(frame_split(part, float(rate) or None, int(frames))))
+    return 0
+
+
+def print_split(split: dict[str, float], title: str) -> None:
+    """Print :func:`frame_split`'s numbers."""
+    print(title)
+    for name, value in split.items():
+        if name.startswith('frames'):
+            continue
+        print(f'  {name:62s} {value:7.2f} ms a frame')
+    print(f'  ({split["frames"]} frames; {split["frames measured (of all)"]} measured of all '
+          'it was fed)')
 
 
 def record(resolution: str, duration_s: float, out_dir: str | Path,
@@ -370,8 +701,18 @@ def record(resolution: str, duration_s: float, out_dir: str | Path,
 
 
 def measure(resolution: str, out_dir: str | Path, replay_s: float, record_s: float,
-            progress: Callable[[str], None] = print) -> dict[str, Any]:
-    """Record (or reuse) a real-cell bag at ``resolution``, replay it, print the numbers."""
+            progress: Callable[[str], None] = print,
+            rates_hz: Sequence[float | None] = (None,),
+            segments: Sequence[str] = ('all',), split: bool = False) -> list[dict[str, Any]]:
+    """
+    Record (or reuse) a real-cell bag at ``resolution``, replay it, print the numbers.
+
+    Each of ``segments`` (:data:`SEGMENTS`) is replayed at each of ``rates_hz`` (None: the
+    bag's rate), ``replay_s`` each; a segment the bag has too little of is reported and
+    skipped. With ``split``, where the feature node's CPU goes a frame (:func:`frame_split`)
+    is measured first, in this process. Returns one result a replay (:func:`replay`, with
+    the resolution, and ``split``).
+    """
     out_dir = Path(out_dir) / resolution
     bag = out_dir / 'bag'
     if (bag / 'metadata.yaml').exists():
@@ -380,18 +721,50 @@ def measure(resolution: str, out_dir: str | Path, replay_s: float, record_s: flo
         progress(f'nodes alone at {resolution}: recording {record_s:g} s of ibvs run '
                  f'real_cell with images')
         bag = record(resolution, record_s, out_dir, progress=lambda line: None)
-    result = replay(bag, replay_s, out_dir / 'replay', progress)
-    result['resolution'] = resolution
-    print_result(result)
-    return result
+    recording = read_recording(bag)
+    detectable = None
+    if set(segments) - {'all'}:
+        detectable = _DETECTABLE.get(str(bag))
+        if detectable is None:
+            detectable = _DETECTABLE[str(bag)] = detectable_frames(recording)
+    if detectable is not None:
+        servo = segment_bounds(detectable, 'servo')
+        progress(f'  {int(detectable.sum())} of {len(detectable)} frames detectable; the '
+                 f'servo part: frames {servo[0]}-{servo[1] - 1}, the lost part: the '
+                 f'{servo[0]} before it')
+    results = []
+    for which in segments:
+        try:
+            part = segment(recording, which, detectable)
+        except ValueError as exc:
+            progress(f'nodes alone at {resolution}, part {which!r}: not measured: {exc}')
+            continue
+        for rate in rates_hz:
+            name = f'{which}_{rate or recording.rate_hz:g}hz'
+            parts = None
+            if split:
+                parts = frame_split_apart(bag, which, rate, detectable)
+                print_split(parts, f'the feature node a frame, in this process, at '
+                            f'{resolution}, part {which!r} at {rate or recording.rate_hz:g} '
+                            'Hz (CPU of this thread):')
+            result = replay(part, replay_s, out_dir / 'replay' / name, progress,
+                            camera_rate_hz=rate)
+            result['resolution'] = resolution
+            result['split'] = parts
+            print_result(result)
+            results.append(result)
+    return results
 
 
 def print_result(result: dict[str, Any]) -> None:
     """Print one replay's latency and CPU lines."""
-    period_ms = 1e3 / 30.0
+    rate = result.get('camera_rate_hz', 30.0)
+    period_ms = 1e3 / rate
     head = (f'nodes alone at {result["resolution"]} ({result["width"]} x {result["height"]}), '
-            f'30 Hz for {result["measured_s"]:.1f} s, from {result["warmup_s"]:g} s after the '
-            f'first command ({result["first_command_s"]:.1f} s into the replay), '
+            f'part {result.get("segment", "all")!r} ({result.get("segment_frames", "?")} '
+            f'frames), {rate:g} Hz for {result["measured_s"]:.1f} s, from '
+            f'{result["warmup_s"]:g} s after the first command '
+            f'({result["first_command_s"]:.1f} s into the replay), '
             f'load average {result["load_average"]}:')
     print(head)
     if result['frames_used']:
@@ -404,3 +777,7 @@ def print_result(result: dict[str, Any]) -> None:
     for name, cpu in result['cpu'].items():
         print(f'  CPU {name:34s} {cpu["cores"]:6.3f} cores   {cpu["ms_per_frame"]:7.2f} ms '
               'per frame')
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

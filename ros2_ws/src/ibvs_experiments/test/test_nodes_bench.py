@@ -3,7 +3,8 @@
 import subprocess
 import sys
 
-from ibvs_experiments.nodes_bench import latency_stats, process_cpu_s
+from ibvs_experiments.nodes_bench import (latency_stats, process_cpu_s, Recording, segment,
+                                          segment_bounds)
 import numpy as np
 import pytest
 
@@ -26,6 +27,42 @@ def test_latency_runs_from_the_first_image_to_the_first_command_that_uses_the_fr
     assert stats['latency_mean_ms'] == pytest.approx(delays.mean())
     assert stats['latency_p95_ms'] == pytest.approx(np.percentile(delays, 95))
     assert stats['latency_max_ms'] == pytest.approx(14.0)
+
+
+def test_a_command_is_the_frame_s_whose_stamp_is_nearest_its_exposure():
+    # The feature node stamps its output with the exposure: the stamp less its stamp offset
+    # estimate, a fraction of a millisecond either way about the replay's zero.
+    sent = {n * 33 * MS: 10**18 + n * 33 * MS for n in range(10)}
+    commands = [(sent[t] + 6 * MS, t + (-1) ** n * 400_000) for n, t in enumerate(sorted(sent))]
+    commands.append((10**18 + 99 * MS, 4 * 33 * MS + 17 * MS))  # half a period off: no frame's
+    stats = latency_stats(sent, commands, 0)
+    assert stats['frames_used'] == 10 and stats['latency_max_ms'] == pytest.approx(6.0)
+
+
+def test_a_run_s_servo_part_is_its_longest_run_of_detectable_frames_and_lost_what_precedes():
+    detectable = [False, True, False, False, True, True, True, False, True, True, True, True]
+    assert segment_bounds(detectable, 'servo') == (8, 12)
+    assert segment_bounds(detectable, 'lost') == (0, 8)
+    assert segment_bounds(detectable, 'all') == (0, 12)
+    assert segment_bounds([False] * 5, 'servo')[1] - segment_bounds([False] * 5, 'servo')[0] == 0
+    with pytest.raises(ValueError, match='segment'):
+        segment_bounds(detectable, 'slew')
+
+
+def test_a_part_of_a_recording_takes_its_joint_path_from_its_first_frame_s_exposure():
+    n = 40
+    rec = Recording(frames=list(range(n)), joint_t=np.arange(0.0, 2.0, 0.004),
+                    joint_q=np.zeros((500, 6)), joint_qd=np.zeros((500, 6)), latched={},
+                    params={}, size=(8, 8), rate_hz=30.0, joint_offset_s=0.01,
+                    exposures_s=0.01 + np.arange(n) / 30.0)
+    detectable = [i >= 18 for i in range(n)]
+    servo = segment(rec, 'servo', detectable)
+    assert servo.frames == list(range(18, n)) and servo.first_frame == 18
+    assert servo.joint_offset_s == pytest.approx(0.01 + 18 / 30.0)
+    assert segment(rec, 'lost', detectable).frames == list(range(18))
+    assert segment(rec, 'all', detectable) is rec
+    with pytest.raises(ValueError, match='longer run'):
+        segment(rec, 'servo', [False] * n)
 
 
 def test_no_command_no_latency():

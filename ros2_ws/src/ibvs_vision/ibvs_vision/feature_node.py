@@ -36,7 +36,7 @@ from . import overlay
 from .blend import BumplessSwitch
 from .detector import Reason, StereoDetector
 from .frame_stats import FrameStats
-from .imageconv import image_array
+from .imageconv import image_view, rgb_pixels
 from .node_params import FeatureConfig
 from .stamp_offset import StampOffsetEstimator
 from .stereo_pairing import Drop, Ready, StereoPairer
@@ -153,7 +153,7 @@ class FeatureNode(Node):
             return
         t_ns = got[0]
         try:
-            image, error = image_array(msg), None
+            image, error = image_view(msg), None
         except InputError as exc:
             image, error = None, Rejection(exc.reason, exc.detail)
         rejection = self._stereo.offer_image(side, t_ns, image, error)
@@ -166,7 +166,7 @@ class FeatureNode(Node):
         if self._teach_done:
             return
         try:
-            self._teach[side] = image_array(msg)
+            self._teach[side] = image_view(msg)
         except InputError as exc:
             self._diag.reject(self._topics[f'{side} teach'], exc.reason, exc.detail)
             return
@@ -177,9 +177,7 @@ class FeatureNode(Node):
         if self._teach_done or len(self._teach) < 2 or self._detector is None:
             return
         self._teach_done = True
-        (left, encoding), (right, right_encoding) = self._teach['left'], self._teach['right']
-        if right_encoding != encoding:
-            right = right[:, :, ::-1].copy()
+        (left, right), encoding = _one_encoding(self._teach['left'], self._teach['right'])
         k = self._detector.intrinsics
         if any(image.shape[:2] != (k.height, k.width) for image in (left, right)):
             size = (f'{left.shape[1]} x {left.shape[0]}, camera_info says '
@@ -228,7 +226,9 @@ class FeatureNode(Node):
             self._diag.note_ignored(topic, ignored_joints(msg))
             self._inputs.order.take(topic, t_ns)
             self._stereo.offer_joints(t_ns, q)
-        self._try_frames()
+        # 250 joint states a second and mostly no frame waiting for one: nothing to decide.
+        if len(self._stereo):
+            self._try_frames()
 
     # --- frames ----------------------------------------------------------------------
 
@@ -296,9 +296,7 @@ class FeatureNode(Node):
                 self._diag.reject(self._topics[side], 'size disagrees with camera_info',
                                   f'{w} x {h}, camera_info says {k.width} x {k.height}')
                 return
-        (left, encoding), (right, right_encoding) = images['left'], images['right']
-        if right_encoding != encoding:
-            right = right[:, :, ::-1].copy()
+        (left, right), encoding = _one_encoding(images['left'], images['right'])
         try:
             estimate = self._model.features(q)
         except BehindCameraError:
@@ -395,7 +393,7 @@ class FeatureNode(Node):
         mode = self._switch.mode
         target = self._target_features
         for side in sides:
-            image = images[side] if encoding == 'rgb8' else images[side][:, :, ::-1]
+            image = rgb_pixels(images[side], encoding)
             found = getattr(detection, side)
             drawn = overlay.draw(image, side, ns_to_seconds(t_ns), mode, reason, output, estimate,
                                  target, found.blobs if found is not None else ())
@@ -437,6 +435,20 @@ class FeatureNode(Node):
             d.publish()
         d.set_level(DiagnosticStatus.OK,
                     switch.mode + ('' if detection.ok else f' ({reason})'))
+
+
+def _one_encoding(left, right):
+    """
+    Return ((left, right), encoding) of two (pixels, encoding): both in the same encoding.
+
+    The usual pair is of one encoding and passes as it is; otherwise both become rgb8
+    copies.
+    """
+    (left, encoding), (right, right_encoding) = left, right
+    if right_encoding == encoding:
+        return (left, right), encoding
+    return (np.ascontiguousarray(rgb_pixels(left, encoding)),
+            np.ascontiguousarray(rgb_pixels(right, right_encoding))), 'rgb8'
 
 
 def main(args=None):

@@ -4,9 +4,9 @@ The detector's budget per stereo pair (detector.budget): pure, no ROS, no clock.
 Every test judges the budget by the work it counts and prices, never by the wall clock: a
 full-size noisy pair, a checkerboard and a crowd of circles each stop within the budget of a
 30 Hz frame, and every Hough transform and refinement that ran was paid for first (the
-calls are recorded at OpenCV and in refine_circle, and priced again here). The search near
-a prediction finds what the whole-image search finds, and a budget that is not exhausted
-changes no result.
+calls are recorded at OpenCV and where each circle's object is found, and priced again
+here). The search near a prediction finds what the whole-image search finds, and a budget
+that is not exhausted changes no result.
 """
 
 import math
@@ -30,7 +30,7 @@ class Recorder:
     def __init__(self, monkeypatch, canny_high):
         self.hough_ms = []
         self.refine_ms = []
-        hough, refine = cv2.HoughCircles, stereo_module.refine_circle
+        hough, refine = cv2.HoughCircles, stereo_module.find_object
 
         def recorded_hough(image, *args, **kwargs):
             edges = cv2.countNonZero(cv2.Canny(image, max(1.0, 0.5 * canny_high),
@@ -44,7 +44,7 @@ class Recorder:
             return refine(image, encoding, k, u, v, r, *args)
 
         monkeypatch.setattr(cv2, 'HoughCircles', recorded_hough)
-        monkeypatch.setattr(stereo_module, 'refine_circle', recorded_refine)
+        monkeypatch.setattr(stereo_module, 'find_object', recorded_refine)
 
 
 def test_a_budget_pays_until_a_step_would_overrun_it_and_spends_nothing_on_that_one():

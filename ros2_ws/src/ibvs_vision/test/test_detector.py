@@ -255,6 +255,47 @@ def test_bgr8_images_give_the_same_features(hd_model, hd_frames):
         detector.detect(left, right, 'mono8')
 
 
+def test_bgra8_images_are_read_as_they_are_and_give_the_same_features(hd_model, hd_frames):
+    # The ZED wrapper's encoding: the detector reads its windows, the alpha unread.
+    detector = StereoDetector(hd_model.camera.intrinsics)
+    _, (left, right) = hd_frames[4]
+    alpha = np.random.default_rng(3).integers(0, 256, left.shape[:2] + (1,), dtype=np.uint8)
+    bgra = [np.concatenate([image[:, :, ::-1], alpha], axis=2) for image in (left, right)]
+    for prior in (None, detector.detect(left, right).features):
+        rgb = detector.detect(left, right, prior=prior)
+        assert np.array_equal(detector.detect(*bgra, 'bgra8', prior).features, rgb.features)
+    with pytest.raises(ValueError, match='4'):
+        detector.detect(left, right, 'bgra8')
+
+
+def test_candidates_refined_together_are_refined_as_each_alone(hd_model, hd_frames):
+    """All the circles of a pair are refined at once: each blob as if alone, to rounding."""
+    from ibvs_vision.detector.refine import find_object, refine_candidates, refine_circle
+    detector = StereoDetector(hd_model.camera.intrinsics)
+    cfg, k = detector.config, hd_model.camera.intrinsics
+    candidates = []
+    for _, (left, right) in hd_frames[:4]:
+        for image, side in ((left, 'left'), (right, 'right')):
+            found = getattr(detector.detect(left, right), side)
+            for marker, blobs in enumerate(found.blobs):
+                for blob in blobs:
+                    u, v, r = blob.hough
+                    bounds = (0, 0, image.shape[1], image.shape[0])
+                    alone, why, box = refine_circle(image, 'rgb8', marker, u, v, r, bounds,
+                                                    cfg, k)
+                    assert why is None and abs(alone.u - blob.u) < 1e-9 \
+                        and abs(alone.v - blob.v) < 1e-9
+                    candidate, _, _ = find_object(image, 'rgb8', marker, u, v, r, bounds, cfg)
+                    candidates.append((candidate, alone))
+    assert len(candidates) >= 12
+    together = refine_candidates([c for c, _ in candidates], cfg, k)
+    for (_, alone), (blob, why) in zip(candidates, together):
+        assert why is None
+        assert abs(blob.u - alone.u) < 1e-9 and abs(blob.v - alone.v) < 1e-9
+        assert blob.radius == pytest.approx(alone.radius, rel=1e-12)
+        assert blob.roundness == pytest.approx(alone.roundness, rel=1e-12)
+
+
 def test_config_rejects_meaningless_values():
     with pytest.raises(ValueError, match='min_radius_px'):
         DetectorConfig(hough_min_radius_px=0)

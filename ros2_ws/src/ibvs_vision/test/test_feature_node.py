@@ -336,6 +336,23 @@ def test_unsupported_encoding_is_skipped(rig, q_target):
                           'unsupported encoding')
 
 
+def test_a_zed_wrapper_s_bgra8_frame_gives_the_features_of_its_rgb8_copy(rig, q_target):
+    # bgra8 is read in place (no copy of the image before the detector); a pair of two
+    # encodings is read as one.
+    node, driver, executor = rig()
+    images = driver.render(q_target + D_Q)
+    driver.send(0, q_target, images=images)
+    driver.send(T_CAM_NS, q_target, left=image_msg(images[0], T_CAM_NS, 'bgra8'),
+                right=image_msg(images[1], T_CAM_NS, 'bgra8'))
+    driver.send(2 * T_CAM_NS, q_target, left=image_msg(images[0], 2 * T_CAM_NS, 'bgra8'),
+                right=image_msg(images[1], 2 * T_CAM_NS, 'rgb8'))
+    spin_until(executor, lambda: len(driver.features) == 3)
+    first, *others = [read_features(m) for m in driver.features]
+    assert all(np.allclose(f, first, atol=1e-3) for f in others)
+    diag = latest_diag(driver, executor, lambda d: d['frames_published'] == '3')
+    assert diag['frames_measured'] == '3'
+
+
 def test_image_size_that_disagrees_with_camera_info_is_skipped(rig, q_target):
     def send_bad(driver, t, images):
         small = [image_msg(im[:240, :320], t) for im in images]

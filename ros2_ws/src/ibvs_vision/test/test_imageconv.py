@@ -3,7 +3,7 @@
 from array import array as Array
 
 from ibvs_common.conversions import image_msg, InputError, stamp_ns
-from ibvs_vision.imageconv import image_array
+from ibvs_vision.imageconv import image_array, image_view, rgb_pixels
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
@@ -90,3 +90,27 @@ def test_rejections(image, change, reason):
     with pytest.raises(InputError) as info:
         image_array(msg)
     assert info.value.reason == reason
+
+
+def test_a_bgra8_view_is_the_message_s_own_pixels_and_its_colours_the_copy_s(image):
+    # What the feature node reads: no copy of the ZED wrapper's image before the detector.
+    msg = image_msg(image, 0, 'bgra8')
+    msg.step += 8  # padded rows, as the wrapper may send them
+    msg.data = Array('B', np.pad(np.frombuffer(msg.data, np.uint8).reshape(msg.height, -1),
+                                 ((0, 0), (0, 8))).tobytes())
+    view, encoding = image_view(msg)
+    copy, copy_encoding = image_array(msg)
+    assert encoding == 'bgra8' and view.shape == image.shape[:2] + (4,)
+    assert np.shares_memory(view, np.frombuffer(msg.data, np.uint8))
+    assert np.array_equal(rgb_pixels(view, encoding), rgb_pixels(copy, copy_encoding))
+    assert np.array_equal(rgb_pixels(view, encoding), image)
+    for encoding in ('rgb8', 'bgr8', 'mono8'):
+        pixels = image if encoding != 'mono8' else image[:, :, :1]
+        msg = image_msg(np.ascontiguousarray(pixels if encoding != 'bgr8' else image),
+                        0, encoding) if encoding != 'mono8' else _mono(image[:, :, 0])
+        assert all(np.array_equal(a, b) for a, b in zip(image_view(msg), image_array(msg)))
+
+
+def _mono(plane):
+    return Image(height=plane.shape[0], width=plane.shape[1], encoding='mono8',
+                 step=plane.shape[1], data=plane.tobytes())

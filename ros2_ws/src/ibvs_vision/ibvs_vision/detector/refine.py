@@ -1,14 +1,23 @@
 """
-Sub-pixel refinement of one Hough circle, and the sphere's silhouette geometry.
+Sub-pixel refinement of Hough circles, and the sphere's silhouette geometry.
 
 Steps 3 and 5 of :mod:`ibvs_vision.detector`: the coverage of the marker over each pixel
 (rim pixels unmixed against the local background), its area centroid with the notch of a
 rod in front of it filled from the symmetric side, the disc test after the off-axis
 stretch, and the perspective shift between a sphere's silhouette centre and the
 projection of its centre. Pure numpy/OpenCV.
+
+Each circle's object is found on its own (:func:`find_object`: its window, contour and
+tests), then every object of a stereo pair is refined at once (:func:`refine_candidates`):
+their arrays side by side in one stack (:class:`_Tiles`), so that a pair costs about as
+many numpy and OpenCV calls as one object, each on the object's box and a margin
+(:data:`CROP_MARGIN`) rather than on its whole window. :func:`refine_circle`,
+:func:`coverage`, :func:`symmetric_centre` and :func:`axis_band_centre` are the same for
+one object.
 """
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 import math
 
 import cv2
@@ -20,6 +29,8 @@ from .colour import colour_scores, ENCODINGS
 from .config import DetectorConfig
 
 _KERNEL3 = np.ones((3, 3), np.uint8)
+#: OpenCV's conversion to RGB of each encoding that is not RGB already (a copy either way).
+_TO_RGB = {'bgr8': cv2.COLOR_BGR2RGB, 'bgra8': cv2.COLOR_BGRA2RGB}
 _KERNEL5 = np.ones((5, 5), np.uint8)
 #: Notch filling of symmetric_centre: a pixel is in a notch when its coverage is this much
 #: below the mirrored one; at most this share of the area may be filled; iterations.
@@ -29,6 +40,13 @@ NOTCH_ITERATIONS = 3
 NOTCH_EDGE = 0.05
 #: Steps of axis_band_centre.
 AXIS_BAND_ITERATIONS = 4
+#: Pixels around an object's bounding box that its refinement keeps (Candidate.crop): its
+#: coverage reaches a pixel beyond the box, a rim pixel's background 2 px further, and the
+#: mirror of a pixel (symmetric_centre) lands beyond the box by twice the centroid's
+#: distance from the box's centre, which a round object keeps within 2.5 px.
+CROP_MARGIN = 8
+#: Border of each array of a _Tiles stack: a 5 x 5 filter stays within its tile.
+PAD = 3
 
 
 def silhouette_to_centre(u: ArrayLike, v: ArrayLike, depth: float,
@@ -148,6 +166,93 @@ def window_half(r: float) -> int:
     return int(math.ceil(2.0 * r + 6.0))
 
 
+def median_u8(values: NDArray[np.uint8]) -> float:
+    """
+    Return the median of uint8 ``values``, as ``np.median`` gives it, from their histogram.
+
+    The same float (the middle value, or the mean of the two middle ones) without the
+    partial sort.
+
+    Parameters
+    ----------
+    values : ndarray of uint8, shape (n,)
+        The values, n > 0.
+
+    Returns
+    -------
+    float
+        Their median.
+
+    """
+    n = values.size
+    if n == 0:
+        return float(np.median(values))
+    cumulative = np.cumsum(np.bincount(values, minlength=256))
+    upper = int(np.searchsorted(cumulative, n // 2, side='right'))
+    if n % 2:
+        return float(upper)
+    lower = int(np.searchsorted(cumulative, n // 2 - 1, side='right'))
+    return (lower + upper) / 2.0
+
+
+def rgb_window(window: NDArray[np.uint8], encoding: str) -> NDArray[np.uint8]:
+    """
+    Return the R, G, B planes of an image ``window`` in ``encoding`` as an (h, w, 3) array.
+
+    An rgb8 window as it is (a view); the others reordered (and bgra8's alpha dropped) into
+    a copy of the window alone.
+
+    Parameters
+    ----------
+    window : ndarray of uint8, shape (h, w, 3 or 4)
+        Pixels of an image, possibly a view into it.
+    encoding : str
+        A key of :data:`.colour.ENCODINGS`.
+
+    Returns
+    -------
+    ndarray of uint8, shape (h, w, 3)
+        The pixels in R, G, B order.
+
+    """
+    if encoding == 'rgb8':
+        return window
+    conversion = _TO_RGB.get(encoding)
+    if conversion is not None:
+        return cv2.cvtColor(window, conversion)
+    return window[:, :, list(ENCODINGS[encoding])]
+
+
+@dataclass(eq=False)
+class Candidate:
+    """
+    A Hough circle's object, found and checked by :func:`find_object`, to be refined.
+
+    ``k``: the marker; ``hough``: the circle (u, v, r); ``box``: the object's bounding box
+    (x0, y0, x1, y1, inclusive) in the image; ``window``: the refinement window (x0, y0,
+    x1, y1) in the image; ``crop``: the part of it refined, (x0, y0, x1, y1) in the window:
+    the object's box and :data:`CROP_MARGIN` px around it (the coverage, and every
+    centroid, is zero beyond); ``interior``, ``support``, ``linear``, ``rgb``: the crop's
+    object (1 inside its outer contour) less a pixel all round (the object itself when that
+    leaves nothing), the object grown by a pixel, the linear colour channel s and the R, G,
+    B pixels; ``level``: the median s inside the object;
+    ``contour``: its outer contour (window pixels); ``marker_rgb``: the marker's colour.
+    """
+
+    k: int
+    hough: tuple
+    box: tuple
+    window: tuple
+    crop: tuple
+    interior: NDArray[np.uint8]
+    support: NDArray[np.uint8]
+    linear: NDArray[np.uint8]
+    rgb: NDArray[np.uint8]
+    level: float
+    contour: NDArray[np.int32]
+    marker_rgb: tuple
+
+
 def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: float,
                   r: float, bounds: tuple[int, int, int, int], config: DetectorConfig,
                   intrinsics: StereoIntrinsics | None = None
@@ -155,12 +260,15 @@ def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: 
     """
     Refine one Hough circle of marker k to the area centroid of the marker's coverage.
 
+    :func:`find_object`, then :func:`refine_candidates` of the one candidate; the detector
+    refines all the circles of a stereo pair together the same way.
+
     Parameters
     ----------
-    image : ndarray of uint8, shape (H, W, 3)
+    image : ndarray of uint8, shape (H, W, 3 or 4)
         The whole image.
     encoding : str
-        'rgb8' or 'bgr8'.
+        'rgb8', 'bgr8' or 'bgra8' (:data:`.colour.ENCODINGS`).
     k : int
         The marker, 0 (P1) or 1 (P2).
     u, v, r : float
@@ -179,6 +287,37 @@ def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: 
         the object or None).
 
     """
+    candidate, why, box = find_object(image, encoding, k, u, v, r, bounds, config)
+    if candidate is None:
+        return None, why, box
+    (blob, why), = refine_candidates([candidate], config, intrinsics)
+    return blob, why, box
+
+
+def find_object(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: float,
+                r: float, bounds: tuple[int, int, int, int], config: DetectorConfig
+                ) -> tuple[Candidate | None, str | None, tuple[int, int, int, int] | None]:
+    """
+    Find the object of a Hough circle of marker k: the part of the refinement that is a test.
+
+    The window of :func:`window_half` around the circle (inside ``bounds``), the outer
+    contour of the marker-hue pixels (s_sel above half of ``min_colour_score``) that holds
+    the circle's centre or comes nearest it, and the tests that need no coverage: the
+    object must not touch the window (the image's border, the search window's, or a circle
+    too small for it) and must be bright enough.
+
+    Parameters
+    ----------
+    image, encoding, k, u, v, r, bounds, config
+        As :func:`refine_circle`.
+
+    Returns
+    -------
+    tuple
+        (:class:`Candidate` or None, rejection reason or None, bounding box (x0, y0, x1,
+        y1) of the object or None).
+
+    """
     cfg = config
     half = window_half(r)
     iu, iv = int(round(u)), int(round(v))
@@ -186,9 +325,10 @@ def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: 
     x1, y1 = min(iu + half + 1, bounds[2]), min(iv + half + 1, bounds[3])
     if x1 - x0 < 3 or y1 - y0 < 3:
         return None, 'too small', None
-    linear, selective = colour_scores(image[y0:y1, x0:x1], cfg.marker_rgb[k], encoding)
+    window = image[y0:y1, x0:x1]
+    linear, selective = colour_scores(window, cfg.marker_rgb[k], encoding)
     # The object: the outer contour of the marker-hue pixels around the circle's centre.
-    binary = (selective >= 0.5 * cfg.min_colour_score).astype(np.uint8)
+    binary = np.greater_equal(selective, 0.5 * cfg.min_colour_score).view(np.uint8)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     centre = (float(u - x0), float(v - y0))
     best, best_dist = None, -max(r, 1.5)
@@ -209,152 +349,234 @@ def refine_circle(image: NDArray[np.uint8], encoding: str, k: int, u: float, v: 
         if (x0, y0, x1, y1) != (iu - half, iv - half, iu + half + 1, iv + half + 1):
             return None, 'at search window border', box
         return None, 'larger than the circle', box
-    filled = np.zeros_like(binary)
-    cv2.drawContours(filled, [best], -1, 1, cv2.FILLED)
-    inside = filled.astype(bool)
-    level = float(np.median(linear[inside]))
+    cx0, cy0 = max(bx - CROP_MARGIN, 0), max(by - CROP_MARGIN, 0)
+    cx1, cy1 = min(bx + bw + CROP_MARGIN, width), min(by + bh + CROP_MARGIN, height)
+    filled = np.zeros((cy1 - cy0, cx1 - cx0), np.uint8)
+    cv2.drawContours(filled, [best], -1, 1, cv2.FILLED, offset=(-cx0, -cy0))
+    linear = linear[cy0:cy1, cx0:cx1]
+    level = median_u8(linear[filled.view(bool)])
     if level < cfg.min_colour_score:
         return None, 'too faint', box
-    patch = image[y0:y1, x0:x1]
-    if encoding != 'rgb8':
-        patch = patch[:, :, list(ENCODINGS[encoding])]
-    cover = coverage(patch, filled, linear, level, cfg.marker_rgb[k])
-    m00 = float(cover.sum())
-    xs = np.arange(x0, x1, dtype=np.float64)
-    ys = np.arange(y0, y1, dtype=np.float64)
-    cu = float(cover.sum(axis=0) @ xs) / m00
-    cv = float(cover.sum(axis=1) @ ys) / m00
-    direction, stretch = line_of_sight_stretch(intrinsics, cu, cv)
-    radius = math.sqrt(m00 / (math.pi * stretch))
-    if radius < 0.5 * cfg.hough_min_radius_px:
-        return None, 'too small', box
+    interior = cv2.erode(filled, _KERNEL3)
+    if not cv2.countNonZero(interior):
+        interior = filled
+    return Candidate(k=k, hough=(u, v, r), box=box, window=(x0, y0, x1, y1),
+                     crop=(cx0, cy0, cx1, cy1), interior=interior,
+                     support=cv2.dilate(filled, _KERNEL3), linear=linear,
+                     rgb=rgb_window(window[cy0:cy1, cx0:cx1], encoding), level=level,
+                     contour=best, marker_rgb=tuple(cfg.marker_rgb[k])), None, box
+
+
+class _Tiles:
+    """
+    Several 2-D arrays of different sizes side by side, for one numpy or OpenCV call each.
+
+    Tile i holds an (h_i, w_i) array at rows and columns [PAD, PAD + h_i) x [PAD, PAD +
+    w_i) of a (TH, TW) block, the blocks stacked as one (n TH, TW) image: a filter up to
+    5 x 5 (and a mirror no farther than PAD outside an array) stays within its tile.
+    ``shapes``: (h_i, w_i) of each.
+    """
+
+    def __init__(self, shapes):
+        self.shapes = shapes
+        self.n = len(shapes)
+        self.th = max(h for h, _ in shapes) + 2 * PAD
+        self.tw = max(w for _, w in shapes) + 2 * PAD
+
+    def empty(self, dtype, channels=None):
+        """Return a zero stack of ``dtype`` (n, TH, TW[, channels])."""
+        shape = (self.n, self.th, self.tw) + (() if channels is None else (channels,))
+        return np.zeros(shape, dtype)
+
+    def put(self, stack, i, array, pad=0):
+        """Put ``array`` (tile i's, ``pad`` px of border around it) into ``stack``."""
+        h, w = self.shapes[i]
+        stack[i, PAD - pad:PAD + h + pad, PAD - pad:PAD + w + pad] = array
+
+    def get(self, stack, i):
+        """Return tile i's array of ``stack`` (a view)."""
+        h, w = self.shapes[i]
+        return stack[i, PAD:PAD + h, PAD:PAD + w]
+
+    @staticmethod
+    def flat(stack):
+        """Return ``stack`` as one image (n TH, TW[, channels]), a view."""
+        return stack.reshape((-1,) + stack.shape[2:])
+
+
+def refine_candidates(candidates: list[Candidate], config: DetectorConfig,
+                      intrinsics: StereoIntrinsics | None = None
+                      ) -> list[tuple[Blob | None, str | None]]:
+    """
+    Refine candidates (:func:`find_object`) to their blobs, all at once.
+
+    Each candidate's coverage (:func:`coverage`), its area centroid, radius and shape (the
+    second moments and the reach of its outline after the off-axis stretch is undone: not
+    round enough, it is rejected) and its notch-filled centre (:func:`symmetric_centre`).
+    The work is done for all the candidates together, one array operation for all of them
+    where the arithmetic is each pixel's own: the same numbers as one candidate at a time,
+    the sums over the candidates' pixels up to their rounding.
+
+    Parameters
+    ----------
+    candidates : list of Candidate
+        The candidates, of any markers and images.
+    config : DetectorConfig
+        The tuning.
+    intrinsics : StereoIntrinsics, optional
+        Undo the off-axis stretch with them.
+
+    Returns
+    -------
+    list of (Blob or None, str or None)
+        Each candidate's blob, or None and why it was rejected, in order.
+
+    """
+    if not candidates:
+        return []
+    cfg = config
+    tiles = _Tiles([c.interior.shape for c in candidates])
+    cover = _coverage(tiles, [c.interior for c in candidates],
+                      [c.support for c in candidates], [c.linear for c in candidates],
+                      [c.rgb for c in candidates], [c.level for c in candidates],
+                      [c.marker_rgb for c in candidates])
+    # Image coordinates of each tile's columns and rows.
+    left = np.array([c.window[0] + c.crop[0] - PAD for c in candidates], dtype=np.float64)
+    top = np.array([c.window[1] + c.crop[1] - PAD for c in candidates], dtype=np.float64)
+    xs = left[:, None] + np.arange(tiles.tw, dtype=np.float64)
+    ys = top[:, None] + np.arange(tiles.th, dtype=np.float64)
+    m00 = cover.sum(axis=(1, 2))
+    columns, rows = cover.sum(axis=1), cover.sum(axis=2)
+    cu = np.einsum('ij,ij->i', columns, xs) / m00
+    cv = np.einsum('ij,ij->i', rows, ys) / m00
+    direction, stretch = _line_of_sight_stretch(intrinsics, cu, cv)
+    radius = np.sqrt(m00 / (math.pi * stretch))
     # Shape: second moments and the extent of the outline, the off-axis stretch undone.
-    dx, dy = xs - cu, ys - cv
-    cov = np.empty((2, 2))
-    cov[0, 0] = float(cover.sum(axis=0) @ dx ** 2) / m00
-    cov[1, 1] = float(cover.sum(axis=1) @ dy ** 2) / m00
-    cov[0, 1] = cov[1, 0] = float(dy @ cover @ dx) / m00
-    squeeze = np.eye(2) + (1.0 / stretch - 1.0) * np.outer(direction, direction)
+    dx, dy = xs - cu[:, None], ys - cv[:, None]
+    cov = np.empty((tiles.n, 2, 2))
+    cov[:, 0, 0] = np.einsum('ij,ij->i', columns, dx ** 2) / m00
+    cov[:, 1, 1] = np.einsum('ij,ij->i', rows, dy ** 2) / m00
+    cov[:, 0, 1] = cov[:, 1, 0] = np.einsum('ij,ij->i', dy, np.matmul(
+        cover, dx[:, :, None])[:, :, 0]) / m00
+    squeeze = np.eye(2) + (1.0 / stretch - 1.0)[:, None, None] \
+        * (direction[:, :, None] * direction[:, None, :])
     eig = np.linalg.eigvalsh(squeeze @ cov @ squeeze)
-    roundness = float(eig[0] / eig[1]) if eig[1] > 0.0 else 0.0
-    outline = (best[:, 0, :] + np.array([x0 - cu, y0 - cv])) @ squeeze
+    roundness = np.where(eig[:, 1] > 0.0, eig[:, 0] / np.where(eig[:, 1] > 0.0, eig[:, 1], 1.0),
+                         0.0)
+    lengths = [len(c.contour) for c in candidates]
+    owner = np.repeat(np.arange(tiles.n), lengths)
+    points = np.concatenate([c.contour[:, 0, :] for c in candidates]).astype(np.float64)
+    points += np.array([c.window[:2] for c in candidates], dtype=np.float64)[owner]
+    points -= np.stack([cu, cv], axis=1)[owner]
+    outline = np.einsum('ij,ijk->ik', points, squeeze[owner])
     reach = np.hypot(outline[:, 0], outline[:, 1])
-    if roundness < cfg.min_roundness or reach.max() > 1.2 * radius + 0.75 \
-            or reach.min() < 0.8 * radius - 1.25:
-        return None, 'not round (partly occluded?)', box
-    centre = symmetric_centre(cover, cu - x0, cv - y0, m00)
-    if centre is None:
-        return None, 'not round (partly occluded?)', box
-    cu, cv = centre[0] + x0, centre[1] + y0
-    return Blob(u=cu, v=cv, radius=radius, roundness=roundness, hough=(u, v, r), cover=cover,
-                origin=(x0, y0)), None, box
+    starts = np.cumsum([0] + lengths[:-1])
+    reach_max, reach_min = np.maximum.reduceat(reach, starts), np.minimum.reduceat(reach, starts)
+    out = []
+    for i, c in enumerate(candidates):
+        if radius[i] < 0.5 * cfg.hough_min_radius_px:
+            out.append('too small')
+        elif roundness[i] < cfg.min_roundness or reach_max[i] > 1.2 * radius[i] + 0.75 \
+                or reach_min[i] < 0.8 * radius[i] - 1.25:
+            out.append('not round (partly occluded?)')
+        else:
+            out.append(None)
+    round_ = [i for i, why in enumerate(out) if why is None]
+    origin_x = np.array([c.window[0] for c in candidates], dtype=np.float64)
+    origin_y = np.array([c.window[1] for c in candidates], dtype=np.float64)
+    centres = _symmetric_centres(tiles, cover, [c.crop for c in candidates],
+                                 [(c.window[3] - c.window[1], c.window[2] - c.window[0])
+                                  for c in candidates], cu - origin_x, cv - origin_y, m00,
+                                 round_)
+    results = []
+    for i, c in enumerate(candidates):
+        centre = centres.get(i)
+        if out[i] is None and centre is None:
+            out[i] = 'not round (partly occluded?)'
+        if out[i] is not None:
+            results.append((None, out[i]))
+            continue
+        # The cover kept: the object grown by a pixel, beyond which it is zero.
+        x0, y0 = c.box[0] - 1, c.box[1] - 1
+        tx, ty = x0 - c.window[0] - c.crop[0] + PAD, y0 - c.window[1] - c.crop[1] + PAD
+        kept = cover[i, ty:ty + c.box[3] - c.box[1] + 3, tx:tx + c.box[2] - c.box[0] + 3]
+        results.append((Blob(u=centre[0] + c.window[0], v=centre[1] + c.window[1],
+                             radius=float(radius[i]), roundness=float(roundness[i]),
+                             hough=c.hough, cover=kept, origin=(x0, y0)), None))
+    return results
 
 
-def axis_band_centre(blob: Blob, direction: ArrayLike, half_width: float,
-                     iterations: int = AXIS_BAND_ITERATIONS) -> tuple[float, float]:
+def _line_of_sight_stretch(intrinsics, u, v):
+    """Return :func:`line_of_sight_stretch` of the arrays ``u``, ``v``: (n, 2), (n,)."""
+    if intrinsics is None:
+        return np.tile([1.0, 0.0], (len(u), 1)), np.ones(len(u))
+    k = intrinsics
+    x, y = (u - k.cu) / k.fu, (v - k.cv) / k.fv
+    rho = np.hypot(x, y)
+    far = rho > 1e-12
+    safe = np.where(far, rho, 1.0)
+    direction = np.where(far[:, None], np.stack([x / safe, y / safe], axis=1), [1.0, 0.0])
+    return direction, np.sqrt(1.0 + rho * rho)
+
+
+def _coverage(tiles, interiors, supports, linears, rgbs, levels, colours):
     """
-    Return the centre (u, v) of a blob's coverage outside a band along the tool axis.
+    Return the coverage (:func:`coverage`) of each tile's object, as a stack of ``tiles``.
 
-    The rods that carry the fiducials (link 6's quill, the screwdriver's shaft) lie on the
-    tool axis, which passes through both markers' centres: in the image they touch a
-    marker's outline only where the line through both markers' images crosses it, at two
-    opposite ends. There the coverage is wrong both ways: a rod in front of the sphere cuts
-    a notch, a rod (or the other marker) just behind the outline darkens the background
-    that a rim pixel is unmixed against, which makes it look more covered. Mirroring a notch
-    (:func:`symmetric_centre`) then copies the other end's error. Weighting out a band of
-    half-width ``half_width`` about the line through the current centre along
-    ``direction`` removes both ends at once and keeps the rest point-symmetric about the
-    ellipse's centre, whose centroid is therefore still that centre: iterated from the
-    blob's centre, each step moves towards it. The band's edge is a one-pixel ramp (a hard
-    edge would make the result depend on the centre's sub-pixel position).
-
-    Parameters
-    ----------
-    blob : Blob
-        A blob with its ``cover``.
-    direction : array_like, shape (2,)
-        The image direction of the tool axis (any length but zero).
-    half_width : float
-        Half-width of the band (px).
-    iterations : int
-        Steps from the blob's centre.
-
-    Returns
-    -------
-    tuple of (float, float)
-        The centre (u, v) in the image (px); the blob's own without a cover.
-
+    ``interiors``, ``supports``, ``linears``, ``rgbs``: each object's arrays (as
+    :class:`Candidate` holds them); ``levels``, ``colours``: its median s and its marker's
+    colour. The box sums of the background are sums of whole numbers in float32, the same
+    in any order, and each rim pixel's arithmetic is its own: the same coverage as one
+    object at a time.
     """
-    if blob.cover is None:
-        return blob.u, blob.v
-    d = np.asarray(direction, dtype=np.float64)
-    d = d / math.hypot(d[0], d[1])
-    height, width = blob.cover.shape
-    x0, y0 = blob.origin
-    xs = np.arange(x0, x0 + width, dtype=np.float64)
-    ys = np.arange(y0, y0 + height, dtype=np.float64)
-    cu, cv = blob.u, blob.v
-    for _ in range(iterations):
-        # Distance of each pixel centre from the line through (cu, cv) along d.
-        dist = np.abs(np.subtract.outer((ys - cv) * d[0], (xs - cu) * d[1]))
-        weighted = blob.cover * np.clip(dist - half_width + 0.5, 0.0, 1.0)
-        total = float(weighted.sum())
-        if total <= 0.0:
-            return blob.u, blob.v
-        cu = float(weighted.sum(axis=0) @ xs) / total
-        cv = float(weighted.sum(axis=1) @ ys) / total
-    return cu, cv
-
-
-def symmetric_centre(cover: NDArray[np.float64], cx: float, cy: float,
-                     area: float) -> tuple[float, float] | None:
-    """
-    Return the centre (x, y) of a disc's coverage with its notches filled, or None.
-
-    An ellipse is symmetric about its centre c: the coverage at p equals that at 2 c - p. A
-    thin object in front of the marker (the tool's shaft, the quill of link 6) cuts a notch
-    into the outline and moves the area centroid by up to 0.1 px (measured at the target
-    pose), which the stereo pair turns into a tilt of the tool axis. Where the coverage at p
-    falls short of the mirrored one by more than NOTCH_COVERAGE (a notch: the centre's own
-    error moves rim pixels by a tenth of that), the mirrored value (bilinear) is used;
-    the centroid of that and the mirror are iterated from the area centroid (cx, cy).
-    None when the notches hold more than NOTCH_SHARE of the ``area``: not a marker with a
-    rod across it, but one partly hidden.
-
-    Parameters
-    ----------
-    cover : ndarray, shape (h, w)
-        The coverage of each pixel (:func:`coverage`).
-    cx, cy : float
-        Its area centroid (px, in ``cover``).
-    area : float
-        Its sum.
-
-    Returns
-    -------
-    tuple of (float, float) or None
-        The centre (x, y) in ``cover`` (px).
-
-    """
-    height, width = cover.shape
-    xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
-    cover32 = cover.astype(np.float32)
-    columns = np.arange(width, dtype=np.float64)
-    rows = np.arange(height, dtype=np.float64)
-    for _ in range(NOTCH_ITERATIONS):
-        mirrored = cv2.remap(cover32, np.float32(2.0 * cx) - xs, np.float32(2.0 * cy) - ys,
-                             cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-        short = mirrored - cover32
-        notch = short > NOTCH_COVERAGE
-        # The rod's edges cover pixels partly: next to a notch, any shortfall counts.
-        notch |= (cv2.dilate(notch.astype(np.uint8), _KERNEL3) > 0) & (short > NOTCH_EDGE)
-        filled = np.where(notch, mirrored, cover32).astype(np.float64)
-        if float((filled - cover).sum()) > NOTCH_SHARE * area:
-            return None
-        total = float(filled.sum())
-        cx = float(filled.sum(axis=0) @ columns) / total
-        cy = float(filled.sum(axis=1) @ rows) / total
-    return cx, cy
+    n = tiles.n
+    interior, support, linear = (tiles.empty(np.uint8) for _ in range(3))
+    outside, rgb = tiles.empty(np.float32), tiles.empty(np.uint8, 3)
+    for i in range(n):
+        tiles.put(interior, i, interiors[i])
+        tiles.put(support, i, supports[i])
+        tiles.put(linear, i, linears[i])
+        # Beyond an array's edge its pixels mirrored, as cv2.boxFilter reads the window.
+        tiles.put(outside, i, cv2.copyMakeBorder(
+            np.subtract(1.0, supports[i], dtype=np.float32), 2, 2, 2, 2,
+            cv2.BORDER_REFLECT_101), pad=2)
+        tiles.put(rgb, i, cv2.copyMakeBorder(np.ascontiguousarray(rgbs[i]), 2, 2, 2, 2,
+                                             cv2.BORDER_REFLECT_101), pad=2)
+    cover = interior.astype(np.float64)
+    # The rim's pixels by their flat index, in the order a boolean mask takes them.
+    rim = np.flatnonzero(np.greater(support, interior))
+    if not rim.size:
+        return cover
+    owner = rim // (tiles.th * tiles.tw)
+    count = cv2.boxFilter(_Tiles.flat(outside), -1, (5, 5), normalize=False)
+    weighted = rgb.astype(np.float32)
+    weighted *= outside[..., None]
+    back = cv2.boxFilter(_Tiles.flat(weighted), -1, (5, 5), normalize=False)
+    level = np.asarray(levels, dtype=np.float64)[owner]
+    local = cv2.dilate(_Tiles.flat(linear * interior), _KERNEL5).take(rim).astype(np.float64)
+    low = local < 0.5 * level
+    local[low] = level[low]
+    fallback = np.clip(linear.take(rim) / local, 0.0, 1.0)
+    pix = rgb.reshape(-1, 3)[rim].astype(np.float64)
+    count = count.take(rim).astype(np.float64)
+    b = back.reshape(-1, 3)[rim].astype(np.float64) / np.maximum(count, 1.0)[:, None]
+    # Each rim pixel p = x m + y b (module docstring of coverage), m its marker's colour.
+    a11, a12, b1 = np.empty(rim.size), np.empty(rim.size), np.empty(rim.size)
+    kinds = {colour: j for j, colour in enumerate(dict.fromkeys(tuple(c) for c in colours))}
+    kind = np.array([kinds[tuple(c)] for c in colours])[owner]
+    for colour, j in kinds.items():
+        rows = kind == j
+        m = np.asarray(colour, dtype=np.float64)
+        a11[rows] = m @ m
+        a12[rows] = b[rows] @ m
+        b1[rows] = pix[rows] @ m
+    a22 = np.einsum('ij,ij->i', b, b)
+    b2 = np.einsum('ij,ij->i', b, pix)
+    det = a11 * a22 - a12 * a12
+    good = (count > 0) & (det > 0.05 * a11 * np.maximum(a22, 1e-9)) & (a22 > 100.0)
+    y = np.where(good, (a11 * b2 - a12 * b1) / np.where(good, det, 1.0), 0.0)
+    cover.put(rim, np.where(good, np.clip(1.0 - y, 0.0, 1.0), fallback))
+    return cover
 
 
 def coverage(patch: NDArray[np.uint8], filled: NDArray[np.uint8], linear: NDArray[np.uint8],
@@ -367,7 +589,7 @@ def coverage(patch: NDArray[np.uint8], filled: NDArray[np.uint8], linear: NDArra
     colour (any brightness: shading only scales x) and b the mean colour of the background
     pixels within 2 px; its coverage is 1 - y. Where m and b are nearly parallel (a dark
     background) it falls back to s / (level of the interior pixels next to it), s being
-    the linear colour channel.
+    the linear colour channel. (:func:`refine_candidates` takes several objects at once.)
 
     Parameters
     ----------
@@ -389,31 +611,225 @@ def coverage(patch: NDArray[np.uint8], filled: NDArray[np.uint8], linear: NDArra
 
     """
     interior = cv2.erode(filled, _KERNEL3)
-    if not np.any(interior):
+    if not cv2.countNonZero(interior):
         interior = filled
-    support = cv2.dilate(filled, _KERNEL3)
-    cover = interior.astype(np.float64)
-    rim = (support > interior)
-    if not np.any(rim):
-        return cover
-    outside = (1 - support).astype(np.float32)
-    rgb = patch.astype(np.float32)
-    count = cv2.boxFilter(outside, -1, (5, 5), normalize=False)
-    back = cv2.boxFilter(rgb * outside[..., None], -1, (5, 5), normalize=False)
-    local = cv2.dilate(linear * interior, _KERNEL5).astype(np.float64)
-    local[local < 0.5 * level] = level
-    fallback = np.clip(linear[rim] / local[rim], 0.0, 1.0)
-    pix = rgb[rim].astype(np.float64)
-    n = count[rim].astype(np.float64)
-    b = back[rim].astype(np.float64) / np.maximum(n, 1.0)[:, None]
-    m = np.asarray(marker_rgb, dtype=np.float64)
-    a11 = m @ m
-    a12 = b @ m
-    a22 = np.einsum('ij,ij->i', b, b)
-    b1 = pix @ m
-    b2 = np.einsum('ij,ij->i', b, pix)
-    det = a11 * a22 - a12 * a12
-    good = (n > 0) & (det > 0.05 * a11 * np.maximum(a22, 1e-9)) & (a22 > 100.0)
-    y = np.where(good, (a11 * b2 - a12 * b1) / np.where(good, det, 1.0), 0.0)
-    cover[rim] = np.where(good, np.clip(1.0 - y, 0.0, 1.0), fallback)
-    return cover
+    tiles = _Tiles([filled.shape])
+    cover = _coverage(tiles, [interior], [cv2.dilate(filled, _KERNEL3)], [linear], [patch],
+                      [level], [tuple(np.asarray(marker_rgb, dtype=np.float64))])
+    return tiles.get(cover, 0).copy()
+
+
+def _symmetric_centres(tiles, cover, crops, windows, cx, cy, area, which):
+    """
+    Return {i: centre (x, y) in its window, or None} of the tiles ``which`` of ``cover``.
+
+    :func:`symmetric_centre` of each: tile i is the part ``crops[i]`` (x0, y0, x1, y1) of a
+    window of shape ``windows[i]`` whose coverage is zero elsewhere; (cx[i], cy[i]) its
+    area centroid in the window, ``area[i]`` its sum. Each mirror image is OpenCV's of the
+    whole window, as one object at a time; the sums are over the tiles.
+    """
+    cover32 = cover.astype(np.float32)
+    mirrored = tiles.empty(np.float32)
+    columns = np.array([c[0] - PAD for c in crops], dtype=np.float64)[:, None] \
+        + np.arange(tiles.tw, dtype=np.float64)
+    rows = np.array([c[1] - PAD for c in crops], dtype=np.float64)[:, None] \
+        + np.arange(tiles.th, dtype=np.float64)
+    cx, cy = [float(x) for x in cx], [float(y) for y in cy]
+    sources, result, active = {}, {}, list(which)
+    for _ in range(NOTCH_ITERATIONS):
+        if not active:
+            break
+        for i in active:
+            x0, y0, x1, y1 = crops[i]
+            source = sources.get(i)
+            if source is None:
+                source = sources[i] = np.zeros(windows[i], np.float32)
+                source[y0:y1, x0:x1] = tiles.get(cover32, i)
+            xs, ys = _window_grid(x0, y0, x1, y1)
+            tiles.put(mirrored, i, cv2.remap(source, np.float32(2.0 * cx[i]) - xs,
+                                             np.float32(2.0 * cy[i]) - ys, cv2.INTER_LINEAR,
+                                             borderMode=cv2.BORDER_CONSTANT, borderValue=0.0))
+        short = mirrored - cover32
+        notch = short > NOTCH_COVERAGE
+        # The rod's edges cover pixels partly: next to a notch, any shortfall counts.
+        notch |= (cv2.dilate(_Tiles.flat(notch.view(np.uint8)), _KERNEL3).reshape(notch.shape)
+                  > 0) & (short > NOTCH_EDGE)
+        filled = np.where(notch, mirrored, cover32).astype(np.float64)
+        by_column, by_row = filled.sum(axis=1), filled.sum(axis=2)
+        total = by_row.sum(axis=1)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            nx = np.einsum('ij,ij->i', by_column, columns) / total
+            ny = np.einsum('ij,ij->i', by_row, rows) / total
+        still = []
+        for i in active:
+            if total[i] - area[i] > NOTCH_SHARE * area[i]:  # what the notches filled
+                result[i] = None
+            elif (float(nx[i]), float(ny[i])) == (cx[i], cy[i]):
+                result[i] = (cx[i], cy[i])  # a fixed point: every further step gives it
+            else:
+                cx[i], cy[i] = float(nx[i]), float(ny[i])
+                still.append(i)
+        active = still
+    for i in active:
+        result[i] = (cx[i], cy[i])
+    return result
+
+
+@lru_cache(maxsize=256)
+def _window_grid(x0, y0, x1, y1):
+    """Return the float32 x and y of the window pixels [x0, x1) x [y0, y1) (read-only)."""
+    xs, ys = np.meshgrid(np.arange(x0, x1, dtype=np.float32),
+                         np.arange(y0, y1, dtype=np.float32))
+    xs.flags.writeable = ys.flags.writeable = False
+    return xs, ys
+
+
+def symmetric_centre(cover: NDArray[np.float64], cx: float, cy: float,
+                     area: float) -> tuple[float, float] | None:
+    """
+    Return the centre (x, y) of a disc's coverage with its notches filled, or None.
+
+    An ellipse is symmetric about its centre c: the coverage at p equals that at 2 c - p. A
+    thin object in front of the marker (the tool's shaft, the quill of link 6) cuts a notch
+    into the outline and moves the area centroid by up to 0.1 px (measured at the target
+    pose), which the stereo pair turns into a tilt of the tool axis. Where the coverage at p
+    falls short of the mirrored one by more than NOTCH_COVERAGE (a notch: the centre's own
+    error moves rim pixels by a tenth of that), the mirrored value (bilinear) is used;
+    the centroid of that and the mirror are iterated from the area centroid (cx, cy).
+    None when the notches hold more than NOTCH_SHARE of the ``area``: not a marker with a
+    rod across it, but one partly hidden. (:func:`refine_candidates` takes several at once.)
+
+    Parameters
+    ----------
+    cover : ndarray, shape (h, w)
+        The coverage of each pixel (:func:`coverage`).
+    cx, cy : float
+        Its area centroid (px, in ``cover``).
+    area : float
+        Its sum.
+
+    Returns
+    -------
+    tuple of (float, float) or None
+        The centre (x, y) in ``cover`` (px).
+
+    """
+    height, width = cover.shape
+    tiles = _Tiles([cover.shape])
+    stack = tiles.empty(np.float64)
+    tiles.put(stack, 0, cover)
+    return _symmetric_centres(tiles, stack, [(0, 0, width, height)], [cover.shape], [cx],
+                              [cy], [area], [0])[0]
+
+
+def axis_band_centre(blob: Blob, direction: ArrayLike, half_width: float,
+                     iterations: int = AXIS_BAND_ITERATIONS) -> tuple[float, float]:
+    """
+    Return the centre (u, v) of a blob's coverage outside a band along the tool axis.
+
+    The rods that carry the fiducials (link 6's quill, the screwdriver's shaft) lie on the
+    tool axis, which passes through both markers' centres: in the image they touch a
+    marker's outline only where the line through both markers' images crosses it, at two
+    opposite ends. There the coverage is wrong both ways: a rod in front of the sphere cuts
+    a notch, a rod (or the other marker) just behind the outline darkens the background
+    that a rim pixel is unmixed against, which makes it look more covered. Mirroring a notch
+    (:func:`symmetric_centre`) then copies the other end's error. Weighting out a band of
+    half-width ``half_width`` about the line through the current centre along
+    ``direction`` removes both ends at once and keeps the rest point-symmetric about the
+    ellipse's centre, whose centroid is therefore still that centre: iterated from the
+    blob's centre, each step moves towards it. The band's edge is a one-pixel ramp (a hard
+    edge would make the result depend on the centre's sub-pixel position).
+    (:func:`axis_band_centres` takes several blobs at once.)
+
+    Parameters
+    ----------
+    blob : Blob
+        A blob with its ``cover``.
+    direction : array_like, shape (2,)
+        The image direction of the tool axis (any length but zero).
+    half_width : float
+        Half-width of the band (px).
+    iterations : int
+        Steps from the blob's centre.
+
+    Returns
+    -------
+    tuple of (float, float)
+        The centre (u, v) in the image (px); the blob's own without a cover.
+
+    """
+    return axis_band_centres([blob], [direction], [half_width], iterations)[0]
+
+
+def axis_band_centres(blobs: list[Blob], directions: list[ArrayLike],
+                      half_widths: list[float], iterations: int = AXIS_BAND_ITERATIONS
+                      ) -> list[tuple[float, float]]:
+    """
+    Return :func:`axis_band_centre` of each blob, all at once.
+
+    Parameters
+    ----------
+    blobs : list of Blob
+        The blobs.
+    directions : list of array_like, shape (2,)
+        Each one's tool-axis direction.
+    half_widths : list of float
+        Each one's band half-width (px).
+    iterations : int
+        Steps from each blob's centre.
+
+    Returns
+    -------
+    list of (float, float)
+        The centres (u, v) in the image (px), in order.
+
+    """
+    out = [(b.u, b.v) for b in blobs]
+    use = [i for i, b in enumerate(blobs) if b.cover is not None]
+    if not use or iterations < 1:
+        return out
+    tiles = _Tiles([blobs[i].cover.shape for i in use])
+    cover = tiles.empty(np.float64)
+    for j, i in enumerate(use):
+        tiles.put(cover, j, blobs[i].cover)
+    xs = np.array([blobs[i].origin[0] - PAD for i in use], dtype=np.float64)[:, None] \
+        + np.arange(tiles.tw, dtype=np.float64)
+    ys = np.array([blobs[i].origin[1] - PAD for i in use], dtype=np.float64)[:, None] \
+        + np.arange(tiles.th, dtype=np.float64)
+    d = np.empty((len(use), 2))
+    for j, i in enumerate(use):
+        d[j] = np.asarray(directions[i], dtype=np.float64)
+        d[j] /= math.hypot(d[j, 0], d[j, 1])
+    half = np.asarray([half_widths[i] for i in use], dtype=np.float64)[:, None, None]
+    cu = np.array([blobs[i].u for i in use], dtype=np.float64)
+    cv = np.array([blobs[i].v for i in use], dtype=np.float64)
+    weighted = np.empty_like(cover)
+    active = list(range(len(use)))
+    for _ in range(iterations):
+        # Distance of each pixel centre from the line through (cu, cv) along d.
+        np.subtract(((ys - cv[:, None]) * d[:, 0:1])[:, :, None],
+                    ((xs - cu[:, None]) * d[:, 1:2])[:, None, :], out=weighted)
+        np.abs(weighted, out=weighted)
+        weighted -= half
+        weighted += 0.5
+        np.clip(weighted, 0.0, 1.0, out=weighted)
+        weighted *= cover
+        total = weighted.sum(axis=(1, 2))
+        with np.errstate(invalid='ignore', divide='ignore'):
+            nu = np.einsum('ij,ij->i', weighted.sum(axis=1), xs) / total
+            nv = np.einsum('ij,ij->i', weighted.sum(axis=2), ys) / total
+        still = []
+        for j in active:
+            i = use[j]
+            if total[j] <= 0.0:
+                out[i] = (blobs[i].u, blobs[i].v)
+            elif (float(nu[j]), float(nv[j])) == (cu[j], cv[j]):
+                out[i] = (float(cu[j]), float(cv[j]))  # a fixed point
+            else:
+                cu[j], cv[j] = nu[j], nv[j]
+                still.append(j)
+                out[i] = (float(cu[j]), float(cv[j]))
+        active = still
+        if not active:
+            break
+    return out

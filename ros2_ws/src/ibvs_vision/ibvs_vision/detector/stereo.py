@@ -10,6 +10,7 @@ step is paid for from the pair's :class:`.budget.WorkBudget` before it runs.
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 import math
+import time
 
 import cv2
 from ibvs_model import StereoIntrinsics
@@ -18,9 +19,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .budget import hough_cost_ms, OverBudget, pass_cost_ms, WorkBudget
-from .colour import check_image, colour_scores, ENCODINGS, MarkerColour
+from .colour import check_image, ENCODINGS, MarkerColour, selective_score
 from .config import DetectorConfig, MARKER_NAMES, Reason
-from .refine import axis_band_centre, refine_circle, silhouette_to_centre, window_half
+from .refine import (axis_band_centres, find_object, refine_candidates, silhouette_to_centre,
+                     window_half)
 
 _BLOCK = 8  # = 2 ** 3, see _hot_regions
 _MAX_REGIONS = 12
@@ -60,6 +62,25 @@ class StereoDetection:
         return self.features is not None
 
 
+class _Stopwatch:
+    """Adds the time since the last lap to ``timings['<search>: <stage>']``; None: nothing."""
+
+    __slots__ = ('timings', 'search', 'last')
+
+    def __init__(self, timings, search):
+        self.timings, self.search = timings, search
+        self.last = time.perf_counter() if timings is not None else 0.0
+
+    def lap(self, stage):
+        """Add the time since the last lap to ``stage``."""
+        if self.timings is None:
+            return
+        now = time.perf_counter()
+        key = f'{self.search}: {stage}'
+        self.timings[key] = self.timings.get(key, 0.0) + now - self.last
+        self.last = now
+
+
 class StereoDetector:
     """
     Detect both fiducials in a rectified stereo pair and return p_I (eq. 2-3).
@@ -88,6 +109,9 @@ class StereoDetector:
         self.config = config if config is not None else DetectorConfig()
         self._colours = tuple(MarkerColour.of(rgb) for rgb in self.config.marker_rgb)
         self._buffers = {}
+        #: None, or a dict the stages of each pair's search add their wall time (s) to, by
+        #: '<search>: <stage>' (search 'roi' or 'full'), for benchmarks.
+        self.timings = None
 
     # --- one image -------------------------------------------------------------------
 
@@ -99,10 +123,10 @@ class StereoDetector:
 
         Parameters
         ----------
-        image : ndarray of uint8, shape (H, W, 3)
+        image : ndarray of uint8, shape (H, W, 3 or 4)
             The image.
         encoding : str
-            'rgb8' or 'bgr8'.
+            'rgb8', 'bgr8' or 'bgra8' (:data:`.colour.ENCODINGS`).
         rois : sequence of 2 (tuple of 4 int or None), optional
             Per marker, None or a window (x0, y0, x1, y1) to search instead of the whole
             image; None: the whole image for both.
@@ -119,10 +143,21 @@ class StereoDetector:
             At the first step the budget cannot pay for.
 
         """
+        return self._finish([self._find(image, encoding, rois, budget)])[0]
+
+    def _find(self, image, encoding, rois, budget):
+        """
+        Return what each circle of both markers in one image gave, in order (detect_image).
+
+        The Hough circles of each search window and the object each one finds
+        (:func:`.refine.find_object`): a list of (marker, :class:`.refine.Candidate` or
+        None, why not), refined by :meth:`_finish`. Raises OverBudget as
+        :meth:`detect_image`.
+        """
         check_image(image, encoding)
         budget = budget if budget is not None else WorkBudget()
         cfg = self.config
-        result = ImageDetections(blobs=([], []), rejected={})
+        found = []
         full = None
         pixels = image.shape[0] * image.shape[1]
         for k, rgb in enumerate(cfg.marker_rgb):
@@ -138,7 +173,7 @@ class StereoDetector:
                 x0, y0, x1, y1 = roi
                 budget.pay(pass_cost_ms('score', (x1 - x0) * (y1 - y0)),
                            'colour channels of a window')
-                regions = [(colour_scores(image[y0:y1, x0:x1], rgb, encoding)[1], roi)]
+                regions = [(selective_score(image[y0:y1, x0:x1], rgb, encoding), roi)]
             for score, bounds in regions:
                 x0, y0 = bounds[:2]
                 seen = []  # boxes (x0, y0, x1, y1) of the objects refined so far
@@ -149,18 +184,38 @@ class StereoDetector:
                         continue
                     side = 2 * window_half(r) + 1
                     budget.pay(pass_cost_ms('refine', side * side), 'refinement of a circle')
-                    blob, why, box = refine_circle(image, encoding, k, u, v, r, bounds,
-                                                   cfg, self.intrinsics)
+                    candidate, why, box = find_object(image, encoding, k, u, v, r, bounds, cfg)
                     if box is not None:
                         seen.append(box)
-                    if blob is None:
-                        key = f'{MARKER_NAMES[k]}: {why}'
-                        result.rejected[key] = result.rejected.get(key, 0) + 1
-                    elif not any(abs(b.u - blob.u) < 0.5 and abs(b.v - blob.v) < 0.5
-                                 for b in result.blobs[k]):
-                        result.blobs[k].append(blob)
-        result.blobs = tuple(tuple(b) for b in result.blobs)
-        return result
+                    found.append((k, candidate, why))
+        return found
+
+    def _finish(self, images):
+        """
+        Return the ImageDetections of each image's :meth:`_find`, refined all at once.
+
+        The candidates of every image go to :func:`.refine.refine_candidates` together;
+        each image then keeps, per marker and in order, every blob that is not within half a
+        pixel of one kept already, and counts each rejection by marker and reason.
+        """
+        candidates = [c for found in images for _, c, _ in found if c is not None]
+        refined = iter(refine_candidates(candidates, self.config, self.intrinsics))
+        out = []
+        for found in images:
+            result = ImageDetections(blobs=([], []), rejected={})
+            for k, candidate, why in found:
+                blob = None
+                if candidate is not None:
+                    blob, why = next(refined)
+                if blob is None:
+                    key = f'{MARKER_NAMES[k]}: {why}'
+                    result.rejected[key] = result.rejected.get(key, 0) + 1
+                elif not any(abs(b.u - blob.u) < 0.5 and abs(b.v - blob.v) < 0.5
+                             for b in result.blobs[k]):
+                    result.blobs[k].append(blob)
+            result.blobs = tuple(tuple(b) for b in result.blobs)
+            out.append(result)
+        return out
 
     def _buffer(self, name, shape):
         """
@@ -180,7 +235,8 @@ class StereoDetector:
         """Return s_sel of both markers over the whole image, splitting the planes once."""
         order = ENCODINGS[encoding]
         shape = image.shape[:2]
-        planes = cv2.split(image, [self._buffer(f'plane{i}', shape) for i in range(3)])
+        planes = cv2.split(image, [self._buffer(f'plane{i}', shape)
+                                   for i in range(image.shape[2])])
         planes = [planes[order[i]] for i in range(3)]
         top = self._buffer('top', shape)
         scores = []
@@ -265,10 +321,10 @@ class StereoDetector:
 
         Parameters
         ----------
-        left, right : ndarray of uint8, shape (H, W, 3)
+        left, right : ndarray of uint8, shape (H, W, 3 or 4)
             The pair.
         encoding : str
-            'rgb8' or 'bgr8'.
+            'rgb8', 'bgr8' or 'bgra8' (:data:`.colour.ENCODINGS`).
         prior : array_like, shape (6,), optional
             A predicted p_I, e.g. F(q_T) corrected by the last measurement: both images
             are first searched in windows of ``roi_margin_px`` around it; if that does
@@ -325,8 +381,12 @@ class StereoDetector:
         return rois
 
     def _detect_pair(self, left, right, encoding, rois, search, budget):
-        det_l = self.detect_image(left, encoding, None if rois is None else rois[0], budget)
-        det_r = self.detect_image(right, encoding, None if rois is None else rois[1], budget)
+        clock = _Stopwatch(self.timings, search)
+        found = [self._find(left, encoding, None if rois is None else rois[0], budget),
+                 self._find(right, encoding, None if rois is None else rois[1], budget)]
+        clock.lap('colour channels, Hough, objects')
+        det_l, det_r = self._finish(found)
+        clock.lap('refinement')
         pairs = []
         problems = []
         for k in range(2):
@@ -344,11 +404,16 @@ class StereoDetector:
             else:
                 order = (Reason.AMBIGUOUS, Reason.EPIPOLAR_MISMATCH, Reason.MARKER_MISSING)
                 reason = min((p[0] for p in problems), key=order.index)
+            clock.lap('pairing')
             return StereoDetection(None, reason, '; '.join(p[1] for p in problems),
                                    det_l, det_r, search)
+        clock.lap('pairing')
         features = np.empty(6)
-        for k, (bl, br) in enumerate(self._axis_centres(pairs)):
+        centred = self._axis_centres(pairs)
+        clock.lap('axis band')
+        for k, (bl, br) in enumerate(centred):
             features[3 * k:3 * k + 3] = self._centre(bl, br)
+        clock.lap('pairing')
         return StereoDetection(features, None, '', det_l, det_r, search)
 
     def _axis_centres(self, pairs):
@@ -364,6 +429,7 @@ class StereoDetector:
         """
         cfg = self.config
         out = [list(pair) for pair in pairs]
+        todo = []  # (k, side, blob, direction, half-width)
         for side in range(2):
             first, second = pairs[0][side], pairs[1][side]
             direction = (second.u - first.u, second.v - first.v)
@@ -374,8 +440,11 @@ class StereoDetector:
                     / cfg.marker_radius_m
                 if half_width > AXIS_BAND_MAX_SHARE * blob.radius:
                     continue  # too little rim left: keep the notch-filled centre
-                u, v = axis_band_centre(blob, direction, half_width)
-                out[k][side] = replace(blob, u=u, v=v)
+                todo.append((k, side, blob, direction, half_width))
+        centres = axis_band_centres([t[2] for t in todo], [t[3] for t in todo],
+                                    [t[4] for t in todo])
+        for (k, side, blob, _, _), (u, v) in zip(todo, centres):
+            out[k][side] = replace(blob, u=u, v=v)
         return out
 
     def _pair_marker(self, k, lefts, rights, rej_l, rej_r):
