@@ -104,6 +104,13 @@ RECORD_QOS = QoSProfile(depth=2000, reliability=contract.RELIABLE.reliability,
 LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY,
                   contract.ROBOT_DESCRIPTION, contract.TF_STATIC, contract.SERVO_STATUS,
                   contract.FEEDBACK_STATUS}
+#: How a latched topic is read: transient local, as its publishers offer it, and deep. A
+#: latched topic may have several publishers (/tf_static: robot_state_node's fixed joints and
+#: viz_node's frames), each delivering its last message when it matches; a reader of depth 1
+#: keeps only the last of those that arrive before it is read (tf2_ros's static listener,
+#: ``StaticListenerQoS``, reads with a depth of 100 for that reason).
+LATCHED_RECORD_QOS = QoSProfile(depth=100, reliability=contract.LATCHED.reliability,
+                                durability=contract.LATCHED.durability)
 #: Wall seconds between two flushes of a bag on the wall clock (``wall_clock``): what a
 #: killed recorder leaves readable, as each /clock does on sim time.
 WALL_FLUSH_S = 0.1
@@ -449,10 +456,13 @@ class Recorder(Node):
                 self._skipped.add(topic)
                 self.get_logger().warn(f'not recording {topic}: unknown type {type_name}')
             return
-        qos = contract.LATCHED if topic in LATCHED_TOPICS else RECORD_QOS
-        self._types[topic], self._qos[topic] = type_name, qos
+        latched = topic in LATCHED_TOPICS
+        # the bag's QoS where no publisher says its own: what the topic's publishers offer
+        self._types[topic] = type_name
+        self._qos[topic] = contract.LATCHED if latched else RECORD_QOS
         self._topic_subs[topic] = self.create_subscription(
-            message_class(type_name), topic, partial(self._on_message, topic), qos, raw=True)
+            message_class(type_name), topic, partial(self._on_message, topic),
+            LATCHED_RECORD_QOS if latched else RECORD_QOS, raw=True)
         self.counts[topic] = 0
 
     def _discover(self):
