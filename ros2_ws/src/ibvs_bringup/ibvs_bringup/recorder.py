@@ -107,8 +107,9 @@ LATCHED_TOPICS = {contract.STEREO_POSE, contract.FEEDFORWARD_TRAJECTORY,
 #: How a latched topic is read: transient local, as its publishers offer it, and deep. A
 #: latched topic may have several publishers (/tf_static: robot_state_node's fixed joints and
 #: viz_node's frames), each delivering its last message when it matches; a reader of depth 1
-#: keeps only the last of those that arrive before it is read (tf2_ros's static listener,
-#: ``StaticListenerQoS``, reads with a depth of 100 for that reason).
+#: keeps only the last of those that arrive before it is read (tf2_ros's static listener reads
+#: with transient local and a depth of 100: ``StaticListenerQoS``, geometry2 02849c0,
+#: ``tf2_ros/include/tf2_ros/qos.hpp`` L53-61).
 LATCHED_RECORD_QOS = QoSProfile(depth=100, reliability=contract.LATCHED.reliability,
                                 durability=contract.LATCHED.durability)
 #: Wall seconds between two flushes of a bag on the wall clock (``wall_clock``): what a
