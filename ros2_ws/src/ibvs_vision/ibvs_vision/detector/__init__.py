@@ -23,7 +23,7 @@ marker 2 blue):
    taking out the radial stretch 1 / cos(theta) of a sphere seen off-axis. A thin rod in
    front of the marker (the tool's shaft, link 6's quill) cuts a notch into the outline;
    the notch is filled from the point-symmetric side of the ellipse before the centroid is
-   taken (:func:`.refine.symmetric_centre`; at the target pose this takes the vertical bias
+   taken (:func:`.coverage.symmetric_centre`; at the target pose this takes the vertical bias
    from 0.07-0.09 px to under 0.01 px, and the implied tool-axis error from 0.16 to 0.06 deg).
    Once both markers are paired, each centre is taken again without a band about the
    line through both markers in its image (:func:`.refine.axis_band_centre`): the rods
@@ -54,8 +54,8 @@ gives Reason.OVER_BUDGET, so that no image, however noisy or crowded, holds the 
 longer than it allows.
 
 Modules: :mod:`.config` (tuning, reasons), :mod:`.colour` (step 1), :mod:`.stereo`
-(steps 2 and 4, :class:`StereoDetector`), :mod:`.refine` (steps 3 and 5), :mod:`.budget`
-(the cost model).
+(steps 2 and 4, :class:`StereoDetector`), :mod:`.refine` (steps 3 and 5), :mod:`.coverage`
+(step 3's coverage and notch-filled centre), :mod:`.budget` (the cost model).
 """
 
 from .colour import colour_scores, ENCODINGS

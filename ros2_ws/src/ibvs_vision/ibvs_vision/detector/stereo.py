@@ -424,8 +424,8 @@ class StereoDetector:
         the rods lie (:func:`.refine.axis_band_centre`); the band's half-width is the rods'
         image radius (``rod_radius_m`` scaled by the blob's radius) plus ``axis_band_px``.
         A blob whose band would be wider than AXIS_BAND_MAX_SHARE of its radius keeps its
-        notch-filled centre (:func:`.refine.symmetric_centre`): the band would leave too
-        little of its rim (a marker of 4 px at VGA).
+        notch-filled centre (:func:`.coverage.symmetric_centre`): the band would leave
+        too little of its rim (a marker of 4 px at VGA).
         """
         cfg = self.config
         out = [list(pair) for pair in pairs]
