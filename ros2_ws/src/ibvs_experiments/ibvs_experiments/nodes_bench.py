@@ -54,11 +54,12 @@ transfer of both images from this process to the feature node (DDS), which a cam
 in a process of its own costs too. Before each replay, where the feature node's CPU goes a
 frame (:func:`frame_split`: rclpy's deserialisation, the detector's stages, the node's own
 handling of the messages), measured in a process of its own (``python -m
-ibvs_experiments.nodes_bench split``).
+ibvs_experiments.nodes_bench split``). The recording and its parts are
+:mod:`.nodes_recording`'s, the split :mod:`.nodes_split`'s.
 """
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import os
 from pathlib import Path
 import threading
@@ -67,182 +68,19 @@ from typing import Any
 
 import numpy as np
 
+# The recording and its parts (step 1, 2a), and the split: this module's names too.
+from .nodes_recording import (detectable_frames, MIN_SEGMENT_FRAMES,  # noqa: F401
+                              read_recording, Recording, segment, segment_bounds, SEGMENTS)
+from .nodes_split import frame_split, frame_split_apart, print_split
+
 #: Measurement starts this long (wall s) after the first joint command that used a frame:
 #: the graph's start (the feedforward's trajectory, 60 s of it at 1 kHz, which the joint
 #: controller waits for; the detector's first full search) is not a frame's latency.
 WARMUP_S = 1.0
 #: How long the nodes may take to subscribe (wall s) before the replay gives up.
 START_TIMEOUT_S = 60.0
-#: The parts of a recording that can be replayed (module docstring, step 2a).
-SEGMENTS = ('servo', 'lost', 'all')
-#: The fewest frames a segment replays: less is not a part of the run worth a measurement.
-MIN_SEGMENT_FRAMES = 15
 #: detectable_frames of each bag measured in this process, by its path.
 _DETECTABLE = {}
-
-
-@dataclass
-class Recording:
-    """What the replay sends, read from a real-cell bag (serialised rclpy messages)."""
-
-    #: (left image, right image, left info, right info) of each frame, in order.
-    frames: list
-    #: The bag's joint path: times (s, from 0), angles and velocities (N, 6).
-    joint_t: np.ndarray
-    joint_q: np.ndarray
-    joint_qd: np.ndarray
-    #: Published once, latched: /stereo/pose and the teach images (topic -> message).
-    latched: dict
-    #: The recorded run's parameters.
-    params: dict
-    #: The images' (width, height).
-    size: tuple
-    #: The bag's camera rate (Hz): its frames are this far apart.
-    rate_hz: float = 30.0
-    #: Where the first frame's exposure is on the joint path (s from its start): the
-    #: replay sends the joint states from there on with it.
-    joint_offset_s: float = 0.0
-    #: Each frame's exposure on the joint path (s from its start): its stamp less the
-    #: recorded run's ``image_stamp_offset_s`` (the simulated camera's; 0 when none).
-    exposures_s: np.ndarray | None = None
-    #: The part of the bag (SEGMENTS) and its first frame's index in the bag.
-    segment: str = 'all'
-    first_frame: int = 0
-    #: The bag it was read from.
-    bag: str = ''
-
-
-def read_recording(bag_path: str | Path) -> Recording:
-    """Read a real-cell bag recorded with its images (module docstring, step 1)."""
-    from geometry_msgs.msg import PoseStamped
-    from ibvs_common import contract
-    from ibvs_common.conversions import stamp_ns
-    from rclpy.serialization import deserialize_message
-    from rosbags.highlevel import AnyReader
-    from sensor_msgs.msg import CameraInfo, Image
-    import yaml
-
-    from ibvs_analysis import analysis
-
-    bag_path = Path(bag_path)
-    meta = yaml.safe_load((bag_path / 'metadata.yaml').read_text())
-    custom = meta.get('rosbag2_bagfile_information', {}).get('custom_data') or {}
-    params = yaml.safe_load(custom.get(analysis.PARAMS_KEY, '{}')) or {}
-    camera = (contract.ZED_LEFT_IMAGE, contract.ZED_RIGHT_IMAGE, contract.ZED_LEFT_INFO,
-              contract.ZED_RIGHT_INFO)
-    types = {contract.ZED_LEFT_IMAGE: Image, contract.ZED_RIGHT_IMAGE: Image,
-             contract.ZED_LEFT_INFO: CameraInfo, contract.ZED_RIGHT_INFO: CameraInfo,
-             contract.STEREO_POSE: PoseStamped, contract.TEACH_LEFT_IMAGE: Image,
-             contract.TEACH_RIGHT_IMAGE: Image}
-    by_stamp, latched = {}, {}
-    with AnyReader([bag_path]) as reader:
-        conns = [c for c in reader.connections if c.topic in types]
-        for conn, _, raw in reader.messages(connections=conns):
-            msg = deserialize_message(bytes(raw), types[conn.topic])
-            if conn.topic in camera:
-                stamp = stamp_ns(msg.header.stamp)
-                by_stamp.setdefault(stamp, {})[conn.topic] = msg
-            else:
-                latched.setdefault(conn.topic, msg)
-    complete = [(stamp, parts) for stamp, parts in sorted(by_stamp.items())
-                if len(parts) == len(camera)]
-    frames = [tuple(parts[t] for t in camera) for _, parts in complete]
-    if not frames:
-        raise ValueError(f'{bag_path}: no stereo frame on the ZED wrapper topics (record a '
-                         'real-cell run with --images)')
-    missing = [t for t in (contract.STEREO_POSE,) if t not in latched]
-    if missing:
-        raise ValueError(f'{bag_path}: no {", ".join(missing)}')
-    joint_t, joint_q, joint_qd, *_ = analysis.load_joints(bag_path)
-    if len(joint_t) < 2:
-        raise ValueError(f'{bag_path}: no joint path')
-    size = (int(frames[0][0].width), int(frames[0][0].height))
-    # Each frame's exposure on the joint path: its stamp less the simulated camera's offset.
-    exposures = np.array([stamp for stamp, _ in complete]) * 1e-9 \
-        - float(params.get('image_stamp_offset_s', 0.0)) - joint_t[0]
-    return Recording(frames, joint_t - joint_t[0], joint_q, joint_qd, latched, params, size,
-                     rate_hz=float(params.get('camera_rate_hz', 30.0)),
-                     joint_offset_s=float(exposures[0]), exposures_s=exposures,
-                     bag=str(bag_path))
-
-
-def detectable_frames(recording: Recording) -> np.ndarray:
-    """
-    Return whether the detector measures both markers in each frame of ``recording``.
-
-    A full search of each pair (no prediction, no budget), OpenCV on one thread, with the
-    camera of the bag's camera_info and /stereo/pose: what the frame holds, whatever the
-    nodes' state when it comes.
-    """
-    import cv2
-    from ibvs_common import contract
-    from ibvs_common.conversions import camera_from_msgs
-    from ibvs_vision.detector import StereoDetector
-    from ibvs_vision.imageconv import image_array
-
-    left_info, right_info = recording.frames[0][2:4]
-    camera = camera_from_msgs(left_info, right_info, recording.latched[contract.STEREO_POSE])
-    detector = StereoDetector(camera.intrinsics)
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        out = []
-        for left, right, *_ in recording.frames:
-            (left, encoding), (right, _) = image_array(left), image_array(right)
-            out.append(detector.detect(left, right, encoding).ok)
-    finally:
-        cv2.setNumThreads(threads)
-    return np.array(out, dtype=bool)
-
-
-def segment_bounds(detectable: Sequence[bool], which: str) -> tuple[int, int]:
-    """
-    Return the frames [start, end) of part ``which`` of a run (module docstring, step 2a).
-
-    ``detectable``: whether each frame is (:func:`detectable_frames`). 'servo': the longest
-    run of detectable frames (the first of equal ones); 'lost': the frames before it;
-    'all': every frame. A part with no frame gives (start, start).
-    """
-    n = len(detectable)
-    if which == 'all':
-        return 0, n
-    if which not in SEGMENTS:
-        raise ValueError(f'segment {which!r}: expected one of {SEGMENTS}')
-    best, start = (0, 0), None
-    for i, ok in enumerate(list(detectable) + [False]):
-        if ok and start is None:
-            start = i
-        elif not ok and start is not None:
-            if i - start > best[1] - best[0]:
-                best = (start, i)
-            start = None
-    return best if which == 'servo' else (0, best[0])
-
-
-def segment(recording: Recording, which: str,
-            detectable: Sequence[bool] | None = None) -> Recording:
-    """
-    Return part ``which`` of ``recording`` (:data:`SEGMENTS`, :func:`segment_bounds`).
-
-    Its frames, and its joint path from the first of them on; ``detectable`` as
-    :func:`detectable_frames` returns it (computed when None). ValueError when the part has
-    fewer than MIN_SEGMENT_FRAMES frames.
-    """
-    if which == 'all':
-        return recording
-    if detectable is None:
-        detectable = detectable_frames(recording)
-    start, end = segment_bounds(detectable, which)
-    if end - start < MIN_SEGMENT_FRAMES:
-        raise ValueError(f'the bag has {end - start} frames of its {which!r} part (fewer than '
-                         f'{MIN_SEGMENT_FRAMES}; {int(np.sum(detectable))} of '
-                         f'{len(detectable)} frames detectable): record a longer run')
-    exposures = recording.exposures_s
-    return replace(recording, frames=recording.frames[start:end],
-                   exposures_s=None if exposures is None else exposures[start:end],
-                   joint_offset_s=recording.joint_offset_s + start / recording.rate_hz
-                   if exposures is None else float(exposures[start]),
-                   segment=which, first_frame=start)
 
 
 def process_cpu_s(group: int) -> float:
@@ -406,6 +244,116 @@ def _node_params(recording: Recording, path: Path, camera_rate_hz: float) -> Pat
     return scenario.write_parameters(params, path)
 
 
+def _bench_node(context: Any) -> tuple[Any, list[tuple[int, int]]]:
+    """Return this process's node and the (command stamp, exposure) of each frame latency."""
+    from ibvs_common import contract
+    from ibvs_common.conversions import stamp_ns
+    import rclpy
+    from sensor_msgs.msg import TimeReference
+
+    node = rclpy.create_node('ibvs_nodes_bench', context=context, parameter_overrides=[])
+    commands = []
+    node.create_subscription(
+        TimeReference, contract.FRAME_LATENCY,
+        lambda m: commands.append((stamp_ns(m.header.stamp), stamp_ns(m.time_ref))),
+        contract.RELIABLE)
+    return node, commands
+
+
+def _start_nodes(procs: list, params_file: Path, log_dir: Path) -> None:
+    """Start each of the cell's nodes, a process of its own, into ``procs``."""
+    from ibvs_bringup.cell_checks import CELL_NODES
+    from ibvs_bringup.graph import GRAPH
+    from ibvs_bringup.supervision import NodeProcess
+
+    for name in CELL_NODES:
+        spec = GRAPH.node(name)
+        remaps = [arg for topic, remapped in spec.zed_remaps.items()
+                  for arg in ('-r', f'{topic}:={remapped}')]
+        procs.append(NodeProcess(spec.package, name, params_file, log_dir, remaps))
+
+
+def _wait_for_nodes(executor: Any, replayer: Replayer, procs: Sequence[Any],
+                    log_dir: Path) -> None:
+    """Spin until the nodes subscribe to the replay; RuntimeError if one ends or it is late."""
+    from ibvs_bringup.cell_checks import CELL_NODES
+
+    deadline = time.monotonic() + START_TIMEOUT_S
+    wanted = {'joint_states': len(CELL_NODES), 'image': 1, 'camera_info': 2}
+    while any(replayer.readers()[k] < n for k, n in wanted.items()):
+        executor.spin_once(timeout_sec=0.05)
+        dead = [p.name for p in procs if p.poll() is not None]
+        if dead or time.monotonic() > deadline:
+            raise RuntimeError(f'the nodes did not start: {dead or replayer.readers()}'
+                               f' (logs in {log_dir})')
+
+
+def _cpu_now(procs: Sequence[Any]) -> tuple[dict[str, float], float]:
+    """Return each node's CPU time (s, by name) and this process's."""
+    return {p.name: process_cpu_s(p.proc.pid) for p in procs}, time.process_time()
+
+
+@dataclass
+class _Window:
+    """What :func:`_spin_replay` measured: the window from WARMUP_S after the first command."""
+
+    #: :func:`_cpu_now` at the window's start, and its wall time (monotonic s); None when
+    #: the window never started.
+    cpu: tuple | None
+    #: The window's start (wall clock, ns), None when no command came.
+    since_ns: int | None
+    #: When the first command came (s into the replay), None when none came.
+    started_s: float | None
+    #: The replay's end (monotonic s), and :func:`_cpu_now` at it.
+    end: float
+    after: tuple
+
+
+def _spin_replay(executor: Any, replayer: Replayer, procs: Sequence[Any],
+                 commands: list, duration_s: float, stop: threading.Event) -> _Window:
+    """Run the replay for ``duration_s`` on a thread of its own, spinning; measure its CPU."""
+    thread = threading.Thread(target=replayer.run, args=(duration_s, stop))
+    thread.start()
+    cpu, since, began, started_s = None, None, time.monotonic(), None
+    while thread.is_alive():
+        executor.spin_once(timeout_sec=0.01)
+        if since is None and commands:  # the graph is up (WARMUP_S)
+            started_s = time.monotonic() - began
+            since = time.time_ns() + int(WARMUP_S * 1e9)
+        if cpu is None and since is not None and time.time_ns() >= since:
+            cpu = _cpu_now(procs) + (time.monotonic(),)
+    end = time.monotonic()
+    after = _cpu_now(procs)
+    settle = time.monotonic() + 0.5  # the last frames' commands
+    while time.monotonic() < settle:
+        executor.spin_once(timeout_sec=0.01)
+    return _Window(cpu, since, started_s, end, after)
+
+
+def _replay_numbers(window: _Window, sent: dict[int, int], commands: list,
+                    duration_s: float, log_dir: Path) -> dict[str, Any]:
+    """Return the latency and each process's CPU of a replay's window (:func:`replay`)."""
+    from ibvs_bringup.cell_checks import CELL_NODES
+
+    cpu, after, since = window.cpu, window.after, window.since_ns
+    if cpu is None:
+        started_s = window.started_s
+        raise ValueError(f'replay of {duration_s} s: ' + (
+            f'no joint command used a frame (logs in {log_dir})' if since is None else
+            f'it ended within {WARMUP_S} s of the first command ({started_s:.1f} s in)'))
+    window_s = window.end - cpu[2]
+    result = latency_stats(sent, commands, since)
+    frames = max(result['frames_sent'], 1)
+    result['cpu'] = {name: {'cpu_s': after[0][name] - cpu[0][name],
+                            'cores': (after[0][name] - cpu[0][name]) / window_s,
+                            'ms_per_frame': (after[0][name] - cpu[0][name]) / frames * 1e3}
+                     for name in CELL_NODES}
+    result['cpu']['replayer (this process)'] = {
+        'cpu_s': after[1] - cpu[1], 'cores': (after[1] - cpu[1]) / window_s,
+        'ms_per_frame': (after[1] - cpu[1]) / frames * 1e3}
+    return result
+
+
 def replay(bag_path: str | Path | Recording, duration_s: float, out_dir: str | Path,
            progress: Callable[[str], None] = print,
            camera_rate_hz: float | None = None) -> dict[str, Any]:
@@ -418,15 +366,11 @@ def replay(bag_path: str | Path | Recording, duration_s: float, out_dir: str | P
     CPU and this process's, the images' size, the wall time replayed.
     """
     from ibvs_bringup import domains
-    from ibvs_bringup.graph import GRAPH
-
     from ibvs_bringup.cell_checks import CELL_NODES
-    from ibvs_bringup.supervision import NodeProcess, stop_all
-    from ibvs_common import contract, dds
-    from ibvs_common.conversions import stamp_ns
+    from ibvs_bringup.supervision import stop_all
+    from ibvs_common import dds
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from sensor_msgs.msg import TimeReference
 
     recording = bag_path if isinstance(bag_path, Recording) else read_recording(bag_path)
     bag_path = recording.bag if isinstance(bag_path, Recording) else bag_path
@@ -444,221 +388,29 @@ def replay(bag_path: str | Path | Recording, duration_s: float, out_dir: str | P
         procs = []
         stop = threading.Event()
         try:
-            node = rclpy.create_node('ibvs_nodes_bench', context=context,
-                                     parameter_overrides=[])
-            commands = []
-            node.create_subscription(
-                TimeReference, contract.FRAME_LATENCY,
-                lambda m: commands.append((stamp_ns(m.header.stamp), stamp_ns(m.time_ref))),
-                contract.RELIABLE)
+            node, commands = _bench_node(context)
             replayer = Replayer(node, recording, joint_rate, camera_rate, physics_rate)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
-            for name in CELL_NODES:
-                spec = GRAPH.node(name)
-                remaps = [arg for topic, remapped in spec.zed_remaps.items()
-                          for arg in ('-r', f'{topic}:={remapped}')]
-                procs.append(NodeProcess(spec.package, name, params_file, log_dir, remaps))
+            _start_nodes(procs, params_file, log_dir)
             progress(f'  nodes alone: ROS_DOMAIN_ID {domain}, {", ".join(CELL_NODES)} started, '
                      f'replaying {bag_path} (part {recording.segment!r}: '
                      f'{len(recording.frames)} frames from frame {recording.first_frame}, '
                      f'{recording.size[0]} x {recording.size[1]}, at {camera_rate:g} Hz)')
-            deadline = time.monotonic() + START_TIMEOUT_S
-            wanted = {'joint_states': len(CELL_NODES), 'image': 1, 'camera_info': 2}
-            while any(replayer.readers()[k] < n for k, n in wanted.items()):
-                executor.spin_once(timeout_sec=0.05)
-                dead = [p.name for p in procs if p.poll() is not None]
-                if dead or time.monotonic() > deadline:
-                    raise RuntimeError(f'the nodes did not start: {dead or replayer.readers()}'
-                                       f' (logs in {log_dir})')
-            thread = threading.Thread(target=replayer.run, args=(duration_s, stop))
-            thread.start()
-            cpu, since, began = None, None, time.monotonic()
-            while thread.is_alive():
-                executor.spin_once(timeout_sec=0.01)
-                if since is None and commands:  # the graph is up (WARMUP_S)
-                    started_s = time.monotonic() - began
-                    since = time.time_ns() + int(WARMUP_S * 1e9)
-                if cpu is None and since is not None and time.time_ns() >= since:
-                    cpu = ({p.name: process_cpu_s(p.proc.pid) for p in procs},
-                           time.process_time(), time.monotonic())
-            end = time.monotonic()
-            after = ({p.name: process_cpu_s(p.proc.pid) for p in procs}, time.process_time())
-            settle = time.monotonic() + 0.5  # the last frames' commands
-            while time.monotonic() < settle:
-                executor.spin_once(timeout_sec=0.01)
+            _wait_for_nodes(executor, replayer, procs, log_dir)
+            window = _spin_replay(executor, replayer, procs, commands, duration_s, stop)
         finally:
             stop.set()
             codes = stop_all(procs) if procs else {}
             context.try_shutdown()
-    if cpu is None:
-        raise ValueError(f'replay of {duration_s} s: ' + (
-            f'no joint command used a frame (logs in {log_dir})' if since is None else
-            f'it ended within {WARMUP_S} s of the first command ({started_s:.1f} s in)'))
-    window_s = end - cpu[2]
-    result = latency_stats(replayer.sent, commands, since)
-    frames = max(result['frames_sent'], 1)
-    result['cpu'] = {name: {'cpu_s': after[0][name] - cpu[0][name],
-                            'cores': (after[0][name] - cpu[0][name]) / window_s,
-                            'ms_per_frame': (after[0][name] - cpu[0][name]) / frames * 1e3}
-                     for name in CELL_NODES}
-    result['cpu']['replayer (this process)'] = {
-        'cpu_s': after[1] - cpu[1], 'cores': (after[1] - cpu[1]) / window_s,
-        'ms_per_frame': (after[1] - cpu[1]) / frames * 1e3}
+    result = _replay_numbers(window, replayer.sent, commands, duration_s, log_dir)
     result.update(width=recording.size[0], height=recording.size[1], replay_s=duration_s,
-                  measured_s=window_s, warmup_s=WARMUP_S, first_command_s=started_s,
-                  bag=str(bag_path), camera_rate_hz=camera_rate, segment=recording.segment,
+                  measured_s=window.end - window.cpu[2], warmup_s=WARMUP_S,
+                  first_command_s=window.started_s, bag=str(bag_path),
+                  camera_rate_hz=camera_rate, segment=recording.segment,
                   segment_frames=len(recording.frames), first_frame=recording.first_frame,
                   exit_codes=codes, load_average=f'{os.getloadavg()[0]:.2f}')
     return result
-
-
-def frame_split(recording: Recording, camera_rate_hz: float | None = None,
-                frames: int = 120) -> dict[str, float]:
-    """
-    Return where the feature node's CPU goes a frame (ms), fed ``recording`` in this process.
-
-    A feature node of the recording's parameters (on the wall clock, as :func:`replay`
-    gives them) is built in this process and its callbacks are called with the messages
-    the replay would publish (the joint states at the command rate, each frame with a
-    joint state of its stamp, ``frames`` frames at ``camera_rate_hz`` after as many again
-    to start), each message deserialised from its bytes first as rclpy does for a
-    subscription. Timed on this thread (CPU time): the deserialisation, the detection by
-    its stages (:attr:`ibvs_vision.detector.StereoDetector.timings`, their wall time, and
-    the rest of it) and the node's own handling of the messages (everything else its
-    callbacks do: reading, pairing, the model's estimate, the stamp offset, publishing).
-    What it leaves out: DDS's own threads and the executor. This process's malloc keeps
-    the memory it frees, as a node's does (:func:`ibvs_common.process.keep_freed_memory`).
-    """
-    import rclpy
-    from rclpy.parameter import Parameter
-    from rclpy.serialization import deserialize_message, serialize_message
-    from ibvs_bringup import domains, scenario
-    from ibvs_common import contract, process
-    from ibvs_common.conversions import ns_stamp
-    from ibvs_model.urdf import JOINT_NAMES
-    from ibvs_vision.feature_node import FeatureNode, PARAMS
-    from sensor_msgs.msg import CameraInfo, Image, JointState
-
-    process.keep_freed_memory()
-    rate = float(camera_rate_hz or recording.rate_hz)
-    params = {k: v for k, v in recording.params.items() if k not in scenario.RUNNER_ONLY}
-    params.update(use_sim_time=False, camera_rate_hz=rate, stamp_offset_initial_s=0.0)
-    names = {p.name for p in PARAMS} | {'use_sim_time'}
-    frame_ns, joint_ns = round(1e9 / rate), round(1e9 / float(params.get(
-        'command_rate_hz', 250.0)))
-    recorded_ns = round(1e9 / recording.rate_hz)
-    cycle_ns = len(recording.frames) * recorded_ns
-    total = 2 * frames
-    start = (time.time_ns() - int((total / rate + 2.0) * 1e9)) // 1_000_000 * 1_000_000
-    times = {'deserialise': 0.0, 'callbacks': 0.0, 'detection (CPU)': 0.0}
-
-    def joint_bytes(t_ns):
-        into = ((t_ns - start) % cycle_ns) * 1e-9 + recording.joint_offset_s
-        i = max(int(np.searchsorted(recording.joint_t, into, side='right')) - 1, 0)
-        msg = JointState(name=list(JOINT_NAMES),
-                         position=[float(v) for v in recording.joint_q[i]],
-                         velocity=[float(v) for v in recording.joint_qd[i]])
-        msg.header.stamp = ns_stamp(t_ns)
-        return serialize_message(msg)
-
-    def take(data, kind):
-        c = time.thread_time()
-        msg = deserialize_message(data, kind)
-        times['deserialise'] += time.thread_time() - c
-        return msg
-
-    def call(callback, *args):
-        c = time.thread_time()
-        callback(*args)
-        times['callbacks'] += time.thread_time() - c
-
-    with domains.held():
-        context = rclpy.context.Context()
-        rclpy.init(context=context)
-        try:
-            node = FeatureNode(context=context, parameter_overrides=[
-                Parameter(k, value=v) for k, v in params.items() if k in names])
-            for topic, msg in recording.latched.items():
-                if topic == contract.STEREO_POSE:
-                    node.camera_input.on_pose(msg)
-                elif topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
-                    side = 'left' if topic == contract.TEACH_LEFT_IMAGE else 'right'
-                    node._on_teach(side, msg)
-            for side, info in zip(('left', 'right'), recording.frames[0][2:4]):
-                node.camera_input.on_info(side, info)  # the camera model, the detector
-            detect = node._detector.detect
-
-            def timed_detect(*args, **kwargs):
-                c = time.thread_time()
-                try:
-                    return detect(*args, **kwargs)
-                finally:
-                    times['detection (CPU)'] += time.thread_time() - c
-            node._detector.detect = timed_detect
-            joint_t = start
-            for n in range(total):
-                if n == frames:  # started: from here on, measured
-                    times = dict.fromkeys(times, 0.0)
-                    node._detector.timings = {}
-                t_ns = start + n * frame_ns // 1_000_000 * 1_000_000
-                while joint_t < t_ns:
-                    call(node._on_joints, take(joint_bytes(joint_t), JointState))
-                    joint_t += joint_ns
-                call(node._on_joints, take(joint_bytes(t_ns), JointState))
-                parts = recording.frames[(n * frame_ns // recorded_ns) % len(recording.frames)]
-                stamp = ns_stamp(t_ns)
-                for msg in parts:
-                    msg.header.stamp = stamp
-                data = [serialize_message(m) for m in parts]
-                left, right = take(data[0], Image), take(data[1], Image)
-                infos = take(data[2], CameraInfo), take(data[3], CameraInfo)
-                call(node._on_image, 'left', left)
-                call(node._on_image, 'right', right)
-                call(node.camera_input.on_info, 'left', infos[0])
-                call(node.camera_input.on_info, 'right', infos[1])
-            stages = node._detector.timings
-            measured = node._diag.values.get('frames_measured', 0)
-            node.destroy_node()
-        finally:
-            context.try_shutdown()
-    out = {'deserialisation (rclpy: 2 images, 2 camera_info, the joint states)':
-           times['deserialise'] / frames * 1e3}
-    staged = 0.0
-    for stage, seconds in sorted(stages.items()):
-        out[f'detection: {stage}'] = seconds / frames * 1e3
-        staged += seconds
-    out['detection: the rest'] = max(times['detection (CPU)'] - staged, 0.0) / frames * 1e3
-    out['message handling (the callbacks less the detection)'] = \
-        (times['callbacks'] - times['detection (CPU)']) / frames * 1e3
-    out['total'] = (times['deserialise'] + times['callbacks']) / frames * 1e3
-    out['frames'] = frames
-    out['frames measured (of all)'] = measured
-    return out
-
-
-def frame_split_apart(bag: str | Path, which: str, camera_rate_hz: float | None,
-                      detectable: Sequence[bool] | None, frames: int = 120
-                      ) -> dict[str, float]:
-    """
-    Return :func:`frame_split` of part ``which`` of ``bag``, measured in a process of its own.
-
-    A feature node in the replaying process would share its executor's and its threads'
-    time and memory with the stand-in camera, and the replay after it would not be the one
-    measured; a process of its own (``python -m ibvs_experiments.nodes_bench split``) is
-    as the node's is. ``detectable``: :func:`detectable_frames` of the bag (None for
-    'all').
-    """
-    import json
-    import subprocess
-    import sys
-
-    marks = ''.join('1' if ok else '0' for ok in detectable) if detectable is not None else ''
-    done = subprocess.run(
-        [sys.executable, '-m', 'ibvs_experiments.nodes_bench', 'split', str(bag), which,
-         str(camera_rate_hz or 0.0), str(frames), marks or '-'],
-        capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -677,17 +429,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     part = segment(recording, which, detectable)
     print(json.dumps(frame_split(part, float(rate) or None, int(frames))))
     return 0
-
-
-def print_split(split: dict[str, float], title: str) -> None:
-    """Print :func:`frame_split`'s numbers."""
-    print(title)
-    for name, value in split.items():
-        if name.startswith('frames'):
-            continue
-        print(f'  {name:62s} {value:7.2f} ms a frame')
-    print(f'  ({split["frames"]} frames; {split["frames measured (of all)"]} measured of all '
-          'it was fed)')
 
 
 def record(resolution: str, duration_s: float, out_dir: str | Path,
