@@ -8,11 +8,10 @@ a file the project ships must not set what its own nodes then call ignored. The 
 checks are run on each file's values without starting a node.
 """
 
-from dataclasses import fields
 from pathlib import Path
 
 from ibvs_common.params import RETIRED
-from ibvs_control.joint_controller_mode import JointControllerConfig
+from ibvs_control.node_params import JointControllerConfig
 from ibvs_control.position_controller import EFFORT_ONLY, PositionController
 from ibvs_sim.lockstep_sim import FREE_RUNNING_ONLY
 from ibvs_sim.node_params import SimNodeConfig
@@ -28,9 +27,9 @@ def _values(path):
 
 
 def _config(cls, values):
-    """Return ``cls`` built from the file's values of its own fields (defaults elsewhere)."""
-    names = {f.name for f in fields(cls)}
-    return cls(**{k: v for k, v in values.items() if k in names})
+    """Return ``cls`` built from the file's values of its own parameters (defaults elsewhere)."""
+    names = {spec.name for spec in cls.params()}
+    return cls.make(**{k: v for k, v in values.items() if k in names})
 
 
 class _Logger:
@@ -61,7 +60,7 @@ def test_no_shipped_file_sets_a_retired_parameter(path):
 @pytest.mark.parametrize('path', SHIPPED, ids=lambda p: p.name)
 def test_the_joint_controller_warns_of_nothing_a_shipped_file_sets(path):
     config = _config(JointControllerConfig, _values(path))
-    if config.command_interface != 'position':
+    if config.interface.command_interface != 'position':
         return  # the effort interface reads every one of its parameters
     assert config.off_default(EFFORT_ONLY) == []
     logger = _Logger()
@@ -75,7 +74,7 @@ def test_the_simulator_warns_of_nothing_a_shipped_file_sets(path):
     if 'scenario' not in values:
         return  # cell.yaml: no simulator reads it (a real cell's controller side)
     config = _config(SimNodeConfig, values)
-    if config.lockstep:
+    if config.interface.lockstep:
         assert config.off_default(FREE_RUNNING_ONLY) == []
     else:
         assert config.min_frame_joint_state_subscribers == 0

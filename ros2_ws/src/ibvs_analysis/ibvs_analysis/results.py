@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ibvs_bringup.recorder import recover
+from ibvs_common import shared_params
 from ibvs_model import CameraRobotModel, inverse_kinematics, IRB4600
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +30,7 @@ def target_features(run: analysis.RunData) -> NDArray[np.float64] | None:
     constant error in ``feature_error.png`` the controller never saw). Otherwise F(q_target)
     with the recorded camera and the nominal robot (None without a camera).
     """
-    if run.params.get('target_features_source') == 'taught' and \
+    if shared_params.taught(run.params) and \
             run.taught_target is not None:
         return run.taught_target
     if run.camera is None:

@@ -22,7 +22,7 @@ from typing import Any
 
 from ibvs_bringup import graph_params, scenario
 from ibvs_bringup.graph import GRAPH
-from ibvs_common import contract
+from ibvs_common import contract, shared_params
 from ibvs_common.params import check_retired, ParameterError
 
 #: The nodes of a cell, in start order (docs/real_cell.md "By hand"): the paper's, no
@@ -293,7 +293,7 @@ def expectations(params: Mapping[str, Any], controller: str = 'forward_command',
             'camera_pose is all zeros, so the feature and feedback nodes wait for the '
             'camera pose here, latched (transient local): set camera_pose to the hand-eye '
             'calibration (docs/real_cell.md step 4)', durability='transient_local'))
-    if params.get('target_features_source') == 'taught':
+    if shared_params.taught(params):
         for topic in (contract.TEACH_LEFT_IMAGE, contract.TEACH_RIGHT_IMAGE):
             out.append(Expectation(
                 topic, 'sensor_msgs/msg/Image', 'publisher',

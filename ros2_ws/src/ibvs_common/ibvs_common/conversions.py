@@ -10,8 +10,9 @@ names, so that a node imports them all from ``ibvs_common.conversions``:
 - :mod:`.input_error`: :class:`InputError`.
 - :mod:`.msg_time`: builtin_interfaces Time and Duration <-> integer nanoseconds and the
   one stamp rule: :func:`stamp_ns`, :func:`ns_stamp`, :func:`duration_ns`,
-  :func:`read_stamp`, :data:`STAMP_LEAD_MARGIN_NS`, :func:`stamp_lead_ns`,
-  :class:`StampOrder`.
+  :func:`read_stamp`, :class:`StampOrder`; and from :mod:`.timing`, how far a stamp may
+  lead: :data:`STAMP_LEAD_MARGIN_NS`, :func:`stamp_lead_ns` (which a node takes from its
+  :class:`.shared_params.Timing`).
 - :mod:`.msg_joints`: sensor_msgs/JointState and the range a joint value is read in:
   :func:`joint_state`, :func:`joint_order` (:data:`JOINT_ORDER_CACHE`),
   :func:`ignored_joints`, :data:`JOINT_FIELDS`, :func:`read_joints`, :func:`check_finite`,
@@ -50,10 +51,10 @@ from .msg_joints import (check_finite, ignored_joints, JOINT_FIELDS, joint_order
                          velocity_bounds)
 from .msg_pose import (matrix_pose, matrix_poses, MAX_CAMERA_DISTANCE_M, path_msg, pose_matrix,
                        pose_stamped, read_camera_pose, transforms_msg)
-from .msg_time import (duration_ns, ns_stamp, read_stamp, STAMP_LEAD_MARGIN_NS, stamp_lead_ns,
-                       stamp_ns, StampOrder)
+from .msg_time import duration_ns, ns_stamp, read_stamp, stamp_ns, StampOrder
 from .msg_trajectory import (joint_path, joint_trajectory, read_command_trajectory,
                              read_joint_path, read_trajectory, trajectory_arrays)
+from .timing import STAMP_LEAD_MARGIN_NS, stamp_lead_ns
 
 # The private names callers reach through this module, the objects themselves (not copies):
 # the cache read or cleared here is the one joint_order keeps.

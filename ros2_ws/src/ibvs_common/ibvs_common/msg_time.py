@@ -12,7 +12,7 @@ from builtin_interfaces.msg import Duration, Time
 
 from .input_error import InputError
 from .sim_time import clock_problem
-from .timing import is_frame_stamp, NS_PER_S, seconds_to_ns
+from .timing import is_frame_stamp, NS_PER_S
 
 
 def stamp_ns(stamp: Time) -> int:
@@ -67,24 +67,6 @@ def read_stamp(stamp: Time, now_ns: Optional[int] = None, lead_ns: Optional[int]
                          f'{t_ns} ns is not the stamp of a frame (every {frames[0]} ns, '
                          f'at the physics step of {frames[1]} ns at or after it)')
     return t_ns
-
-
-#: How far (ns) a node's clock may lag the stamps it reads, beyond one input period: the
-#: period of a lockstep graph's /clock (``clock_rate_hz``, 10 Hz) or a real cell's clock
-#: offset between hosts. A stamp that leads by more is refused ('stamp in the future') and
-#: moves no order: taken, it would refuse every later input stamped before it.
-STAMP_LEAD_MARGIN_NS = 100_000_000
-
-
-def stamp_lead_ns(stale_timeout_s: float, input_period_ns: int) -> int:
-    """
-    Return how far (ns) an input's stamp may lead the newest time its node knows.
-
-    One period of the input (the next input of a stream is one period after the last) and
-    the clock's lag, :data:`STAMP_LEAD_MARGIN_NS`, or ``stale_timeout_s`` (the parameter
-    that ages inputs out) where that is shorter: the ``lead_ns`` of :func:`read_stamp`.
-    """
-    return min(seconds_to_ns(stale_timeout_s), STAMP_LEAD_MARGIN_NS) + int(input_period_ns)
 
 
 class StampOrder:

@@ -332,19 +332,43 @@ def param_field(spec: Param) -> Any:
     return field(default=default, metadata={'param': spec})
 
 
+def group_field(group: type['ParamConfig']) -> Any:
+    """
+    Return a dataclass field holding the nested :class:`ParamConfig` ``group``, at its defaults.
+
+    A group is a set of parameters several nodes read together, with the rules between them
+    and what follows from them, in one place (:mod:`ibvs_common.shared_params`: the timing,
+    the target, the plant). Its parameters keep their own ROS names: a node declares them
+    flat, as it declares its own, and :meth:`ParamConfig.params`, :meth:`ParamConfig.values`
+    and :meth:`ParamConfig.from_values` see through the group.
+    """
+    return field(default_factory=group, metadata={'group': group})
+
+
 class ParamConfig:
     """
-    Base of a frozen dataclass whose fields are Params (:func:`param_field`).
+    Base of a frozen dataclass whose fields are Params (:func:`param_field`) or groups.
 
     Construction checks each such field with its :meth:`Param.check` (ParameterError
     naming it; an integer for a float parameter becomes a float, an array a tuple), so a
-    core that takes the config checks no single value again. Fields without a Param are
-    left as given.
+    core that takes the config checks no single value again. A group field
+    (:func:`group_field`) holds a nested ParamConfig, checked by its own construction.
+    Fields without a Param are left as given. :meth:`make` builds one from parameter values
+    by name, wherever they sit.
     """
+
+    #: Rules between parameters (:func:`check_rules`), run on the values at a node's start
+    #: and by ``ibvs run`` before any node starts; a group's cross-checks are its own
+    #: construction's.
+    RULES = ()
 
     def __post_init__(self):
         """Check every Param field and store it in plain Python (arrays as tuples)."""
         for f in fields(self):
+            group = f.metadata.get('group')
+            if group is not None and not isinstance(getattr(self, f.name), group):
+                raise TypeError(f'{type(self).__name__}.{f.name} must be a {group.__name__}, '
+                                f'not {getattr(self, f.name)!r}')
             spec = f.metadata.get('param')
             if spec is None:
                 continue
@@ -356,26 +380,61 @@ class ParamConfig:
 
     @classmethod
     def params(cls) -> tuple[Param, ...]:
-        """Return the :class:`Param` of each field that has one, in field order."""
-        return tuple(f.metadata['param'] for f in fields(cls) if 'param' in f.metadata)
+        """Return the :class:`Param` of each field, a group's in its place, in field order."""
+        out = []
+        for f in fields(cls):
+            if 'group' in f.metadata:
+                out.extend(f.metadata['group'].params())
+            elif 'param' in f.metadata:
+                out.append(f.metadata['param'])
+        return tuple(out)
 
     def values(self) -> dict[str, Any]:
-        """Return the Param fields by name: the mapping the shared rules and readers take."""
-        return {spec.name: getattr(self, spec.name) for spec in self.params()}
+        """Return the Param values by name, the groups' too: what the shared rules take."""
+        out = {}
+        for f in fields(self):
+            if 'group' in f.metadata:
+                out.update(getattr(self, f.name).values())
+            elif 'param' in f.metadata:
+                out[f.name] = getattr(self, f.name)
+        return out
 
     def off_default(self, names: tuple[str, ...]) -> list[tuple[str, Any]]:
         """Return (name, value) of each of ``names`` whose value is not its default."""
-        defaults = type(self)()
-        return [(name, getattr(self, name)) for name in names
-                if getattr(self, name) != getattr(defaults, name)]
+        values, defaults = self.values(), type(self)().values()
+        return [(name, values[name]) for name in names if values[name] != defaults[name]]
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any], **others: Any) -> Self:
         """
         Return the config of the parameter values ``values`` (a mapping by name).
 
-        Every Param field is taken from ``values`` (KeyError if one is missing: a node
-        declares them all, e.g. with ``declare(node, Config.params() + ...)``); ``others``
-        sets the fields without a Param.
+        Every Param field, a group's too, is taken from ``values`` (KeyError if one is
+        missing: a node declares them all, e.g. with ``declare(node, Config.params() +
+        ...)``); ``others`` sets the fields without a Param.
         """
-        return cls(**{spec.name: values[spec.name] for spec in cls.params()}, **others)
+        kwargs = {}
+        for f in fields(cls):
+            if 'group' in f.metadata:
+                kwargs[f.name] = f.metadata['group'].from_values(values)
+            elif 'param' in f.metadata:
+                kwargs[f.name] = values[f.name]
+        return cls(**kwargs, **others)
+
+    @classmethod
+    def make(cls, **values: Any) -> Self:
+        """
+        Return the config of these parameter values by name, every other at its default.
+
+        A group's parameters are given by their own names (``make(camera_rate_hz=60.0)``,
+        not through the group); a name that is neither a parameter of ``cls`` nor one of its
+        fields without a Param raises TypeError.
+        """
+        names = {spec.name for spec in cls.params()}
+        others = {f.name for f in fields(cls) if not f.metadata}
+        unknown = sorted(set(values) - names - others)
+        if unknown:
+            raise TypeError(f'{cls.__name__} has no parameter {", ".join(unknown)}')
+        defaults = {spec.name: spec.default for spec in cls.params()}
+        return cls.from_values({**defaults, **{k: v for k, v in values.items() if k in names}},
+                               **{k: v for k, v in values.items() if k in others})

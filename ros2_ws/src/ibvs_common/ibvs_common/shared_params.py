@@ -1,21 +1,35 @@
 """
-Parameters that several nodes read, declared the same way everywhere.
+Parameters that several nodes read, declared the same way everywhere, and their groups.
 
 A scenario file (``ibvs_bringup/config/scenario*.yaml``) sets them under ``/**`` so that
 every node started with ``--ros-args --params-file`` sees the same values; each node
 declares only those it uses (undeclared overrides are ignored by rclpy).
+
+Those that go together are groups (:func:`ibvs_common.params.group_field`), each with its
+cross-checks and what follows from it computed once, as ros2_controllers nests a
+controller's parameters: :class:`Timing` (the rates and ages of docs/design.md §4 and the
+stamp leads), :class:`Target` (the target pose and where its features come from,
+:class:`TargetSource`), :class:`Plant` (the simulated robot's departures from the model)
+and :class:`Interface` (how the arm is commanded, and with it the time mode). A node's
+config holds a group as one field; the parameters keep their ROS names.
 """
 
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+import enum
+from functools import cached_property
 import math
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 from ibvs_model import IRB4600, paper
 import numpy as np
 from numpy.typing import NDArray
 
-from .params import Param, ParameterError
-from .timing import check_camera_rate
+from .params import Param, param_field, ParamConfig, ParameterError
+from .timing import check_camera_rate, period_ns, seconds_to_ns, stamp_lead_ns
+
+if TYPE_CHECKING:
+    from ibvs_model.robot import RobotParams
 
 SCENARIO = Param('scenario', 1, 'paper scenario (section 5.1) giving the start pose', '-',
                  low=1, high=3)
@@ -33,11 +47,30 @@ TARGET_ROTATION = Param('target_rotation',
                         [float(v) for row in paper.TARGET_ROTATION for v in row],
                         'target flange rotation [n s a] in {O}, row-major 3x3', '-',
                         low=-1.0, high=1.0, length=9)
+
+
+class TargetSource(str, enum.Enum):
+    """Where the target features p_bar come from: the value of ``target_features_source``."""
+
+    #: The paper: the target markers projected with the calibrated camera, F(q_target).
+    MODEL = 'model'
+    #: Measured by the feature node on a stereo pair of the tool held at the target.
+    TAUGHT = 'taught'
+
+
 TARGET_FEATURES_SOURCE = Param(
-    'target_features_source', 'model', "target features p_bar: 'model' (the paper: the "
-    "target markers projected with the calibrated camera, F(q_target)) or 'taught' "
-    '(measured by the feature node on a stereo pair of the tool placed at the target pose '
-    'before the run)', '-', choices=('model', 'taught'))
+    'target_features_source', TargetSource.MODEL.value, "target features p_bar: 'model' "
+    '(the paper: the target markers projected with the calibrated camera, F(q_target)) or '
+    "'taught' (measured by the feature node on a stereo pair of the tool placed at the "
+    'target pose before the run)', '-', choices=tuple(source.value for source in TargetSource))
+
+
+def taught(values: Mapping[str, Any]) -> bool:
+    """Return whether a run of these parameter values (by name) teaches its target."""
+    source = values.get(TARGET_FEATURES_SOURCE.name, TARGET_FEATURES_SOURCE.default)
+    return TargetSource(source) is TargetSource.TAUGHT
+
+
 #: The slowest rate a rate parameter takes (Hz): a period of a second at most. A timer and a
 #: stamp hold a period as whole nanoseconds; a rate near 0 (``1e-300``) has none that they
 #: hold, and no loop of this graph waits seconds between two of its frames or commands.
@@ -235,3 +268,128 @@ def joint_order(joints: Iterable[str]) -> NDArray[np.int_]:
     except ValueError as exc:
         raise ParameterError(f"parameter 'joints' = {list(joints)!r} is invalid: {exc}",
                              'joints') from None
+
+
+# -- the groups (module docstring) -----------------------------------------------------------
+@dataclass(frozen=True)
+class Timing(ParamConfig):
+    """
+    The rates and ages of docs/design.md §4, and the periods and stamp leads they give.
+
+    Cross-check (at construction, so by ``ibvs run`` before any node starts): frames come
+    no faster than physics steps (:func:`check_camera_rate_param`). Each derived time is
+    computed once, in integer nanoseconds (:mod:`ibvs_common.timing`).
+    """
+
+    camera_rate_hz: float = param_field(CAMERA_RATE_HZ)
+    physics_rate_hz: float = param_field(PHYSICS_RATE_HZ)
+    stale_timeout_s: float = param_field(STALE_TIMEOUT_S)
+    feedback_latency_s: float = param_field(FEEDBACK_LATENCY_S)
+
+    def __post_init__(self):
+        """Check each value, then the camera rate against the physics rate."""
+        super().__post_init__()
+        check_camera_rate_param(self.values())
+
+    @cached_property
+    def camera_period_ns(self) -> int:
+        """Return the frame period T_cam (ns)."""
+        return period_ns(self.camera_rate_hz)
+
+    @cached_property
+    def step_ns(self) -> int:
+        """Return the physics step (ns)."""
+        return period_ns(self.physics_rate_hz)
+
+    @cached_property
+    def latency_ns(self) -> int:
+        """Return ``feedback_latency_s`` (ns)."""
+        return seconds_to_ns(self.feedback_latency_s)
+
+    @cached_property
+    def stale_timeout_ns(self) -> int:
+        """Return ``stale_timeout_s`` (ns)."""
+        return seconds_to_ns(self.stale_timeout_s)
+
+    @cached_property
+    def frame_lead_ns(self) -> int:
+        """Return how far a frame-rate input's stamp may lead (:func:`.timing.stamp_lead_ns`)."""
+        return stamp_lead_ns(self.stale_timeout_s, self.camera_period_ns)
+
+    @cached_property
+    def step_lead_ns(self) -> int:
+        """Return how far a step-rate input's stamp may lead (/joint_states in lockstep)."""
+        return stamp_lead_ns(self.stale_timeout_s, self.step_ns)
+
+
+@dataclass(frozen=True)
+class Target(ParamConfig):
+    """The target flange pose T_E^O and the source of its features (:class:`TargetSource`)."""
+
+    target_position: tuple[float, ...] = param_field(TARGET_POSITION)
+    target_rotation: tuple[float, ...] = param_field(TARGET_ROTATION)
+    target_features_source: str = param_field(TARGET_FEATURES_SOURCE)
+
+    @property
+    def source(self) -> TargetSource:
+        """Return ``target_features_source`` as a :class:`TargetSource`."""
+        return TargetSource(self.target_features_source)
+
+    @property
+    def taught(self) -> bool:
+        """Return whether the target's features come from a teach (:data:`TargetSource.TAUGHT`)."""
+        return self.source is TargetSource.TAUGHT
+
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        """
+        Return T_E^O, a new array each time (:func:`target_from_parameters`).
+
+        Raises ParameterError naming 'target_rotation' when it is not a rotation.
+        """
+        return target_from_parameters(self.values())
+
+
+@dataclass(frozen=True)
+class Plant(ParamConfig):
+    """The simulated robot's departures from the model: the joint offsets and link lengths."""
+
+    disturbance_deg: tuple[float, ...] = param_field(DISTURBANCE_DEG)
+    l2_scale: float = param_field(L2_SCALE)
+    l4_scale: float = param_field(L4_SCALE)
+
+    @property
+    def d_q(self) -> NDArray[np.float64]:
+        """Return the joint disturbance in rad, a new array: true angle = encoder angle + d_q."""
+        return np.radians(np.asarray(self.disturbance_deg, dtype=float))
+
+    @property
+    def robot(self) -> 'RobotParams':
+        """Return the simulated robot's parameters: IRB 4600 with L2 and L4 scaled."""
+        return IRB4600.scaled(self.l2_scale, self.l4_scale)
+
+
+@dataclass(frozen=True)
+class Interface(ParamConfig):
+    """
+    How the joint controller commands the arm, and with it the time mode (:func:`lockstep`).
+
+    Cross-check: with the position interface, ``joints`` names each joint once
+    (:func:`joint_order`), the controller's order of the values in a command.
+    """
+
+    command_interface: str = param_field(COMMAND_INTERFACE)
+    position_command_type: str = param_field(POSITION_COMMAND_TYPE)
+    command_rate_hz: float = param_field(COMMAND_RATE_HZ)
+    joints: tuple[str, ...] = param_field(JOINTS)
+
+    def __post_init__(self):
+        """Check each value, then the position controller's joint order."""
+        super().__post_init__()
+        if not self.lockstep:
+            joint_order(self.joints)
+
+    @property
+    def lockstep(self) -> bool:
+        """Return whether the graph runs in lockstep: the effort interface (:func:`lockstep`)."""
+        return lockstep(self.values())

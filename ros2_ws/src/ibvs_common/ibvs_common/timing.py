@@ -29,6 +29,24 @@ def ns_to_seconds(t_ns: int) -> float:
     return t_ns * 1e-9
 
 
+#: How far (ns) a node's clock may lag the stamps it reads, beyond one input period: the
+#: period of a lockstep graph's /clock (``clock_rate_hz``, 10 Hz) or a real cell's clock
+#: offset between hosts. A stamp that leads by more is refused ('stamp in the future') and
+#: moves no order: taken, it would refuse every later input stamped before it.
+STAMP_LEAD_MARGIN_NS = 100_000_000
+
+
+def stamp_lead_ns(stale_timeout_s: float, input_period_ns: int) -> int:
+    """
+    Return how far (ns) an input's stamp may lead the newest time its node knows.
+
+    One period of the input (the next input of a stream is one period after the last) and
+    the clock's lag, :data:`STAMP_LEAD_MARGIN_NS`, or ``stale_timeout_s`` (the parameter
+    that ages inputs out) where that is shorter: the ``lead_ns`` of :func:`read_stamp`.
+    """
+    return min(seconds_to_ns(stale_timeout_s), STAMP_LEAD_MARGIN_NS) + int(input_period_ns)
+
+
 def period_ns(rate_hz: float) -> int:
     """Return the period of ``rate_hz`` in integer nanoseconds (rounded)."""
     return int(round(1e9 / float(rate_hz)))

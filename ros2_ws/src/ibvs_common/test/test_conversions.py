@@ -9,8 +9,8 @@ import pytest
 #: the nodes and tests import, and the private ones they reach through it.
 NAMES = {
     'input_error': ['InputError'],
-    'msg_time': ['stamp_ns', 'read_stamp', 'STAMP_LEAD_MARGIN_NS', 'stamp_lead_ns',
-                 'StampOrder', 'ns_stamp', 'duration_ns'],
+    'msg_time': ['stamp_ns', 'read_stamp', 'StampOrder', 'ns_stamp', 'duration_ns'],
+    'timing': ['STAMP_LEAD_MARGIN_NS', 'stamp_lead_ns'],
     'msg_joints': ['POSITION_MARGIN_RAD', 'POSITION_BOUND_RAD', 'SPEED_BOUND_RAD_S',
                    'joint_state', 'JOINT_ORDER_CACHE', '_JOINT_ORDERS', 'joint_order',
                    'ignored_joints', 'JOINT_FIELDS', 'read_joints', 'travel_bounds',

@@ -20,7 +20,7 @@ from geometry_msgs.msg import PolygonStamped
 from ibvs_common import contract
 from ibvs_common.conversions import (ignored_joints, InputError, joint_state, position_bounds,
                                      read_feature_status, read_features, read_joints,
-                                     stamp_lead_ns, velocity_bounds)
+                                     velocity_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
                              subscription, WaitReporter)
@@ -28,7 +28,7 @@ from ibvs_common.node_main import run
 from ibvs_common.params import ParameterError
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
-from ibvs_common.timing import feedback_action_ns, ns_to_seconds, period_ns, seconds_to_ns
+from ibvs_common.timing import feedback_action_ns, ns_to_seconds
 from ibvs_model import CameraRobotModel, IRB4600, ModelError
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -75,13 +75,13 @@ class AdaptiveFeedbackNode(Node):
                              or (c.latency_compensation == 'internal_model'
                                  and c.model_error_transport == 'joints'))
         self.pose = target_from(values)
-        self.camera_ns = period_ns(c.camera_rate_hz)
-        latency_ns, step_ns = seconds_to_ns(c.feedback_latency_s), period_ns(c.physics_rate_hz)
+        self.camera_ns = c.timing.camera_period_ns
+        latency_ns, step_ns = c.timing.latency_ns, c.timing.step_ns
         self._predictor = None
-        self.stale_timeout_ns = seconds_to_ns(c.stale_timeout_s)
+        self.stale_timeout_ns = c.timing.stale_timeout_ns
         self.feedback = None
         self._camera = None
-        self._taught = c.target_features_source == 'taught'
+        self._taught = c.target.taught
         self._p_target = None
         self.last_fresh_ns = None
         self.first_joint_ns = None
@@ -89,8 +89,7 @@ class AdaptiveFeedbackNode(Node):
         self._envelope_seen = set()
         self.frames = 0
         self.diagnostics = Diagnostics(self, 'adaptive feedback')
-        self._inputs = Inputs(self.diagnostics, self.now_ns,
-                              stamp_lead_ns(c.stale_timeout_s, self.camera_ns))
+        self._inputs = Inputs(self.diagnostics, self.now_ns, c.timing.frame_lead_ns)
         self.diagnostics.update(state='waiting for camera', frames=0)
         self.diagnostics.log_progress(self._progress)
         self._pub = publisher(self, JointState, contract.Q_FEEDBACK, contract.RELIABLE)

@@ -276,7 +276,7 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     q_target = ff.start(q)
     # Limited actuators: the joint loop makes the time-optimal move to the goal itself.
     goal = ff.goal if makes_own_move('effort', config.actuators) else None
-    taught = config.target_features_source == 'taught'
+    taught = shared_params.taught(config.values())
     p_taught = None
     if taught:
         p_taught = plant.features(inverse_kinematics(pose, plant.params, seed=q_target))

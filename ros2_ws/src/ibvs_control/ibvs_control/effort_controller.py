@@ -21,7 +21,7 @@ from ibvs_common import contract
 from ibvs_common.conversions import joint_state
 from ibvs_common.kit import publisher, subscription, WaitReporter
 from ibvs_common.sim_time import clock_watch, node_time_ns
-from ibvs_common.timing import ns_to_seconds, seconds_to_ns
+from ibvs_common.timing import ns_to_seconds
 from ibvs_model import IRB4600
 import numpy as np
 from sensor_msgs.msg import JointState
@@ -37,7 +37,7 @@ from .servo_status import ServoStatus, Verdict
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-    from .joint_controller_mode import JointControllerConfig
+    from .node_params import JointControllerConfig
 
 #: Most buffered inputs of each kind (lockstep keeps one or two; this bounds a flood).
 MAX_BUFFER = 1000
@@ -50,7 +50,7 @@ class EffortController(JointControllerMode):
         """Load the dynamics model, open the effort topics (the rates: the node's RULES)."""
         super().__init__(node, config)
         self.frames = (self.camera_ns, self.dt_ns)
-        self.latency_ns = seconds_to_ns(config.feedback_latency_s)
+        self.latency_ns = config.timing.latency_ns
         self.dynamics = RobotDynamics(IRB4600, with_tool=True)
         limits = np.asarray(config.torque_limits, dtype=float)
         self.torque_limits = np.where(limits > 0.0, limits, self.dynamics.torque_limits)

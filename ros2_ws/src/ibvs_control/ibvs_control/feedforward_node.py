@@ -19,13 +19,13 @@ from typing import Any
 
 from ibvs_common import contract
 from ibvs_common.conversions import (ignored_joints, InputError, read_joints, read_stamp,
-                                     stamp_lead_ns, travel_bounds)
+                                     travel_bounds)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import config, publisher, subscription
 from ibvs_common.msg_trajectory import joint_trajectory_bytes
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.timing import ns_to_seconds, period_ns
+from ibvs_common.timing import ns_to_seconds
 from ibvs_model import ModelError
 import numpy as np
 from rclpy.node import Node
@@ -49,8 +49,8 @@ class FeedforwardNode(Node):
         super().__init__('feedforward_node', **kwargs)
         self.config = c = config(self, FeedforwardConfig)
         self.pose = target_from(c.values())
-        self.dt_ns = period_ns(c.physics_rate_hz)
-        self.lead_ns = stamp_lead_ns(c.stale_timeout_s, self.dt_ns)
+        self.dt_ns = c.timing.step_ns
+        self.lead_ns = c.timing.step_lead_ns
         self.ff = Feedforward(self.pose, c.tau_in, ns_to_seconds(self.dt_ns),
                               feedforward_ratio=c.feedforward_ratio,
                               feedforward_method=c.feedforward_method)
@@ -91,8 +91,9 @@ class FeedforwardNode(Node):
             # The joint controller plans the move itself (time-optimal, jerk-limited:
             # governor.ReferenceGovernor) toward the last point: the start and the goal
             # are all it needs.
+            c = self.config
             positions = (np.array([q, self.ff.goal])
-                         if makes_own_move(self.config.command_interface, self.config.actuators)
+                         if makes_own_move(c.interface.command_interface, c.actuators)
                          else self.ff.trajectory())
         except ModelError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, type(exc).__name__, str(exc))

@@ -1,86 +1,37 @@
 """
-What both joint controllers share: the typed configuration and the common inputs.
+What both joint controllers share: the common inputs.
 
-:class:`JointControllerConfig` holds the parameters of ``joint_controller_node`` (each a
-Param, checked at construction, and the rules across them: the position interface's joint
-order; a dry run is of the position interface). The time mode follows from the interface
-(:attr:`JointControllerConfig.lockstep`): effort in lockstep, position free-running.
-:class:`JointControllerMode` reads the feedforward trajectory and the q_feedback for either
-command interface (:mod:`.effort_controller`, :mod:`.position_controller`) and hands them
+:class:`.node_params.JointControllerConfig` holds the parameters of
+``joint_controller_node``; the time mode follows from the interface
+(:attr:`ibvs_common.shared_params.Interface.lockstep`): effort in lockstep, position
+free-running. :class:`JointControllerMode` reads the feedforward trajectory and the
+q_feedback for either command interface (:mod:`.effort_controller`,
+:mod:`.position_controller`) and hands them
 on, as ros2_controllers' controllers share their reference and state interfaces while each
 claims its own command interface.
 """
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ibvs_common import contract
-from ibvs_common import shared_params as shared
 from ibvs_common.conversions import (check_finite, ignored_joints, InputError,
                                      position_bounds, read_joints, read_stamp, read_trajectory,
-                                     stamp_lead_ns, trajectory_arrays, velocity_bounds)
+                                     trajectory_arrays, velocity_bounds)
 from ibvs_common.kit import subscription
-from ibvs_common.params import param_field, ParamConfig, ParameterError
-from ibvs_common.timing import period_ns
 from ibvs_model import IRB4600
 import numpy as np
 from numpy.typing import NDArray
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from . import node_params as own
-
 if TYPE_CHECKING:
     from builtin_interfaces.msg import Time
     from rclpy.node import Node
 
+    from .node_params import JointControllerConfig
+
 #: Largest |q_feedback| per joint (rad) that is taken as meant: the joint's whole travel.
 FEEDBACK_BOUND_RAD = np.asarray(IRB4600.q_max) - np.asarray(IRB4600.q_min)
-
-
-@dataclass(frozen=True)
-class JointControllerConfig(ParamConfig):
-    """The parameters of joint_controller_node (each field: the parameter of its name)."""
-
-    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-    RULES = (shared.check_camera_rate_param,)
-
-    tau_in: float = param_field(shared.TAU_IN)
-    physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
-    camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
-    feedback_latency_s: float = param_field(shared.FEEDBACK_LATENCY_S)
-    actuators: str = param_field(shared.ACTUATORS)
-    torque_limits: tuple[float, ...] = param_field(own.TORQUE_LIMITS)
-    speed_margin: float = param_field(own.SPEED_MARGIN)
-    feedforward_method: str = param_field(own.FEEDFORWARD_METHOD)
-    acceleration_margin: float = param_field(own.ACCELERATION_MARGIN)
-    drive_acceleration_margin: float = param_field(own.DRIVE_ACCELERATION_MARGIN)
-    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
-    command_interface: str = param_field(shared.COMMAND_INTERFACE)
-    command_rate_hz: float = param_field(shared.COMMAND_RATE_HZ)
-    position_command_type: str = param_field(shared.POSITION_COMMAND_TYPE)
-    joints: tuple[str, ...] = param_field(shared.JOINTS)
-    joint_state_timeout_s: float = param_field(own.JOINT_STATE_TIMEOUT_S)
-    frame_timeout_s: float = param_field(own.FRAME_TIMEOUT_S)
-    max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
-    trajectory_window_points: int = param_field(own.TRAJECTORY_WINDOW_POINTS)
-    dry_run: bool = param_field(own.DRY_RUN)
-
-    def __post_init__(self):
-        """Check each value, then the joints (position) or that no dry run is asked (effort)."""
-        super().__post_init__()
-        if self.command_interface == 'position':
-            shared.joint_order(self.joints)  # the ros2_control controller's joint order
-        elif self.dry_run:
-            raise ParameterError("parameter 'dry_run' = True is invalid with command_interface "
-                                 "'effort': a dry run is of the position interface (the "
-                                 "lockstep's simulator waits for every effort command); "
-                                 "allowed: false (or command_interface 'position')")
-
-    @property
-    def lockstep(self) -> bool:
-        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
-        return shared.lockstep(vars(self))
 
 
 class JointControllerMode:
@@ -101,15 +52,15 @@ class JointControllerMode:
     #: :func:`ibvs_common.timing.is_frame_stamp`), None when any stamp is allowed.
     frames = None
 
-    def __init__(self, node: 'Node', config: JointControllerConfig) -> None:
+    def __init__(self, node: 'Node', config: 'JointControllerConfig') -> None:
         """Take the periods and stamp leads of ``config``; no topic is opened yet."""
         self.node = node
         self.config = config
         self.diagnostics = node.diagnostics
-        self.dt_ns = period_ns(config.physics_rate_hz)
-        self.camera_ns = period_ns(config.camera_rate_hz)
-        self.state_lead_ns = stamp_lead_ns(config.stale_timeout_s, self.dt_ns)
-        self.frame_lead_ns = stamp_lead_ns(config.stale_timeout_s, self.camera_ns)
+        self.dt_ns = config.timing.step_ns
+        self.camera_ns = config.timing.camera_period_ns
+        self.state_lead_ns = config.timing.step_lead_ns
+        self.frame_lead_ns = config.timing.frame_lead_ns
         self._trajectory = None
         self.commands = 0
 

@@ -12,7 +12,7 @@ One class per command interface, picked at start by ``command_interface``:
   /ibvs/servo_status; reads /joint_states, /stereo/left/camera_info, the feedforward and
   the q_feedback.
 
-Parameters: :class:`.joint_controller_mode.JointControllerConfig` (docs/parameters.md).
+Parameters: :class:`.node_params.JointControllerConfig` (docs/parameters.md).
 Bad input is rejected, logged and counted on /diagnostics, never raised. The rules of each
 interface (stamps, buffering, lost frames, stopping safely): docs/nodes.md.
 """
@@ -25,7 +25,7 @@ from ibvs_common.node_main import run
 from rclpy.node import Node
 
 from .effort_controller import EffortController
-from .joint_controller_mode import JointControllerConfig
+from .node_params import JointControllerConfig
 from .position_controller import PositionController
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
@@ -46,7 +46,7 @@ class JointControllerNode(Node):
         self.config = config(self, JointControllerConfig)
         self.mode = None
         self.diagnostics = Diagnostics(self, 'joint controller')
-        self.mode = MODES[self.config.command_interface](self, self.config)
+        self.mode = MODES[self.config.interface.command_interface](self, self.config)
 
     def destroy_node(self) -> None:
         """Release what the mode holds with the node."""

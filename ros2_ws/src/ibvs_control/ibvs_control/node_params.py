@@ -1,8 +1,10 @@
 """
-Parameters of the control nodes, their start-time checks, and two typed configurations.
+Parameters of the control nodes, their start-time checks, and their typed configurations.
 
-The feedforward's and the feedback's configurations are here; the joint controller's is in
-:mod:`.joint_controller_mode`.
+The feedforward's, the feedback's and the joint controller's configurations are here, each
+holding the shared groups it reads (:class:`ibvs_common.shared_params.Timing`,
+:class:`~ibvs_common.shared_params.Target`) as one field. The model-only loop's
+configuration (:class:`.closed_loop.LoopConfig`) is not a node's and stays with it.
 
 Shared parameters come from :mod:`ibvs_common.shared_params`; the ones below belong to this
 package. The checks turn a configuration the controllers cannot work with into a
@@ -15,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any, TYPE_CHECKING
 
 from ibvs_common import shared_params as shared
-from ibvs_common.params import Param, param_field, ParamConfig, ParameterError
+from ibvs_common.params import group_field, Param, param_field, ParamConfig, ParameterError
 from ibvs_common.shared_params import OMEGA_N, target_from_parameters, TAU_IN, ZETA
 from ibvs_model import IRB4600, ModelError
 import numpy as np
@@ -277,13 +279,11 @@ class FeedforwardConfig(ParamConfig):
     RULES = (target_from,)
 
     tau_in: float = param_field(TAU_IN)
-    physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
-    target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
-    target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
+    timing: shared.Timing = group_field(shared.Timing)
+    target: shared.Target = group_field(shared.Target)
     feedforward_method: str = param_field(FEEDFORWARD_METHOD)
     feedforward_ratio: float = param_field(FEEDFORWARD_RATIO)
-    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
-    command_interface: str = param_field(shared.COMMAND_INTERFACE)
+    interface: shared.Interface = group_field(shared.Interface)
     actuators: str = param_field(shared.ACTUATORS)
 
 
@@ -292,29 +292,24 @@ class AdaptiveFeedbackConfig(ParamConfig):
     """
     The parameters of adaptive_feedback_node: the frame, the target, the servo law's.
 
-    The fields after ``camera_pose`` are :data:`LAW_PARAMS`, handed to the servo law
-    (:meth:`law_settings`).
+    The fields after ``max_joint_speed_deg_s`` are :data:`LAW_PARAMS`, handed to the servo
+    law (:meth:`law_settings`).
     """
 
     #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
     RULES = (check_gains, check_servo_law, target_from, shared.camera_pose_from)
 
-    camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
-    physics_rate_hz: float = param_field(shared.PHYSICS_RATE_HZ)
-    feedback_latency_s: float = param_field(shared.FEEDBACK_LATENCY_S)
+    timing: shared.Timing = group_field(shared.Timing)
     latency_compensation: str = param_field(LATENCY_COMPENSATION)
     model_error_transport: str = param_field(MODEL_ERROR_TRANSPORT)
-    target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
-    target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
-    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
-    target_features_source: str = param_field(shared.TARGET_FEATURES_SOURCE)
+    target: shared.Target = group_field(shared.Target)
     servo_law: str = param_field(SERVO_LAW)
     feedforward_method: str = param_field(FEEDFORWARD_METHOD)
     lambda_0: float = param_field(LAMBDA_0)
     lambda_inf: float = param_field(LAMBDA_INF)
     lambda_slope: float = param_field(LAMBDA_SLOPE)
     camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
-    command_interface: str = param_field(shared.COMMAND_INTERFACE)
+    interface: shared.Interface = group_field(shared.Interface)
     max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
     tau_in: float = param_field(TAU_IN)
     omega_n: float = param_field(OMEGA_N)
@@ -335,3 +330,32 @@ class AdaptiveFeedbackConfig(ParamConfig):
     def law_settings(self) -> dict[str, Any]:
         """Return the values of :data:`LAW_PARAMS` by name (the servo law's settings)."""
         return law_settings(self.values())
+
+
+@dataclass(frozen=True)
+class JointControllerConfig(ParamConfig):
+    """The parameters of joint_controller_node (each field: the parameter of its name)."""
+
+    tau_in: float = param_field(shared.TAU_IN)
+    timing: shared.Timing = group_field(shared.Timing)
+    actuators: str = param_field(shared.ACTUATORS)
+    torque_limits: tuple[float, ...] = param_field(TORQUE_LIMITS)
+    speed_margin: float = param_field(SPEED_MARGIN)
+    feedforward_method: str = param_field(FEEDFORWARD_METHOD)
+    acceleration_margin: float = param_field(ACCELERATION_MARGIN)
+    drive_acceleration_margin: float = param_field(DRIVE_ACCELERATION_MARGIN)
+    interface: shared.Interface = group_field(shared.Interface)
+    joint_state_timeout_s: float = param_field(JOINT_STATE_TIMEOUT_S)
+    frame_timeout_s: float = param_field(FRAME_TIMEOUT_S)
+    max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
+    trajectory_window_points: int = param_field(TRAJECTORY_WINDOW_POINTS)
+    dry_run: bool = param_field(DRY_RUN)
+
+    def __post_init__(self):
+        """Check each value (the joints: the interface's), then that no effort run is dry."""
+        super().__post_init__()
+        if self.interface.lockstep and self.dry_run:
+            raise ParameterError("parameter 'dry_run' = True is invalid with command_interface "
+                                 "'effort': a dry run is of the position interface (the "
+                                 "lockstep's simulator waits for every effort command); "
+                                 "allowed: false (or command_interface 'position')")

@@ -41,7 +41,7 @@ from .servo_status import clock_stopped, InputWatch, second_publisher, ServoStat
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-    from .joint_controller_mode import JointControllerConfig
+    from .node_params import JointControllerConfig
 
 #: The parameters only the effort interface uses: a warning names those set off default.
 EFFORT_ONLY = ('actuators', 'torque_limits', 'acceleration_margin')
@@ -125,10 +125,10 @@ class PositionController(JointControllerMode):
         """Check the joints, build the shaper and the input watch, open the topics."""
         super().__init__(node, config)
         #: Contract order -> the controller's ``joints`` order (checked by the config).
-        self.order = joint_order(config.joints)
+        self.order = joint_order(config.interface.joints)
         self._warn_ignored(node, config)
-        self.joints = list(config.joints)
-        self.command_period_ns = period_ns(config.command_rate_hz)
+        self.joints = list(config.interface.joints)
+        self.command_period_ns = period_ns(config.interface.command_rate_hz)
         self.shaper = shaper_for(config.values())
         self._hold = FeedbackHold(np.zeros(6))
         self._measured = None
@@ -142,9 +142,9 @@ class PositionController(JointControllerMode):
         self.frames_used = 0
         self.last_command_ns = None
         self.diagnostics.update(command_interface='position', commands=0,
-                                position_command_type=config.position_command_type,
+                                position_command_type=config.interface.position_command_type,
                                 dry_run=config.dry_run)
-        self._sender = COMMAND_TYPES[config.position_command_type](node, self)
+        self._sender = COMMAND_TYPES[config.interface.position_command_type](node, self)
         self._pub_latency = publisher(node, TimeReference, contract.FRAME_LATENCY,
                                       contract.RELIABLE)
         self._pub_status = publisher(node, Int8, contract.SERVO_STATUS, contract.LATCHED)
@@ -169,8 +169,8 @@ class PositionController(JointControllerMode):
         self.waiting = WaitReporter(node, self._waiting)
         self.diagnostics.log_progress(self._progress_line)
         node.get_logger().info(
-            f'position references at {config.command_rate_hz:g} Hz on '
-            f'{self._sender.pub.topic_name} ({config.position_command_type}), joints '
+            f'position references at {config.interface.command_rate_hz:g} Hz on '
+            f'{self._sender.pub.topic_name} ({config.interface.position_command_type}), joints '
             f'{self.joints}' + (': DRY RUN, nothing goes to the arm (its command topic, '
                                 f'{node.resolve_topic_name(type(self._sender).TOPICS[0])}, '
                                 'is not opened)' if config.dry_run else ''))

@@ -134,7 +134,8 @@ def test_the_lockstep_effort_interface_never_looks_at_a_stopped_clock(context):
     node = JointControllerNode(context=context, parameter_overrides=[
         Parameter('use_sim_time', value=True)])
     try:
-        assert node.config.command_interface == 'effort' and node.config.lockstep
+        assert node.config.interface.command_interface == 'effort'
+        assert node.config.interface.lockstep
         assert not hasattr(node.mode, '_check_clock')
     finally:
         node.destroy_node()

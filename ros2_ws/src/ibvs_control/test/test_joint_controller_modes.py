@@ -1,7 +1,7 @@
 """
 joint_controller_node: one class per command interface, picked from a typed config.
 
-The config (:class:`ibvs_control.joint_controller_mode.JointControllerConfig`) is pure
+The config (:class:`ibvs_control.node_params.JointControllerConfig`) is pure
 Python: its rules are checked without a node. The node starts the class of
 ``command_interface`` and nothing of the other.
 """
@@ -10,8 +10,8 @@ from ibvs_common import contract
 from ibvs_common.kit import opened, PUBLISHES, SUBSCRIBES
 from ibvs_common.params import ParameterError
 from ibvs_control.effort_controller import EffortController
-from ibvs_control.joint_controller_mode import JointControllerConfig
 from ibvs_control.joint_controller_node import JointControllerNode, PARAMS
+from ibvs_control.node_params import JointControllerConfig
 from ibvs_control.position_controller import PositionController
 import pytest
 from rclpy.parameter import Parameter
@@ -23,8 +23,8 @@ def test_config_takes_the_declared_parameters_and_its_time_mode_from_the_interfa
     assert [p.name for p in PARAMS] == [p.name for p in JointControllerConfig.params()]
     config = JointControllerConfig(torque_limits=[1, 2, 3, 4, 5, 6])
     assert config.torque_limits == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
-    assert JointControllerConfig(command_interface='position').lockstep is False
-    assert JointControllerConfig().lockstep is True
+    assert JointControllerConfig.make(command_interface='position').interface.lockstep is False
+    assert JointControllerConfig().interface.lockstep is True
     assert 'lockstep' not in {p.name for p in PARAMS}
     with pytest.raises(TypeError):
         JointControllerConfig(lockstep=False)  # no such field: the interface gives it

@@ -16,8 +16,8 @@ def test_the_feedback_config_holds_every_setting_of_the_servo_law():
     assert list(settings) == [spec.name for spec in LAW_PARAMS] + ['speed_limits']
     # the speeds the arm is allowed: rated with the effort interface, capped with position
     np.testing.assert_allclose(settings['speed_limits'], IRB4600.qd_max)
-    capped = AdaptiveFeedbackConfig(command_interface='position',
-                                    max_joint_speed_deg_s=20.0).law_settings()
+    capped = AdaptiveFeedbackConfig.make(command_interface='position',
+                                         max_joint_speed_deg_s=20.0).law_settings()
     np.testing.assert_allclose(capped['speed_limits'],
                                np.minimum(IRB4600.qd_max, np.radians(20.0)))
     assert settings['omega_n'] == 2.0 and isinstance(settings['omega_n'], float)

@@ -150,10 +150,10 @@ def sim_config(overrides: dict[str, Any]):
     """
     Return the simulator's config of the ``-p`` values and the nominal camera pose, if given.
 
-    Names: the simulator's parameters (:class:`ibvs_sim.config.SimConfig`) and
+    Names: the simulator's parameters (:class:`ibvs_sim.node_params.SimConfig`) and
     ``camera_pose``; another name is refused with the nearest ones.
     """
-    from ibvs_sim.config import SimConfig
+    from ibvs_sim.node_params import SimConfig
     names = {p.name for p in SimConfig.params()}
     values = dict(overrides)
     nominal = None
@@ -170,7 +170,7 @@ def sim_config(overrides: dict[str, Any]):
             raise CalibrateError(f"-p '{name}': not a parameter of the simulator or "
                                  f'camera_pose{hint}')
     try:
-        return SimConfig(**values), nominal
+        return SimConfig.make(**values), nominal
     except ParameterError as exc:
         raise CalibrateError(str(exc)) from None
 

@@ -21,6 +21,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ibvs_common.shared_params import TargetSource
 from ibvs_control.closed_loop import LoopConfig, simulate
 from ibvs_control.servo_laws import SERVO_LAWS
 from ibvs_model import (CameraRobotModel, default_model, forward_kinematics, paper,
@@ -33,7 +34,7 @@ FOCAL_ERRORS = (0.005, 0.01, 0.02)
 #: The calibrated camera's offset direction in the true camera frame (x right, y down, z
 #: along the optical axis): equal parts of each.
 POSITION_ERROR_DIRECTION = np.ones(3) / np.sqrt(3.0)
-TARGET_SOURCES = ('model', 'taught')
+TARGET_SOURCES = tuple(source.value for source in TargetSource)
 DURATION_S = 3.0
 
 

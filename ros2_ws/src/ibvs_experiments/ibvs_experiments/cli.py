@@ -65,6 +65,7 @@ from typing import Any
 from ibvs_analysis import analysis, results
 from ibvs_bringup import domains, graph_params, scenario
 from ibvs_bringup.recorder import BagUnreadable, recover
+from ibvs_common import shared_params
 from rosbags.rosbag2 import ReaderError
 
 from . import cell, output_dir, runner, study_spec
@@ -233,7 +234,7 @@ def cmd_cell(args: argparse.Namespace) -> int:
         if args.dry_run:
             overrides['dry_run'] = True
         params = cell.cell_parameters(args.params_file, overrides, args.controller)
-        if taught is not None and params.get('target_features_source') != 'taught':
+        if taught is not None and not shared_params.taught(params):
             raise cell.CellError('--teach with target_features_source '
                                  f"{params.get('target_features_source')!r}: the pair would not "
                                  'be used; leave out --teach or set target_features_source:='

@@ -55,7 +55,7 @@ in a process of its own costs too. Before each replay, where the feature node's 
 frame (:func:`frame_split`: rclpy's deserialisation, the detector's stages, the node's own
 handling of the messages), measured in a process of its own (``python -m
 ibvs_experiments.nodes_bench split``). The recording and its parts are
-:mod:`.nodes_recording`'s, the split :mod:`.nodes_split`'s.
+:mod:`ibvs_analysis.recording`'s, the split :mod:`.nodes_split`'s.
 """
 
 from collections.abc import Callable, Sequence
@@ -66,11 +66,12 @@ import threading
 import time
 from typing import Any
 
+# The recording and its parts (step 1, 2a), and the split: this module's names too.
+from ibvs_analysis.recording import (detectable_frames, MIN_SEGMENT_FRAMES,  # noqa: F401
+                                     read_recording, Recording, segment, segment_bounds,
+                                     SEGMENTS)
 import numpy as np
 
-# The recording and its parts (step 1, 2a), and the split: this module's names too.
-from .nodes_recording import (detectable_frames, MIN_SEGMENT_FRAMES,  # noqa: F401
-                              read_recording, Recording, segment, segment_bounds, SEGMENTS)
 from .nodes_split import frame_split, frame_split_apart, print_split
 
 #: Measurement starts this long (wall s) after the first joint command that used a frame:

@@ -14,9 +14,8 @@ from pathlib import Path
 import time
 from typing import Any
 
+from ibvs_analysis.recording import Recording
 import numpy as np
-
-from .nodes_recording import Recording
 
 
 def _split_params(recording: Recording, rate: float) -> dict[str, Any]:

@@ -47,6 +47,7 @@ from ibvs_analysis import analysis
 from ibvs_analysis.convergence import SUCCESS
 from ibvs_analysis.metrics import compute_metrics
 from ibvs_analysis.study_table import reason_category
+from ibvs_common import shared_params
 from ibvs_control.closed_loop import LoopConfig, simulate
 from ibvs_control.envelope import Intervention
 from ibvs_control.prediction import LATENCY_COMPENSATIONS
@@ -122,7 +123,7 @@ def model_run(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any] =
     if feature_noise_px is None:
         feature_noise_px = FEATURE_NOISE_PX[resolution]
     noise = feature_noise_px if conditions.get('image_noise_stddev', 0.0) > 0.0 else 0.0
-    taught = conditions.get('target_features_source') == 'taught'
+    taught = shared_params.taught(conditions)
     # The teach pair averages teach_frames frames (sim_node): 1 / sqrt of one frame's noise.
     teach_noise = noise / math.sqrt(conditions.get('teach_frames', 1)) if taught else 0.0
     result = simulate(loop_config(law, task, conditions), duration_s,

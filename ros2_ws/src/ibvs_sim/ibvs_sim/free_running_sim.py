@@ -74,15 +74,15 @@ class FreeRunningSim:
                 f'{contract.FRAME_JOINT_STATES} (a real cell has none)')
         self.frame_joint_subscribers = 0
         # A sim-time timer fires only when /clock moves: the command timer needs it.
-        self.clock_rate_hz = max(config.clock_rate_hz, config.command_rate_hz)
-        self.delivery_delay_ns = seconds_to_ns(config.feedback_latency_s)
+        self.clock_rate_hz = max(config.clock_rate_hz, config.interface.command_rate_hz)
+        self.delivery_delay_ns = config.timing.latency_ns
         self.stamp_offset_ns = seconds_to_ns(config.image_stamp_offset_s)
         self._joint_state_period_ns = period_ns(config.joint_state_rate_hz)
         self._next_joint_state_ns = seconds_to_ns(config.joint_state_phase_s)
         start_s, span_s = config.camera_outage_s
         self._outage = (seconds_to_ns(start_s), seconds_to_ns(start_s + span_s)) \
             if span_s > 0.0 else None
-        self._joints = list(config.joints)  # each joint once: SimNodeConfig checked it
+        self._joints = list(config.interface.joints)  # each joint once: SimNodeConfig checked it
         # Command value i is joint self._joints[i]; _to_contract reorders to joint_1..6.
         self._to_contract = joint_permutation(contract.JOINT_NAMES, self._joints)
         try:
@@ -105,8 +105,8 @@ class FreeRunningSim:
         # joint_trajectory: the trajectory controller, updated at command_rate_hz (abb_ros2's
         # controller manager: 250 Hz), samples each trajectory window for the drive.
         self._follower = None
-        if config.position_command_type == 'joint_trajectory':
-            self._follower = TrajectoryFollower(config.command_rate_hz)
+        if config.interface.position_command_type == 'joint_trajectory':
+            self._follower = TrajectoryFollower(config.interface.command_rate_hz)
             self.command_sub = subscription(node, JointTrajectory, contract.TRAJECTORY_COMMANDS,
                                             self._on_trajectory_command, contract.RELIABLE)
         else:

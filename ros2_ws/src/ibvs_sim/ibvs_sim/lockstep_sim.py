@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 from ibvs_common import contract
 from ibvs_common.conversions import InputError, read_joints, read_stamp, stamp_ns
 from ibvs_common.kit import subscription
-from ibvs_common.timing import feedback_frame_ns, period_ns, seconds_to_ns
+from ibvs_common.timing import feedback_frame_ns
 from ibvs_model.mass_model import joint_efforts
 import numpy as np
 from sensor_msgs.msg import JointState
@@ -69,9 +69,9 @@ class LockstepSim:
         self.held_steps = 0
         self._frame_step = False
         self._published_at = None
-        self._camera_ns = period_ns(config.camera_rate_hz)
-        self._step_ns = period_ns(config.physics_rate_hz)
-        self._latency_ns = seconds_to_ns(config.feedback_latency_s)
+        self._camera_ns = config.timing.camera_period_ns
+        self._step_ns = config.timing.step_ns
+        self._latency_ns = config.timing.latency_ns
         self.command_sub = subscription(node, JointState, contract.EFFORT_COMMANDS,
                                         self._on_command, contract.RELIABLE)
 

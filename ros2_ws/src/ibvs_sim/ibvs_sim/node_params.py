@@ -1,22 +1,119 @@
 """
-The typed configurations of ibvs_sim's nodes (:class:`SimNodeConfig`, :class:`RobotStateConfig`).
+ibvs_sim's parameters and typed configurations, no ROS.
 
-:class:`SimNodeConfig` is :class:`.config.SimConfig` (what the simulator simulates) and the
-node's own parameters below: each value checked against its Param at construction, then
-the rules across them (a taught target against publish_images, a camera outage against
-lockstep, the extra joints' names, a start at the target against start_joints), so that a
-bad combination is refused before the node opens a topic.
+:class:`SimConfig` is what :class:`.simulator.Simulator` simulates: each field a sim_node
+parameter of the same name (:class:`ibvs_common.params.Param`: default, units, allowed
+values), the timing and the plant as the shared groups (:class:`ibvs_common.shared_params.
+Timing`, :class:`~ibvs_common.shared_params.Plant`); the replay builds one from recorded
+values (:meth:`SimConfig.from_values`), a test directly (:meth:`SimConfig.make`).
+:class:`SimNodeConfig` extends it with the node's own parameters and the target
+(:class:`~ibvs_common.shared_params.Target`): each value checked against its Param at
+construction, then the rules across them (a taught target against publish_images, a camera
+outage against lockstep, the extra joints' names, a start at the target against
+start_joints), so that a bad combination is refused before the node opens a topic.
+:class:`RobotStateConfig` is robot_state_node's.
 """
 
 from dataclasses import dataclass
 from typing import Any
 
-from ibvs_common import contract
 from ibvs_common import shared_params as shared
-from ibvs_common.params import Param, param_field, ParamConfig, ParameterError
+from ibvs_common.params import group_field, Param, param_field, ParamConfig, ParameterError
+from ibvs_common.shared_params import SCENARIO, START_JOINTS
+from ibvs_common.teach import TEACH_FRAMES
+from ibvs_model import paper
 from ibvs_model.drive import EGM_BANDWIDTH_HZ, EGM_DELAY_S
 
-from .config import SimConfig
+from .camera_effects import MAX_DROP_PROBABILITY, MAX_NOISE_STDDEV
+from .rendering import (DEFAULT_FOCUS_SUPERSAMPLING, DEFAULT_SUPERSAMPLING,
+                        MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING)
+
+#: The robot stands on a riser (:class:`.world.World`) whose top is the base plane. The
+#: paper's model has no floor; its sweep (Figure 13) needs room below the base: with L2 at
+#: 50 % the tool ends 0.11 m (its lower marker 0.17 m) under z = 0.
+DEFAULT_MOUNT_HEIGHT_M = 0.5
+MAX_MOUNT_HEIGHT_M = 5.0
+
+RESOLUTION = Param('resolution', 'HD720', 'stereo image size: ZED 2 HD720 (1280 x 720) or '
+                   'VGA (672 x 376)', '-', choices=('HD720', 'VGA'))
+PUB_DOWNSCALE_FACTOR = Param(
+    'pub_downscale_factor', 1.0, 'the images and camera_info published at the resolution '
+    "divided by this, as zed-ros2-wrapper's general.pub_downscale_factor does with "
+    "general.pub_resolution 'CUSTOM' (the wrapper's defaults up to v5.2.2: 'CUSTOM' and 2.0, "
+    'HD720 published as 640 x 360); 1: NATIVE', '-', low=1.0, high=8.0)
+CAMERA_EYE = Param('camera_eye', [float(v) for v in paper.CAMERA_EYE],
+                   'camera frame {C} origin (midway between the lenses) in {O}', 'm',
+                   low=-20.0, high=20.0, length=3)
+CAMERA_LOOK_AT = Param('camera_look_at', [float(v) for v in paper.CAMERA_LOOK_AT],
+                       'point of {O} on the optical axis (image up = +z of {O})', 'm',
+                       low=-20.0, high=20.0, length=3)
+RENDER_SUPERSAMPLING = Param(
+    'render_supersampling', DEFAULT_SUPERSAMPLING, 'samples per pixel along each axis, '
+    'averaged as a camera pixel integrates light (1: one sample per pixel, cheapest; the '
+    'cost grows with its square)', '-', low=1, high=MAX_SUPERSAMPLING)
+RENDER_MARKER_SUPERSAMPLING = Param(
+    'render_marker_supersampling', DEFAULT_FOCUS_SUPERSAMPLING, 'samples per pixel along '
+    'each axis in small windows around the two markers, rendered again and pasted over the '
+    'image (their centres then move with the sub-pixel position by 0.005 px rms instead of '
+    '0.02-0.04 px; 1: off)', '-', low=1, high=MAX_FOCUS_SUPERSAMPLING)
+MOUNT_HEIGHT_M = Param(
+    'mount_height_m', DEFAULT_MOUNT_HEIGHT_M, 'height of the robot base above the floor (a '
+    'riser fills it; drawn only, nothing collides): a tool below the floor is hidden from the '
+    'camera; 0: robot on the floor', 'm', low=0.0, high=MAX_MOUNT_HEIGHT_M)
+
+IMAGE_NOISE_STDDEV = Param(
+    'image_noise_stddev', 0.0, 'standard deviation of the Gaussian noise added to each pixel '
+    'and channel of the rendered images, intensity in [0, 1] (Gazebo camera noise); the sum '
+    'is clipped and rounded to 8 bits; 0: off', '-', low=0.0, high=MAX_NOISE_STDDEV)
+FRAME_DROP_PROBABILITY = Param(
+    'frame_drop_probability', 0.0, 'probability that a stereo frame is lost (both images), '
+    'each frame drawn on its own; 0: off', '-', low=0.0, high=MAX_DROP_PROBABILITY)
+CAMERA_SEED = Param('camera_seed', 0, 'seed of the Generator that draws image noise and '
+                    'frame drops', '-', low=0, high=2 ** 31 - 1)
+CAMERA_POSE_ERROR_XYZ_M = Param(
+    'camera_pose_error_xyz_m', [0.0, 0.0, 0.0], 'calibration error of the camera position: '
+    'the published /stereo/pose is the true one moved by this along the true camera axes '
+    '(x right, y down, z forward)', 'm', low=-0.5, high=0.5, length=3)
+CAMERA_POSE_ERROR_RPY_DEG = Param(
+    'camera_pose_error_rpy_deg', [0.0, 0.0, 0.0], 'calibration error of the camera '
+    'orientation: the published /stereo/pose is the true one turned by roll, pitch, yaw '
+    'about the true camera axes x, y, z (R = Rz Ry Rx)', 'deg', low=-10.0, high=10.0,
+    length=3)
+FOCAL_LENGTH_ERROR = Param(
+    'focal_length_error', 1.0, 'factor on f_u and f_v of the published camera_info (the '
+    'images are rendered with the true ones); 1: exact', '-', low=0.5, high=2.0)
+
+
+@dataclass(frozen=True)
+class SimConfig(ParamConfig):
+    """
+    What :class:`.simulator.Simulator` simulates: the sim_node parameters of these names.
+
+    Each value is checked against its Param at construction (ParameterError naming it),
+    the camera rate against the physics rate by the timing group; what depends on the robot
+    (a reachable start pose, a camera that sees the scene) the Simulator checks.
+    """
+
+    scenario: int = param_field(SCENARIO)
+    start_joints: tuple[float, ...] = param_field(START_JOINTS)
+    plant: shared.Plant = group_field(shared.Plant)
+    timing: shared.Timing = group_field(shared.Timing)
+    resolution: str = param_field(RESOLUTION)
+    pub_downscale_factor: float = param_field(PUB_DOWNSCALE_FACTOR)
+    camera_eye: tuple[float, float, float] = param_field(CAMERA_EYE)
+    camera_look_at: tuple[float, float, float] = param_field(CAMERA_LOOK_AT)
+    render_supersampling: int = param_field(RENDER_SUPERSAMPLING)
+    render_marker_supersampling: int = param_field(RENDER_MARKER_SUPERSAMPLING)
+    mount_height_m: float = param_field(MOUNT_HEIGHT_M)
+    image_noise_stddev: float = param_field(IMAGE_NOISE_STDDEV)
+    frame_drop_probability: float = param_field(FRAME_DROP_PROBABILITY)
+    camera_seed: int = param_field(CAMERA_SEED)
+    teach_frames: int = param_field(TEACH_FRAMES)
+    camera_pose_error_xyz_m: tuple[float, float, float] = param_field(CAMERA_POSE_ERROR_XYZ_M)
+    camera_pose_error_rpy_deg: tuple[float, float, float] = \
+        param_field(CAMERA_POSE_ERROR_RPY_DEG)
+    focal_length_error: float = param_field(FOCAL_LENGTH_ERROR)
+
 
 PUBLISH_IMAGES = Param('publish_images', True, 'render and publish the stereo images and '
                        'CameraInfo (false: physics only, e.g. with a model-based feature '
@@ -140,7 +237,7 @@ CAMERA_TOPICS = Param(
 
 @dataclass(frozen=True)
 class SimNodeConfig(SimConfig):
-    """The parameters of sim_node: the simulator's (:class:`.config.SimConfig`), then its own."""
+    """The parameters of sim_node: the simulator's (:class:`SimConfig`), then its own."""
 
     #: Rules between parameters, run at start and by ``ibvs run`` before any node starts:
     #: none (its checks across values are its construction's, :meth:`__post_init__`).
@@ -155,20 +252,14 @@ class SimNodeConfig(SimConfig):
     min_camera_info_subscribers: int = param_field(MIN_CAMERA_INFO_SUBSCRIBERS)
     min_command_publishers: int = param_field(MIN_COMMAND_PUBLISHERS)
     start_at_target: bool = param_field(START_AT_TARGET)
-    target_features_source: str = param_field(shared.TARGET_FEATURES_SOURCE)
-    target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
-    target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
-    command_interface: str = param_field(shared.COMMAND_INTERFACE)
-    position_command_type: str = param_field(shared.POSITION_COMMAND_TYPE)
-    command_rate_hz: float = param_field(shared.COMMAND_RATE_HZ)
-    joints: tuple[str, ...] = param_field(shared.JOINTS)
+    target: shared.Target = group_field(shared.Target)
+    interface: shared.Interface = group_field(shared.Interface)
     real_time_factor: float = param_field(REAL_TIME_FACTOR)
     command_timeout_s: float = param_field(COMMAND_TIMEOUT_S)
     drive_bandwidth_hz: float = param_field(DRIVE_BANDWIDTH_HZ)
     drive_delay_s: float = param_field(DRIVE_DELAY_S)
     camera_topics: str = param_field(CAMERA_TOPICS)
     duration_s: float = param_field(DURATION_S)
-    feedback_latency_s: float = param_field(shared.FEEDBACK_LATENCY_S)
     joint_state_rate_hz: float = param_field(JOINT_STATE_RATE_HZ)
     joint_state_phase_s: float = param_field(JOINT_STATE_PHASE_S)
     extra_joints: tuple[str, ...] = param_field(EXTRA_JOINTS)
@@ -184,44 +275,35 @@ class SimNodeConfig(SimConfig):
             raise ParameterError("parameter 'start_at_target' = True is invalid with "
                                  'start_joints set: the arm starts at one of them; allowed: '
                                  'false (or start_joints empty)')
-        if not self.lockstep:  # the free-running drive's joint order
-            shared.joint_order(self.joints)
-        if self.target_features_source == 'taught' and not self.publish_images:
+        if self.target.taught and not self.publish_images:
             raise ParameterError("parameter 'target_features_source' = 'taught' is invalid: "
                                  'it needs publish_images true; allowed: model')
         extra = list(self.extra_joints)
+        from ibvs_common import contract  # here: it imports rclpy, which the core does without
         if any(not n or n in contract.JOINT_NAMES for n in extra) or \
                 len(set(extra)) != len(extra):
             raise ParameterError(f"parameter 'extra_joints' = {extra!r} is invalid: each name "
                                  f'once, not empty and none of {list(contract.JOINT_NAMES)}')
-        if self.lockstep and self.camera_outage_s[1] > 0.0:
+        if self.interface.lockstep and self.camera_outage_s[1] > 0.0:
             raise ParameterError(
                 f"parameter 'camera_outage_s' = {list(self.camera_outage_s)!r} is invalid in "
                 'lockstep: the joint controller waits for every frame, so the run would stop; '
                 "allowed: a duration of 0 (or command_interface 'position')")
-        if self.image_stamp_offset_s != 0.0 and self.lockstep:
+        if self.image_stamp_offset_s != 0.0 and self.interface.lockstep:
             raise ParameterError(
                 f"parameter 'image_stamp_offset_s' = {self.image_stamp_offset_s!r} is invalid "
                 "in lockstep: a frame's stamp names its joint state there; allowed: 0 (or "
                 "command_interface 'position')")
-        if self.image_stamp_offset_s > self.feedback_latency_s:
+        if self.image_stamp_offset_s > self.timing.feedback_latency_s:
             raise ParameterError(
                 f"parameter 'image_stamp_offset_s' = {self.image_stamp_offset_s!r} is invalid "
-                f'with feedback_latency_s = {self.feedback_latency_s!r}: a frame cannot be '
-                'stamped after it is delivered; allowed: at most feedback_latency_s')
-
-    @property
-    def lockstep(self) -> bool:
-        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
-        return shared.lockstep(vars(self))
+                f'with feedback_latency_s = {self.timing.feedback_latency_s!r}: a frame cannot '
+                'be stamped after it is delivered; allowed: at most feedback_latency_s')
 
 
 @dataclass(frozen=True)
 class RobotStateConfig(ParamConfig):
     """The parameters of robot_state_node: the simulated arm drawn and the stamp rule's."""
 
-    disturbance_deg: tuple[float, ...] = param_field(shared.DISTURBANCE_DEG)
-    l2_scale: float = param_field(shared.L2_SCALE)
-    l4_scale: float = param_field(shared.L4_SCALE)
-    camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
-    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
+    plant: shared.Plant = group_field(shared.Plant)
+    timing: shared.Timing = group_field(shared.Timing)

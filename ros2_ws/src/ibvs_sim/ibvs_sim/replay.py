@@ -19,18 +19,18 @@ replayed images with the recorded ones).
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-from ibvs_common.shared_params import target_from_parameters
+from ibvs_common.shared_params import target_from_parameters, taught
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .config import SimConfig
+from .node_params import SimConfig
 from .simulator import Simulator
 
 
 def simulator_of(params: Mapping[str, Any]) -> Simulator:
     """Return the :class:`Simulator` of a run's parameters (defaults for those not set)."""
     values = {p.name: params.get(p.name, p.default) for p in SimConfig.params()}
-    teach = params.get('target_features_source', 'model') == 'taught'
+    teach = taught(params)
     return Simulator(SimConfig.from_values(values),
                      teach_pose=target_from_parameters(params) if teach else None)
 

@@ -35,15 +35,12 @@ per topic, with :func:`ibvs_common.conversions.read_joints`).
 """
 
 from ibvs_common import contract
-from ibvs_common.conversions import (position_bounds, read_joints, stamp_lead_ns,
-                                     transforms_msg)
+from ibvs_common.conversions import position_bounds, read_joints, transforms_msg
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import config, forget_on_back, Inputs, publisher, subscription
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
-from ibvs_common.timing import period_ns
-from ibvs_model import abb_urdf, IRB4600
-import numpy as np
+from ibvs_model import abb_urdf
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -65,12 +62,12 @@ class RobotStateNode(Node):
         """Declare and check the parameters; publish the description and the fixed frames."""
         super().__init__('robot_state_node', **kwargs)
         self.config = c = config(self, RobotStateConfig)
-        self._params = IRB4600.scaled(c.l2_scale, c.l4_scale)
-        self._d_q = np.radians(c.disturbance_deg)
+        self._params = c.plant.robot
+        self._d_q = c.plant.d_q
         self._last_joint_ns = None
         self._diag = Diagnostics(self, 'robot description and link frames')
         self._inputs = Inputs(self._diag, lambda: node_time_ns(self, self._last_joint_ns),
-                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
+                              c.timing.frame_lead_ns)
         forget_on_back(self, self._inputs)
         self._diag.update(tf_published=0)
         self._diag.log_progress(lambda: None if not self._diag.values['tf_published'] else (

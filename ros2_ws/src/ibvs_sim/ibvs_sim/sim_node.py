@@ -37,7 +37,6 @@ from ibvs_common.conversions import (camera_infos, image_msg, joint_path, joint_
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import config as kit_config, publisher, WaitReporter
 from ibvs_common.node_main import run
-from ibvs_common.shared_params import target_from_parameters
 from ibvs_common.timing import period_ns
 from nav_msgs.msg import Path
 import numpy as np
@@ -56,7 +55,7 @@ from .simulator import Simulator
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
 CONFIG = SimNodeConfig
 PARAMS = CONFIG.params()
-#: ``SimNodeConfig.lockstep`` -> the class that runs its time mode. The node reads its
+#: ``SimNodeConfig.interface.lockstep`` -> the class that runs its time mode. The node reads its
 #: ``clock_rate_hz``, ``frame_joint_subscribers``, ``delivery_delay_ns``, ``stamp_offset_ns``,
 #: ``held_steps`` and ``command_sub`` and calls ``publish_joints``, ``exposes``, ``start``,
 #: ``stop`` and ``waiting_line``.
@@ -108,9 +107,8 @@ class SimNode(Node):
         self.frames_outage = 0
         self._next_clock_ns = 0
         self.last_clock_ns = None
-        target = target_from_parameters(vars(config)) \
-            if config.target_features_source == 'taught' or config.start_at_target else None
-        teach_pose = target if config.target_features_source == 'taught' else None
+        target = config.target.pose if config.target.taught or config.start_at_target else None
+        teach_pose = target if config.target.taught else None
         # Physics only (publish_images false): no renderer to load.
         self.sim = Simulator(config, teach_pose=teach_pose, render=config.publish_images,
                              start_pose=target if config.start_at_target else None)
@@ -159,7 +157,7 @@ class SimNode(Node):
                                           contract.RIGHT_CAMERA_FRAME)):
                 pub.publish(image_msg(image, 0, 'rgb8', frame))
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.mode = MODES[config.lockstep](self, config)
+        self.mode = MODES[config.interface.lockstep](self, config)
         self.clock_period_ns = period_ns(self.mode.clock_rate_hz)
 
         self.started = False

@@ -27,16 +27,15 @@ from fractions import Fraction
 from ibvs_common.params import ParameterError
 from ibvs_common.shared_params import start_joints
 from ibvs_common.teach import FrameMean
-from ibvs_common.timing import check_camera_rate, period_ns
 from ibvs_model import (forward_kinematics, forward_kinematics_batch, inverse_kinematics,
-                        IRB4600, look_at, ModelError, paper, pose_error, StereoCamera,
+                        look_at, ModelError, paper, pose_error, StereoCamera,
                         StereoIntrinsics)
 from ibvs_model.ik_branch import nearest_branch_ik
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .camera_effects import calibrated_intrinsics, calibrated_pose, CameraEffects
-from .config import SimConfig
+from .node_params import SimConfig
 from .world import RendererError, World
 
 
@@ -52,7 +51,7 @@ class Simulator:
     """
     The simulated IRB 4600 with its stereo camera, advanced one physics step at a time.
 
-    ``config``: the sim_node parameters (:class:`.config.SimConfig`, each value checked
+    ``config``: the sim_node parameters (:class:`.node_params.SimConfig`, each value checked
     there). ``teach_pose``: a flange pose T_E^O whose stereo pair to render before the run
     (module docstring), or None. ``render``: False builds no renderer (physics only; a
     frame is then taken without images, :meth:`take_frame`). ``start_pose``: a flange pose
@@ -69,19 +68,12 @@ class Simulator:
                  start_pose: ArrayLike | None = None) -> None:
         """Check the combinations, solve the start pose and build the PyBullet world."""
         self.config = config
-        self.dt_ns = period_ns(config.physics_rate_hz)
-        self.camera_period_ns = period_ns(config.camera_rate_hz)
-        try:
-            check_camera_rate(config.camera_rate_hz, config.physics_rate_hz)
-        except ValueError as exc:
-            raise ConfigError('camera_rate_hz', str(exc)) from None
+        self.dt_ns = config.timing.step_ns  # frames no faster than steps: the timing's check
+        self.camera_period_ns = config.timing.camera_period_ns
         self.frames_exact = self.camera_period_ns % self.dt_ns == 0
         self.scenario = config.scenario
-        self.d_q = np.radians(np.asarray(config.disturbance_deg, dtype=float))
-        try:
-            self.params = IRB4600.scaled(config.l2_scale, config.l4_scale)
-        except ModelError as exc:
-            raise ConfigError('l2_scale', str(exc)) from None
+        self.d_q = config.plant.d_q
+        self.params = config.plant.robot
         target = paper.scenario_start_pose(config.scenario)
         try:
             given = start_joints(config.start_joints)
@@ -103,7 +95,7 @@ class Simulator:
                                   f'simulated robot: {exc}') from None
             raise ConfigError('scenario', f'start pose of scenario {config.scenario} is '
                               f'unreachable by the simulated robot (l2_scale = '
-                              f'{config.l2_scale}, l4_scale = {config.l4_scale}): '
+                              f'{config.plant.l2_scale}, l4_scale = {config.plant.l4_scale}): '
                               f'{exc}') from None
         self.start_residual = pose_error(forward_kinematics(self.q_start, self.params), target)
         intrinsics = StereoIntrinsics.zed2(config.resolution, config.pub_downscale_factor)

@@ -36,9 +36,9 @@ from numpy.typing import ArrayLike, NDArray
 with quiet_output():  # PyBullet writes its build time as it loads
     import pybullet
 
-from .config import MOUNT_HEIGHT_M
 from .gl_renderer import (box_triangles, cylinder_triangles, GLRenderer, GLRendererError,
                           obj_triangles, Shape, transformed)
+from .node_params import MOUNT_HEIGHT_M
 from .rendering import (box_downsample, DEFAULT_FOCUS_SUPERSAMPLING,  # noqa: F401 (re-export)
                         DEFAULT_SUPERSAMPLING, FAR_M, focus_windows, ground_obj, lens_poses,
                         MAX_FOCUS_SUPERSAMPLING, MAX_SUPERSAMPLING, NEAR_M, projection_matrix,
@@ -53,7 +53,7 @@ if TYPE_CHECKING:
 GROUND_RGBA = (0.55, 0.55, 0.55, 1.0)
 GROUND_HALF_SIZE_M = 6.0
 #: The robot stands on a riser (a box under its base, this half size and colour) whose top is
-#: the base plane (its height: :data:`.config.MOUNT_HEIGHT_M`).
+#: the base plane (its height: :data:`.node_params.MOUNT_HEIGHT_M`).
 RISER_HALF_SIZE_M = (0.4, 0.4)
 RISER_RGBA = (0.35, 0.35, 0.38, 1.0)
 #: Light: towards this direction of {O}, from above and behind the camera (the lighting of
@@ -85,7 +85,7 @@ class World:
     One PyBullet physics client with the robot (``params``) on a riser and a ground plane.
 
     ``physics_rate_hz``, ``mount_height_m``: as the parameters of these names
-    (:class:`.config.SimConfig`, which checks them). ``mount_height_m``: height of the robot's
+    (:class:`.node_params.SimConfig`, which checks them). ``mount_height_m``: height of the robot's
     base plane (z = 0 of {O}) above the floor,
     which the riser fills under the base; 0 puts the robot on the floor (no riser). Riser
     and floor are drawn only: they are not in the paper's model and nothing collides with

@@ -6,7 +6,7 @@ from ibvs_common.params import ParameterError
 from ibvs_model import look_at, paper, StereoIntrinsics
 from ibvs_sim.camera_effects import (add_image_noise, calibrated_intrinsics, calibrated_pose,
                                      CameraEffects, error_transform)
-from ibvs_sim.config import SimConfig
+from ibvs_sim.node_params import SimConfig
 from ibvs_sim.simulator import Simulator
 import numpy as np
 import pytest
@@ -77,8 +77,8 @@ def test_drops_happen_at_the_set_rate_over_1000_frames(probability):
 
 
 def test_the_simulator_loses_frames_at_the_set_rate_and_keeps_its_schedule():
-    sim = Simulator(SimConfig(physics_rate_hz=100.0, camera_rate_hz=100.0,
-                              frame_drop_probability=0.1, camera_seed=5))
+    sim = Simulator(SimConfig.make(physics_rate_hz=100.0, camera_rate_hz=100.0,
+                                   frame_drop_probability=0.1, camera_seed=5))
     try:
         lost = []
         for n in range(1000):
@@ -117,10 +117,10 @@ def test_focal_length_error_scales_f_only():
 
 
 def test_simulator_renders_true_and_publishes_calibrated_camera():
-    sim = Simulator(SimConfig(camera_pose_error_xyz_m=(0.002, 0.0, 0.0),
-                              camera_pose_error_rpy_deg=(0.0, 0.2, 0.0),
-                              focal_length_error=1.01))
-    plain = Simulator(SimConfig())
+    sim = Simulator(SimConfig.make(camera_pose_error_xyz_m=(0.002, 0.0, 0.0),
+                                   camera_pose_error_rpy_deg=(0.0, 0.2, 0.0),
+                                   focal_length_error=1.01))
+    plain = Simulator(SimConfig.make())
     try:
         np.testing.assert_array_equal(sim.camera.pose_C_O, plain.camera.pose_C_O)
         assert sim.camera.intrinsics == plain.camera.intrinsics
@@ -148,7 +148,7 @@ def test_simulator_renders_true_and_publishes_calibrated_camera():
 ])
 def test_the_config_refuses_bad_camera_effects_naming_the_parameter(kwargs, name):
     with pytest.raises(ParameterError) as info:
-        SimConfig(**kwargs)
+        SimConfig.make(**kwargs)
     assert info.value.param == name
 
 
@@ -156,8 +156,8 @@ def test_a_pair_taught_on_n_frames_carries_one_over_sqrt_n_of_the_noise():
     from ibvs_model.paper import target_pose
     noise = {}
     for frames in (1, 16):
-        sim = Simulator(SimConfig(resolution='VGA', image_noise_stddev=0.05, camera_seed=3,
-                                  teach_frames=frames), teach_pose=target_pose())
+        sim = Simulator(SimConfig.make(resolution='VGA', image_noise_stddev=0.05, camera_seed=3,
+                                       teach_frames=frames), teach_pose=target_pose())
         try:
             sim.world.reset(sim.teach_q)  # the arm is at its start now: back to the teach
             clean = sim._draw()

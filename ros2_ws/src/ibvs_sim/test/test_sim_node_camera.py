@@ -15,7 +15,7 @@ from ibvs_common.params import ParameterError
 from ibvs_control.joint_controller_node import JointControllerNode
 from ibvs_sim import markers
 from ibvs_sim.camera_effects import error_transform
-from ibvs_sim.config import SimConfig
+from ibvs_sim.node_params import SimConfig
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
 from ibvs_testing.fixtures import spin_until as shared_spin_until
@@ -30,7 +30,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 DEADLINE_S = 120.0
 #: The frames of the node's start pose without camera effects, drawn here.
-VGA = SimConfig(resolution='VGA')
+VGA = SimConfig.make(resolution='VGA')
 
 
 def _overrides(**values):

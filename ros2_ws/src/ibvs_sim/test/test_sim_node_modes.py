@@ -23,7 +23,8 @@ LIGHT = [Parameter('publish_images', value=False), Parameter('resolution', value
 
 def test_config_checks_the_rules_across_parameters():
     assert [p.name for p in PARAMS] == [p.name for p in SimNodeConfig.params()]
-    assert SimNodeConfig(**FREE).lockstep is False and SimNodeConfig().lockstep is True
+    assert SimNodeConfig.make(**FREE).interface.lockstep is False
+    assert SimNodeConfig.make().interface.lockstep is True
     assert not {'lockstep', 'renderer'} & {p.name for p in PARAMS}
     for params, match in (
             ({'target_features_source': 'taught', 'publish_images': False},
@@ -40,10 +41,10 @@ def test_config_checks_the_rules_across_parameters():
             # Free-running only, checked before any node starts (ibvs run's configs):
             ({**FREE, 'joints': ['joint_1'] * 6}, "'joints'")):
         with pytest.raises(ParameterError, match=match):
-            SimNodeConfig(**params)
-    assert SimNodeConfig(camera_outage_s=[1.0, 0.5], **FREE).camera_outage_s == (1.0, 0.5)
-    assert SimNodeConfig(image_stamp_offset_s=-0.02, **FREE).image_stamp_offset_s == -0.02
-    assert SimNodeConfig(joint_state_rate_hz=100.0).off_default(
+            SimNodeConfig.make(**params)
+    assert SimNodeConfig.make(camera_outage_s=[1.0, 0.5], **FREE).camera_outage_s == (1.0, 0.5)
+    assert SimNodeConfig.make(image_stamp_offset_s=-0.02, **FREE).image_stamp_offset_s == -0.02
+    assert SimNodeConfig.make(joint_state_rate_hz=100.0).off_default(
         ('joint_state_rate_hz', 'real_time_factor')) == [('joint_state_rate_hz', 100.0)]
 
 
@@ -95,5 +96,5 @@ def test_free_running_clock_runs_at_least_at_the_command_rate(context):
 def test_a_start_outside_a_joints_range_is_refused_by_the_config():
     start = [4.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # joint 1 at 229.2 deg, its range +-180 deg
     with pytest.raises(ParameterError, match=r"'start_joints'.*joint 1 at 229\.2 deg"):
-        SimNodeConfig(start_joints=start)
-    assert SimNodeConfig(start_joints=[0.1] * 6).start_joints == (0.1,) * 6
+        SimNodeConfig.make(start_joints=start)
+    assert SimNodeConfig.make(start_joints=[0.1] * 6).start_joints == (0.1,) * 6

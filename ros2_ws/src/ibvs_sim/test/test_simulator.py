@@ -7,7 +7,7 @@ from ibvs_common import shared_params
 from ibvs_common.params import ParameterError
 from ibvs_common.timing import frame_stamp_ns
 from ibvs_model import forward_kinematics, paper, pose_error
-from ibvs_sim.config import SimConfig
+from ibvs_sim.node_params import SimConfig
 from ibvs_sim.simulator import Simulator
 import numpy as np
 import pytest
@@ -16,7 +16,7 @@ import yaml
 
 def config(**values):
     """Return the SimConfig of ``values``."""
-    return SimConfig(**values)
+    return SimConfig.make(**values)
 
 
 @pytest.fixture(scope='module')

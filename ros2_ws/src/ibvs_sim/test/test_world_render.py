@@ -11,7 +11,7 @@ from ibvs_model import (CameraRobotModel, fiducial_points, inverse_kinematics, I
                         paper, scene, StereoCamera, StereoIntrinsics)
 from ibvs_model.scene import MARKER_RADIUS_M
 from ibvs_sim import markers
-from ibvs_sim.config import SimConfig
+from ibvs_sim.node_params import SimConfig
 from ibvs_sim.rendering import (box_downsample, focus_windows, lens_poses, projection_matrix,
                                 supersampled, view_matrix)
 from ibvs_sim.world import World
@@ -309,4 +309,4 @@ def test_a_tool_below_the_base_plane_shows_on_the_riser_not_on_the_floor(camera)
     assert shares[0.5].min() >= VISIBLE_SHARE, shares
     assert shares[0.0].max() == 0.0, shares
     with pytest.raises(ParameterError, match='mount_height_m'):
-        SimConfig(mount_height_m=-0.1)
+        SimConfig.make(mount_height_m=-0.1)

@@ -16,17 +16,17 @@ import time
 import cv2
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PolygonStamped
-from ibvs_common import contract, shared_params
+from ibvs_common import contract
 from ibvs_common.conversions import (feature_status_msg, features_msg, FeatureStatus,
                                      ignored_joints, image_msg, InputError, ns_stamp,
-                                     position_bounds, read_joints, stamp_lead_ns)
+                                     position_bounds, read_joints)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
                              subscription)
 from ibvs_common.node_main import run
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.sync import Rejection
-from ibvs_common.timing import ns_to_seconds, period_ns, seconds_to_ns
+from ibvs_common.timing import ns_to_seconds, seconds_to_ns
 from ibvs_model import BehindCameraError, CameraRobotModel, IRB4600
 import numpy as np
 from rclpy.node import Node
@@ -69,10 +69,10 @@ class FeatureNode(Node):
         self._config = c.detector_config()
         self._budget_ms = c.budget_ms
         self._switch = BumplessSwitch(c.blend_time_s, c.hold_model_error)
-        self._stereo = StereoPairer(stale_timeout_ns=seconds_to_ns(c.stale_timeout_s),
+        self._stereo = StereoPairer(stale_timeout_ns=c.timing.stale_timeout_ns,
                                     history_ns=seconds_to_ns(c.joint_history_s),
                                     sides=_SIDES)
-        self._camera_period_ns = period_ns(c.camera_rate_hz)
+        self._camera_period_ns = c.timing.camera_period_ns
         self._offset = StampOffsetEstimator(
             seconds_to_ns(c.stamp_offset_window_s), self._camera_period_ns,
             initial_ns=seconds_to_ns(c.stamp_offset_initial_s)) \
@@ -90,13 +90,12 @@ class FeatureNode(Node):
         self._teach = {}
         self._teach_done = False
         self._debug_always = c.publish_debug_images
-        self._taught_source = c.target_features_source == 'taught'
-        self._target_pose = shared_params.target_from_parameters(c.values())
+        self._taught_source = c.target.taught
+        self._target_pose = c.target.pose
         self._target_features = None
 
         self._diag = Diagnostics(self, 'stereo fiducial features')
-        self._inputs = Inputs(self._diag, self.now_ns,
-                              stamp_lead_ns(c.stale_timeout_s, self._camera_period_ns))
+        self._inputs = Inputs(self._diag, self.now_ns, c.timing.frame_lead_ns)
         forget_on_back(self, self._inputs, self._stereo,
                        *([self._offset] if self._offset is not None else []))
         self._diag.update(mode='waiting', frames_published=0, frames_measured=0,
@@ -345,7 +344,7 @@ class FeatureNode(Node):
     def _show_offset(self):
         """Put the stamp offset on /diagnostics; log each change of its state."""
         if self._offset is None:
-            why = 'lockstep: the stamps are the exposures' if self.config.lockstep \
+            why = 'lockstep: the stamps are the exposures' if self.config.interface.lockstep \
                 else 'stamp_offset_window_s 0'
             self._diag.update(
                 stamp_offset_applied_ms=round(self._stereo.exposure_offset_ns * 1e-6, 3),

@@ -10,7 +10,7 @@ detector's (:class:`.detector.DetectorConfig`: the Hough radii) and the camera p
 from dataclasses import dataclass
 
 from ibvs_common import shared_params as shared
-from ibvs_common.params import Param, param_field, ParamConfig, ParameterError
+from ibvs_common.params import group_field, Param, param_field, ParamConfig, ParameterError
 
 from . import stamp_offset
 from .detector import config as detector
@@ -67,20 +67,17 @@ class FeatureConfig(ParamConfig):
     joint_history_s: float = param_field(JOINT_HISTORY_S)
     stamp_offset_window_s: float = param_field(STAMP_OFFSET_WINDOW_S)
     stamp_offset_initial_s: float = param_field(STAMP_OFFSET_INITIAL_S)
-    command_interface: str = param_field(shared.COMMAND_INTERFACE)
+    interface: shared.Interface = group_field(shared.Interface)
     publish_debug_images: bool = param_field(PUBLISH_DEBUG_IMAGES)
-    camera_rate_hz: float = param_field(shared.CAMERA_RATE_HZ)
-    stale_timeout_s: float = param_field(shared.STALE_TIMEOUT_S)
+    timing: shared.Timing = group_field(shared.Timing)
     camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
-    target_features_source: str = param_field(shared.TARGET_FEATURES_SOURCE)
-    target_position: tuple[float, ...] = param_field(shared.TARGET_POSITION)
-    target_rotation: tuple[float, ...] = param_field(shared.TARGET_ROTATION)
+    target: shared.Target = group_field(shared.Target)
 
     def __post_init__(self):
         """Check each value, then the detector's rules (:meth:`detector_config`)."""
         super().__post_init__()
         self.detector_config()
-        if self.lockstep and self.stamp_offset_initial_s != 0.0:
+        if self.interface.lockstep and self.stamp_offset_initial_s != 0.0:
             raise ParameterError(
                 f"parameter 'stamp_offset_initial_s' = {self.stamp_offset_initial_s!r} is "
                 "invalid in lockstep: a frame's stamp names it there (the joint controller "
@@ -100,16 +97,11 @@ class FeatureConfig(ParamConfig):
         return detector.DetectorConfig.from_parameters(self.values())
 
     @property
-    def lockstep(self) -> bool:
-        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
-        return shared.lockstep(vars(self))
-
-    @property
     def estimates_stamp_offset(self) -> bool:
         """Return whether the stamp offset is estimated: free-running, with a window."""
-        return not self.lockstep and self.stamp_offset_window_s > 0.0
+        return not self.interface.lockstep and self.stamp_offset_window_s > 0.0
 
     @property
     def budget_ms(self) -> float:
         """Return the detector's budget per stereo pair: its share of the camera period (ms)."""
-        return self.detection_budget_share * 1e3 / self.camera_rate_hz
+        return self.detection_budget_share * 1e3 / self.timing.camera_rate_hz

@@ -10,7 +10,7 @@ def test_defaults_give_the_detectors_defaults_and_the_budget():
     c = FeatureConfig()
     assert c.detector_config() == DetectorConfig()
     assert c.budget_ms == pytest.approx(0.5 * 1e3 / 30.0)
-    assert FeatureConfig(camera_rate_hz=60, detection_budget_share=1).budget_ms == \
+    assert FeatureConfig.make(camera_rate_hz=60, detection_budget_share=1).budget_ms == \
         pytest.approx(1e3 / 60.0)
 
 
@@ -35,9 +35,9 @@ def test_the_stamp_offsets_window_must_fit_in_the_joint_history():
 def test_the_stamp_offset_is_estimated_free_running_only():
     assert not FeatureConfig().estimates_stamp_offset  # lockstep: stamps name the frames
     free = {'command_interface': 'position'}  # free-running: the interface gives it
-    assert FeatureConfig(**free).estimates_stamp_offset
-    assert not FeatureConfig(**free, stamp_offset_window_s=0.0).estimates_stamp_offset
+    assert FeatureConfig.make(**free).estimates_stamp_offset
+    assert not FeatureConfig.make(**free, stamp_offset_window_s=0.0).estimates_stamp_offset
     with pytest.raises(ParameterError, match="parameter 'stamp_offset_initial_s' = 0.03 is "
                        'invalid in lockstep'):
         FeatureConfig(stamp_offset_initial_s=0.03)
-    assert FeatureConfig(**free, stamp_offset_initial_s=0.03)
+    assert FeatureConfig.make(**free, stamp_offset_initial_s=0.03)

@@ -16,7 +16,7 @@ from ibvs_common.conversions import (camera_infos, features_msg, joint_state, po
                                      read_features, read_joints)
 from ibvs_control.adaptive_feedback_node import AdaptiveFeedbackNode
 from ibvs_model import IRB4600, look_at, paper, StereoIntrinsics
-from ibvs_sim.config import SimConfig
+from ibvs_sim.node_params import SimConfig
 from ibvs_sim.sim_node import SimNode
 from ibvs_sim.simulator import Simulator
 from ibvs_sim.world import World
@@ -51,7 +51,7 @@ def taught(sim):
                                     {'image_noise_stddev': 0.01, 'camera_seed': 4}])
 def test_taught_features_equal_the_model_ones_without_calibration_error(kwargs):
     target = paper.target_pose()
-    sim = Simulator(SimConfig(disturbance_deg=paper.DISTURBANCE_DEG, **kwargs),
+    sim = Simulator(SimConfig.make(disturbance_deg=paper.DISTURBANCE_DEG, **kwargs),
                     teach_pose=target)
     try:
         # the true robot (link scales, d_q) was placed exactly at the target pose
@@ -66,7 +66,7 @@ def test_taught_features_equal_the_model_ones_without_calibration_error(kwargs):
     {'focal_length_error': 1.01}])
 def test_with_calibration_error_taught_features_show_the_truth(kwargs):
     target = paper.target_pose()
-    sim = Simulator(SimConfig(**kwargs),
+    sim = Simulator(SimConfig.make(**kwargs),
                     teach_pose=target)
     try:
         measured = taught(sim)

@@ -12,19 +12,17 @@ The frames it adds for the images, and what it rejects: docs/nodes.md.
 """
 
 from collections import deque, OrderedDict
-from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PolygonStamped
-from ibvs_common import contract, shared_params
+from ibvs_common import contract
 from ibvs_common.conversions import (check_features_in_image, ignored_joints, InputError,
                                      matrix_poses, position_bounds, read_feature_status,
-                                     read_features, read_joints, stamp_lead_ns, transforms_msg)
+                                     read_features, read_joints, transforms_msg)
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import (config, forget_on_back, Inputs, publisher, StereoCameraInput,
                              subscription, WaitReporter)
 from ibvs_common.node_main import run
-from ibvs_common.params import Param, param_field, ParamConfig
 from ibvs_common.sim_time import node_time_ns
 from ibvs_common.timing import period_ns
 from ibvs_model import abb_urdf, IRB4600
@@ -40,45 +38,12 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from . import scene
-
-
-@dataclass(frozen=True)
-class VizConfig(ParamConfig):
-    """The viz node's parameters, typed (:func:`ibvs_common.kit.config`)."""
-
-    #: Rules between parameters, run at start and by ``ibvs run`` before any node starts.
-    RULES = (shared_params.camera_pose_from,)
-
-    disturbance_deg: tuple = param_field(shared_params.DISTURBANCE_DEG)
-    l2_scale: float = param_field(shared_params.L2_SCALE)
-    l4_scale: float = param_field(shared_params.L4_SCALE)
-    target_position: tuple = param_field(shared_params.TARGET_POSITION)
-    target_rotation: tuple = param_field(shared_params.TARGET_ROTATION)
-    camera_pose: tuple = param_field(shared_params.CAMERA_POSE)
-    camera_rate_hz: float = param_field(shared_params.CAMERA_RATE_HZ)
-    stale_timeout_s: float = param_field(shared_params.STALE_TIMEOUT_S)
-    marker_rate_hz: float = param_field(Param(
-        'marker_rate_hz', 10.0, 'most /ibvs/markers messages per second of sim time (/tf '
-        'goes out with every joint state)', 'Hz', low=shared_params.MIN_RATE_HZ, high=1000.0))
-    frustum_depth_m: float = param_field(Param(
-        'frustum_depth_m', 3.0, "how far each lens's drawn field of view reaches", 'm',
-        low=0.0, high=100.0, low_open=True))
-    image_frames_tf: bool = param_field(Param(
-        'image_frames_tf', True, "publish on /tf_static the frame each lens's CameraInfo "
-        'names, where it is not ours, at our optical frame of that lens (false where the '
-        'camera driver publishes its frames itself, e.g. zed-ros2-wrapper with its URDF)', '-'))
-    tool_frames_tf: bool = param_field(Param(
-        'tool_frames_tf', True, "publish the tool's frames (screwdriver, marker_1, marker_2) "
-        "on /tf_static fixed to tool0 (false where the cell's URDF has the tool)", '-'))
-    tool_path_points: int = param_field(Param(
-        'tool_path_points', 20000, 'most tool positions kept for the drawn path (the oldest '
-        'go first)', '-', low=2, high=1_000_000))
-
+from .node_params import VizConfig
 
 #: The node's typed configuration, built by ``ibvs run`` before any node starts.
 CONFIG = VizConfig
 PARAMS = CONFIG.params()
-RULES = VizConfig.RULES
+RULES = CONFIG.RULES
 #: Marker namespaces, one per thing drawn.
 NS_FRUSTUM, NS_TARGET, NS_PATH = 'field_of_view', 'target', 'tool_path'
 NS_MEASURED, NS_ESTIMATED = 'markers_measured', 'markers_estimated'
@@ -105,9 +70,9 @@ class VizNode(Node):
         """Declare and check the parameters, then create the publishers and subscriptions."""
         super().__init__('viz_node', **kwargs)
         self.config = c = config(self, VizConfig)
-        self._params = IRB4600.scaled(c.l2_scale, c.l4_scale)
-        self._d_q = np.radians(c.disturbance_deg)
-        self._target = shared_params.target_from_parameters(c.values())
+        self._params = c.plant.robot
+        self._d_q = c.plant.d_q
+        self._target = c.target.pose
         self._marker_period_ns = period_ns(c.marker_rate_hz)
         self._camera = None
         self._path = deque(maxlen=self.config.tool_path_points)  # Points, oldest first
@@ -120,8 +85,7 @@ class VizNode(Node):
         self._estimated = None
 
         self._diag = Diagnostics(self, 'tool, camera and target frames, markers')
-        self._inputs = Inputs(self._diag, self.now_ns,
-                              stamp_lead_ns(c.stale_timeout_s, period_ns(c.camera_rate_hz)))
+        self._inputs = Inputs(self._diag, self.now_ns, c.timing.frame_lead_ns)
         forget_on_back(self, self._inputs, self)
         self._diag.update(waiting_for='camera_info, /stereo/pose', joint_states_taken=0,
                           markers_published=0)

@@ -1,12 +1,12 @@
 """
-The nodes-alone bench's recording: a real-cell bag read for the replay, and its parts.
+A recorded run's frames and joint path, read from its bag for a replay, and its parts.
 
 :func:`read_recording` reads a bag recorded with its images into a :class:`Recording` (the
 serialised frames, the joint path, the latched messages, the run's parameters; step 1 of
-:mod:`.nodes_bench`). :func:`detectable_frames` classifies each frame by the detector itself,
-and :func:`segment_bounds` and :func:`segment` take a part of the run from it (step 2a of
-:mod:`.nodes_bench`): 'servo' the longest run of detectable frames, 'lost' the frames
-before it, 'all' the whole bag.
+:mod:`ibvs_experiments.nodes_bench`, the nodes-alone bench). :func:`detectable_frames`
+classifies each frame by the detector itself, and :func:`segment_bounds` and
+:func:`segment` take a part of the run from it (step 2a): 'servo' the longest run of
+detectable frames, 'lost' the frames before it, 'all' the whole bag.
 """
 
 from collections.abc import Sequence
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-#: The parts of a recording that can be replayed (:mod:`.nodes_bench`'s docstring, step 2a).
+#: The parts of a recording that can be replayed (the module docstring).
 SEGMENTS = ('servo', 'lost', 'all')
 #: The fewest frames a segment replays: less is not a part of the run worth a measurement.
 MIN_SEGMENT_FRAMES = 15
@@ -53,7 +53,7 @@ class Recording:
 
 
 def read_recording(bag_path: str | Path) -> Recording:
-    """Read a real-cell bag recorded with its images (:mod:`.nodes_bench`, step 1)."""
+    """Read a real-cell bag recorded with its images (the nodes-alone bench's step 1)."""
     from geometry_msgs.msg import PoseStamped
     from ibvs_common import contract
     from ibvs_common.conversions import stamp_ns
@@ -62,7 +62,7 @@ def read_recording(bag_path: str | Path) -> Recording:
     from sensor_msgs.msg import CameraInfo, Image
     import yaml
 
-    from ibvs_analysis import analysis
+    from . import analysis
 
     bag_path = Path(bag_path)
     meta = yaml.safe_load((bag_path / 'metadata.yaml').read_text())
@@ -137,7 +137,7 @@ def detectable_frames(recording: Recording) -> np.ndarray:
 
 def segment_bounds(detectable: Sequence[bool], which: str) -> tuple[int, int]:
     """
-    Return the frames [start, end) of part ``which`` of a run (:mod:`.nodes_bench`, step 2a).
+    Return the frames [start, end) of part ``which`` of a run (the module docstring).
 
     ``detectable``: whether each frame is (:func:`detectable_frames`). 'servo': the longest
     run of detectable frames (the first of equal ones); 'lost': the frames before it;
