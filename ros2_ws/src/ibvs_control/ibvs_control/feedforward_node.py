@@ -93,7 +93,7 @@ class FeedforwardNode(Node):
             # are all it needs.
             c = self.config
             positions = (np.array([q, self.ff.goal])
-                         if makes_own_move(c.interface.command_interface, c.actuators)
+                         if makes_own_move(c.command_interface, c.actuators)
                          else self.ff.trajectory())
         except ModelError as exc:
             self.diagnostics.reject(contract.JOINT_STATES, type(exc).__name__, str(exc))

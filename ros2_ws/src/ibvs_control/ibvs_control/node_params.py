@@ -283,7 +283,7 @@ class FeedforwardConfig(ParamConfig):
     target: shared.Target = group_field(shared.Target)
     feedforward_method: str = param_field(FEEDFORWARD_METHOD)
     feedforward_ratio: float = param_field(FEEDFORWARD_RATIO)
-    interface: shared.Interface = group_field(shared.Interface)
+    command_interface: str = param_field(shared.COMMAND_INTERFACE)
     actuators: str = param_field(shared.ACTUATORS)
 
 
@@ -309,7 +309,7 @@ class AdaptiveFeedbackConfig(ParamConfig):
     lambda_inf: float = param_field(LAMBDA_INF)
     lambda_slope: float = param_field(LAMBDA_SLOPE)
     camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
-    interface: shared.Interface = group_field(shared.Interface)
+    command_interface: str = param_field(shared.COMMAND_INTERFACE)
     max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
     tau_in: float = param_field(TAU_IN)
     omega_n: float = param_field(OMEGA_N)

@@ -344,7 +344,7 @@ class FeatureNode(Node):
     def _show_offset(self):
         """Put the stamp offset on /diagnostics; log each change of its state."""
         if self._offset is None:
-            why = 'lockstep: the stamps are the exposures' if self.config.interface.lockstep \
+            why = 'lockstep: the stamps are the exposures' if self.config.lockstep \
                 else 'stamp_offset_window_s 0'
             self._diag.update(
                 stamp_offset_applied_ms=round(self._stereo.exposure_offset_ns * 1e-6, 3),

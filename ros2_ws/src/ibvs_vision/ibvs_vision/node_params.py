@@ -67,7 +67,7 @@ class FeatureConfig(ParamConfig):
     joint_history_s: float = param_field(JOINT_HISTORY_S)
     stamp_offset_window_s: float = param_field(STAMP_OFFSET_WINDOW_S)
     stamp_offset_initial_s: float = param_field(STAMP_OFFSET_INITIAL_S)
-    interface: shared.Interface = group_field(shared.Interface)
+    command_interface: str = param_field(shared.COMMAND_INTERFACE)
     publish_debug_images: bool = param_field(PUBLISH_DEBUG_IMAGES)
     timing: shared.Timing = group_field(shared.Timing)
     camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
@@ -77,7 +77,7 @@ class FeatureConfig(ParamConfig):
         """Check each value, then the detector's rules (:meth:`detector_config`)."""
         super().__post_init__()
         self.detector_config()
-        if self.interface.lockstep and self.stamp_offset_initial_s != 0.0:
+        if self.lockstep and self.stamp_offset_initial_s != 0.0:
             raise ParameterError(
                 f"parameter 'stamp_offset_initial_s' = {self.stamp_offset_initial_s!r} is "
                 "invalid in lockstep: a frame's stamp names it there (the joint controller "
@@ -97,9 +97,14 @@ class FeatureConfig(ParamConfig):
         return detector.DetectorConfig.from_parameters(self.values())
 
     @property
+    def lockstep(self) -> bool:
+        """Return whether it runs in lockstep, by :func:`ibvs_common.shared_params.lockstep`."""
+        return shared.lockstep(self.values())
+
+    @property
     def estimates_stamp_offset(self) -> bool:
         """Return whether the stamp offset is estimated: free-running, with a window."""
-        return not self.interface.lockstep and self.stamp_offset_window_s > 0.0
+        return not self.lockstep and self.stamp_offset_window_s > 0.0
 
     @property
     def budget_ms(self) -> float:
