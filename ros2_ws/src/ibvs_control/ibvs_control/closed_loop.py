@@ -22,7 +22,8 @@ from typing import Any, TYPE_CHECKING
 
 from ibvs_common import shared_params
 from ibvs_common.params import param_field, ParamConfig
-from ibvs_common.timing import feedback_action_ns, period_ns
+from ibvs_common.timing import (check_camera_rate, feedback_action_ns, period_ns,
+                                seconds_to_ns)
 from ibvs_model import CameraRobotModel, default_model, inverse_kinematics, ModelError, paper
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -249,9 +250,8 @@ def simulate(config: LoopConfig = LoopConfig(), duration_s: float = 2.0, *,
     pose = paper.target_pose() if target is None else np.asarray(target, dtype=float)
     dt_ns = period_ns(config.physics_rate_hz)
     cam_ns = period_ns(config.camera_rate_hz)
-    if cam_ns < dt_ns:
-        raise ValueError('the camera rate must not exceed the physics rate')
-    latency_ns = int(round(config.feedback_latency_s * 1e9))
+    check_camera_rate(config.camera_rate_hz, config.physics_rate_hz)
+    latency_ns = seconds_to_ns(config.feedback_latency_s)
     if not 0.0 <= frame_drop_probability < 1.0:
         raise ValueError(f'frame_drop_probability must be in [0, 1), got '
                          f'{frame_drop_probability}')

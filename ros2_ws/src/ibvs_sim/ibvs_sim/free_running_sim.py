@@ -95,7 +95,7 @@ class FreeRunningSim:
         except ValueError as exc:
             raise ParameterError(f"parameter 'drive_bandwidth_hz' = "
                                  f'{config.drive_bandwidth_hz!r} is invalid: {exc}') from None
-        self._command_timeout_ns = int(round(config.command_timeout_s * 1e9))
+        self._command_timeout_ns = seconds_to_ns(config.command_timeout_s)
         self._rtf = config.real_time_factor
         self._command_ns = None
         self._stale = False

@@ -37,7 +37,7 @@ from ibvs_common.conversions import (camera_infos, image_msg, joint_path, joint_
 from ibvs_common.diagnostics import Diagnostics
 from ibvs_common.kit import config as kit_config, publisher, WaitReporter
 from ibvs_common.node_main import run
-from ibvs_common.timing import period_ns
+from ibvs_common.timing import period_ns, seconds_to_ns
 from nav_msgs.msg import Path
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -96,7 +96,7 @@ class SimNode(Node):
 
     def _setup(self):
         config = self.config = kit_config(self, SimNodeConfig)
-        self._duration_ns = int(round(config.duration_s * 1e9))
+        self._duration_ns = seconds_to_ns(config.duration_s)
         self.finished = False
         self._extra_joints = list(config.extra_joints)
         #: The frames rendered and not yet delivered, (due ns, stamp ns, images or None
