@@ -85,8 +85,9 @@ demo: build
 report: build
 	$(RUN) python -m ibvs_experiments.cli report
 
-# The workspace benchmark (docs/vsbench.md): 500 tasks x 3 laws through the model loop, the first
-# 100 through the graph; VSBENCH_ARGS='--tasks 50 --graph-tasks 10' for a reduced run.
+# The workspace benchmark (docs/vsbench.md): 500 tasks x 3 laws x 7 latency points through the
+# model loop, the first 100 through the graph (its first 10 at every latency);
+# VSBENCH_ARGS='--tasks 50 --graph-tasks 10' for a reduced run.
 VSBENCH_ARGS ?=
 vsbench: build
 	$(RUN) python -m ibvs_experiments.vsbench $(VSBENCH_ARGS)

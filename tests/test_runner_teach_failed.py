@@ -21,7 +21,7 @@ TASK = 165
 @pytest.mark.slow
 def test_a_teach_that_measures_no_target_ends_the_run_as_a_failed_teach(
         installed_workspace, tmp_path):
-    bench = vsbench_tasks.load()
+    bench = vsbench_tasks.load('vsbench-2')
     task = bench['tasks'][TASK]
     assert task['index'] == TASK
     overrides = vsbench.graph_overrides(task, 'paper', bench['conditions'],

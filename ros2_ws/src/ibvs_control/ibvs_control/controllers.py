@@ -207,6 +207,24 @@ def synchronised_move(feedforward_method: str) -> bool:
     return feedforward_method != 'hold'
 
 
+def limited_time_optimal_s(q_start: ArrayLike, goal: ArrayLike, torque_limits: ArrayLike,
+                           qd_max: ArrayLike = IRB4600.qd_max) -> float:
+    """
+    Return the time-optimal bound (s) of a move with 'limited' actuators, rest to rest.
+
+    The duration of Ruckig's synchronised move from ``q_start`` to ``goal`` (6,) under the
+    limits :class:`JointLoop`'s governor plans within, without its margins: ``qd_max``, the
+    accelerations ``torque_limits`` buy on the bare double integrator (M = I, h = 0: the
+    model loop's plant) and jerk a / :data:`.governor.JERK_RISE_S`. No move of that plant
+    from rest reaches ``goal`` sooner with these limits; what the loop takes beyond is the
+    excess a benchmark reports (the position interface's bound:
+    :func:`.position_interface.time_optimal_s`).
+    """
+    governor = ReferenceGovernor(1e-3, qd_max, jerk_rise_s=JERK_RISE_S)
+    governor.reset(q_start)
+    return float(governor.plan(np.asarray(goal, dtype=float), torque_limits).duration)
+
+
 #: Longest feedforward trajectory (samples): 60 s at 1 kHz. With the paper's values the
 #: output of T_forward has settled after about 2 s (Feedforward.trajectory).
 MAX_FEEDFORWARD_SAMPLES = 60_000

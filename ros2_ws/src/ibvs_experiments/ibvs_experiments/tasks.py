@@ -58,9 +58,7 @@ def write(path: str | Path, n: int, seed: int, version: str = task_sampler.VERSI
     tasks = draw(n, seed, version, teach_frames)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix == '.json':
-        margins = task_sampler.Margins() if version == task_sampler.VERSION else \
-            task_sampler.Margins(
-                min_observability_px_rad=task_sampler.observability_bound(teach_frames))
+        margins = task_sampler.margins_for(version, teach_frames)
         path.write_text(json.dumps({'definition': {**task_sampler.describe(margins, version),
                                                    'n': n, 'seed': seed},
                                     'tasks': tasks}, indent=1) + '\n')

@@ -1,15 +1,17 @@
 """
 ``make vsbench``: the workspace benchmark (500 seeded tasks, three servo laws).
 
-The benchmark is data (:mod:`.vsbench_tasks`, committed as ``benchmarks/vsbench-2.json``):
+The benchmark is data (:mod:`.vsbench_tasks`, committed as ``benchmarks/vsbench-3.json``):
 500 tasks of the workspace sampler (:func:`ibvs_model.task_sampler.tasks`, version
-``workspace-2``, seed :data:`TASK_SEED`), each with its own drawn imperfections (camera
+``workspace-3``, seed :data:`TASK_SEED`: every target rendered and its markers detected),
+each with its own drawn imperfections (camera
 calibration error within +-3 mm per axis, +-0.3 deg per axis, focal length within
 +-0.5 %, and the ``camera_seed`` of its image noise and lost frames: seed
 :data:`.vsbench_tasks.IMPERFECTION_SEED`) and the conditions every run shares
 (:data:`CONDITIONS`: limited actuators, 67 ms latency, image noise 0.01, 5 % lost frames, a
-taught target, the safety envelope on). Anyone can run their law on the same 500 tasks from
-the file alone.
+taught target, the safety envelope on), and the latency axis every law also runs
+(:data:`LATENCY_AXIS`, :data:`MISMODELLED`). Anyone can run their law on the same 500 tasks
+from the file alone.
 
 Two ways through the tasks, the same success rule (:data:`ibvs_analysis.convergence.SUCCESS`):
 
@@ -49,6 +51,7 @@ from ibvs_analysis.metrics import compute_metrics
 from ibvs_analysis.study_table import reason_category
 from ibvs_common import shared_params
 from ibvs_control.closed_loop import LoopConfig, simulate
+from ibvs_control.controllers import limited_time_optimal_s
 from ibvs_control.envelope import Intervention
 from ibvs_control.prediction import LATENCY_COMPENSATIONS
 from ibvs_model import (CameraRobotModel, default_model, forward_kinematics_batch, IRB4600,
@@ -62,7 +65,7 @@ from .runner import with_servo_law
 from .study import default_parallel
 from .vsbench_report import timing_lines, write_results
 from .vsbench_tasks import (BENCHMARK_FILE, CONDITIONS, DURATION_S, GRAPH_RESOLUTION, LAWS,
-                            load, NAME, TASK_SEED, TASKS, VERSION, write_definition)
+                            load, NAME, TASK_SEED, TASKS, VERSION, VERSIONS, write_definition)
 
 #: The feature noise (px, standard deviation per value and frame) the detector gives with
 #: image noise 0.01, per image size: :func:`measure_feature_noise` on the first 8 tasks'
@@ -77,6 +80,15 @@ FEATURE_NOISE_PX = {'VGA': 0.017, 'HD720': 0.0076}
 ACCELERATION_LIMITS = (57.0, 24.0, 120.0, 14000.0, 56000.0, 1.0e6)
 #: Joint-limit distance (rad) under which a stalled run is classed 'limit'.
 LIMIT_CLASS_RAD = 0.1
+#: The latency axis (s of ``feedback_latency_s``): every law at each, the benchmark's
+#: condition (67 ms) among them; from a camera with no delay to past the stability limit
+#: of the law designed without it (193 ms).
+LATENCY_AXIS = (0.0, 0.067, 0.133, 0.2, 0.3)
+#: The mis-modelled points: (latency, how much longer the latency the law assumes is, s).
+#: The frames' encoder angles are those of the assumed exposure (``closed_loop.simulate``'s
+#: ``stamp_error_s`` = -error), which is what a stamp off by a constant does to the
+#: predictor.
+MISMODELLED = ((0.133, 0.02), (0.133, -0.02))
 
 
 # ----------------------------------------------------------------------------- the model loop
@@ -106,9 +118,25 @@ def loop_config(law: str, task: Mapping[str, Any], conditions: Mapping[str, Any]
                               start_joints=tuple(task['start_joints']))
 
 
+def time_optimal_s(task: Mapping[str, Any], conditions: Mapping[str, Any]) -> float | None:
+    """
+    Return a task's time-optimal bound (s) under ``conditions``' actuators, else None.
+
+    With 'limited' actuators: Ruckig's move of the model loop's plant from the task's start
+    to its target joints at rest (:func:`ibvs_control.controllers.limited_time_optimal_s`
+    with :data:`ACCELERATION_LIMITS`), one bound per task for both loops. With the paper's
+    ideal actuators there is none.
+    """
+    if conditions.get('actuators') != 'limited':
+        return None
+    return limited_time_optimal_s(task['start_joints'], task['target_joints'],
+                                  ACCELERATION_LIMITS)
+
+
 def model_run(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any] = CONDITIONS,
               duration_s: float = DURATION_S, resolution: str = GRAPH_RESOLUTION,
-              feature_noise_px: float | None = None) -> dict[str, Any]:
+              feature_noise_px: float | None = None, latency_error_s: float = 0.0
+              ) -> dict[str, Any]:
     """
     Run one task with one law through the model loop; return :func:`run_metrics`' row.
 
@@ -117,6 +145,8 @@ def model_run(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any] =
     ``teach_frames`` there), the lost frames and their seed
     (``camera_seed``) as the task gives them. ``feature_noise_px``: default
     :data:`FEATURE_NOISE_PX` of ``resolution`` (the camera's image size).
+    ``latency_error_s``: how much longer than ``feedback_latency_s`` the latency the law
+    assumes is (:data:`MISMODELLED`).
     """
     start = time.perf_counter()
     true = default_model(resolution)
@@ -132,10 +162,12 @@ def model_run(task: Mapping[str, Any], law: str, conditions: Mapping[str, Any] =
                       target=target_pose(task), feature_noise_px=noise,
                       target_noise_px=teach_noise, seed=int(task['camera_seed']),
                       frame_drop_probability=float(conditions.get('frame_drop_probability',
-                                                                  0.0)))
+                                                                  0.0)),
+                      stamp_error_s=-latency_error_s)
     modes = ['measured' if m else 'estimated' for m in result.measured]
     row = run_metrics(task, law, result.t, result.q_true, modes=modes,
-                      mode_t=result.frame_t, interventions=result.interventions)
+                      mode_t=result.frame_t, interventions=result.interventions,
+                      conditions=conditions, latency_error_s=latency_error_s)
     row.update(source='model', wall_s=time.perf_counter() - start,
                dropped_frames=result.dropped_frames)
     return row
@@ -211,16 +243,20 @@ def _model_job(args):
 def run_metrics(task: Mapping[str, Any], law: str, t: ArrayLike, q: ArrayLike,
                 modes: Sequence[str] = (), mode_t: ArrayLike = (),
                 interventions: Mapping[int, int] | None = None,
-                metrics: Mapping[str, Any] | None = None, every: int = 10
+                metrics: Mapping[str, Any] | None = None, every: int = 10,
+                conditions: Mapping[str, Any] = CONDITIONS, latency_error_s: float = 0.0
                 ) -> dict[str, Any]:
     """
     Return one run's row from its true joint angles ``q`` (N, 6) at times ``t`` (s).
 
     The tool's metrics are :func:`ibvs_analysis.metrics.compute_metrics`' (or ``metrics``, a
-    graph run's own, for the errors, time to 1 mm and overshoot); the rest from ``q``: path
-    length / straight distance, peak joint speed / ``qd_max``, the smallest distance to a
-    joint limit (rad) and the samples past one, and every ``every``-th sample's self and
-    scene clearance (m, :func:`ibvs_model.capsules.clearances`) and those <= 0.
+    graph run's own, for the errors, time to 1 mm, overshoot and the ripple over the last
+    0.5 s); the rest from ``q``: path length / straight distance, peak joint speed /
+    ``qd_max``, the smallest distance to a joint limit (rad) and the samples past one, and
+    every ``every``-th sample's self and scene clearance (m,
+    :func:`ibvs_model.capsules.clearances`) and those <= 0. The run's latency point
+    (``conditions``' ``feedback_latency_s`` and ``latency_error_s``) and its bound
+    (:func:`time_optimal_s`, and the time to 1 mm less it) label the row.
     """
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -262,7 +298,15 @@ def run_metrics(task: Mapping[str, Any], law: str, t: ArrayLike, q: ArrayLike,
         'min_scene_clearance_m': float(clear[:, 1].min()),
         'collisions': int(np.count_nonzero((clear <= 0.0).any(axis=1))),
         'miss_reason_text': metrics.get('miss_reason') or '',
+        'ripple_m': metrics.get('position_error_ripple_last_0_5s_m'),
+        'latency_s': float(conditions.get('feedback_latency_s', 0.0)),
+        'latency_error_s': float(latency_error_s),
     }
+    bound = time_optimal_s(task, conditions)
+    reached = row['time_to_1mm_s']
+    row['time_optimal_s'] = bound
+    row['time_to_1mm_over_optimal_s'] = None if bound is None or reached is None \
+        else reached - bound
     last = t >= t[-1] - 0.5
     row['miss_reason'] = miss_class(row, margin[last].min() if last.any() else margin.min())
     return row
@@ -318,13 +362,34 @@ class Progress:
                  f'{elapsed:.0f} s, ETA {eta:.0f} s')
 
 
+def latency_points(latencies: Iterable[float], mismodelled: Iterable[tuple[float, float]]
+                   = MISMODELLED) -> list[tuple[float, float]]:
+    """
+    Return the (latency, error) points of a run: each latency with the law assuming it.
+
+    Then each mis-modelled point (:data:`MISMODELLED`) whose latency is among them.
+    """
+    latencies = [float(x) for x in latencies]
+    return [(x, 0.0) for x in latencies] + [
+        (float(x), float(e)) for x, e in mismodelled if any(math.isclose(x, y)
+                                                            for y in latencies)]
+
+
 def screen(tasks: Sequence[Mapping[str, Any]], laws: Iterable[str] = LAWS,
            conditions: Mapping[str, Any] = CONDITIONS, duration_s: float = DURATION_S,
            workers: int | None = None, out: Callable[[str], None] = print,
-           resolution: str = GRAPH_RESOLUTION) -> list[dict[str, Any]]:
-    """Run every task with every law through the model loop in a process pool; rows in order."""
-    jobs = [(task, law, dict(conditions), duration_s, resolution) for task in tasks
-            for law in laws]
+           resolution: str = GRAPH_RESOLUTION,
+           points: Sequence[tuple[float, float]] | None = None) -> list[dict[str, Any]]:
+    """
+    Run every task with every law through the model loop in a process pool; rows in order.
+
+    ``points``: the (latency, error) points (:func:`latency_points`), each a run of every
+    task and law; default the one of ``conditions``.
+    """
+    if points is None:
+        points = ((conditions['feedback_latency_s'], 0.0),)
+    jobs = [(task, law, {**conditions, 'feedback_latency_s': latency}, duration_s, resolution,
+             None, error) for latency, error in points for task in tasks for law in laws]
     workers = workers or os.cpu_count() or 1
     progress = Progress(len(jobs), workers, 'model', out)
     rows = []
@@ -377,7 +442,8 @@ def graph_spec(bench: Mapping[str, Any], n_tasks: int, laws: Iterable[str] = LAW
                             f'through the graph at {resolution}')
 
 
-def graph_row(task: Mapping[str, Any], law: str, record: Mapping[str, Any]) -> dict[str, Any]:
+def graph_row(task: Mapping[str, Any], law: str, record: Mapping[str, Any],
+              conditions: Mapping[str, Any] = CONDITIONS) -> dict[str, Any]:
     """Return a graph run's row from its study record (its metrics.json and bag)."""
     run_dir = Path(record['run_dir'])
     wall = record.get('wall_s')
@@ -385,11 +451,13 @@ def graph_row(task: Mapping[str, Any], law: str, record: Mapping[str, Any]) -> d
         return {'task': task['id'], 'index': int(task['index']), 'law': law,
                 'source': 'graph', 'success': False, 'miss_reason': 'failed',
                 'miss_reason_text': str(record.get('error', record.get('reason', ''))),
-                'wall_s': wall}
+                'wall_s': wall, 'latency_s': float(conditions['feedback_latency_s']),
+                'latency_error_s': 0.0}
     metrics = json.loads((run_dir / 'metrics.json').read_text())
     t, q, *_ = analysis.load_joints(run_dir / 'bag')
     row = run_metrics(task, law, t, q, metrics=metrics,
-                      interventions=analysis.envelope_interventions(run_dir / 'bag'))
+                      interventions=analysis.envelope_interventions(run_dir / 'bag'),
+                      conditions=conditions)
     row.update(source='graph', wall_s=wall)
     return row
 
@@ -397,15 +465,33 @@ def graph_row(task: Mapping[str, Any], law: str, record: Mapping[str, Any]) -> d
 def run_graph(bench: Mapping[str, Any], n_tasks: int, out_dir: Path,
               laws: Iterable[str] = LAWS, parallel: int | None = None,
               duration_s: float | None = None, out=sys.stdout,
-              resolution: str | None = None) -> list[dict[str, Any]]:
-    """Run :func:`graph_spec` on Ray (study machinery, cached) and return its rows."""
+              resolution: str | None = None, latencies: Iterable[float] = (),
+              latency_tasks: int = 0) -> list[dict[str, Any]]:
+    """
+    Run :func:`graph_spec` on Ray (study machinery, cached) and return its rows.
+
+    ``latencies``: besides the benchmark's condition, each (s) on the first
+    ``latency_tasks`` tasks, a study of its own (the latency in its name).
+    """
     laws = tuple(laws)
     resolution = resolution or bench['graph']['resolution']
-    spec = graph_spec(bench, n_tasks, laws, duration_s,
-                      name=f'{NAME}_graph_{resolution.lower()}', resolution=resolution)
-    records = study.run_studies([spec], out_dir, parallel=parallel, out=out)[spec.name]
-    pairs = [(task, law) for task in bench['tasks'][:n_tasks] for law in laws]
-    return [graph_row(task, law, record) for (task, law), record in zip(pairs, records)]
+    base = bench['conditions']['feedback_latency_s']
+    points = [(base, n_tasks)] + [(float(x), min(latency_tasks, n_tasks)) for x in latencies
+                                  if not math.isclose(x, base) and latency_tasks]
+    specs, benches = [], []
+    for latency, n in points:
+        point = {**bench, 'conditions': {**bench['conditions'], 'feedback_latency_s': latency}}
+        name = f'{NAME}_graph_{resolution.lower()}' + (
+            '' if latency == base else f'_latency_{round(latency * 1e3)}ms')
+        specs.append(graph_spec(point, n, laws, duration_s, name=name, resolution=resolution))
+        benches.append((point, n))
+    records = study.run_studies(specs, out_dir, parallel=parallel, out=out)
+    rows = []
+    for spec, (point, n) in zip(specs, benches):
+        pairs = [(task, law) for task in point['tasks'][:n] for law in laws]
+        rows += [graph_row(task, law, record, point['conditions'])
+                 for (task, law), record in zip(pairs, records[spec.name])]
+    return rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -430,23 +516,33 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help='run task K alone through the model loop, print its rows, exit')
     parser.add_argument('--measure-noise', action='store_true',
                         help='measure the feature noise at --resolution and exit')
-    parser.add_argument('--benchmark', default=None, help='the benchmark file (default: '
-                        f'the committed {BENCHMARK_FILE})')
+    parser.add_argument('--benchmark', default=None, help='the benchmark file, or a '
+                        f'version ({", ".join(VERSIONS)}: its committed file; default '
+                        f'{BENCHMARK_FILE})')
     parser.add_argument('-o', '--out', default='results', help='report folder')
     parser.add_argument('--studies', default='results/studies',
                         help='parent of the graph study folder (its cache)')
     parser.add_argument('--write-definition', metavar='PATH', default=None,
-                        help='write the benchmark file (all 500 tasks) and exit')
+                        help='write the benchmark file (all 500 tasks; the version '
+                        '--benchmark names, default the newest) and exit')
     parser.add_argument('--latency', type=float, metavar='S', default=None,
                         help='camera latency of every run, feedback_latency_s (default the '
-                        "benchmark's condition)")
+                        "benchmark's condition); with it no latency axis")
+    parser.add_argument('--latencies', default=','.join(f'{x:g}' for x in LATENCY_AXIS),
+                        help='the latency axis (s, comma-separated; default %(default)s, '
+                        'with the mis-modelled points at 0.133 s); "" for the benchmark\'s '
+                        'latency alone')
+    parser.add_argument('--graph-latency-tasks', type=int, default=10,
+                        help='of the graph tasks, the first K also at every other latency of '
+                        'the axis (default %(default)s)')
     parser.add_argument('--latency-compensation', choices=LATENCY_COMPENSATIONS, default=None,
                         help="the feedback's design for the latency (default the benchmark's "
                         'condition: encoders; none: the laws as published)')
     args = parser.parse_args(argv)
     if args.write_definition:
-        data = write_definition(args.write_definition)
-        print(f"wrote {len(data['tasks'])} tasks of {VERSION} to {args.write_definition}")
+        version = args.benchmark if args.benchmark in VERSIONS else VERSION
+        data = write_definition(args.write_definition, version=version)
+        print(f"wrote {len(data['tasks'])} tasks of {version} to {args.write_definition}")
         return 0
     resolution = args.resolution or GRAPH_RESOLUTION
     if args.measure_noise:
@@ -471,16 +567,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     if not 0 <= args.graph_tasks <= args.tasks <= len(bench['tasks']):
         parser.error(f"need 0 <= --graph-tasks <= --tasks <= {len(bench['tasks'])}")
+    try:
+        axis = () if args.latency is not None else tuple(
+            float(x) for x in args.latencies.split(',') if x.strip())
+    except ValueError:
+        parser.error(f'--latencies must be numbers separated by commas, got {args.latencies!r}')
+    if not all(0.0 <= x <= 1.0 for x in axis):
+        parser.error('every --latencies value must be within [0, 1] s (feedback_latency_s)')
+    base = bench['conditions']['feedback_latency_s']
+    points = latency_points(axis) if axis else [(base, 0.0)]
+    if not any(math.isclose(x, base) and e == 0.0 for x, e in points):
+        points.insert(0, (base, 0.0))
     duration = args.duration or bench['duration_s']
     workers = args.workers or os.cpu_count() or 1
     start = time.monotonic()
     rows = screen(bench['tasks'][:args.tasks], laws, bench['conditions'], duration, workers,
-                  resolution=resolution)
+                  resolution=resolution, points=points)
     walls = {'model': time.monotonic() - start}
     if args.graph_tasks:
         start = time.monotonic()
         rows += run_graph(bench, args.graph_tasks, Path(args.studies), laws, args.parallel,
-                          duration, resolution=resolution)
+                          duration, resolution=resolution, latencies=axis,
+                          latency_tasks=args.graph_latency_tasks)
         walls['graph'] = time.monotonic() - start
     parallel = {'model': workers, 'graph': args.parallel or 0}
     if args.graph_tasks and not args.parallel:
@@ -490,11 +598,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             'conditions': bench['conditions'], 'resolution': resolution,
             'feature_noise_px': FEATURE_NOISE_PX[resolution],
             'tasks': args.tasks, 'graph_tasks': args.graph_tasks, 'laws': list(laws),
+            'latency_points': [list(point) for point in points],
+            'graph_latency_tasks': min(args.graph_latency_tasks, args.graph_tasks)
+            if axis else 0,
             'scope': (f"{'A reduced run' if reduced else 'The full benchmark'}: "
-                      f'{args.tasks} tasks x {len(laws)} laws through the model loop, '
-                      f'the first {args.graph_tasks} x {len(laws)} through the graph'
+                      f'{args.tasks} tasks x {len(laws)} laws x {len(points)} latency points '
+                      f'through the model loop, the first {args.graph_tasks} x {len(laws)} '
+                      'through the graph'
+                      + (f', its first {min(args.graph_latency_tasks, args.graph_tasks)} at '
+                         f'each other latency' if axis and args.graph_tasks else '')
                       + (f' (the benchmark is {TASKS} and 100).' if reduced else '.')),
-            'timing': timing_lines(rows, walls, parallel, laws=len(laws))}
+            'timing': timing_lines(
+                rows, walls, parallel, laws=len(laws), points=len(latency_points(LATENCY_AXIS)),
+                graph_tasks=100 + 10 * sum(not math.isclose(x, base) for x in LATENCY_AXIS))}
     path = write_results(rows, args.out, meta)
     print(f'wrote {path}')
     for line in meta['timing']:

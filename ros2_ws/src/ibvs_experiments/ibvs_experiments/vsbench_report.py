@@ -109,6 +109,134 @@ def agreement(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+# ------------------------------------------------------------------------------ the latency axis
+
+#: A law fails at a latency when its success rate there falls below this.
+FAILING_RATE = 0.95
+
+
+def point_of(row: Mapping[str, Any]) -> tuple[float, float]:
+    """Return a row's latency point: (``latency_s``, ``latency_error_s``), rounded to 1 us."""
+    return (round(float(row.get('latency_s', float('nan'))), 6),
+            round(float(row.get('latency_error_s', 0.0)), 6))
+
+
+def at_point(rows: Sequence[Mapping[str, Any]], latency: float, error: float = 0.0
+             ) -> list[Mapping[str, Any]]:
+    """Return the rows of one latency point (the law assuming ``latency`` + ``error``)."""
+    key = (round(float(latency), 6), round(float(error), 6))
+    return [r for r in rows if point_of(r) == key]
+
+
+def latency_axis(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """
+    Return per (source, law, latency point): success with its interval, and medians.
+
+    Over the successful runs: time to 1 mm and its excess over the task's time-optimal
+    bound (``time_to_1mm_over_optimal_s``); over the finished runs: the bound, overshoot and
+    the position error's ripple over the last 0.5 s. Sorted by source, law, latency, error.
+    """
+    out = []
+    keys = sorted({(r['source'], r['law']) + point_of(r) for r in rows},
+                  key=lambda k: (('model', 'graph').index(k[0]) if k[0] in ('model', 'graph')
+                                 else 2, k[1], k[2], k[3]))
+    for source, law, latency, error in keys:
+        group = [r for r in at_point(rows, latency, error)
+                 if r['source'] == source and r['law'] == law]
+        done = [r for r in group if 'min_limit_distance_rad' in r]
+        wins = sum(bool(r['success']) for r in group)
+        low, high = wilson(wins, len(group))
+        out.append({'source': source, 'law': law, 'latency_s': latency,
+                    'latency_error_s': error, 'runs': len(group), 'successes': wins,
+                    'rate': wins / len(group), 'ci_low': low, 'ci_high': high,
+                    'time_to_1mm_s': _median(group, 'time_to_1mm_s', lambda r: r['success']),
+                    'excess_s': _median(group, 'time_to_1mm_over_optimal_s',
+                                        lambda r: r['success']),
+                    'time_optimal_s': _median(done, 'time_optimal_s'),
+                    'overshoot_m': _median(done, 'overshoot_m'),
+                    'ripple_m': _median(done, 'ripple_m')})
+    return out
+
+
+def first_failing(axis: Sequence[Mapping[str, Any]], rate: float = FAILING_RATE
+                  ) -> dict[tuple[str, str], float | None]:
+    """
+    Return per (source, law) the first latency of the axis at which it fails, or None.
+
+    Fails: its success rate below ``rate`` with the latency it assumes right (error 0).
+    """
+    out = {}
+    for entry in axis:
+        key = (entry['source'], entry['law'])
+        out.setdefault(key, None)
+        if entry['latency_error_s'] == 0.0 and out[key] is None and entry['rate'] < rate:
+            out[key] = entry['latency_s']
+    return out
+
+
+def latency_table(axis: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Return the markdown lines of :func:`latency_axis` and :func:`first_failing`."""
+    lines = ['| source | law | latency [ms] | assumed off by [ms] | runs | success | '
+             '95 % interval | time to 1 mm [s] | over the bound [s] (bound) | '
+             'overshoot [mm] | ripple, last 0.5 s [mm] |',
+             '|---|---|---|---|---|---|---|---|---|---|---|']
+    for e in axis:
+        lines.append(
+            f"| {e['source']} | {e['law']} | {e['latency_s'] * 1e3:.0f} | "
+            f"{e['latency_error_s'] * 1e3:+.0f} | {e['runs']} | {e['successes']} "
+            f"({_fmt(e['rate'], 100, 4)} %) | {_fmt(e['ci_low'], 100, 3)}-"
+            f"{_fmt(e['ci_high'], 100, 3)} % | {_fmt(e['time_to_1mm_s'])} | "
+            f"{_fmt(e['excess_s'])} ({_fmt(e['time_optimal_s'])}) | "
+            f"{_fmt(e['overshoot_m'], 1e3)} | {_fmt(e['ripple_m'], 1e3)} |")
+    lines += ['', f'First latency at which a law fails (success below '
+              f'{100 * FAILING_RATE:g} %):', '']
+    for (source, law), latency in first_failing(axis).items():
+        lines.append(f'- {source} loop, `{law}`: '
+                     + ('none on the axis' if latency is None else f'{latency * 1e3:.0f} ms'))
+    return lines
+
+
+def latency_figure(axis: Sequence[Mapping[str, Any]], out_dir: Path) -> Path:
+    """Draw success (with its interval) and time to 1 mm against latency, per law and loop."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    laws = list(dict.fromkeys(e['law'] for e in axis))
+    for source, style in (('model', '-o'), ('graph', 's')):
+        for i, law in enumerate(laws):
+            line = [e for e in axis if e['source'] == source and e['law'] == law
+                    and e['latency_error_s'] == 0.0]
+            if not line:
+                continue
+            x = np.array([e['latency_s'] for e in line]) * 1e3
+            rate = np.array([e['rate'] for e in line]) * 100
+            err = np.array([[e['rate'] - e['ci_low'], e['ci_high'] - e['rate']]
+                            for e in line]).T * 100
+            label = f'{law}, {source} loop (n = {line[0]["runs"]})'
+            colour = f'C{i}'
+            top.errorbar(x, rate, yerr=err, fmt=style, color=colour, capsize=3,
+                         mfc='none' if source == 'graph' else colour, label=label)
+            bottom.plot(x, [e['time_to_1mm_s'] for e in line], style, color=colour,
+                        mfc='none' if source == 'graph' else colour, label=label)
+            if source == 'model':
+                bottom.plot(x, [e['time_optimal_s'] for e in line], ':', color=colour,
+                            label=f'{law}: time-optimal bound (median)' if i == 0 else None)
+    top.axhline(100 * FAILING_RATE, color='grey', lw=0.8, ls='--')
+    top.set_ylabel('success [%]')
+    top.set_title('success and time to 1 mm against the camera latency')
+    bottom.set_ylabel('time to 1 mm, median of successes [s]')
+    bottom.set_xlabel('camera latency (feedback_latency_s) [ms]')
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = out_dir / 'vsbench_latency.png'
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 # ------------------------------------------------------------------------------ the report
 
 CSV_COLUMNS = ('source', 'task', 'index', 'law', 'success', 'miss_reason',
@@ -116,7 +244,9 @@ CSV_COLUMNS = ('source', 'task', 'index', 'law', 'success', 'miss_reason',
                'overshoot_m', 'path_length_ratio', 'peak_speed_ratio', 'interventions',
                'min_limit_distance_rad', 'limit_violations', 'min_self_clearance_m',
                'min_scene_clearance_m', 'collisions', 'start_distance_m', 'start_angle_deg',
-               'observability', 'dropped_frames', 'wall_s', 'miss_reason_text')
+               'observability', 'latency_s', 'latency_error_s', 'time_optimal_s',
+               'time_to_1mm_over_optimal_s', 'ripple_m', 'dropped_frames', 'wall_s',
+               'miss_reason_text')
 
 
 def _fmt(value, scale=1.0, digits=3):
@@ -210,17 +340,24 @@ def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
     """Write ``vsbench.md``, ``vsbench_runs.csv``, ``vsbench.json`` and the figures."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    summary = summarise(rows)
-    agree = agreement(rows)
+    conditions = meta.get('conditions') or {}
+    base = at_point(rows, conditions.get('feedback_latency_s', float('nan')))
+    summary = summarise(base)
+    agree = agreement(base)
+    axis = latency_axis(rows)
+    latencies = sorted({point_of(r) for r in rows})
+    axis_agree = [{**e, 'latency_s': x} for x, error in latencies if error == 0.0
+                  for e in agreement(at_point(rows, x))]
     with open(out_dir / 'vsbench_runs.csv', 'w', newline='') as f:
         writer = csv.DictWriter(f, fieldnames=list(CSV_COLUMNS), extrasaction='ignore')
         writer.writeheader()
         for r in rows:
             writer.writerow(r)
     (out_dir / 'vsbench.json').write_text(json.dumps(
-        {'meta': dict(meta), 'summary': summary, 'agreement': agree, 'runs': list(rows)},
+        {'meta': dict(meta), 'summary': summary, 'agreement': agree, 'latency_axis': axis,
+         'latency_agreement': axis_agree, 'runs': list(rows)},
         indent=1, default=float) + '\n')
-    figures = write_figures(rows, out_dir)
+    figures = write_figures(base, out_dir)
     lines = [f"# {meta.get('version', VERSION)}: the workspace benchmark", '',
              f"{meta.get('scope', '')}", '',
              f"Success: {SUCCESS.describe()} at the end of {meta.get('duration_s')} s of sim "
@@ -231,11 +368,27 @@ def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
              'Graph: '
              f"lockstep, `{SCENARIO}`'s rates and gains. Both at {meta.get('resolution')}.",
              '',
-             '## Success per law', ''] + summary_table(summary)
+             '## Success per law', '',
+             f"At the benchmark's latency, {1e3 * conditions.get('feedback_latency_s', 0):.0f}"
+             ' ms.', ''] + summary_table(summary)
     if agree:
         lines += ['', '## Model loop against the graph (the tasks both ran)', '',
                   "Agree: each rate lies within the other's 95 % Wilson interval.", '']
         lines += agreement_table(agree)
+    if len(latencies) > 1:
+        figures.append(latency_figure(axis, out_dir))
+        lines += ['', '## Across latencies', '',
+                  'Every law at each latency (the feedback designed for it), and with the '
+                  "latency it assumes off; the bound: per task, Ruckig's time-optimal move "
+                  'from start to target under the same limits (`vsbench.time_optimal_s`); '
+                  'the graph on its first tasks only (the table says how many).', '']
+        lines += latency_table(axis)
+        if axis_agree:
+            lines += ['', 'The loops on their common tasks, per latency:', '',
+                      '| latency [ms] ' + agreement_table(axis_agree)[0],
+                      '|---' + agreement_table(axis_agree)[1]]
+            lines += [f"| {e['latency_s'] * 1e3:.0f} " + line for e, line in
+                      zip(axis_agree, agreement_table(axis_agree)[2:])]
     lines += ['', '## Figures', ''] + [f'![{p.stem}]({p.name})' for p in figures]
     misses = [r for r in rows if not r['success']]
     if misses:
@@ -255,16 +408,18 @@ def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
 
 def timing_lines(rows: Sequence[Mapping[str, Any]], walls: Mapping[str, float],
                  workers: Mapping[str, int], tasks: int = TASKS, graph_tasks: int = 100,
-                 laws: int = len(LAWS)) -> list[str]:
+                 laws: int = len(LAWS), points: int = 1) -> list[str]:
     """
     Return the measured times and the extrapolation to the full benchmark (as words).
 
     Full time = runs x mean wall time per run / runs at once, per stage:
-    ``tasks x laws x t_model / workers + graph_tasks x laws x t_graph / parallel``.
+    ``tasks x points x laws x t_model / workers + graph_tasks x laws x t_graph / parallel``
+    (``points``: the model loop's latency points; ``graph_tasks``: the graph's runs per law,
+    its latency axis counted in).
     """
     out = []
     total = 0.0
-    for source, n in (('model', tasks), ('graph', graph_tasks)):
+    for source, n in (('model', tasks * points), ('graph', graph_tasks)):
         group = [float(r['wall_s']) for r in rows if r['source'] == source and r.get('wall_s')]
         if not group:
             continue

@@ -2,9 +2,10 @@
 The workspace benchmark as data: its tasks, their imperfections, its conditions, its file.
 
 :func:`definition` draws it (the workspace sampler's tasks, :func:`imperfections`, the
-conditions every run shares); ``benchmarks/vsbench-2.json`` holds it, committed
-(:func:`write_definition`, :func:`load`). :mod:`.vsbench` runs it, :mod:`.vsbench_report`
-sums it up.
+conditions every run shares); ``benchmarks/<version>.json`` holds it, committed
+(:func:`write_definition`, :func:`load`): ``vsbench-3`` (:data:`VERSION`, what ``make
+vsbench`` runs) and ``vsbench-2`` before it, still readable. :mod:`.vsbench` runs it,
+:mod:`.vsbench_report` sums it up.
 """
 
 from collections import Counter
@@ -21,7 +22,12 @@ from .laws_report import CASES
 
 #: The benchmark's name and version: change the version with anything that changes the file.
 NAME = 'vsbench'
-VERSION = 'vsbench-2'
+VERSION = 'vsbench-3'
+#: Each version and the sampler version its tasks come from
+#: (:data:`ibvs_model.task_sampler.VERSIONS`): vsbench-3's workspace-3 renders every target
+#: and runs the detector on it (:mod:`.line_of_sight`), with the observability bound of the
+#: benchmark's teach (``teach_frames``); vsbench-2's workspace-2 checks the geometry only.
+VERSIONS = {'vsbench-3': 'workspace-3', 'vsbench-2': 'workspace-2'}
 #: How many tasks, and the seeds of the tasks and of their imperfections.
 TASKS = 500
 TASK_SEED = 1
@@ -59,14 +65,16 @@ SCENARIO = 'scenario1'
 BENCHMARK_FILE = f'{VERSION}.json'
 
 
-def benchmark_path() -> Path:
-    """Return the benchmark file: the source tree's, else the installed share's."""
-    here = Path(__file__).resolve().parent.parent / 'benchmarks' / BENCHMARK_FILE
+def benchmark_path(version: str = VERSION) -> Path:
+    """Return a version's benchmark file: the source tree's, else the installed share's."""
+    if version not in VERSIONS:
+        raise ValueError(f'version must be one of {tuple(VERSIONS)}, got {version!r}')
+    here = Path(__file__).resolve().parent.parent / 'benchmarks' / f'{version}.json'
     if here.exists():
         return here
     from ament_index_python.packages import get_package_share_directory
     return Path(get_package_share_directory('ibvs_experiments')) / 'benchmarks' / \
-        BENCHMARK_FILE
+        f'{version}.json'
 
 
 def imperfections(n: int, seed: int = IMPERFECTION_SEED) -> list[dict[str, Any]]:
@@ -91,18 +99,22 @@ def imperfections(n: int, seed: int = IMPERFECTION_SEED) -> list[dict[str, Any]]
     return out
 
 
-def definition(n: int = TASKS) -> dict[str, Any]:
+def definition(n: int = TASKS, version: str = VERSION) -> dict[str, Any]:
     """Return the benchmark (module docstring) with its first ``n`` tasks, as JSON data."""
+    from .tasks import draw
     tally = Counter()
-    tasks = task_sampler.tasks(n, TASK_SEED, tally=tally)
+    sampler = VERSIONS[version]
+    teach = CONDITIONS['teach_frames']
+    tasks = draw(n, TASK_SEED, sampler, teach, tally=tally)
     return {
-        'name': NAME, 'version': VERSION,
+        'name': NAME, 'version': version,
         'success': SUCCESS.describe(),
         'laws': list(LAWS),
         'conditions': dict(CONDITIONS),
         'duration_s': DURATION_S,
         'graph': {'scenario': SCENARIO, 'resolution': GRAPH_RESOLUTION, 'mode': 'lockstep'},
-        'tasks_definition': {**task_sampler.describe(), 'n': n, 'seed': TASK_SEED,
+        'tasks_definition': {**task_sampler.describe(task_sampler.margins_for(sampler, teach),
+                                                     sampler), 'n': n, 'seed': TASK_SEED,
                              'draws': dict(sorted(tally.items()))},
         'imperfections_definition': {
             'seed': IMPERFECTION_SEED, 'camera_pose_error_xyz_m': POSITION_ERROR_M,
@@ -120,17 +132,25 @@ def dumps(data: Mapping[str, Any]) -> str:
     return head[:-2] + ',\n "tasks": [\n' + tasks + '\n ]\n}\n'
 
 
-def write_definition(path: str | Path, n: int = TASKS) -> dict[str, Any]:
-    """Write :func:`definition` to ``path`` and return it."""
-    data = definition(n)
+def write_definition(path: str | Path, n: int = TASKS, version: str = VERSION
+                     ) -> dict[str, Any]:
+    """Write :func:`definition` of ``version`` to ``path`` and return it."""
+    data = definition(n, version)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     Path(path).write_text(dumps(data))
     return data
 
 
 def load(path: str | Path | None = None) -> dict[str, Any]:
-    """Return the benchmark file (default :func:`benchmark_path`), checked for its version."""
-    data = json.loads(Path(path or benchmark_path()).read_text())
-    if data.get('version') != VERSION:
-        raise ValueError(f"{path}: version {data.get('version')!r}, expected {VERSION!r}")
+    """
+    Return a benchmark file, checked for its version.
+
+    ``path``: a file, or a version's name (its committed file); default :data:`VERSION`'s.
+    """
+    if path is None or str(path) in VERSIONS:
+        path = benchmark_path(str(path or VERSION))
+    data = json.loads(Path(path).read_text())
+    if data.get('version') not in VERSIONS:
+        raise ValueError(f"{path}: version {data.get('version')!r}, expected one of "
+                         f'{tuple(VERSIONS)}')
     return data

@@ -26,17 +26,44 @@ def _same(committed, written, path='$'):
         assert committed == written, path
 
 
-def test_the_committed_benchmark_file_is_what_its_definition_writes():
+@pytest.mark.parametrize('version, n', [('vsbench-2', vsbench_tasks.TASKS),
+                                        ('vsbench-3', 40)])
+def test_the_committed_benchmark_file_is_what_its_definition_writes(version, n):
     # The tasks' derived figures (IK, Jacobians' singular values) go through LAPACK and
     # libm, whose last bits differ between machines and builds: every text and integer must
     # be the same, every float the same to 1e-9 relative (the seeds and draws that decide a
-    # task are integers or come out of numpy's generator, identical everywhere).
-    path = vsbench_tasks.benchmark_path()
-    written = vsbench_tasks.dumps(vsbench_tasks.definition(vsbench_tasks.TASKS))
-    _same(json.loads(path.read_text()), json.loads(written))
-    data = vsbench_tasks.load(path)
+    # task are integers or come out of numpy's generator, identical everywhere). vsbench-3
+    # renders each target it draws: its first 40 tasks, a prefix of the file (the header's
+    # draw counts are those of all 500).
+    path = vsbench_tasks.benchmark_path(version)
+    committed = json.loads(path.read_text())
+    written = json.loads(vsbench_tasks.dumps(vsbench_tasks.definition(n, version)))
+    if n < vsbench_tasks.TASKS:
+        written['tasks_definition'].pop('draws')
+        written['tasks_definition'].pop('n')
+        committed = {**committed, 'tasks': committed['tasks'][:n],
+                     'tasks_definition': {k: v for k, v in committed['tasks_definition'].items()
+                                          if k not in ('draws', 'n')}}
+    _same(committed, written)
+    data = vsbench_tasks.load(version)
+    assert data['version'] == version
     assert len(data['tasks']) == vsbench_tasks.TASKS
     assert len({t['id'] for t in data['tasks']}) == vsbench_tasks.TASKS
+
+
+def test_the_newest_version_is_the_default_and_keeps_what_its_own_teach_can_serve():
+    data = vsbench_tasks.load()
+    assert data['version'] == vsbench_tasks.VERSION == 'vsbench-3'
+    bound = data['tasks_definition']['margins']['min_observability_px_rad']
+    assert bound == pytest.approx(0.826, abs=1e-3)  # the bound of the 10-frame teach
+    observability = [t['observability'] for t in data['tasks']]
+    assert min(observability) >= bound
+    # a third of the tasks lies below the one-frame bound vsbench-2 refused them at
+    assert sum(o < 2.6 for o in observability) > 100
+    assert all(t['id'].startswith('workspace-3/1/') for t in data['tasks'])
+    # the rendered line of sight refused targets, and said why
+    draws = data['tasks_definition']['draws']
+    assert sum(v for k, v in draws.items() if 'rendered target' in k) >= 6
 
 
 def test_a_shorter_definition_is_a_prefix_of_the_longer_one():
@@ -176,7 +203,8 @@ def test_scenario3_start_reaches_shifted_targets_without_the_over_the_head_branc
         assert np.degrees(result.q_target[1]) > 0.0 and np.degrees(result.q_target[2]) > 0.0
         task = {'id': f'shifted/{k}', 'index': k, 'observability': 0.0,
                 'target_position': list(target[:3, 3]),
-                'target_rotation': list(target[:3, :3].ravel())}
+                'target_rotation': list(target[:3, :3].ravel()),
+                'start_joints': list(result.q_true[0]), 'target_joints': list(result.q_target)}
         row = vsbench.run_metrics(task, 'paper', result.t, result.q_true)
         # the straight joint-space line from the true start to the true goal
         start = result.q_true[0]

@@ -313,8 +313,7 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         raise ValueError(f'{VERSIONS[1]} needs a line_of_sight check and {VERSION} takes '
                          f'none (version {version!r})')
     if margins is None:
-        margins = Margins() if version == VERSION else Margins(
-            min_observability_px_rad=observability_bound(teach_frames))
+        margins = margins_for(version, teach_frames)
     model = default_model() if model is None else model
     rng = np.random.default_rng(seed)
     tally = Counter() if tally is None else tally
@@ -354,6 +353,13 @@ def tasks(n: int, seed: int, model: CameraRobotModel | None = None,
         tally['kept'] += 1
         out.append(_task_dict(model, len(out), seed, q_start, q, measures, version))
     return out
+
+
+def margins_for(version: str = VERSION, teach_frames: int = 1) -> Margins:
+    """Return a version's default margins: workspace-3's observability bound of the teach."""
+    if version == VERSION:
+        return Margins()
+    return Margins(min_observability_px_rad=observability_bound(teach_frames))
 
 
 def describe(margins: Margins = Margins(), version: str = VERSION) -> dict[str, Any]:
