@@ -1,5 +1,4 @@
-"""``make vsbench`` end to end, tiny: 2 tasks at two latencies through the model loop, one task
-through the graph at each."""
+"""``make vsbench`` end to end, tiny: 2 tasks at 2 latencies in the model loop, 1 in the graph."""
 
 import csv
 import json

@@ -134,12 +134,14 @@ def latency_axis(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
 
     Over the successful runs: time to 1 mm and its excess over the task's time-optimal
     bound (``time_to_1mm_over_optimal_s``); over the finished runs: the bound, overshoot and
-    the position error's ripple over the last 0.5 s. Sorted by source, law, latency, error.
+    the position error's ripple over the last 0.5 s. Sorted by source, law (in the order
+    the rows hold them), latency and error.
     """
     out = []
+    laws = list(dict.fromkeys(r['law'] for r in rows))  # in the order they ran
     keys = sorted({(r['source'], r['law']) + point_of(r) for r in rows},
                   key=lambda k: (('model', 'graph').index(k[0]) if k[0] in ('model', 'graph')
-                                 else 2, k[1], k[2], k[3]))
+                                 else 2, laws.index(k[1]), k[2], k[3]))
     for source, law, latency, error in keys:
         group = [r for r in at_point(rows, latency, error)
                  if r['source'] == source and r['law'] == law]
@@ -219,9 +221,9 @@ def latency_figure(axis: Sequence[Mapping[str, Any]], out_dir: Path) -> Path:
                          mfc='none' if source == 'graph' else colour, label=label)
             bottom.plot(x, [e['time_to_1mm_s'] for e in line], style, color=colour,
                         mfc='none' if source == 'graph' else colour, label=label)
-            if source == 'model':
-                bottom.plot(x, [e['time_optimal_s'] for e in line], ':', color=colour,
-                            label=f'{law}: time-optimal bound (median)' if i == 0 else None)
+            if source == 'model' and i == 0:  # one bound per task, whatever the law
+                bottom.plot(x, [e['time_optimal_s'] for e in line], ':', color='grey',
+                            label='time-optimal bound (median of the tasks)')
     top.axhline(100 * FAILING_RATE, color='grey', lw=0.8, ls='--')
     top.set_ylabel('success [%]')
     top.set_title('success and time to 1 mm against the camera latency')

@@ -54,17 +54,15 @@ def test_a_point_selects_its_rows_whatever_the_floats_rounding():
     assert [r['task'] for r in vsbench_report.at_point(rows, 0.3, 0.02)] == ['b']
 
 
-def test_the_bound_is_toppras_move_plus_at_most_the_jerk_rise():
+def test_the_bound_is_toppras_move_plus_at_most_one_jerk_rise():
     # The model loop's 'limited' plant: rated speeds and the accelerations the torque
     # limits buy on M = I (the governor caps them at full speed in one rise), jerk
-    # a / JERK_RISE_S. TOPP-RA (a test-only peer) has no jerk limit: the bound is no
-    # shorter than its straight line's optimum (less the few hundredths a time-synchronised
-    # move may gain off that line) and longer by at most the two rises of a jerk-limited
-    # rest-to-rest move.
+    # a / JERK_RISE_S. TOPP-RA (a test-only peer) has no jerk limit: Ruckig's bound is its
+    # straight line's optimum plus what ramping the acceleration costs, about one rise
+    # (half of it at each of the move's two ends), never less.
     ta = pytest.importorskip('toppra', reason='TOPP-RA is pinned in requirements-test.txt')
     speed = np.asarray(IRB4600.qd_max, dtype=float)
     acceleration = np.minimum(np.asarray(vsbench.ACCELERATION_LIMITS), speed / JERK_RISE_S)
-    on_the_line = 0
     for task in task_sampler.tasks(20, seed=7):
         q0 = np.asarray(task['start_joints'], dtype=float)
         q1 = np.asarray(task['target_joints'], dtype=float)
@@ -76,9 +74,7 @@ def test_the_bound_is_toppras_move_plus_at_most_the_jerk_rise():
             limits, path, gridpoints=np.linspace(0.0, 1.0, 2000),
             parametrizer='ParametrizeConstAccel').compute_trajectory(0.0, 0.0).duration)
         ours = limited_time_optimal_s(q0, q1, vsbench.ACCELERATION_LIMITS)
-        assert peer - 0.05 <= ours <= peer + 2 * JERK_RISE_S + 1e-3, task['id']
-        on_the_line += ours >= peer - 1e-3
-    assert on_the_line >= 15
+        assert peer - 1e-3 <= ours <= peer + JERK_RISE_S + 3e-3, (task['id'], ours, peer)
 
 
 def test_a_model_run_records_its_point_and_never_beats_its_bound():
