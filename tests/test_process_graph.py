@@ -61,9 +61,11 @@ def test_executables_form_the_contract_graph_and_stop_on_sigint(context, install
             for p in procs:
                 assert p.poll() is None, f'{p.name} exited: {p.log_path.read_text()[-2000:]}'
             topics = dict(observer.get_topic_names_and_types())
+            # Counted as the checks below count: this graph's nodes only (a reader left in
+            # discovery by an earlier test on this domain must not end the wait early).
             counts_ok = all(
-                observer.count_publishers(t) >= pubs and
-                (subs is None or observer.count_subscribers(t) >= subs)
+                _count(observer.get_publishers_info_by_topic(t)) >= pubs and
+                (subs is None or _count(observer.get_subscriptions_info_by_topic(t)) >= subs)
                 for t, (_, pubs, subs) in EXPECTED.items())
             if NODE_NAMES <= set(observer.get_node_names()) and counts_ok:
                 break
