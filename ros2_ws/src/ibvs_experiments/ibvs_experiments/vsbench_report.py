@@ -386,11 +386,11 @@ def write_results(rows: Sequence[Mapping[str, Any]], out_dir: str | Path,
                   'the graph on its first tasks only (the table says how many).', '']
         lines += latency_table(axis)
         if axis_agree:
+            head, rule, *body = agreement_table(axis_agree)
             lines += ['', 'The loops on their common tasks, per latency:', '',
-                      '| latency [ms] ' + agreement_table(axis_agree)[0],
-                      '|---' + agreement_table(axis_agree)[1]]
-            lines += [f"| {e['latency_s'] * 1e3:.0f} " + line for e, line in
-                      zip(axis_agree, agreement_table(axis_agree)[2:])]
+                      '| latency [ms] ' + head, '|---' + rule]
+            lines += [f"| {e['latency_s'] * 1e3:.0f} " + line
+                      for e, line in zip(axis_agree, body)]
     lines += ['', '## Figures', ''] + [f'![{p.stem}]({p.name})' for p in figures]
     misses = [r for r in rows if not r['success']]
     if misses:
