@@ -212,10 +212,14 @@ def law_settings(values: Mapping[str, Any]) -> dict[str, Any]:
     """
     Return the values of :data:`LAW_PARAMS` in ``values`` (a mapping by name), by name.
 
-    With ``speed_limits``, the speeds the arm is allowed (:func:`allowed_joint_speeds`).
+    With ``speed_limits``, the speeds the arm is allowed (:func:`allowed_joint_speeds`), and
+    ``own_move``, whether the joint controller makes its own move to the goal
+    (:func:`.controllers.makes_own_move`: the position interface, or 'limited' actuators).
     """
     settings = {spec.name: values[spec.name] for spec in LAW_PARAMS}
     settings['speed_limits'] = allowed_joint_speeds(values)
+    settings['own_move'] = controllers.makes_own_move(values.get('command_interface', 'effort'),
+                                                      values.get('actuators', 'ideal'))
     return settings
 
 
@@ -310,6 +314,7 @@ class AdaptiveFeedbackConfig(ParamConfig):
     lambda_slope: float = param_field(LAMBDA_SLOPE)
     camera_pose: tuple[float, ...] = param_field(shared.CAMERA_POSE)
     command_interface: str = param_field(shared.COMMAND_INTERFACE)
+    actuators: str = param_field(shared.ACTUATORS)
     max_joint_speed_deg_s: float = param_field(shared.MAX_JOINT_SPEED_DEG_S)
     tau_in: float = param_field(TAU_IN)
     omega_n: float = param_field(OMEGA_N)

@@ -287,6 +287,29 @@ def test_trust_region_clips_each_channel_alone_and_hold(feedback_setup):
     assert not up.held and held.filter.steps == 1
 
 
+def test_a_law_that_leaves_the_move_to_the_joint_controller_holds_the_moves_own_error(
+        feedback_setup):
+    """At rest at the start the whole error is the planned move's; near its end it is not."""
+    model, _, q_target = feedback_setup
+    q_far = inverse_kinematics(paper.scenario_start_pose(1))
+    at_rest = np.zeros(6)
+    published = make_feedback(feedback_setup)
+    assert not published.update(model.features(q_far), q_far, qdot_encoder=at_rest).held
+    fb = make_feedback(feedback_setup, own_move=True)
+    for _ in range(3):
+        up = fb.update(model.features(q_far), q_far, qdot_encoder=at_rest)
+        assert up.held and np.all(up.q_feedback == 0.0) and fb.filter.steps == 0
+    np.testing.assert_allclose(fb.goal, q_target, atol=1e-9)
+    d = np.radians(paper.DISTURBANCE_DEG)
+    up = fb.update(model.features(q_target + d), q_target, qdot_encoder=at_rest)
+    assert not up.held and fb.filter.steps == 1
+    # the goal moves with the correction: an arm that follows q_target + q_feedback is at it
+    near = q_target + up.q_feedback + 0.9 * fb.max_correction_rad * np.eye(6)[0]
+    assert not fb.update(model.features(near), near, qdot_encoder=at_rest).held
+    fb.reset()
+    assert fb.goal is None
+
+
 def test_linearisation_point_encoders_or_features(feedback_setup):
     """C1 at the encoder angles (default) or at F^-1(p_hat) (eq. 42): same with a true model."""
     model, _, q_target = feedback_setup

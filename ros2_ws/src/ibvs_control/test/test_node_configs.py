@@ -13,13 +13,17 @@ def test_the_feedback_config_holds_every_setting_of_the_servo_law():
     assert all(any(spec is p for p in params) for spec in LAW_PARAMS)
     c = AdaptiveFeedbackConfig(omega_n=2, svd_damping=0.5)
     settings = c.law_settings()
-    assert list(settings) == [spec.name for spec in LAW_PARAMS] + ['speed_limits']
+    assert list(settings) == [spec.name for spec in LAW_PARAMS] + ['speed_limits', 'own_move']
+    # the joint controller makes its own move through the position interface or when limited
+    assert not settings['own_move']
+    assert AdaptiveFeedbackConfig.make(actuators='limited').law_settings()['own_move']
     # the speeds the arm is allowed: rated with the effort interface, capped with position
     np.testing.assert_allclose(settings['speed_limits'], IRB4600.qd_max)
     capped = AdaptiveFeedbackConfig.make(command_interface='position',
                                          max_joint_speed_deg_s=20.0).law_settings()
     np.testing.assert_allclose(capped['speed_limits'],
                                np.minimum(IRB4600.qd_max, np.radians(20.0)))
+    assert capped['own_move']
     assert settings['omega_n'] == 2.0 and isinstance(settings['omega_n'], float)
     assert settings['svd_damping'] == 0.5
 

@@ -21,7 +21,7 @@ class Paper(AdaptiveFeedback, ServoLaw):
 
     name = 'paper'
     options = ('svd_rcond', 'svd_damping', 'feedback_design', 'max_correction_rad',
-               'hold_speed_fraction', 'linearise_at', 'p_target', 'speed_limits')
+               'hold_speed_fraction', 'linearise_at', 'p_target', 'speed_limits', 'own_move')
     holding = 'holding (arm slewing)'
 
     @classmethod
